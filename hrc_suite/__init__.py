@@ -1,0 +1,1 @@
+"""hrc_suite: human-robot collaboration benchmarks on dm_control composer."""

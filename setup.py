@@ -1,0 +1,41 @@
+"""hrc_suite: safe reinforcement learning benchmarks for human-robot collaboration."""
+
+import setuptools
+
+setuptools.setup(
+    name='hrc_suite',
+    version='0.1.0',
+    description=('Human-robot collaboration benchmark tasks for safe '
+                 'reinforcement learning, on dm_control composer and MuJoCo.'),
+    long_description=open('README.md').read(),
+    long_description_content_type='text/markdown',
+    python_requires='>=3.10',
+    packages=setuptools.find_packages(include=['hrc_suite', 'hrc_suite.*',
+                                               'agents', 'agents.*']),
+    package_data={'hrc_suite': ['assets/**/*']},
+    include_package_data=True,
+    install_requires=[
+        # dm-control 1.0.50 crashes on mujoco 4 (MjModel.flex_vertedge).
+        'dm-control==1.0.50',
+        'mujoco==3.17.0',
+        'pin>=3.0',          # pinocchio kinematics (wheels, with coal).
+        'dm-env',
+        'numpy>=1.24',
+        'scipy>=1.10',
+        'absl-py',
+        'ruckig>=0.12',      # jerk-limited trajectory generation.
+        'imageio>=2.30',
+        'imageio-ffmpeg>=0.4.9',  # ships its own ffmpeg binary.
+        'tqdm',
+    ],
+    extras_require={
+        'train': ['jax>=0.4.30', 'flax', 'optax', 'distrax', 'tensorboardX',
+                  'matplotlib'],
+        'dev': ['pytest>=7', 'pytest-xdist'],
+        'gym': ['shimmy[dm-control]', 'gymnasium'],
+    },
+    classifiers=[
+        'Programming Language :: Python :: 3',
+        'Topic :: Scientific/Engineering :: Artificial Intelligence',
+    ],
+)
