@@ -293,7 +293,8 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
     if np.any(q_home < limits.q_min) or np.any(q_home > limits.q_max):
       reader.fail('q_home', f'{q_home.tolist()} is outside the joint limits')
   else:
-    q_home = np.clip(np.zeros(dof), limits.q_min, limits.q_max)
+    margin = 0.05 * (limits.q_max - limits.q_min)
+    q_home = np.clip(np.zeros(dof), limits.q_min + margin, limits.q_max - margin)
 
   return RobotDescription(
       name=str(data.get('name', path.stem)),
