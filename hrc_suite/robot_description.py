@@ -199,10 +199,18 @@ def _inertia_matrix(reader, values, field):
 
 
 def _check_rotation(reader, rotation, field):
+  """Validates a rotation and returns the nearest exact rotation matrix.
+
+  Files give rotations to 4 digits (Sawyer's last joint), so they are
+  orthonormalised (SVD) here and MuJoCo, pinocchio and NumPy FK all use the
+  same exact matrix.
+  """
   if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3) or (
       np.linalg.det(rotation) < 0):
     reader.fail(field, 'expected a proper rotation matrix (orthonormal, '
                 f'det +1), got {rotation.tolist()}')
+  u, _, vt = np.linalg.svd(rotation)
+  return u @ vt
 
 
 def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
@@ -223,7 +231,7 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
   for i, raw in enumerate(raw_links):
     f = f'links[{i}]'
     rotation = reader.array(raw, 'fixed_rotation', f + '.fixed_rotation', (3, 3))
-    _check_rotation(reader, rotation, f + '.fixed_rotation')
+    rotation = _check_rotation(reader, rotation, f + '.fixed_rotation')
     raw_capsule = reader.get(raw, 'capsule', f + '.capsule')
     capsule = Capsule(
         p1=reader.array(raw_capsule, 'p1', f + '.capsule.p1', (3,)),
@@ -263,7 +271,8 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
   raw_flange = reader.get(data, 'flange', 'flange')
   flange_rotation = reader.array(raw_flange, 'rotation', 'flange.rotation',
                                  (3, 3))
-  _check_rotation(reader, flange_rotation, 'flange.rotation')
+  flange_rotation = _check_rotation(reader, flange_rotation,
+                                    'flange.rotation')
 
   raw_shield = reader.get(data, 'shield', 'shield')
   unclampable = reader.get(raw_shield, 'unclampable_links',
