@@ -1,0 +1,126 @@
+"""Speed benchmarks: `python -m hrc_suite.benchmark [--section=physics,shield]`.
+
+Prints, per robot, the median wall time of one 4 ms physics step of the
+workcell with robot, gripper and tracking controller, next to a bare
+`mujoco.mj_step` of the same model, so the overhead is a ratio; and (when
+the safety package is present) the shield's cycle time. Numbers are recorded
+in docs/benchmarks.md.
+"""
+
+import platform
+import time
+
+from absl import app
+from absl import flags
+import mujoco
+import numpy as np
+
+from hrc_suite import robot_description
+
+_SECTIONS = flags.DEFINE_list(
+    'section', ['physics', 'shield'], 'Which benchmarks to run.')
+_ROBOTS = flags.DEFINE_list('robots', list(robot_description.ROBOT_NAMES),
+                            'Robots to benchmark.')
+_STEPS = flags.DEFINE_integer('steps', 2000, 'Physics steps per measurement.')
+
+
+def machine_summary() -> str:
+  cpu = platform.processor() or platform.machine()
+  try:
+    with open('/proc/cpuinfo') as f:
+      for line in f:
+        if line.startswith('model name'):
+          cpu = line.split(':', 1)[1].strip()
+          break
+  except OSError:
+    pass
+  import os
+  return (f'{cpu}, {os.cpu_count()} cores, Python '
+          f'{platform.python_version()}, MuJoCo {mujoco.__version__}')
+
+
+def _median_us(durations):
+  return 1e6 * float(np.median(durations))
+
+
+def physics_step_times(robot_name: str, steps: int):
+  """(median µs of a controlled workcell step, median µs of bare mj_step)."""
+  from dm_control import mjcf
+  from hrc_suite.control import controller as controller_lib
+  from hrc_suite.control import trajectory
+  from hrc_suite.entities import gripper as gripper_lib
+  from hrc_suite.entities import robot as robot_lib
+  from hrc_suite.entities import workcell as workcell_lib
+
+  arena = workcell_lib.Workcell()
+  robot = robot_lib.make_robot(robot_name)
+  robot.attach_gripper(gripper_lib.ParallelGripper())
+  arena.attach_robot(robot)
+  physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+  desc = robot.description
+  home = desc.q_home
+  span = 0.3 * (desc.limits.q_max - desc.limits.q_min)
+  waypoints = [home, np.clip(home + np.minimum(span, 0.5),
+                             desc.limits.q_min, desc.limits.q_max), home]
+  q_d, dq_d, ddq_d = trajectory.jerk_limited_trajectory(desc, waypoints)
+  robot.set_joint_positions(physics, home)
+  physics.forward()
+  controller = controller_lib.JointTrackingController(physics, robot)
+
+  controlled = np.empty(steps)
+  for k in range(steps):
+    i = k % len(q_d)
+    start = time.perf_counter()
+    controller(physics, q_d[i], dq_d[i], ddq_d[i])
+    physics.step()
+    controlled[k] = time.perf_counter() - start
+
+  model, data = physics.model.ptr, physics.data.ptr
+  bare = np.empty(steps)
+  for k in range(steps):
+    start = time.perf_counter()
+    mujoco.mj_step(model, data)
+    bare[k] = time.perf_counter() - start
+  return _median_us(controlled), _median_us(bare)
+
+
+def run_physics(robots, steps):
+  print('\n## Physics step (workcell + robot + gripper + controller)\n')
+  print('| robot | controlled step [µs] | bare mj_step [µs] | ratio |')
+  print('|---|---|---|---|')
+  for name in robots:
+    controlled, bare = physics_step_times(name, steps)
+    print(f'| {name} | {controlled:.1f} | {bare:.1f} | '
+          f'{controlled / bare:.2f} |')
+
+
+def run_shield(robots):
+  try:
+    from hrc_suite.safety import benchmark as shield_benchmark
+  except ImportError as e:
+    print(f'\n(shield benchmark unavailable: {e})')
+    return
+  shield_benchmark.main(robots)
+
+
+def main(argv):
+  del argv
+  print(f'# hrc_suite benchmark, {time.strftime("%Y-%m-%d")}')
+  print(f'machine: {machine_summary()}')
+  sections = set(_SECTIONS.value)
+  unknown = sections - {'physics', 'shield'}
+  if unknown:
+    raise app.UsageError(f'Unknown sections {sorted(unknown)}: expected '
+                         'physics, shield')
+  for name in _ROBOTS.value:
+    if name not in robot_description.ROBOT_NAMES:
+      raise app.UsageError(f'Unknown robot {name!r}: expected one of '
+                           f'{", ".join(robot_description.ROBOT_NAMES)}')
+  if 'physics' in sections:
+    run_physics(_ROBOTS.value, _STEPS.value)
+  if 'shield' in sections:
+    run_shield(_ROBOTS.value)
+
+
+if __name__ == '__main__':
+  app.run(main)
