@@ -24,6 +24,25 @@ MOTION_TASKS = ('reach', 'pick_place', 'inspection', 'lifting',
                 'handover_robot_to_human', 'handover_human_to_robot',
                 'hammering', 'stacking')
 CLIP_TASKS = MOTION_TASKS + ('other',)
+
+# Events that end idle phases, per task, in the order the phases occur. A
+# task's clips may only wait for these; the task triggers them on the player.
+# 'other' clips may use any identifier-like event name.
+TASK_EVENTS = {
+    'reach': (),
+    'pick_place': (),
+    'lifting': (),
+    # The robot holds the object in the inspection zone in front of the human.
+    'inspection': ('object_presented',),
+    # The human has the object from the robot's gripper.
+    'handover_robot_to_human': ('object_received',),
+    # The robot has grasped the presented object; then has placed it.
+    'handover_human_to_robot': ('object_taken', 'object_placed'),
+    # The robot has driven the nail the human holds.
+    'hammering': ('nail_hammered',),
+    # The robot has placed the second cube; then the fourth cube.
+    'stacking': ('second_cube_placed', 'fourth_cube_placed'),
+}
 HANDS = ('left', 'right')
 
 # The shield's human model bounds every keypoint speed by 2 m/s (SaRA
@@ -150,6 +169,9 @@ def _validate_idle_phase(phase, i, clip, source):
   if not isinstance(phase.event, str) or not _EVENT_PATTERN.match(phase.event):
     _fail(source, field + '.event',
           f'expected an identifier-like event name, got {phase.event!r}')
+  if clip.task in TASK_EVENTS and phase.event not in TASK_EVENTS[clip.task]:
+    _fail(source, field + '.event', f'task {clip.task!r} knows the events '
+          f'{TASK_EVENTS[clip.task]}, got {phase.event!r}')
   _check_finite_vector(source, field + '.amplitudes', phase.amplitudes, {2, 3})
   _check_finite_vector(source, field + '.speeds', phase.speeds,
                        {phase.amplitudes.shape[0]})

@@ -19,7 +19,7 @@ def make_clip(name='walk', num_frames=50, fps=100.0, **changes):
       positions=(base[None] + drift).astype(np.float32),
       keyframes=(10, 30),
       idle_phases=(clip_lib.IdlePhase(
-          keyframe=0, event='object_presented',
+          keyframe=0, event='object_taken',
           amplitudes=np.array([2.7, 0.007]), speeds=np.array([1.0, 3.1])),),
       holding_hand='right', placing_hand=None,
       targets={'handover_point': np.array([0.5, -0.1, 1.1])},
@@ -53,7 +53,7 @@ def test_round_trip_is_exact(tmp_path):
     np.testing.assert_array_equal(loaded.targets['handover_point'],
                                   clip.targets['handover_point'])
     (phase,) = loaded.idle_phases
-    assert phase.event == 'object_presented' and phase.keyframe == 0
+    assert phase.event == 'object_taken' and phase.keyframe == 0
     np.testing.assert_array_equal(phase.amplitudes, [2.7, 0.007])
     np.testing.assert_array_equal(phase.speeds, [1.0, 3.1])
     assert phase.amplitude_std_factor == 1.1
@@ -94,14 +94,15 @@ def test_validation_names_the_field(changes, field):
 @pytest.mark.parametrize('phase_changes, field', [
     (dict(keyframe=2), 'idle_phases[0].keyframe'),
     (dict(event='not an event'), 'idle_phases[0].event'),
+    (dict(event='nail_hammered'), 'idle_phases[0].event'),
     (dict(amplitudes=np.array([1.0])), 'idle_phases[0].amplitudes'),
     (dict(amplitudes=np.array([1.0, -1.0])), 'idle_phases[0].amplitudes'),
     (dict(speeds=np.array([1.0, 2.0, 3.0])), 'idle_phases[0].speeds'),
     (dict(speed_std_factor=0.9), 'idle_phases[0].speed_std_factor'),
 ])
 def test_idle_phase_validation(phase_changes, field):
-  fields = dict(keyframe=0, event='go', amplitudes=np.array([1.0, 0.1]),
-                speeds=np.array([1.0, 3.0]))
+  fields = dict(keyframe=0, event='object_taken',
+                amplitudes=np.array([1.0, 0.1]), speeds=np.array([1.0, 3.0]))
   fields.update(phase_changes)
   clip = make_clip(idle_phases=(clip_lib.IdlePhase(**fields),))
   with pytest.raises(clip_lib.ClipError, match=repr(field).replace('[', r'\[')):
@@ -109,10 +110,13 @@ def test_idle_phase_validation(phase_changes, field):
 
 
 def test_idle_phases_must_be_in_keyframe_order():
-  phases = tuple(clip_lib.IdlePhase(k, 'go', [1.0, 0.1], [1.0, 3.0])
-                 for k in (1, 0))
+  phases = tuple(clip_lib.IdlePhase(k, event, [1.0, 0.1], [1.0, 3.0])
+                 for k, event in ((1, 'object_taken'), (0, 'object_placed')))
   with pytest.raises(clip_lib.ClipError, match='keyframe order'):
     clip_lib.validate(make_clip(idle_phases=phases))
+  # Any identifier-like event is fine for clips of no benchmark task.
+  clip_lib.validate(make_clip(task='other', idle_phases=(
+      clip_lib.IdlePhase(0, 'door_opened', [1.0, 0.1], [1.0, 3.0]),)))
 
 
 def test_load_reports_file_and_field(tmp_path):
