@@ -1,0 +1,397 @@
+"""Per-task motion scripts for the synthetic library (see synthesis.py).
+
+Clip frame: the person's station is the origin, facing +x, z up. For the
+tasks across the table (layout.HUMAN_STATION_ACROSS) the table's far edge is
+at x = TABLE_EDGE_X and the robot base about 1.45 m ahead; for reach and pick
+and place the person works beside the robot (layout.HUMAN_STATION_BESIDE),
+where the table edge is at the same x and the robot base at
+ROBOT_BASE_BESIDE. Every script draws its variation (targets, hands, timing,
+number of repetitions) from the given random_state only.
+
+Idle phases use the reference benchmark's values (reference-benchmark.md and
+the recordings' _info.json, 100 fps), converted from frames to seconds.
+"""
+
+import math
+
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite.human import clip as clip_lib
+
+# Table edge towards the person and table top height in the clip frame.
+TABLE_EDGE_X = layout.HUMAN_STATION_ACROSS[0] - layout.TABLE_X[1]
+TABLE_Z = layout.TABLE_TOP_Z
+# Robot base in the clip frame of the beside station (yaw -pi/2).
+ROBOT_BASE_BESIDE = (layout.HUMAN_STATION_BESIDE[1] - layout.ROBOT_BASE_POS[1],
+                     layout.ROBOT_BASE_POS[0] - layout.HUMAN_STATION_BESIDE[0])
+# Cubes of the stacking task (edge length, m) and palm height above an
+# object's centre when gripping it from above.
+CUBE_SIZE = 0.05
+GRIP_ABOVE_CENTRE = 0.035
+# Hammer: distance from the palm to the striking face along the handle, and
+# height of the palm above the face at impact.
+HAMMER_REACH = 0.26
+HAMMER_FACE_BELOW_PALM = 0.04
+
+_FRAMES_PER_SECOND_OF_REFERENCE = 100.0   # the recordings' frame rate.
+
+
+def _seconds(amplitudes_in_frames):
+  return [a / _FRAMES_PER_SECOND_OF_REFERENCE for a in amplitudes_in_frames]
+
+
+# Reference idle phases: (amplitudes in seconds, dimensionless speeds).
+IDLE_ROBOT_TO_HUMAN = (_seconds([270, 0.7]), [1.0, 3.1])
+IDLE_HUMAN_TO_ROBOT_PRESENT = (_seconds([270, 0.7]), [1.0, 3.1])
+IDLE_HUMAN_TO_ROBOT_WAIT = (_seconds([10, 6.3, 2.4]), [0.12, 0.07, 0.034])
+IDLE_INSPECTION = (_seconds([10, 4.1, 7.7]), [0.15, 0.21, 0.0165])
+IDLE_HAMMERING = (_seconds([200, 0.6]), [1.0, 2.6])
+IDLE_STACKING_SECOND = (_seconds([100, 0.7]), [1.0, 3.1])
+IDLE_STACKING_FOURTH = (_seconds([8, 2.3, 2.4]), [0.09, 0.07, 0.034])
+
+# Events each task's idle phases wait for, in order (agreed in clip.py).
+EVENTS = clip_lib.TASK_EVENTS
+
+
+def _side_sign(side):
+  return 1.0 if side == 0 else -1.0
+
+
+def _hand_name(side):
+  return ('left', 'right')[side]
+
+
+def _choose_hand(rs, right_probability=0.7):
+  return 1 if rs.uniform() < right_probability else 0
+
+
+def _station(rs, spread=0.04):
+  return np.array([rs.uniform(-spread, spread), rs.uniform(-spread, spread)])
+
+
+def _approach(script, rs, distance=(0.6, 1.0), lateral=0.3):
+  """Starts back from the station and walks in; hands relaxed."""
+  start = np.array([-rs.uniform(*distance), rs.uniform(-lateral, lateral)])
+  script.start_at(start, yaw=rs.uniform(-0.15, 0.15))
+  script.hold(rs.uniform(0.3, 0.8))
+  script.walk(_station(rs), yaw=rs.uniform(-0.05, 0.05))
+  script.hold(rs.uniform(0.2, 0.5))
+
+
+def _retreat(script, rs, distance=(0.6, 1.0)):
+  """Turns away from the table and walks off."""
+  turn = rs.choice([-1.0, 1.0]) * rs.uniform(2.4, 3.0)
+  heading = script.value('yaw') + turn
+  d = rs.uniform(*distance)
+  xy = script.value('pelvis_xy') + d * np.array(
+      [math.cos(heading), math.sin(heading)])
+  script.walk(xy, yaw=heading)
+
+
+def _look_at(script, point, duration, advance=False, start=None):
+  """Turns the head towards a clip-frame point (small angles)."""
+  local = script.to_local(point)
+  neck_height = script.standing_height + script.body.spine
+  yaw = math.atan2(local[1], max(local[0], 0.05))
+  pitch = math.atan2(neck_height + 0.1 - point[2],
+                     max(math.hypot(local[0], local[1]), 0.05))
+  script.move(duration, advance=advance, start=start,
+              head_yaw=float(np.clip(yaw, -0.8, 0.8)),
+              head_pitch=float(np.clip(pitch, -0.3, 0.7)))
+
+
+def _table_point(rs, x, y, height=0.0):
+  return np.array([rs.uniform(*x), rs.uniform(*y), TABLE_Z + height])
+
+
+# ------------------------------------------------------------------ tasks
+
+
+def reach(script, rs):
+  """Working beside the robot: walk in, reach into the shared space, leave."""
+  sign = rs.choice([-1.0, 1.0])
+  script.start_at(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.7, 1.0)]),
+                  yaw=-sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+  script.hold(rs.uniform(0.2, 0.6))
+  script.walk(_station(rs), yaw=rs.uniform(-0.1, 0.1))
+  script.metadata['station'] = 'beside'
+  for i in range(rs.randint(2, 5)):
+    side = rs.randint(2)
+    target = _table_point(rs, (0.4, 0.7), (-0.35, 0.45), rs.uniform(0.05, 0.35))
+    _look_at(script, target, 0.5)
+    script.reach(side, target, swivel=rs.uniform(-0.2, 0.4),
+                 wrist=rs.uniform(0.1, 0.5))
+    script.targets[f'reach_{i + 1}'] = target
+    script.mark()
+    script.hold(rs.uniform(0.3, 1.2))
+    if rs.uniform() < 0.5:
+      work = _table_point(rs, (0.32, 0.42), (-0.25, 0.25), 0.06)
+      script.reach(side, work, wrist=0.6)
+      script.hold(rs.uniform(0.4, 1.2))
+    script.rest(side, lean=0.0, pelvis_drop=0.0, head_pitch=0.0, head_yaw=0.0)
+    script.hold(rs.uniform(0.2, 0.8))
+  if rs.uniform() < 0.7:
+    sign = rs.choice([-1.0, 1.0])
+    script.walk(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.6, 0.9)]),
+                yaw=sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+
+
+def pick_place(script, rs):
+  """Beside the robot: pick an object from the table, place it elsewhere."""
+  sign = rs.choice([-1.0, 1.0])
+  script.start_at(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.7, 1.0)]),
+                  yaw=-sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+  script.hold(rs.uniform(0.2, 0.6))
+  script.walk(_station(rs), yaw=rs.uniform(-0.1, 0.1))
+  script.metadata['station'] = 'beside'
+  side = _choose_hand(rs)
+  script.holding_hand = script.placing_hand = _hand_name(side)
+  for i in range(rs.randint(1, 3)):
+    pick = _table_point(rs, (0.38, 0.55), (-0.1, 0.45), GRIP_ABOVE_CENTRE + 0.02)
+    place = _table_point(rs, (0.45, 0.75), (-0.4, 0.2), GRIP_ABOVE_CENTRE + 0.02)
+    _look_at(script, pick, 0.5)
+    script.reach(side, pick + [0, 0, 0.06], wrist=0.6)
+    script.reach(side, pick, wrist=0.6, duration=rs.uniform(0.4, 0.6))
+    script.mark()
+    script.hold(rs.uniform(0.3, 0.5))
+    lift = 0.5 * (pick + place) + [0, 0, rs.uniform(0.12, 0.25)]
+    script.reach(side, lift, wrist=0.4)
+    _look_at(script, place, 0.5)
+    script.reach(side, place, wrist=0.6)
+    script.mark()
+    script.hold(rs.uniform(0.3, 0.6))
+    script.targets[f'pick_{i + 1}'] = pick - [0, 0, GRIP_ABOVE_CENTRE]
+    script.targets[f'place_{i + 1}'] = place - [0, 0, GRIP_ABOVE_CENTRE]
+    script.reach(side, place + [0, 0, 0.08], duration=rs.uniform(0.4, 0.6))
+    script.rest(side, lean=0.0, pelvis_drop=0.0, head_pitch=0.0, head_yaw=0.0)
+    script.hold(rs.uniform(0.3, 1.0))
+  if rs.uniform() < 0.7:
+    sign = rs.choice([-1.0, 1.0])
+    script.walk(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.6, 0.9)]),
+                yaw=sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+
+
+def inspection(script, rs):
+  """Approach, wait for the object, inspect it, retreat."""
+  _approach(script, rs)
+  point = np.array([rs.uniform(0.42, 0.55), rs.uniform(-0.1, 0.1),
+                    rs.uniform(1.15, 1.35)])
+  script.targets['inspection_point'] = point
+  amplitudes, speeds = IDLE_INSPECTION
+  script.idle(EVENTS['inspection'][0], amplitudes, speeds)
+  script.hold(rs.uniform(0.4, 0.8))
+  _look_at(script, point, 0.6, advance=True)
+  side = _choose_hand(rs, 0.6)
+  near = point + [-0.1, -_side_sign(1 - side) * 0.0, -0.06]
+  script.reach(side, near, lean=rs.uniform(0.05, 0.2), wrist=0.0)
+  for _ in range(rs.randint(2, 4)):
+    offset = np.array([rs.uniform(-0.13, -0.07), rs.uniform(-0.08, 0.08),
+                       rs.uniform(-0.08, 0.02)])
+    script.reach(side, point + offset, lean=script.value('lean'),
+                 speed_scale=0.6)
+    _look_at(script, point + [0, rs.uniform(-0.08, 0.08), 0], 0.5,
+             advance=True)
+    script.hold(rs.uniform(0.3, 0.9))
+  script.rest(side, lean=0.0, head_pitch=0.0, head_yaw=0.0)
+  script.mark()
+  script.hold(rs.uniform(0.3, 0.8))
+  _retreat(script, rs)
+
+
+def lifting(script, rs):
+  """Grasp the board's end with both hands, lift, carry slowly, put down."""
+  script.start_at(_station(rs, 0.06), yaw=rs.uniform(-0.05, 0.05))
+  script.channels['pelvis_drop'].value[:] = 0.0
+  script.hold(rs.uniform(0.5, 1.0))
+  grasp_x = rs.uniform(TABLE_EDGE_X + 0.02, TABLE_EDGE_X + 0.08)
+  half = rs.uniform(0.14, 0.18)
+  centre_y = rs.uniform(-0.04, 0.04)
+  board_top = TABLE_Z + 0.03
+  grasps = [np.array([grasp_x, centre_y + half, board_top + 0.02]),
+            np.array([grasp_x, centre_y - half, board_top + 0.02])]
+  script.targets['board_grasp_left'] = grasps[0]
+  script.targets['board_grasp_right'] = grasps[1]
+  script.metadata['board_size'] = [1.0, 0.4, 0.03]
+  _look_at(script, 0.5 * (grasps[0] + grasps[1]), 0.6)
+  script.reach_both(grasps, speed_scale=0.8, left_wrist=0.5, right_wrist=0.5)
+  script.mark()
+  script.hold(rs.uniform(0.5, 0.9))
+  lift = rs.uniform(0.15, 0.3)
+  held = [g + [rs.uniform(-0.05, 0.0), 0.0, lift] for g in grasps]
+  held[1][0] = held[0][0]
+  script.reach_both(held, duration=rs.uniform(1.8, 2.6), lean=0.0,
+                    pelvis_drop=0.0, head_pitch=0.2)
+  script.mark()
+  for _ in range(rs.randint(2, 4)):
+    script.hold(rs.uniform(0.5, 1.5))
+    if rs.uniform() < 0.5:
+      step = np.array([rs.uniform(-0.2, 0.05), rs.uniform(-0.2, 0.2)])
+      script.walk(script.value('pelvis_xy') + step,
+                  duration=rs.uniform(2.5, 3.5))
+    else:
+      dz = rs.uniform(-0.1, 0.1)
+      moved = [script.hand_world(s) + [0, 0, dz] for s in range(2)]
+      script.reach_both(moved, duration=rs.uniform(1.5, 2.5), lean=0.0)
+    script.mark()
+  script.walk(_station(rs, 0.02), duration=rs.uniform(2.5, 3.0))
+  down = [np.array([grasp_x, centre_y + half, board_top + 0.02]),
+          np.array([grasp_x, centre_y - half, board_top + 0.02])]
+  script.reach_both(down, speed_scale=0.6)
+  script.mark()
+  script.hold(rs.uniform(0.4, 0.8))
+  script.rest(0, advance=False, lean=0.0, pelvis_drop=0.0, head_pitch=0.0,
+              head_yaw=0.0)
+  script.rest(1)
+  script.hold(rs.uniform(0.3, 0.8))
+
+
+def handover_robot_to_human(script, rs):
+  """Reach out for the object, wait for it, take it back, retreat."""
+  _approach(script, rs)
+  side = _choose_hand(rs)
+  script.holding_hand = _hand_name(side)
+  point = np.array([rs.uniform(0.40, 0.52), _side_sign(side) * rs.uniform(
+      0.0, 0.18), rs.uniform(1.0, 1.2)])
+  script.targets['handover_point'] = point
+  _look_at(script, point, 0.6)
+  script.reach(side, point, lean=rs.uniform(0.05, 0.25), wrist=0.0,
+               swivel=rs.uniform(0.0, 0.4))
+  script.hold(rs.uniform(0.2, 0.5))
+  amplitudes, speeds = IDLE_ROBOT_TO_HUMAN
+  script.idle(EVENTS['handover_robot_to_human'][0], amplitudes, speeds)
+  # Forward warp reaches sum(amplitudes) x 1.1**3 past the keyframe: hold.
+  script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.8))
+  carry = script.to_world(np.array([rs.uniform(0.2, 0.3),
+                                    _side_sign(side) * 0.2,
+                                    script.standing_height + 0.1]))
+  script.reach(side, carry, lean=0.0, wrist=0.3, head_pitch=0.2, head_yaw=0.0,
+               pelvis_drop=0.0)
+  script.mark()
+  script.hold(rs.uniform(0.4, 0.8))
+  _retreat(script, rs)
+
+
+def handover_human_to_robot(script, rs):
+  """Pick up the object, present it, wait until it is taken, retreat."""
+  _approach(script, rs)
+  side = _choose_hand(rs)
+  script.holding_hand = _hand_name(side)
+  pick = _table_point(rs, (0.38, 0.48), (0.12, 0.32), 0.03)
+  pick[1] *= _side_sign(side)
+  script.targets['object_pick'] = pick - [0, 0, 0.03]
+  _look_at(script, pick, 0.5)
+  script.reach(side, pick + [0, 0, 0.06], wrist=0.7)
+  script.reach(side, pick, wrist=0.7, duration=rs.uniform(0.4, 0.6))
+  script.mark()
+  script.hold(rs.uniform(0.3, 0.6))
+  point = np.array([rs.uniform(0.42, 0.55), _side_sign(side) * rs.uniform(
+      0.0, 0.15), rs.uniform(1.0, 1.2)])
+  script.targets['handover_point'] = point
+  _look_at(script, point, 0.6)
+  script.reach(side, point, lean=rs.uniform(0.05, 0.2), wrist=0.1,
+               pelvis_drop=0.0)
+  amplitudes, speeds = IDLE_HUMAN_TO_ROBOT_PRESENT
+  script.idle(EVENTS['handover_human_to_robot'][0], amplitudes, speeds)
+  script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.6))
+  script.rest(side, lean=0.0, head_pitch=0.3)
+  script.hold(0.3)
+  amplitudes, speeds = IDLE_HUMAN_TO_ROBOT_WAIT
+  script.idle(EVENTS['handover_human_to_robot'][1], amplitudes, speeds)
+  script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.4, 0.8))
+  script.move(0.6, head_pitch=0.0, head_yaw=0.0)
+  _retreat(script, rs)
+
+
+def hammering(script, rs):
+  """Approach holding a hammer, strike the nail until it is in, retreat."""
+  side = _choose_hand(rs, 0.8)
+  script.holding_hand = _hand_name(side)
+  _approach(script, rs)
+  nail = np.array([rs.uniform(0.58, 0.68), _side_sign(side) * rs.uniform(
+      0.0, 0.15), rs.uniform(0.95, 1.08)])
+  contact = nail + [-HAMMER_REACH, 0.0, HAMMER_FACE_BELOW_PALM]
+  script.targets['nail'] = nail
+  script.targets['strike_grip'] = contact
+  raised = contact + [-rs.uniform(0.06, 0.1), 0.0, rs.uniform(0.18, 0.26)]
+  _look_at(script, nail, 0.6)
+  script.reach(side, raised, lean=rs.uniform(0.1, 0.2), wrist=0.0)
+  script.hold(rs.uniform(0.2, 0.4))
+  script.mark()
+  amplitudes, speeds = IDLE_HAMMERING
+  # The idle phase loops the blows (forwards and backwards) until the nail is
+  # in: blows must cover the warp's reach on both sides of the keyframe.
+  reach_time = sum(amplitudes) * 1.1 ** 3
+  start = script.t
+  anchored = False
+  while not anchored or script.t < start + 2 * reach_time + 0.5:
+    if not anchored and script.t >= start + reach_time:
+      script.idle(EVENTS['hammering'][0], amplitudes, speeds)
+      anchored = True
+    top = raised + rs.uniform(-0.02, 0.02, 3)
+    script.strike(side, contact, top, up_time=rs.uniform(0.4, 0.6),
+                  down_time=rs.uniform(0.12, 0.16),
+                  rest_time=rs.uniform(0.1, 0.3))
+  script.mark()
+  carry = script.to_world(np.array([0.2, _side_sign(side) * 0.22,
+                                    script.standing_height - 0.05]))
+  script.reach(side, carry, lean=0.0, head_pitch=0.0, head_yaw=0.0,
+               wrist=0.3)
+  script.hold(rs.uniform(0.3, 0.6))
+  _retreat(script, rs)
+
+
+def stacking(script, rs):
+  """Place cube 1, wait for cube 2, place cube 3, wait for cube 4."""
+  _approach(script, rs, distance=(0.4, 0.7))
+  side = _choose_hand(rs, 0.5)
+  script.placing_hand = _hand_name(side)
+  base = _table_point(rs, (0.55, 0.65), (-0.08, 0.08))
+  script.targets['stack_base'] = base
+  script.metadata['cube_size'] = CUBE_SIZE
+  second_side = side if rs.uniform() < 0.6 else 1 - side
+  waits = (IDLE_STACKING_SECOND, IDLE_STACKING_FOURTH)
+  for n, (hand, cube, wait) in enumerate(
+      ((side, 1, waits[0]), (second_side, 3, waits[1]))):
+    pick = _table_point(rs, (0.36, 0.45), (0.2, 0.35), CUBE_SIZE / 2)
+    pick[1] *= _side_sign(hand)
+    place = base + [0, 0, CUBE_SIZE * (cube - 0.5)]
+    script.targets[f'cube_{cube}_pick'] = pick
+    script.targets[f'cube_{cube}_place'] = place
+    grip = [0, 0, GRIP_ABOVE_CENTRE]
+    _look_at(script, pick, 0.5)
+    script.reach(hand, pick + grip + [0, 0, 0.06], wrist=0.8)
+    script.reach(hand, pick + grip, wrist=0.8, duration=rs.uniform(0.4, 0.6))
+    script.hold(rs.uniform(0.2, 0.4))
+    _look_at(script, place, 0.5)
+    script.reach(hand, place + grip + [0, 0, 0.08], wrist=0.8)
+    script.reach(hand, place + grip, wrist=0.8, duration=rs.uniform(0.5, 0.7))
+    script.mark()
+    script.hold(rs.uniform(0.2, 0.4))
+    script.reach(hand, place + grip + [0, 0, 0.1],
+                 duration=rs.uniform(0.4, 0.6))
+    script.rest(hand, lean=0.0, pelvis_drop=0.0, head_pitch=0.3, head_yaw=0.0)
+    amplitudes, speeds = wait
+    script.hold(sum(amplitudes) * 1.1 ** 3 * (1 if n == 0 else 0) + 0.2)
+    script.idle(EVENTS['stacking'][n], amplitudes, speeds)
+    script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.4, 0.8))
+  _retreat(script, rs, distance=(0.4, 0.8))
+
+
+TASK_SCRIPTS = {
+    'reach': reach,
+    'pick_place': pick_place,
+    'inspection': inspection,
+    'lifting': lifting,
+    'handover_robot_to_human': handover_robot_to_human,
+    'handover_human_to_robot': handover_human_to_robot,
+    'hammering': hammering,
+    'stacking': stacking,
+}
+
+# Clips per task: the reference's counts (paper Table I).
+CLIP_COUNTS = {
+    'reach': 12, 'pick_place': 12, 'inspection': 8, 'lifting': 9,
+    'handover_robot_to_human': 15, 'handover_human_to_robot': 11,
+    'hammering': 11, 'stacking': 8,
+}
