@@ -1,0 +1,296 @@
+"""The long-term plan: a jerk-limited joint trajectory to rest at a goal.
+
+A `LongTermPlan` stores joint samples (q, dq, ddq, dddq) one cycle apart,
+starting at plan time `start_time`. The shield moves along it with a path
+parameter s (plan time) and path velocity s_dot (spec section 2.2): the plan
+is evaluated by a Taylor expansion from the sample at or before s and the
+chain rule. The sample index is floor((s - start_time) / cycle_time): the
+plan's own start is subtracted exactly once (the original subtracted its
+starting index twice after the first re-planning, so every look-ahead
+collapsed onto the current sample: defect B1).
+
+`plan_to_goal` computes the time-optimal, jerk-limited, synchronised motion
+from the current joint state to rest at a goal with Ruckig, using the
+long-term-planning limits (a_max_ltt, j_max_ltt, v_max; spec section 2.1),
+and samples it exactly (piecewise constant jerk) every cycle.
+"""
+
+import numpy as np
+import ruckig
+
+# Goals are kept this far inside the joint limits (rad; spec 2.1, the
+# original's planning tolerance).
+GOAL_LIMIT_MARGIN = 0.01
+# Taylor weights: q(tau) = sum_c tau^c / c! * (d^c q / ds^c)_k.
+_POWERS = np.arange(4.0)
+_TAYLOR = np.array([1.0, 1.0, 0.5, 1.0 / 6.0])
+# Slack for float round-off when checking the start state against limits.
+_LIMIT_SLACK = 1e-9
+
+
+class PlanningError(ValueError):
+  """No plan can be made from this state to this goal."""
+
+
+class LongTermPlan:
+  """Joint samples every `cycle_time` seconds from plan time `start_time`."""
+
+  def __init__(self, q, dq, ddq, dddq, cycle_time, start_time=0.0):
+    arrays = [np.array(x, dtype=float) for x in (q, dq, ddq, dddq)]
+    shape = arrays[0].shape
+    if len(shape) != 2 or shape[0] < 1:
+      raise ValueError('Plan samples must have shape (num_samples >= 1, dof), '
+                       f'got q of shape {shape}')
+    for name, array in zip(('dq', 'ddq', 'dddq'), arrays[1:]):
+      if array.shape != shape:
+        raise ValueError(f'Plan {name} has shape {array.shape}, expected '
+                         f'{shape} like q')
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+      raise ValueError('Plan samples must be finite')
+    if not cycle_time > 0:
+      raise ValueError(f'cycle_time must be positive, got {cycle_time}')
+    # (num_samples, 4, dof): q and its derivatives, for one gather per query.
+    self._coefficients = np.stack(arrays, axis=1)
+    self._coefficients.flags.writeable = False
+    self.q, self.dq, self.ddq, self.dddq = (self._coefficients[:, i]
+                                            for i in range(4))
+    self.cycle_time = float(cycle_time)
+    self.start_time = float(start_time)
+    self._inverse_cycle = 1.0 / self.cycle_time
+    self._last = shape[0] - 1
+
+  @classmethod
+  def at_rest(cls, q, cycle_time, start_time=0.0):
+    """A one-sample plan: stand still at q."""
+    q = np.asarray(q, dtype=float)[None]
+    zeros = np.zeros_like(q)
+    return cls(q, zeros, zeros, zeros, cycle_time, start_time)
+
+  @property
+  def num_samples(self):
+    return self._last + 1
+
+  @property
+  def dof(self):
+    return self.q.shape[1]
+
+  @property
+  def end_time(self):
+    """Plan time of the last sample (the goal, at rest)."""
+    return self.start_time + self._last * self.cycle_time
+
+  @property
+  def goal(self):
+    return self.q[-1]
+
+  def index(self, s):
+    """Sample index at or before plan time s (array or scalar), clamped."""
+    k = np.floor((np.asarray(s, dtype=float) - self.start_time)
+                 * self._inverse_cycle)
+    return np.clip(k, 0, self._last).astype(int)
+
+  def nominal(self, s):
+    """Joint state at nominal speed at plan times s (K,).
+
+    Returns (q, v, a, j), each (K, dof): position and its first three
+    derivatives with respect to plan time, by Taylor expansion from the
+    sample at or before s. Past the end the last sample (at rest) is held.
+    """
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    k = self.index(s)
+    tau = (s - self.start_time - k * self.cycle_time)[:, None]
+    c = self._coefficients[k]
+    j = c[:, 3]
+    a = c[:, 2] + tau * j
+    v = c[:, 1] + tau * (c[:, 2] + 0.5 * tau * j)
+    q = c[:, 0] + tau * (c[:, 1] + tau * (0.5 * c[:, 2] + tau * j / 6.0))
+    return q, v, a, j
+
+  def positions(self, s):
+    """Joint positions (K, dof) at plan times s (K,); the fast path."""
+    s = np.asarray(s, dtype=float)
+    k = np.floor((s - self.start_time) * self._inverse_cycle)
+    np.clip(k, 0, self._last, out=k)
+    tau = s - self.start_time - k * self.cycle_time
+    weights = np.power(tau[:, None], _POWERS) * _TAYLOR
+    return np.matmul(weights[:, None, :], self._coefficients[k.astype(int)]
+                     )[:, 0]
+
+  def state(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
+    """One path state (scalars) -> (5, dof): q, dq, ddq, dddq, v_nominal.
+
+    Chain rule of spec 2.2 with the Taylor expansion folded into one 5x4
+    matrix: dq = v s_dot, ddq = v s_ddot + a s_dot^2,
+    dddq = j s_dot^3 + 3 a s_ddot s_dot + v jerk; v_nominal = v.
+    """
+    k = int((s - self.start_time) * self._inverse_cycle // 1.0)
+    k = 0 if k < 0 else (self._last if k > self._last else k)
+    t = s - self.start_time - k * self.cycle_time
+    t2 = 0.5 * t * t
+    t3 = t2 * t / 3.0
+    v2 = s_dot * s_dot
+    sa = 3.0 * s_ddot * s_dot
+    # Rows: [q, v, a, j] of the Taylor expansion, combined by the chain rule.
+    matrix = np.array((
+        (1.0, t, t2, t3),
+        (0.0, s_dot, s_dot * t, s_dot * t2),
+        (0.0, s_ddot, s_ddot * t + v2, s_ddot * t2 + v2 * t),
+        (0.0, jerk, jerk * t + sa, jerk * t2 + sa * t + v2 * s_dot),
+        (0.0, 1.0, t, t2)))
+    return matrix @ self._coefficients[k]
+
+  def evaluate(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
+    """Joint (q, dq, ddq, dddq) on the path state (s, s_dot, s_ddot, jerk).
+
+    Scalars give (dof,) arrays; (K,) arrays give (K, dof) arrays.
+    """
+    if np.ndim(s) == 0:
+      out = self.state(float(s), float(s_dot), float(s_ddot), float(jerk))
+      return out[0], out[1], out[2], out[3]
+    q, v, a, j = self.nominal(s)
+    s_dot, s_ddot, jerk = (np.asarray(x, dtype=float)[:, None]
+                           for x in (s_dot, s_ddot, jerk))
+    dq = v * s_dot
+    ddq = v * s_ddot + a * (s_dot * s_dot)
+    dddq = j * (s_dot * s_dot * s_dot) + 3.0 * a * (s_ddot * s_dot) + v * jerk
+    return q, dq, ddq, dddq
+
+
+def _check_vector(name, value, dof):
+  array = np.asarray(value, dtype=float)
+  if array.shape != (dof,):
+    raise ValueError(f'{name} must have shape ({dof},), got {array.shape}')
+  if not np.all(np.isfinite(array)):
+    raise ValueError(f'{name} must be finite, got {array.tolist()}')
+  return array
+
+
+def clamp_goal(q_goal, limits):
+  """The goal moved GOAL_LIMIT_MARGIN inside the joint limits (spec 2.1)."""
+  q_goal = _check_vector('q_goal', q_goal, len(limits.q_min))
+  return np.clip(q_goal, limits.q_min + GOAL_LIMIT_MARGIN,
+                 limits.q_max - GOAL_LIMIT_MARGIN)
+
+
+def check_start_state(q0, dq0, ddq0, limits):
+  """Raises PlanningError if the plan cannot start here (spec 2.1)."""
+  v_max, a_max, j_max = limits.v_max, limits.a_max_ltt, limits.j_max_ltt
+  checks = (
+      ('q0 below q_min', q0 < limits.q_min - _LIMIT_SLACK),
+      ('q0 above q_max', q0 > limits.q_max + _LIMIT_SLACK),
+      ('|dq0| above v_max', np.abs(dq0) > v_max + _LIMIT_SLACK),
+      ('|ddq0| above a_max_ltt', np.abs(ddq0) > a_max + _LIMIT_SLACK),
+      ('velocity after ramping ddq0 to zero above v_max',
+       np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max)) > v_max
+       + _LIMIT_SLACK),
+  )
+  for what, bad in checks:
+    if np.any(bad):
+      joints = np.nonzero(bad)[0].tolist()
+      raise PlanningError(f'Cannot plan from this state: {what} for joints '
+                          f'{joints} (q0={q0.tolist()}, dq0={dq0.tolist()}, '
+                          f'ddq0={ddq0.tolist()})')
+
+
+def _pieces(profile):
+  """Constant-jerk pieces of one joint: start times, p, v, a, j at starts."""
+  if profile.accel.duration > 0.0:
+    raise PlanningError('Ruckig returned a pre-acceleration phase; the start '
+                        'state is outside the planning limits')
+  starts, p, v, a, j = [], [], [], [], []
+  time = 0.0
+  brake = profile.brake
+  if brake.duration > 0.0:
+    for i in range(2):
+      if brake.t[i] > 0.0:
+        starts.append(time)
+        p.append(brake.p[i])
+        v.append(brake.v[i])
+        a.append(brake.a[i])
+        j.append(brake.j[i])
+        time += brake.t[i]
+  for i in range(7):
+    starts.append(time)
+    p.append(profile.p[i])
+    v.append(profile.v[i])
+    a.append(profile.a[i])
+    j.append(profile.j[i])
+    time += profile.t[i]
+  return (np.array(starts), np.array(p), np.array(v), np.array(a),
+          np.array(j))
+
+
+def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
+  """Time-optimal jerk-limited synchronised plan to rest at q_goal.
+
+  Args:
+    q0, dq0, ddq0: the current joint state (dof,).
+    q_goal: the goal; clamped GOAL_LIMIT_MARGIN inside the joint limits.
+    limits: `robot_description.JointLimits` (v_max, a_max_ltt, j_max_ltt).
+    cycle_time: sample spacing (s).
+    start_time: plan time of the first sample (the current state).
+
+  Returns:
+    A `LongTermPlan` whose first sample is the current state and whose last
+    is the goal at rest.
+
+  Raises:
+    PlanningError: the start state violates the checks of spec 2.1, or the
+      motion would leave the joint limits on the way.
+  """
+  dof = len(limits.q_min)
+  q0 = _check_vector('q0', q0, dof)
+  dq0 = _check_vector('dq0', dq0, dof)
+  ddq0 = _check_vector('ddq0', ddq0, dof)
+  goal = clamp_goal(q_goal, limits)
+  check_start_state(q0, dq0, ddq0, limits)
+  if not cycle_time > 0:
+    raise ValueError(f'cycle_time must be positive, got {cycle_time}')
+
+  otg = ruckig.Ruckig(dof)
+  request = ruckig.InputParameter(dof)
+  request.current_position = q0.tolist()
+  request.current_velocity = dq0.tolist()
+  request.current_acceleration = ddq0.tolist()
+  request.target_position = goal.tolist()
+  request.target_velocity = [0.0] * dof
+  request.target_acceleration = [0.0] * dof
+  request.max_velocity = limits.v_max.tolist()
+  request.max_acceleration = limits.a_max_ltt.tolist()
+  request.max_jerk = limits.j_max_ltt.tolist()
+  trajectory = ruckig.Trajectory(dof)
+  try:
+    result = otg.calculate(request, trajectory)
+  except RuntimeError as e:  # Ruckig raises on invalid input.
+    raise PlanningError(f'Ruckig failed: {e}') from None
+  if result not in (ruckig.Result.Working, ruckig.Result.Finished):
+    raise PlanningError(f'Ruckig failed with {result}')
+
+  num = int(np.ceil(trajectory.duration / cycle_time - 1e-9)) + 1
+  times = np.arange(num) * cycle_time
+  q = np.empty((num, dof))
+  dq = np.empty((num, dof))
+  ddq = np.empty((num, dof))
+  dddq = np.empty((num, dof))
+  for i, profile in enumerate(trajectory.profiles[0]):
+    starts, p, v, a, j = _pieces(profile)
+    piece = np.searchsorted(starts, times, side='right') - 1
+    d = times - starts[piece]
+    jp = j[piece]
+    q[:, i] = p[piece] + d * (v[piece] + d * (0.5 * a[piece] + d * jp / 6.0))
+    dq[:, i] = v[piece] + d * (a[piece] + 0.5 * d * jp)
+    ddq[:, i] = a[piece] + d * jp
+    dddq[:, i] = jp
+  # The goal at rest from the end of the motion on (held afterwards).
+  end = times >= trajectory.duration
+  q[end] = goal
+  dq[end] = 0.0
+  ddq[end] = 0.0
+  dddq[end] = 0.0
+  outside = (q < limits.q_min - _LIMIT_SLACK) | (q > limits.q_max
+                                                  + _LIMIT_SLACK)
+  if np.any(outside):
+    joints = np.nonzero(np.any(outside, axis=0))[0].tolist()
+    raise PlanningError(f'The motion to {goal.tolist()} would leave the joint '
+                        f'limits on joints {joints}')
+  return LongTermPlan(q, dq, ddq, dddq, cycle_time, start_time)

@@ -1,0 +1,167 @@
+"""Long-term plan: Ruckig to rest, exact sampling, single index offset (B1)."""
+
+import numpy as np
+import pytest
+import ruckig
+
+from hrc_suite import robot_description
+from hrc_suite.safety import long_term_plan as ltp
+
+CYCLE = 0.004
+
+
+@pytest.fixture(scope='module')
+def panda():
+  return robot_description.load('panda')
+
+
+def _random_plan(description, rng, start_time=0.0):
+  limits = description.limits
+  q0 = np.clip(description.q_home + rng.uniform(-0.5, 0.5, description.dof),
+               limits.q_min + 0.05, limits.q_max - 0.05)
+  dq0 = rng.uniform(-0.3, 0.3, description.dof)
+  ddq0 = rng.uniform(-0.5, 0.5, description.dof)
+  goal = np.clip(q0 + rng.uniform(-1.0, 1.0, description.dof),
+                 limits.q_min + 0.1, limits.q_max - 0.1)
+  return q0, dq0, ddq0, goal, ltp.plan_to_goal(q0, dq0, ddq0, goal, limits,
+                                               CYCLE, start_time)
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_plan_reaches_goal_at_rest_within_limits(name):
+  description = robot_description.load(name)
+  limits = description.limits
+  rng = np.random.RandomState(0)
+  for _ in range(5):
+    q0, dq0, ddq0, goal, plan = _random_plan(description, rng)
+    np.testing.assert_allclose(plan.q[0], q0, atol=1e-12)
+    np.testing.assert_allclose(plan.dq[0], dq0, atol=1e-12)
+    np.testing.assert_allclose(plan.ddq[0], ddq0, atol=1e-12)
+    np.testing.assert_allclose(plan.goal, goal, atol=1e-9)
+    assert np.all(plan.dq[-1] == 0) and np.all(plan.ddq[-1] == 0)
+    assert np.all(np.abs(plan.dq) <= limits.v_max + 1e-9)
+    assert np.all(np.abs(plan.ddq) <= limits.a_max_ltt + 1e-9)
+    assert np.all(np.abs(plan.dddq) <= limits.j_max_ltt + 1e-9)
+    # Synchronised: every joint arrives at the end (none earlier by > 1 cycle
+    # unless it does not move at all).
+    moving = np.abs(goal - q0) > 0.05
+    last_motion = np.array([np.nonzero(np.abs(plan.dq[:, i]) > 1e-9)[0].max()
+                            for i in np.nonzero(moving)[0]])
+    assert np.all(last_motion >= plan.num_samples - 3)
+
+
+def test_samples_match_ruckig(panda):
+  rng = np.random.RandomState(1)
+  q0, dq0, ddq0, goal, plan = _random_plan(panda, rng)
+  otg = ruckig.Ruckig(panda.dof)
+  request = ruckig.InputParameter(panda.dof)
+  request.current_position = q0
+  request.current_velocity = dq0
+  request.current_acceleration = ddq0
+  request.target_position = goal
+  request.max_velocity = panda.limits.v_max
+  request.max_acceleration = panda.limits.a_max_ltt
+  request.max_jerk = panda.limits.j_max_ltt
+  trajectory = ruckig.Trajectory(panda.dof)
+  otg.calculate(request, trajectory)
+  for k in range(0, plan.num_samples - 1, 11):
+    position, velocity, acceleration = trajectory.at_time(k * CYCLE)
+    np.testing.assert_allclose(plan.q[k], position, atol=1e-10)
+    np.testing.assert_allclose(plan.dq[k], velocity, atol=1e-10)
+    np.testing.assert_allclose(plan.ddq[k], acceleration, atol=1e-10)
+
+
+def test_single_index_offset_b1(panda):
+  """A plan started at cycle 100 looks ahead 1/10/50/99 samples correctly."""
+  rng = np.random.RandomState(2)
+  start = 100 * CYCLE
+  *_, plan = _random_plan(panda, rng, start_time=start)
+  assert plan.num_samples > 100
+  for ahead in (1, 10, 50, 99):
+    q, dq, ddq, dddq = plan.evaluate(start + ahead * CYCLE)
+    np.testing.assert_allclose(q, plan.q[ahead], atol=1e-12)
+    np.testing.assert_allclose(dq, plan.dq[ahead], atol=1e-12)
+  # Positions along the plan really differ (the defect returned the start).
+  assert np.linalg.norm(plan.evaluate(start + 99 * CYCLE)[0] - plan.q[0]) > 0.01
+
+
+def test_taylor_and_chain_rule(panda):
+  rng = np.random.RandomState(3)
+  *_, plan = _random_plan(panda, rng, start_time=0.3)
+  s = 0.3 + 37.4 * CYCLE
+  s_dot, s_ddot, jerk = 0.6, -2.0, 30.0
+  k, tau = 37, 0.4 * CYCLE
+  v = plan.dq[k] + tau * plan.ddq[k] + tau ** 2 / 2 * plan.dddq[k]
+  a = plan.ddq[k] + tau * plan.dddq[k]
+  q_expected = (plan.q[k] + tau * plan.dq[k] + tau ** 2 / 2 * plan.ddq[k]
+                + tau ** 3 / 6 * plan.dddq[k])
+  q, dq, ddq, dddq = plan.evaluate(s, s_dot, s_ddot, jerk)
+  np.testing.assert_allclose(q, q_expected, atol=1e-12)
+  np.testing.assert_allclose(dq, v * s_dot, atol=1e-12)
+  np.testing.assert_allclose(ddq, v * s_ddot + a * s_dot ** 2, atol=1e-12)
+  np.testing.assert_allclose(
+      dddq, plan.dddq[k] * s_dot ** 3 + 3 * a * s_ddot * s_dot + v * jerk,
+      atol=1e-10)
+  # Batched forms agree with the scalar one.
+  batch = plan.evaluate(np.array([s, s]), np.array([s_dot] * 2),
+                        np.array([s_ddot] * 2), np.array([jerk] * 2))
+  for scalar, batched in zip((q, dq, ddq, dddq), batch):
+    np.testing.assert_allclose(batched[1], scalar, atol=1e-12)
+  np.testing.assert_allclose(plan.positions(np.array([s]))[0], q, atol=1e-12)
+  # Past the end the goal is held at rest.
+  q_end, dq_end, _, _ = plan.evaluate(plan.end_time + 1.0, 1.0, 0.0, 0.0)
+  np.testing.assert_allclose(q_end, plan.goal)
+  assert np.all(dq_end == 0)
+
+
+def test_goal_is_clamped_inside_limits(panda):
+  limits = panda.limits
+  goal = limits.q_max + 1.0
+  plan = ltp.plan_to_goal(panda.q_home, np.zeros(7), np.zeros(7), goal,
+                          limits, CYCLE)
+  np.testing.assert_allclose(plan.goal, limits.q_max - ltp.GOAL_LIMIT_MARGIN)
+
+
+def test_start_state_checks(panda):
+  limits = panda.limits
+  q0, zeros = panda.q_home, np.zeros(7)
+  too_fast = zeros.copy()
+  too_fast[2] = 1.5
+  with pytest.raises(ltp.PlanningError, match=r'dq0.*\[2\]'):
+    ltp.plan_to_goal(q0, too_fast, zeros, q0, limits, CYCLE)
+  hard = zeros.copy()
+  hard[4] = 3.0
+  with pytest.raises(ltp.PlanningError, match=r'a_max_ltt.*\[4\]'):
+    ltp.plan_to_goal(q0, zeros, hard, q0, limits, CYCLE)
+  # Velocity 0.99 still accelerating at 1.9: would overshoot v_max = 1.
+  fast = zeros.copy()
+  fast[0], hard_small = 0.99, zeros.copy()
+  hard_small[0] = 1.9
+  with pytest.raises(ltp.PlanningError, match='ramping'):
+    ltp.plan_to_goal(q0, fast, hard_small, q0, limits, CYCLE)
+  outside = q0.copy()
+  outside[1] = limits.q_max[1] + 0.1
+  with pytest.raises(ltp.PlanningError, match='q0 above q_max'):
+    ltp.plan_to_goal(outside, zeros, zeros, q0, limits, CYCLE)
+  with pytest.raises(ValueError, match=r'q_goal must have shape \(7,\)'):
+    ltp.plan_to_goal(q0, zeros, zeros, np.zeros(6), limits, CYCLE)
+  with pytest.raises(ValueError, match='finite'):
+    ltp.plan_to_goal(q0, zeros, zeros, np.full(7, np.nan), limits, CYCLE)
+
+
+def test_overshooting_past_a_limit_is_refused(panda):
+  limits = panda.limits
+  q0 = panda.q_home.copy()
+  q0[0] = limits.q_max[0] - 0.05
+  dq0 = np.zeros(7)
+  dq0[0] = 1.0   # Cannot stop within 0.05 rad at a_ltt = 2, j_ltt = 15.
+  with pytest.raises(ltp.PlanningError, match='leave the joint limits'):
+    ltp.plan_to_goal(q0, dq0, np.zeros(7), q0, limits, CYCLE)
+
+
+def test_at_rest_plan(panda):
+  plan = ltp.LongTermPlan.at_rest(panda.q_home, CYCLE, start_time=2.0)
+  assert plan.num_samples == 1 and plan.end_time == 2.0
+  q, dq, ddq, dddq = plan.evaluate(5.0, 1.0, 3.0, 10.0)
+  np.testing.assert_allclose(q, panda.q_home)
+  assert not np.any(dq) and not np.any(ddq) and not np.any(dddq)
