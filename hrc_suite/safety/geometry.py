@@ -20,10 +20,12 @@ _DEGENERATE_SQUARED_LENGTH = 1e-24
 # closest parameters of the infinite lines are ill-conditioned there and the
 # clamp-and-reproject branch is exact instead.
 _PARALLEL_SIN_SQUARED = 1e-12
+# Distance below which two ball centres coincide (m).
+_TINY_DISTANCE = 1e-300
 
 
 def _dot(x, y):
-  return np.einsum('...i,...i->...', x, y)
+  return np.vecdot(x, y)
 
 
 def segment_closest_parameters(a0, a1, b0, b1):
@@ -110,23 +112,20 @@ def enclosing_ball(c1, r1, c2, r2):
   With the larger ball i and the smaller j at distance d: if d <= ri - rj
   ball i already encloses j; else the centre lies on the line through both,
   ((ci + cj) + (ri - rj) (ci - cj) / d) / 2, radius (ri + rj + d) / 2.
+  Both cases in one expression: lambda = clip((r1 - r2) / d, -1, 1),
+  centre = (c1 + c2) / 2 + lambda (c1 - c2) / 2 (lambda = +-1 picks the
+  enclosing ball), radius = max(r1, r2, (r1 + r2 + d) / 2).
   """
   c1 = np.asarray(c1, dtype=float)
   c2 = np.asarray(c2, dtype=float)
   r1 = np.asarray(r1, dtype=float)
   r2 = np.asarray(r2, dtype=float)
-  first_larger = r1 >= r2
-  ci = np.where(first_larger[..., None], c1, c2)
-  cj = np.where(first_larger[..., None], c2, c1)
-  ri = np.maximum(r1, r2)
-  rj = np.minimum(r1, r2)
-  delta = ci - cj
-  d = np.sqrt(_dot(delta, delta))
-  contains = d <= ri - rj
-  d_safe = np.where(contains, 1.0, d)
-  centre = 0.5 * (ci + cj + ((ri - rj) / d_safe)[..., None] * delta)
-  centre = np.where(contains[..., None], ci, centre)
-  radius = np.where(contains, ri, 0.5 * (ri + rj + d))
+  delta = c1 - c2
+  d = np.sqrt(np.vecdot(delta, delta))
+  lam = np.minimum(np.maximum((r1 - r2) / np.maximum(d, _TINY_DISTANCE),
+                              -1.0), 1.0)
+  centre = c2 + (0.5 + 0.5 * lam)[..., None] * delta
+  radius = np.maximum(np.maximum(r1, r2), 0.5 * (r1 + r2 + d))
   return centre, radius
 
 

@@ -173,7 +173,7 @@ class RobotReach:
     start, end = ends[:-1], ends[1:]
     centres = 0.5 * (start + end)
     chord = end - start
-    chord_sq = np.einsum('klij,klij->kli', chord, chord)
+    chord_sq = np.vecdot(chord, chord)
     ds = s_edges[1:] - s_edges[:-1]
     radius = (0.5 * np.sqrt(chord_sq.max(axis=-1))
               + (ds * ds * 0.125)[:, None] * self.alpha + self._static_radius)
@@ -201,8 +201,8 @@ class RobotReach:
     offset = offset[:, self.frame_index]
     ends = self._endpoints(chain)                # (N, L, 2, 3)
     v = _cross(omega[:, :, None], ends) - offset[:, :, None]
-    speed_sq = np.einsum('nlji,nlji->nlj', v, v).max(axis=-1)
-    spin_rate = np.sqrt(np.einsum('nli,nli->nl', omega, omega))
+    speed_sq = np.vecdot(v, v).max(axis=-1)
+    spin_rate = np.sqrt(np.vecdot(omega, omega))
     out = np.sqrt(speed_sq) + spin_rate * self.radii
     return out.reshape(batch + (self.num_capsules,))
 

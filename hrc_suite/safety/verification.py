@@ -1,0 +1,149 @@
+"""Verification helpers: the SSM verdict and the joint-limit check.
+
+SSM (shield-spec 5.2): interval k is safe iff SOME human model m has no
+intersection between any robot reach capsule and any of its body capsules
+(every model over-approximates the human, so one collision-free model
+suffices); the motion is safe iff every interval is safe. Intersection is
+strict: capsules that touch (signed distance 0) do not intersect.
+
+Broad phase: with midpoints m, half lengths h and radii r, the signed
+distance of two capsules lies in [|m_a - m_b| - h_a - h_b - r_a - r_b,
+|m_a - m_b| - r_a - r_b]. Per (model, interval) only pairs whose lower bound
+does not exceed the best upper bound can hold the minimum; the exact
+distance (geometry.capsule_distance) is computed for those alone.
+"""
+
+import numpy as np
+
+from hrc_suite.safety import geometry
+
+
+def _check(robot, human):
+  rc1, rc2, rr = (np.asarray(x, dtype=float) for x in robot)
+  hc1, hc2, hr = (np.asarray(x, dtype=float) for x in human)
+  if rc1.ndim != 3 or rc2.shape != rc1.shape or rr.shape != rc1.shape[:2]:
+    raise ValueError(f'robot capsules: expected c1, c2 (K, L, 3) and r (K, L),'
+                     f' got {rc1.shape}, {rc2.shape}, {rr.shape}')
+  if (hc1.ndim != 4 or hc2.shape != hc1.shape or
+      hr.shape != hc1.shape[:3] or hc1.shape[1] != rc1.shape[0]):
+    raise ValueError(f'human capsules: expected c1, c2 (M, K, B, 3) and r '
+                     f'(M, K, B) with K = {rc1.shape[0]}, got {hc1.shape}, '
+                     f'{hc2.shape}, {hr.shape}')
+  return rc1, rc2, rr, hc1, hc2, hr
+
+
+def _bounds(rc1, rc2, rr, hc1, hc2, hr):
+  """Upper and lower bounds (M, K, L, B) of the signed capsule distances."""
+  # Coordinates first: long inner loops for the pairwise arithmetic.
+  r_mid = np.ascontiguousarray(np.moveaxis(rc1 + rc2, -1, 0))   # (3, K, L)
+  h_mid = np.ascontiguousarray(np.moveaxis(hc1 + hc2, -1, 0))   # (3, M, K, B)
+  gap = r_mid[:, None, :, :, None] - h_mid[:, :, :, None, :]
+  gap *= gap
+  centre = gap[0]
+  centre += gap[1]
+  centre += gap[2]
+  np.sqrt(centre, out=centre)
+  centre *= 0.5                                                 # (M, K, L, B)
+  r_len = rc2 - rc1
+  h_len = hc2 - hc1
+  r_half = 0.5 * np.sqrt(np.vecdot(r_len, r_len))
+  h_half = 0.5 * np.sqrt(np.vecdot(h_len, h_len))
+  upper = centre
+  upper -= rr[None, :, :, None]
+  upper -= hr[:, :, None, :]
+  lower = upper - (r_half[None, :, :, None] + h_half[:, :, None, :])
+  return upper, lower
+
+
+def _coarse_lower_bound(rc1, rc2, rr, hc1, hc2, hr):
+  """Lower bound (M, K) of the clearance from one ball around all robot
+  capsules of an interval against a ball around each body capsule."""
+  r_mid = 0.5 * (rc1 + rc2)                                     # (K, L, 3)
+  r_len = rc2 - rc1
+  r_reach = 0.5 * np.sqrt(np.vecdot(r_len, r_len)) + rr         # (K, L)
+  centre = 0.5 * (r_mid.max(axis=1) + r_mid.min(axis=1))        # (K, 3)
+  offset = r_mid - centre[:, None]
+  radius = (np.sqrt(np.vecdot(offset, offset)) + r_reach).max(axis=1)  # (K,)
+  h_mid = 0.5 * (hc1 + hc2)                                     # (M, K, B, 3)
+  h_len = hc2 - hc1
+  h_reach = 0.5 * np.sqrt(np.vecdot(h_len, h_len)) + hr
+  gap = h_mid - centre[:, None]
+  lower = np.sqrt(np.vecdot(gap, gap)) - h_reach - radius[:, None]
+  return lower.min(axis=2)
+
+
+def _exact(rc1, rc2, rr, hc1, hc2, hr, m, k, l, b):
+  return geometry.capsule_distance(rc1[k, l], rc2[k, l], rr[k, l],
+                                   hc1[m, k, b], hc2[m, k, b], hr[m, k, b])
+
+
+def clearances(robot, human):
+  """Minimum signed distance (M, K) between the robot's capsules and the
+  body capsules of each human model, per interval (exact).
+
+  robot: (c1 (K, L, 3), c2 (K, L, 3), r (K, L)); human: (c1 (M, K, B, 3),
+  c2 (M, K, B, 3), r (M, K, B)).
+  """
+  capsules = _check(robot, human)
+  upper, lower = _bounds(*capsules)
+  best_upper = upper.min(axis=(2, 3))
+  # Pairs that may hold the minimum; the pair of the best upper bound does.
+  m, k, l, b = np.nonzero(lower <= best_upper[:, :, None, None])
+  out = np.full(upper.shape, np.inf)
+  out[m, k, l, b] = _exact(*capsules, m, k, l, b)
+  return out.min(axis=(2, 3))
+
+
+def ssm_verdict(robot, human, exact_distance=True):
+  """(safe, first_unsafe_interval or -1, min_distance).
+
+  robot: (c1 (K, L, 3), c2, r (K, L)); human: (c1 (M, K, B, 3), c2,
+  r (M, K, B)). min_distance is the clearance of the best human model in the
+  worst interval (min over k of max over m of the minimum signed capsule
+  distance); with the combined model it is the plain minimum distance. It is
+  negative exactly when the verdict is unsafe.
+
+  exact_distance=False gives the same verdict faster: only pairs whose
+  bounds leave the sign open get exact distances. min_distance is then only
+  sign-exact: where a model's interval is clear its clearance is replaced by
+  a lower bound (>= 0), and where a midpoint upper bound already proves an
+  intersection, by that (negative) upper bound.
+  """
+  if exact_distance:
+    per_interval = clearances(robot, human).max(axis=0)     # (K,)
+  else:
+    capsules = _check(robot, human)
+    coarse = _coarse_lower_bound(*capsules)                 # (M, K)
+    if coarse.min() >= 0.0:
+      per_interval = coarse.max(axis=0)
+      return True, -1, float(per_interval.min())
+    upper, lower = _bounds(*capsules)
+    best_upper = upper.min(axis=(2, 3))
+    sure_hit = best_upper < 0
+    clearance = np.maximum(lower.min(axis=(2, 3)), 0.0)
+    undecided = (lower < 0) & ~sure_hit[:, :, None, None]
+    if undecided.any():
+      m, k, l, b = np.nonzero(undecided)
+      exact = np.full(upper.shape, np.inf)
+      exact[m, k, l, b] = _exact(*capsules, m, k, l, b)
+      # Pairs with a non-negative lower bound cannot intersect, so a
+      # negative minimum over the undecided pairs is the exact clearance.
+      exact = exact.min(axis=(2, 3))
+      clearance = np.where(exact < 0, exact, clearance)
+    clearance = np.where(sure_hit, best_upper, clearance)
+    per_interval = clearance.max(axis=0)
+  unsafe = per_interval < 0.0
+  first = int(np.argmax(unsafe)) if unsafe.any() else -1
+  return first < 0, first, float(per_interval.min())
+
+
+def within_joint_limits(q, description, tolerance=0.0):
+  """True iff every q (..., dof) lies in [q_min - tolerance, q_max +
+  tolerance] (a negative tolerance demands a margin inside the limits)."""
+  q = np.asarray(q, dtype=float)
+  limits = description.limits
+  if q.ndim == 0 or q.shape[-1] != description.dof:
+    raise ValueError(f'q: expected shape (..., {description.dof}) for '
+                     f'{description.name}, got {q.shape}')
+  return bool(np.all(q >= limits.q_min - tolerance) and
+              np.all(q <= limits.q_max + tolerance))
