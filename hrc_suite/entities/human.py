@@ -1,0 +1,366 @@
+"""The human co-worker: kinematic capsules driven by keypoint positions.
+
+Each body segment (keypoints.SEGMENTS plus the pelvis between the hips) is a
+capsule on its own mocap body, and each keypoint has a site on a tiny mocap
+body of its own. MuJoCo only accepts mocap bodies that are children of the
+world, while composer's `attach` nests an entity's bodies in an attachment
+body; so the capsules and sites are built as small MJCF parts that
+`attach_to(arena)` attaches directly to the arena, turning each attachment
+frame into the mocap body. Use `human.attach_to(arena)` instead of
+`arena.attach(human)`.
+
+The capsules collide with the robot and objects only (collision_groups), so
+contacts with the robot are detected and the human never collides with itself
+or the table. `set_keypoints` moves everything in one vectorised write;
+`resize` sets capsule lengths to a clip's segment lengths (size, rbound and
+aabb); `hold` / `release` weld an object to a hand with its current relative
+pose.
+"""
+
+import numpy as np
+from dm_control import composer
+from dm_control import mjcf
+from dm_control.composer.observation import observable
+
+from hrc_suite.entities import collision_groups
+from hrc_suite.human import body as body_lib
+from hrc_suite.human import keypoints
+
+# Capsule radii (m) at the reference stature, scaled with stature: about half
+# the limb's breadth/depth (head ~0.19 m breadth, chest depth ~0.24 m, upper
+# arm ~0.10 m, thigh ~0.15 m diameters for an adult of about 1.75 m).
+REFERENCE_STATURE = 1.75
+CAPSULE_RADII = {
+    'head': 0.095, 'torso': 0.13, 'pelvis': 0.11,
+    'upper_arm': 0.05, 'forearm': 0.04, 'hand': 0.045,
+    'thigh': 0.075, 'shin': 0.055,
+}
+SEGMENTS = keypoints.SEGMENTS + (('pelvis', 'left_hip', 'right_hip'),)
+HANDS = ('left', 'right')
+_SKIN = (0.85, 0.65, 0.5, 1.0)
+_SITE_RGBA = (0.1, 0.3, 0.9, 1.0)
+
+
+def _part(name):
+  return name.split('_', 1)[-1] if name.startswith(('left_', 'right_')) \
+      else name
+
+
+def _cross(a, b):
+  return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                   a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                   a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
+
+
+def segment_frames(positions, proximal, distal, reference):
+  """Midpoints (S, 3), half lengths (S,) and quaternions (S, 4) of segments.
+
+  The frame's z axis runs along the segment; x is `reference` made
+  orthogonal to it (or, where the two are nearly parallel, the horizontal
+  perpendicular of z), so frames change continuously with the keypoints.
+  """
+  a = positions[proximal]
+  b = positions[distal]
+  axis = b - a
+  length = np.sqrt(np.einsum('ij,ij->i', axis, axis))
+  z = axis / np.maximum(length, 1e-9)[:, None]
+  x = reference - np.einsum('ij,ij->i', reference, z)[:, None] * z
+  norm = np.sqrt(np.einsum('ij,ij->i', x, x))
+  weak = norm < 0.2
+  if weak.any():
+    fallback = np.stack([-z[weak, 1], z[weak, 0], np.zeros(weak.sum())], -1)
+    fallback[np.abs(fallback).sum(-1) < 1e-6] = (1.0, 0.0, 0.0)
+    x[weak] = fallback
+    norm[weak] = np.sqrt(np.einsum('ij,ij->i', fallback, fallback))
+  x /= norm[:, None]
+  y = _cross(z, x)
+  return 0.5 * (a + b), 0.5 * length, axes_to_quaternion(x, y, z)
+
+
+def axes_to_quaternion(x, y, z):
+  """Quaternions (w, x, y, z) of rotations with columns x, y, z (each (N, 3)).
+
+  Branch-free form: magnitudes from the diagonal, signs from the
+  antisymmetric part (continuous; exact to ~1e-8 for unit frames).
+  """
+  m00, m11, m22 = x[:, 0], y[:, 1], z[:, 2]
+  q = np.sqrt(np.maximum(0.0, np.stack([1 + m00 + m11 + m22,
+                                        1 + m00 - m11 - m22,
+                                        1 - m00 + m11 - m22,
+                                        1 - m00 - m11 + m22], -1))) * 0.5
+  q[:, 1] = np.copysign(q[:, 1], y[:, 2] - z[:, 1])   # m21 - m12
+  q[:, 2] = np.copysign(q[:, 2], z[:, 0] - x[:, 2])   # m02 - m20
+  q[:, 3] = np.copysign(q[:, 3], x[:, 1] - y[:, 0])   # m10 - m01
+  return q / np.sqrt(np.einsum('ij,ij->i', q, q))[:, None]
+
+
+def matrix_to_quaternion(m):
+  """(N, 3, 3) rotation matrices -> (N, 4) quaternions (w, x, y, z)."""
+  return axes_to_quaternion(m[:, :, 0], m[:, :, 1], m[:, :, 2])
+
+
+def _quat_conj(q):
+  return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _quat_mul(a, b):
+  w1, x1, y1, z1 = a
+  w2, x2, y2, z2 = b
+  return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                   w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                   w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                   w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+class Human(composer.Entity):
+  """Kinematic human: capsules and keypoint sites on mocap bodies."""
+
+  def _build(self, name='human', anthropometrics=None):
+    self._mjcf_root = mjcf.RootElement(model=name)
+    self._name = name
+    self._anthropometrics = (anthropometrics or
+                             body_lib.proportional_body(REFERENCE_STATURE))
+    lengths = self._anthropometrics.segment_lengths()
+    lengths['pelvis'] = self._anthropometrics.hip_width
+    scale = self._anthropometrics.stature / REFERENCE_STATURE
+    self._segment_parts = []
+    self._segment_geoms = []
+    for seg_name, _, _ in SEGMENTS:
+      part = mjcf.RootElement(model=f'{name}_{seg_name}')
+      radius = CAPSULE_RADII[_part(seg_name)] * scale
+      geom = part.worldbody.add(
+          'geom', name='capsule', type='capsule',
+          size=(radius, lengths[seg_name] / 2), rgba=_SKIN, mass=1.0)
+      collision_groups.set_human(geom)
+      self._segment_parts.append(part)
+      self._segment_geoms.append(geom)
+    self._keypoint_parts = []
+    self._sites = []
+    for kp in keypoints.KEYPOINT_NAMES:
+      part = mjcf.RootElement(model=f'{name}_kp_{kp}')
+      self._sites.append(part.worldbody.add(
+          'site', name='site', size=(0.012,), rgba=_SITE_RGBA, group=4))
+      self._keypoint_parts.append(part)
+    seg_index = {s[0]: i for i, s in enumerate(SEGMENTS)}
+    self._hand_segment = {h: seg_index[f'{h}_hand'] for h in HANDS}
+    self._proximal = np.array(keypoints.index([s[1] for s in SEGMENTS]))
+    self._distal = np.array(keypoints.index([s[2] for s in SEGMENTS]))
+    self._radii = np.array([CAPSULE_RADII[_part(s[0])] for s in SEGMENTS])
+    self._segment_frames = None
+    self._keypoint_frames = None
+    self._holdables = {}      # object body -> {hand: weld element}
+    self._held = {}           # object body -> hand
+    self._cache = None
+
+  def _build_observables(self):
+    return HumanObservables(self)
+
+  @property
+  def mjcf_model(self):
+    return self._mjcf_root
+
+  # ------------------------------------------------------------- assembly
+
+  def attach_to(self, arena):
+    """Attaches the human to `arena` (an Entity), parts as mocap bodies."""
+    if self._segment_frames is not None:
+      raise RuntimeError(f'Human {self._name!r} is already attached')
+    arena.attach(self)
+    frames = []
+    for part in self._segment_parts + self._keypoint_parts:
+      frame = arena.mjcf_model.attach(part)
+      frame.mocap = 'true'
+      frames.append(frame)
+    n = len(self._segment_parts)
+    self._segment_frames = tuple(frames[:n])
+    self._keypoint_frames = tuple(frames[n:])
+    self._root = arena.mjcf_model
+    return self
+
+  def add_holdable(self, object_body):
+    """Prepares weld constraints from each hand to `object_body` (off)."""
+    self._require_attached()
+    welds = {}
+    for hand in HANDS:
+      welds[hand] = self._root.equality.add(
+          'weld', name=f'{self._name}_{hand}_hand_holds_'
+          f'{object_body.full_identifier.replace("/", "_")}',
+          body1=self._segment_frames[self._hand_segment[hand]],
+          body2=object_body, active='false', solref=(0.01, 1.0))
+    self._holdables[object_body] = welds
+    return welds
+
+  def _require_attached(self):
+    if self._segment_frames is None:
+      raise RuntimeError(f'Human {self._name!r} is not attached: call '
+                         'human.attach_to(arena) first')
+
+  @property
+  def anthropometrics(self):
+    return self._anthropometrics
+
+  @property
+  def geoms(self):
+    return tuple(self._segment_geoms)
+
+  @property
+  def keypoint_sites(self):
+    return tuple(self._sites)
+
+  @property
+  def segment_bodies(self):
+    self._require_attached()
+    return self._segment_frames
+
+  # ------------------------------------------------------------ per step
+
+  def _bound(self, physics):
+    """Index arrays for this physics, computed once per physics."""
+    if self._cache is not None and self._cache[0] is physics:
+      return self._cache[1]
+    self._require_attached()
+    model = physics.model
+    # Mocap bodies bind in dm_control's 'mocap_body' namespace, which has no
+    # element_id; look their body ids up by name instead.
+    body_id = lambda f: model.name2id(f.full_identifier, 'body')
+    seg_bodies = np.array([body_id(f) for f in self._segment_frames])
+    kp_bodies = np.array([body_id(f) for f in self._keypoint_frames])
+    cache = {
+        'segment_mocap': model.body_mocapid[seg_bodies].copy(),
+        'keypoint_mocap': model.body_mocapid[kp_bodies].copy(),
+        'geoms': physics.bind(self._segment_geoms).element_id.copy(),
+        'sites': physics.bind(self._sites).element_id.copy(),
+        # Per segment: the line its frame's x axis follows (arms, head and
+        # torso the shoulder line, legs the hip line; the pelvis capsule,
+        # which lies along the hips, world z).
+        'reference': np.tile([0.0, 0.0, 1.0], (len(SEGMENTS), 1)),
+        'hand_bodies': {h: int(seg_bodies[self._hand_segment[h]])
+                        for h in HANDS},
+    }
+    self._cache = (physics, cache)
+    return cache
+
+  def set_keypoints(self, physics, positions):
+    """Moves capsules and sites to (NUM_KEYPOINTS, 3) world positions."""
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.shape != (keypoints.NUM_KEYPOINTS, 3):
+      raise ValueError(f'Expected keypoint positions of shape '
+                       f'({keypoints.NUM_KEYPOINTS}, 3), got {positions.shape}')
+    cache = self._bound(physics)
+    k = keypoints.KEYPOINT_INDEX
+    reference = cache['reference']
+    reference[:8] = positions[k['left_shoulder']] - positions[k['right_shoulder']]
+    reference[8:12] = positions[k['left_hip']] - positions[k['right_hip']]
+    mid, _, quat = segment_frames(positions, self._proximal, self._distal,
+                                  reference)
+    data = physics.data
+    data.mocap_pos[cache['segment_mocap']] = mid
+    data.mocap_quat[cache['segment_mocap']] = quat
+    data.mocap_pos[cache['keypoint_mocap']] = positions
+
+  def resize(self, physics, clip_or_positions):
+    """Sets capsule lengths to the segment lengths of a clip (or positions)."""
+    positions = getattr(clip_or_positions, 'positions', clip_or_positions)
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.ndim == 2:
+      positions = positions[None]
+    lengths = np.linalg.norm(positions[:, self._distal]
+                             - positions[:, self._proximal], axis=-1)
+    half = 0.5 * np.median(lengths, axis=0)
+    stature = _stature_from(positions[0])
+    radius = self._radii * stature / REFERENCE_STATURE
+    cache = self._bound(physics)
+    geoms = cache['geoms']
+    model = physics.model
+    model.geom_size[geoms, 0] = radius
+    model.geom_size[geoms, 1] = half
+    model.geom_rbound[geoms] = half + radius
+    model.geom_aabb[geoms, 3:5] = radius[:, None]
+    model.geom_aabb[geoms, 5] = half + radius
+    model.geom_aabb[geoms, :3] = 0.0
+    return dict(zip([s[0] for s in SEGMENTS], 2 * half))
+
+  def keypoint_positions(self, physics):
+    """(NUM_KEYPOINTS, 3) world positions of the keypoint sites."""
+    return physics.data.site_xpos[self._bound(physics)['sites']].copy()
+
+  # ---------------------------------------------------------------- holding
+
+  def hold(self, physics, object_body, hand):
+    """Welds `object_body` to `hand` ('left'/'right') at the current pose."""
+    if hand not in HANDS:
+      raise ValueError(f'Unknown hand {hand!r}: expected "left" or "right"')
+    if object_body not in self._holdables:
+      raise ValueError(f'{object_body.full_identifier!r} is not holdable: '
+                       'call human.add_holdable(body) before compiling')
+    self.release(physics, object_body)
+    eq = physics.bind(self._holdables[object_body][hand])
+    eq_id = eq.element_id
+    hand_body = self._bound(physics)['hand_bodies'][hand]
+    obj = physics.bind(object_body)
+    data = physics.data
+    p1, q1 = data.xpos[hand_body], data.xquat[hand_body]
+    r1 = data.xmat[hand_body].reshape(3, 3)
+    rel_pos = r1.T @ (obj.xpos - p1)
+    rel_quat = _quat_mul(_quat_conj(q1), obj.xquat)
+    physics.model.eq_data[eq_id, 0:3] = 0.0
+    physics.model.eq_data[eq_id, 3:6] = rel_pos
+    physics.model.eq_data[eq_id, 6:10] = rel_quat
+    data.eq_active[eq_id] = 1
+    self._held[object_body] = hand
+
+  def release(self, physics, object_body):
+    """Releases `object_body` from whichever hand holds it."""
+    if object_body not in self._holdables:
+      raise ValueError(f'{getattr(object_body, "full_identifier", object_body)!r}'
+                       ' is not holdable')
+    for weld in self._holdables[object_body].values():
+      physics.data.eq_active[physics.bind(weld).element_id] = 0
+    self._held.pop(object_body, None)
+
+  def holding(self, object_body):
+    """The hand holding `object_body`, or None."""
+    return self._held.get(object_body)
+
+  # ----------------------------------------------------------- observables
+
+  def add_relative_observables(self, site, subset=('head', 'left_hand',
+                                                   'right_hand'),
+                               name=None):
+    """Observables of keypoints in `site`'s frame and their distances."""
+    indices = np.array(keypoints.index(subset))
+    name = name or site.name
+
+    def relative(physics):
+      frame = physics.bind(site)
+      points = self.keypoint_positions(physics)[indices]
+      return (points - frame.xpos) @ frame.xmat.reshape(3, 3)
+
+    def distance(physics):
+      points = self.keypoint_positions(physics)[indices]
+      return np.linalg.norm(points - physics.bind(site).xpos, axis=-1)
+
+    rel = observable.Generic(relative)
+    dist = observable.Generic(distance)
+    self.observables.add_observable(f'keypoints_in_{name}_frame', rel)
+    self.observables.add_observable(f'keypoint_distances_to_{name}', dist)
+    return rel, dist
+
+
+def _stature_from(positions):
+  """Rough stature from one frame: head keypoint height over eye fraction."""
+  k = keypoints.KEYPOINT_INDEX
+  spine = np.linalg.norm(positions[k['neck']] - positions[k['pelvis']])
+  # neck - pelvis = (0.83 - 0.53) H in body.py's proportions.
+  neck_fraction = (body_lib.SHOULDER_HEIGHT_FRACTION
+                   + body_lib.NECK_ABOVE_SHOULDER_FRACTION
+                   - body_lib.HIP_HEIGHT_FRACTION)
+  return float(np.clip(spine / neck_fraction, 1.3, 2.1))
+
+
+class HumanObservables(composer.Observables):
+  """Keypoint positions in the world frame."""
+
+  @composer.observable
+  def keypoint_positions(self):
+    return observable.Generic(self._entity.keypoint_positions)
