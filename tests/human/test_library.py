@@ -1,0 +1,86 @@
+"""Tests for the shipped synthetic motion library."""
+
+import pathlib
+
+import numpy as np
+import pytest
+
+from hrc_suite.human import body
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import synthesis
+from hrc_suite.human import task_motions
+
+# The reference benchmark's clip counts (paper Table I).
+PAPER_COUNTS = {'reach': 12, 'pick_place': 12, 'inspection': 8, 'lifting': 9,
+                'handover_robot_to_human': 15, 'handover_human_to_robot': 11,
+                'hammering': 11, 'stacking': 8}
+LIBRARY = pathlib.Path(clip_lib.__file__).resolve().parent.parent / (
+    'assets/motions')
+
+
+@pytest.fixture(scope='module')
+def library():
+  return {task: clip_lib.shipped_library(task)
+          for task in clip_lib.MOTION_TASKS}
+
+
+def test_every_task_has_at_least_the_paper_count(library):
+  for task, count in PAPER_COUNTS.items():
+    assert len(library[task]) >= count, task
+
+
+def test_clips_validate_and_belong_to_their_task(library):
+  for task, clips in library.items():
+    for clip in clips:
+      clip_lib.validate(clip, clip.name)
+      assert clip.task == task
+      assert tuple(p.event for p in clip.idle_phases) == (
+          clip_lib.TASK_EVENTS[task])
+
+
+def test_no_keypoint_faster_than_2_m_per_s_outside_fast_phases(library):
+  for clips in library.values():
+    for clip in clips:
+      assert not len(clip_lib.speed_violations(clip)), clip.name
+  hammer = library['hammering'][0]
+  assert hammer.fast_phases
+  assert clip_lib.keypoint_speeds(hammer).max() > clip_lib.MAX_KEYPOINT_SPEED
+
+
+def test_segment_lengths_constant_and_within_din_ranges(library):
+  names = [s[0] for s in clip_lib.keypoints.SEGMENTS]
+  low = np.array([body.SEGMENT_RANGES[n][0] for n in names])
+  high = np.array([body.SEGMENT_RANGES[n][1] for n in names])
+  for clips in library.values():
+    for clip in clips:
+      lengths = body.segment_lengths(clip.positions.astype(np.float64))
+      assert np.ptp(lengths, axis=0).max() < 1e-3, clip.name
+      assert np.all(lengths.mean(0) >= low) and np.all(
+          lengths.mean(0) <= high), clip.name
+
+
+def test_targets_needed_by_the_tasks_are_present(library):
+  needed = {'handover_robot_to_human': {'handover_point'},
+            'handover_human_to_robot': {'handover_point', 'object_pick'},
+            'inspection': {'inspection_point'},
+            'lifting': {'board_grasp_left', 'board_grasp_right'},
+            'hammering': {'nail'},
+            'stacking': {'stack_base', 'cube_1_place', 'cube_3_place'}}
+  for task, names in needed.items():
+    for clip in library[task]:
+      assert names <= set(clip.targets), (clip.name, clip.targets.keys())
+
+
+def test_library_size_is_small():
+  size = sum(p.stat().st_size for p in LIBRARY.rglob('*') if p.is_file())
+  assert size < 5.5e6
+
+
+def test_shipped_files_equal_a_fresh_synthesis(library):
+  # The committed library is what the committed command generates.
+  for task in ('handover_robot_to_human', 'hammering'):
+    fresh = synthesis.synthesise(task, 3)
+    shipped = library[task][3]
+    assert shipped.name == fresh.name
+    np.testing.assert_array_equal(shipped.positions, fresh.positions)
+    assert len(library[task]) == task_motions.CLIP_COUNTS[task]
