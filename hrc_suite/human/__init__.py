@@ -1,1 +1,1 @@
-
+"""Human simulation: clips, BVH import, replay (import the submodules)."""
