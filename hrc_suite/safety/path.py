@@ -173,27 +173,30 @@ class Path:
     out.append((start, path.s, path.s_dot, 0.0, 0.0))
     return out
 
-  def max_s_dot(self, after=0.0):
-    """Largest s_dot from `after` seconds from now on.
+  def max_s_dot(self, after=0.0, before=None):
+    """Largest s_dot between `after` and `before` seconds from now (None:
+    for ever; s_dot is constant after the schedule).
 
     Checks piece boundaries and interior maxima (s_ddot crossing zero from
-    above inside a piece of negative jerk). After the schedule s_dot is
-    constant, so this bounds s_dot for all later times.
+    above inside a piece of negative jerk).
     """
     pieces = self.segments()
-    best = self.sample((after,))[1][0]
+    _, (best,), _, _ = self.sample((after,))
+    if before is not None:
+      best = max(best, self.sample((before,))[1][0])
     for i, (start, _, v, a, jerk) in enumerate(pieces):
-      end = pieces[i + 1][0] if i + 1 < len(pieces) else start
-      if end <= after:
+      end = pieces[i + 1][0] if i + 1 < len(pieces) else math.inf
+      if end <= after or (before is not None and start >= before):
         continue
       if start >= after:
         best = max(best, v)
       if a > 0.0 and jerk < 0.0:
         t_peak = start - a / jerk
-        if after <= t_peak <= end:
+        if (after <= t_peak <= end and
+            (before is None or t_peak <= before)):
           best = max(best, v + a * (t_peak - start) + 0.5 * jerk *
                      (t_peak - start) ** 2)
-    return max(best, pieces[-1][2])
+    return best
 
   def sample(self, times):
     """States at times from now: lists (s, s_dot, s_ddot, jerk)."""

@@ -1,0 +1,424 @@
+"""The reachability shield: verified joint commands, one every cycle.
+
+Each cycle (shield spec section 1.3) the shield takes the human keypoints,
+proposes the monitored path "one intended step along the long-term plan,
+then brake to rest along it", and verifies it: the robot's reachable capsules
+over time slices of that path must not meet the human's reachable capsules
+(SSM), or, in PFL mode, the robot must be slower than v_safe wherever contact
+is possible. If verified, the robot takes the intended step and the braking
+path becomes the new verified path; if not, the robot keeps following the
+last verified path, so repeated failures brake it to rest along the plan
+(path-consistent braking). Nothing here reads the measured robot state: the
+shield's own command is the robot state (the controller must track it within
+the secure radius).
+
+Differences to the original (shield spec section 9), on purpose:
+* B1: plan look-ups subtract the plan's start once (`long_term_plan`).
+* B4: a new plan is only adopted when a monitored path on it verifies;
+  until then the robot follows the verified path on the old plan.
+* B6: consistent profile threshold (`path.plan_profile`).
+* L4: the slice from the current command to the first monitored state is
+  verified too (the robot moves during the cycle).
+* Path bounds use the plan's nominal joint speed, not the commanded one
+  (the commanded speed is s_dot times smaller while braking).
+* PFL bounds the robot's speed over the whole rest of the plan, since the
+  robot keeps moving at the limited path speed after the failsafe ends.
+"""
+
+import numpy as np
+
+from hrc_suite import robot_description as robot_description_lib
+from hrc_suite.human import keypoints
+from hrc_suite.safety import geometry
+from hrc_suite.safety import human_reach as human_reach_lib
+from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety import path as path_lib
+from hrc_suite.safety import robot_reach as robot_reach_lib
+from hrc_suite.safety import verification
+
+MODES = ('ssm', 'pfl', 'off')
+# Default shield cycle (s): human-robot-gym's control_sample_time (spec 2.4).
+DEFAULT_CYCLE_TIME = 0.004
+# PFL: the plan's sampled surface speeds are scaled by this before comparing
+# with v_safe, covering the speed change between samples (4 ms at <= 2
+# rad/s^2 moves a 1 m lever by < 1 %); a design margin of this port.
+PFL_SPEED_MARGIN = 0.9
+# PFL: samples over which a reachable-set slice can extend (one slice is
+# reachability_interval_cycles = 5 cycles of plan time at s_dot <= 1; one
+# more for the Taylor step past the last sample).
+PFL_WINDOW = 6
+# Relative tolerance on path velocities in the PFL speed test.
+_S_DOT_TOLERANCE = 1e-9
+# Joint-space differences below this count as "the same command" (rad, rad/s).
+_SAME_COMMAND = 1e-9
+
+
+def _joint_list(values):
+  return [float(x) for x in values]
+
+
+class Shield:
+  """SaRA-style reachability shield for one robot (SSM, PFL or off)."""
+
+  def __init__(self, robot_description, mode='ssm',
+               cycle_time=DEFAULT_CYCLE_TIME, human_model=None,
+               base_pose=None, tool_capsule=None, v_safe=None,
+               use_kalman_filter=False, use_combined_model=None,
+               secure_radius=None, alpha=None, q_init=None):
+    if isinstance(robot_description, str):
+      robot_description = robot_description_lib.load(robot_description)
+    if mode not in MODES:
+      raise ValueError(f'mode: expected one of {MODES}, got {mode!r}')
+    if not cycle_time > 0:
+      raise ValueError(f'cycle_time: expected > 0 s, got {cycle_time}')
+    self.description = robot_description
+    self.mode = mode
+    self.cycle_time = float(cycle_time)
+    self.dof = robot_description.dof
+    params = robot_description.shield
+    self.v_safe = float(params.v_safe if v_safe is None else v_safe)
+    if not self.v_safe > 0:
+      raise ValueError(f'v_safe: expected > 0 m/s, got {v_safe}')
+    self.interval = params.reachability_interval_cycles * self.cycle_time
+    self.max_s_stop = params.max_s_stop
+    self.robot = robot_reach_lib.RobotReach(
+        robot_description, base_pose=base_pose, tool_capsule=tool_capsule,
+        secure_radius=secure_radius, alpha=alpha)
+    if isinstance(human_model, human_reach_lib.HumanReach):
+      self.human = human_model
+    else:
+      self.human = human_reach_lib.HumanReach(
+          human_model, use_kalman_filter=use_kalman_filter,
+          use_combined_model=use_combined_model)
+    limits = robot_description.limits
+    self.limits = limits
+    self._limit_lists = [_joint_list(x) for x in (
+        limits.a_max, limits.j_max, limits.a_max_ltt, limits.j_max_ltt)]
+    # Clip bounds of the (dq, ddq, dddq) rows of a state (spec 2.2).
+    self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
+    self._pfl_speeds = {}
+    # Keypoint indices (2, B) of the human bodies' proximal and distal ends.
+    self._body_ends = np.array([
+        keypoints.index([b.proximal for b in self.human.config.bodies]),
+        keypoints.index([b.distal for b in self.human.config.bodies])])
+    self.reset(robot_description.q_home if q_init is None else q_init)
+
+  # --------------------------------------------------------------- commands
+
+  def reset(self, q, t=0.0):
+    """Robot at rest at q, no goal, no human measurement."""
+    q = np.asarray(q, dtype=float)
+    if q.shape != (self.dof,) or not np.all(np.isfinite(q)):
+      raise ValueError(f'q: expected {self.dof} finite joint positions for '
+                       f'{self.description.name}, got {q.tolist()}')
+    if not verification.within_joint_limits(q, self.description, 1e-9):
+      raise ValueError(f'q: {q.tolist()} is outside the joint limits '
+                       f'[{self.limits.q_min.tolist()}, '
+                       f'{self.limits.q_max.tolist()}]')
+    self.human.reset()
+    self._plan = ltp.LongTermPlan.at_rest(q, self.cycle_time, 0.0)
+    self._verified = path_lib.Path(0.0, 0.0, 0.0, 0.0)
+    self._intended = None
+    self._state = self._plan.state(0.0, 0.0, 0.0, 0.0)
+    self._goal = None
+    self._goal_pending = False
+    self._candidate = None       # (plan, start state key) awaiting approval.
+    self._pfl_speeds = {}
+    self.time = float(t)
+    self.is_safe = self.mode == 'off'
+    self.intervened = False
+    self.first_unsafe_interval = -1
+    self.reach_distance = np.inf
+    self.robot_reach_capsules = None
+    self.human_reach_capsules = None
+    self._lazy = {}
+
+  def new_goal(self, q_goal):
+    """Plans to rest at q_goal (clamped 0.01 rad inside the limits) from the
+    next step on; the new plan is adopted once a step on it verifies."""
+    self._goal = ltp.clamp_goal(q_goal, self.limits)
+    self._goal_pending = True
+    self._candidate = None
+
+  @property
+  def goal(self):
+    """The goal being planned to (None before the first new_goal)."""
+    return self._goal
+
+  @property
+  def plan(self):
+    """The adopted (verified) long-term plan."""
+    return self._plan
+
+  @property
+  def goal_pending(self):
+    """A goal was given whose plan has not been adopted yet."""
+    return self._goal_pending
+
+  # ----------------------------------------------------------------- state
+
+  @property
+  def q(self):
+    return self._state[0]
+
+  @property
+  def dq(self):
+    return self._state[1]
+
+  @property
+  def ddq(self):
+    return self._state[2]
+
+  @property
+  def dddq(self):
+    return self._state[3]
+
+  @property
+  def s(self):
+    """Position along the adopted plan (plan time, s)."""
+    return self._verified.s
+
+  @property
+  def s_dot(self):
+    return self._verified.s_dot
+
+  @property
+  def max_cartesian_speed(self):
+    """Largest surface speed of any robot capsule at the command (m/s)."""
+    if 'speed' not in self._lazy:
+      self._lazy['speed'] = float(self.robot.surface_speeds(
+          self._state[0], self._state[1]).max())
+    return self._lazy['speed']
+
+  @property
+  def min_distance(self):
+    """Distance (m) between the robot's real capsules at the command and
+    the human's real body capsules at the last measurement (inf without a
+    measurement; negative when they overlap)."""
+    if 'distance' not in self._lazy:
+      if self.human.positions is None:
+        self._lazy['distance'] = np.inf
+      else:
+        r1, r2, rr = self.robot.capsules(self._state[0])
+        h1, h2, hr = self.human.body_capsules(self.human.positions)
+        self._lazy['distance'] = float(geometry.capsule_distance(
+            r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
+            hr[None]).min())
+    return self._lazy['distance']
+
+  # ------------------------------------------------------------------ step
+
+  def step(self, human_keypoints, t):
+    """One cycle at time t: returns the command (q, dq, ddq).
+
+    human_keypoints: (N_kp, 3) positions measured at t, or None if there is
+    no new measurement (the last one then ages; with no measurement ever the
+    workcell is taken to be empty).
+    """
+    t = float(t)
+    if human_keypoints is not None:
+      self.human.measure(human_keypoints, t)
+    self.time = t
+    self._lazy = {}
+    dt = self.cycle_time
+
+    # Replanning: a candidate plan starts at the current command with path
+    # velocity 1 (its first sample is the commanded q, dq, ddq).
+    plan, current = self._plan, self._verified
+    candidate = self._candidate_plan()
+    if candidate is not None:
+      plan = candidate
+      current = path_lib.Path(self._verified.s, 1.0, 0.0, 0.0)
+
+    # The monitored path: one intended step, then the failsafe.
+    max_acc, max_jerk = path_lib.path_limits(
+        self._state[4], *self._limit_lists, self.max_s_stop)
+    intended = None
+    if candidate is None and self._intended is not None and not (
+        self._intended.is_finished() and self._intended.s_dot != 1.0):
+      intended = self._intended
+    if intended is None:
+      intended = path_lib.plan_profile(
+          current.s, current.s_dot, current.s_ddot, 1.0, max_acc, max_jerk, dt)
+    failsafe = None
+    if intended is not None:
+      intended = intended.copy()
+      intended.advance(dt)
+      s_dot_limit = self._s_dot_limit(plan, intended.s)
+      failsafe = path_lib.plan_profile(
+          intended.s, intended.s_dot, intended.s_ddot,
+          0.0 if s_dot_limit is None else s_dot_limit, max_acc, max_jerk, dt)
+    if failsafe is None or intended.s < current.s:
+      safe = False   # No monitored path: keep braking on the verified one.
+      self.robot_reach_capsules = self.human_reach_capsules = None
+      self.first_unsafe_interval, self.reach_distance = 0, -np.inf
+    else:
+      safe = self._verify(plan, current, failsafe, s_dot_limit)
+    self.is_safe = safe
+
+    follow = failsafe is not None and (safe or self.mode == 'off')
+    if follow:
+      if candidate is not None:
+        self._adopt(candidate)
+      self._verified = failsafe
+      self._intended = intended
+      state = plan.state(intended.s, intended.s_dot, intended.s_ddot,
+                         intended.jerk)
+      self.intervened = False
+    else:
+      self._verified = self._verified.copy()
+      self._verified.advance(dt)
+      self._intended = None
+      v = self._verified
+      state = self._plan.state(v.s, v.s_dot, v.s_ddot, v.jerk)
+      if intended is None:
+        self.intervened = True
+      else:
+        wanted = plan.state(intended.s, intended.s_dot, intended.s_ddot,
+                            intended.jerk)
+        self.intervened = not (
+            np.abs(wanted[0] - state[0]).max() <= _SAME_COMMAND and
+            np.abs(wanted[1] - state[1]).max() <= _SAME_COMMAND)
+    np.clip(state[1:4], -self._clip, self._clip, out=state[1:4])
+    self._state = state
+    return state[0], state[1], state[2]
+
+  # -------------------------------------------------------------- internals
+
+  def _candidate_plan(self):
+    """The plan to the pending goal from the current command, or None."""
+    if not self._goal_pending:
+      return None
+    key = (self._verified.s, self._verified.s_dot)
+    if self._candidate is not None and self._candidate[1] == key:
+      return self._candidate[0]   # The robot has not moved: still valid.
+    self._candidate = None
+    state = self._state
+    if np.any(np.abs(state[2]) > self.limits.a_max_ltt):
+      return None   # Spec 2.1: braking too hard to start a plan here; later.
+    try:
+      plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
+                              self.limits, self.cycle_time, self._verified.s)
+    except ltp.PlanningError:
+      return None
+    self._candidate = (plan, key)
+    return plan
+
+  def _adopt(self, plan):
+    self._plan = plan
+    self._goal_pending = False
+    self._candidate = None
+    self._pfl_speeds = {}
+
+  def _plan_speeds(self, plan):
+    """PFL tables of a plan's largest capsule surface speed at nominal path
+    speed: over the next PFL_WINDOW samples, and from each sample to the
+    end (both (N,), m/s)."""
+    cached = self._pfl_speeds.get(id(plan))
+    if cached is None or cached[0] is not plan:
+      speeds = self.robot.surface_speeds(plan.q, plan.dq).max(axis=1)
+      padded = np.concatenate([speeds, np.full(PFL_WINDOW, speeds[-1])])
+      window = np.lib.stride_tricks.sliding_window_view(
+          padded, PFL_WINDOW + 1).max(axis=1)[:len(speeds)]
+      suffix = np.maximum.accumulate(speeds[::-1])[::-1]
+      cached = (plan, window, suffix)
+      self._pfl_speeds = {id(plan): cached}
+    return cached[1], cached[2]
+
+  def _s_dot_limit(self, plan, s):
+    """PFL: the failsafe's final path velocity (None: brake to rest).
+
+    The robot keeps moving at this path velocity after the failsafe, so the
+    bound covers the plan's fastest capsule surface from s to its end.
+    """
+    if self.mode != 'pfl':
+      return None
+    remaining = self._plan_speeds(plan)[1][int(plan.index(s))]
+    allowed = PFL_SPEED_MARGIN * self.v_safe
+    return 1.0 if remaining <= allowed else allowed / remaining
+
+  def _slow_enough(self, plan, current, failsafe, times, s_edges, first):
+    """PFL: the robot's surface speed stays below v_safe from slice `first`
+    on (and after the failsafe, coasting at its final path velocity)."""
+    window, suffix = self._plan_speeds(plan)
+    allowed = PFL_SPEED_MARGIN * self.v_safe * (1.0 + _S_DOT_TOLERANCE)
+    k = plan.index(s_edges)
+    for i in range(first, len(times)):
+      if i == 0:
+        s_dot = max(current.s_dot, failsafe.s_dot)
+      else:
+        s_dot = failsafe.max_s_dot(times[i - 1], times[i])
+      if window[k[i]] * s_dot > allowed:
+        return False
+    return suffix[k[-1]] * failsafe.final()[1] <= allowed
+
+  def _verify(self, plan, current, failsafe, s_dot_limit):
+    """Checks the slice current -> intended step, then the failsafe."""
+    dt = self.cycle_time
+    end = failsafe.end_time()
+    count = max(int(np.ceil(end / self.interval - 1e-9)), 1)
+    times = [i * self.interval for i in range(count)] + [end]
+    s, s_dot, _, _ = failsafe.sample(times)
+    q_edges = np.empty((len(times) + 1, self.dof))
+    q_edges[0] = self._state[0]
+    q_edges[1:] = plan.positions(np.asarray(s))
+    s_edges = np.empty(len(times) + 1)
+    s_edges[0] = current.s
+    s_edges[1:] = s
+    if not verification.within_joint_limits(q_edges[-1], self.description):
+      self.robot_reach_capsules = self.human_reach_capsules = None
+      self.first_unsafe_interval, self.reach_distance = len(times) - 1, -np.inf
+      return False
+    robot = self.robot.reach_capsules(q_edges, s_edges)
+    self.robot_reach_capsules = robot
+    if self.human.positions is None:
+      self.human_reach_capsules = None
+      self.first_unsafe_interval, self.reach_distance = -1, np.inf
+      return True
+    horizon = times[-1] + dt
+    lower_bound = self._broad_phase(robot, horizon)
+    if lower_bound > 0.0:
+      self.human_reach_capsules = None
+      self.first_unsafe_interval, self.reach_distance = -1, lower_bound
+      return True
+    t_edges = np.empty(len(times) + 1)
+    t_edges[0] = 0.0
+    t_edges[1:] = np.asarray(times) + dt
+    human = self.human.reach_capsules(self.time, t_edges)
+    self.human_reach_capsules = human
+    safe, first, distance = verification.ssm_verdict(robot, human)
+    self.first_unsafe_interval, self.reach_distance = first, distance
+    if safe or s_dot_limit is None:
+      return safe
+    # PFL: contact is possible from slice `first` on; from then on the
+    # robot must be slower than v_safe.
+    return self._slow_enough(plan, current, failsafe, times, s_edges, first)
+
+  def _broad_phase(self, robot, horizon):
+    """Lower bound of the distance between the robot's reach capsules and
+    the human over the whole horizon (s after this cycle's time).
+
+    Each human body is bounded by one ball: its measured capsule grown by
+    max(v_max, measured speed) of its faster end times the age of the
+    measurement plus the horizon and the delay, plus the position error.
+    That ball contains the maximal-velocity (VEL) reachable set of the body
+    over every slice, so a positive bound means every slice is safe.
+    """
+    human, config = self.human, self.human.config
+    p1, p2, radius = human.body_capsules(human.positions)
+    speeds = np.sqrt(np.einsum('ni,ni->n', human.velocities,
+                               human.velocities))
+    speeds = np.maximum(speeds, config.v_max)[self._body_ends]
+    age = self.time - human.last_measurement_time + config.delay + horizon
+    grow = (np.maximum(speeds[0], speeds[1]) * age + radius
+            + config.measurement_error_pos)
+    centre = 0.5 * (p1 + p2)
+    human_radius = 0.5 * np.sqrt(np.einsum('bi,bi->b', p2 - p1, p2 - p1)) + grow
+    c1, c2, r = robot
+    robot_centre = 0.5 * (c1 + c2)
+    half = c2 - c1
+    robot_radius = 0.5 * np.sqrt(np.einsum('kli,kli->kl', half, half)) + r
+    gap = robot_centre[:, :, None, :] - centre
+    distance = (np.sqrt(np.einsum('klbi,klbi->klb', gap, gap))
+                - robot_radius[:, :, None] - human_radius)
+    return float(distance.min())
