@@ -12,6 +12,7 @@ import dataclasses
 import json
 import math
 import pathlib
+import re
 
 import numpy as np
 
@@ -25,24 +26,36 @@ FACING_WINDOW_S = 0.5   # seconds of the clip start used to estimate facing.
 _UP = np.array([0.0, 0.0, 1.0])
 
 
+# Body proportions of stature H (D. A. Winter, "Biomechanics and Motor Control
+# of Human Movement", 4th ed. 2009, Fig. 4.1, after Drillis and Contini) for
+# H = 1.75 m, the 50th-percentile German man of DIN 33402-2.
+_STATURE_M = 1.75
+_HAND_FRACTION = 0.108        # wrist to fingertip.
+_PALM_CENTRE_OF_HAND = 0.45   # modelling choice: hand keypoint at the palm.
+_HIP_BREADTH_FRACTION = 0.191
+_THIGH_FRACTION = 0.245
+_SHIN_FRACTION = 0.246
+_ANKLE_HEIGHT_FRACTION = 0.039
+
+
 @dataclasses.dataclass(frozen=True)
 class Anthropometrics:
-  """Body dimensions (metres) for parts a skeleton lacks.
+  """Body dimensions (metres) for the parts a skeleton lacks.
 
-  Values near the 50th percentile of adults, DIN 33402-2:2020 tables:
-  hand length 0.19 m (wrist crease to fingertip; the hand keypoint sits at the
-  palm centre, about half of it), knee height 0.50 m and trochanter height
-  0.93 m (thigh = 0.93 - 0.50, shin = knee height - ankle height), hip
-  breadth 0.36 m (hip joint centres about 0.17 m apart).
+  Defaults: Winter's proportions at H = 1.75 m (constants above); hip joint
+  centres a quarter of the hip breadth either side of the midline.
   """
-  hand_length: float = 0.09    # wrist to hand keypoint.
-  hip_half_width: float = 0.085  # pelvis to each hip joint centre, sideways.
-  # Pelvis keypoint to the hip joint centres, downwards. The recordings' root
-  # marker sits at the lower back, about 0.1 m above the hip joint centres.
+  hand_length: float = round(_PALM_CENTRE_OF_HAND * _HAND_FRACTION *
+                             _STATURE_M, 4)   # wrist to hand keypoint.
+  hip_half_width: float = round(0.25 * _HIP_BREADTH_FRACTION * _STATURE_M, 4)
+  # Pelvis keypoint to the hip joint centres, downwards. Modelling choice for
+  # the recordings: their root sits at the lower back, 0.32 m below the
+  # shoulder joints; 0.1 m puts a standing subject's shoulders at about
+  # 1.35 m and head joint at about 1.7 m.
   hip_drop: float = 0.10
-  thigh_length: float = 0.43   # hip joint to knee joint.
-  shin_length: float = 0.42    # knee joint to ankle joint.
-  ankle_height: float = 0.08   # ankle joint above the floor.
+  thigh_length: float = round(_THIGH_FRACTION * _STATURE_M, 4)
+  shin_length: float = round(_SHIN_FRACTION * _STATURE_M, 4)
+  ankle_height: float = round(_ANKLE_HEIGHT_FRACTION * _STATURE_M, 4)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,12 +78,13 @@ class SkeletonMapping:
 
   def check(self, skeleton, source='<bvh>'):
     names = set(skeleton.names)
-    missing = [k for k in keypoints.KEYPOINT_NAMES
-               if k not in self.points and k not in LEG_KEYPOINTS]
-    legs = [k for k in LEG_KEYPOINTS if k in self.points]
-    if missing or (legs and len(legs) != len(LEG_KEYPOINTS)):
+    # Legs are all mapped or all synthesised.
+    legs_mapped = any(k in self.points for k in LEG_KEYPOINTS)
+    missing = [k for k in keypoints.KEYPOINT_NAMES if k not in self.points
+               and (legs_mapped or k not in LEG_KEYPOINTS)]
+    if missing:
       raise bvh.BvhError(f'{source}: mapping {self.name!r} lacks keypoints '
-                         f'{missing + [k for k in LEG_KEYPOINTS if legs and k not in self.points]}')
+                         f'{missing}')
     for joint in self.channels:
       if joint not in names:
         raise bvh.BvhError(
@@ -316,15 +330,14 @@ def _loop_values(info, key, phase_key, source):
       raise _info_error(source, key, f'expected a list or an entry '
                         f'{phase_key!r}, got keys {sorted(values)}')
     values = values[phase_key]
-  elif phase_key is not None and isinstance(values, list):
-    pass   # One list for every phase.
   if not isinstance(values, list) or not values:
     raise _info_error(source, key, f'expected a list of numbers, got '
                       f'{values!r}')
   try:
     return np.array([float(v) for v in values])
   except (TypeError, ValueError):
-    raise _info_error(source, key, f'expected numbers, got {values!r}') from None
+    raise _info_error(source, key,
+                      f'expected numbers, got {values!r}') from None
 
 
 def _generic_rules(info):
@@ -426,7 +439,8 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
       raise clip_lib.ClipError(f'{info_path}: not valid JSON: {e}') from e
   fields = idle_phases_from_info(info, motion.fps, motion.num_frames, task,
                                  str(info_path))
-  name = name or f'{folder}_{bvh_path.stem}'
+  name = name or re.sub(r'[^A-Za-z0-9_.\-]', '_',
+                        f'{folder}_{bvh_path.stem}')
   metadata = {
       'source': 'bvh', 'file': f'{folder}/{bvh_path.name}',
       'skeleton_mapping': mapping.name, 'units_m': facts['scale_m_per_unit'],

@@ -283,7 +283,7 @@ def _clip_to_json(clip):
 
 
 def save_clip(clip, directory):
-  """Writes <name>.npz and <name>.json into `directory`; returns the json path."""
+  """Writes <name>.npz and <name>.json into `directory`; returns .json path."""
   validate(clip, source=f'clip {clip.name!r}')
   directory = pathlib.Path(directory)
   directory.mkdir(parents=True, exist_ok=True)

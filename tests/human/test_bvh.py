@@ -140,7 +140,7 @@ Frame Time: 0.04
   np.testing.assert_allclose(positions[0, 2], [3.7, 3.3, 3.1], atol=1e-12)
 
 
-def stick_figure(unit_scale, frames=2):
+def stick_figure(unit_scale, frames=2, legs=False):
   """A standing T-pose person (1.75 m) in the given file unit per metre."""
   s = unit_scale
 
@@ -173,6 +173,28 @@ def stick_figure(unit_scale, frames=2):
     }}
   }}
 """
+  def leg(side, sign):
+    return f"""  JOINT {side}_thigh
+  {{
+    OFFSET {off(sign * 0.09, -0.1, 0)}
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    JOINT {side}_shin
+    {{
+      OFFSET {off(0, -0.43, 0)}
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      JOINT {side}_foot
+      {{
+        OFFSET {off(0, -0.43, 0)}
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        End Site
+        {{
+          OFFSET {off(0, -0.07, -0.1)}
+        }}
+      }}
+    }}
+  }}
+"""
+
   # Facing -z (Y up, right-handed): the person's left is -x; walks forward.
   header = f"""HIERARCHY
 ROOT hip
@@ -198,14 +220,14 @@ ROOT hip
       }}
     }}
 {arm('left', -1)}{arm('right', 1)}  }}
-}}
+{(leg('left', -1) + leg('right', 1)) if legs else ''}}}
 MOTION
 Frames: {frames}
 Frame Time: 0.01
 """
   rows = []
   for f in range(frames):
-    values = np.zeros(39)
+    values = np.zeros(57 if legs else 39)
     values[:3] = [0.3 * s, 1.0 * s, (0.5 - 0.001 * f) * s]
     values[36] = 10.0 * f / max(frames - 1, 1)   # right wrist bends.
     rows.append(' '.join(f'{v:g}' for v in values))
@@ -267,7 +289,8 @@ def test_malformed_files_name_the_line(old, new, line, words):
 
 def test_unclosed_hierarchy_and_missing_offset():
   text = CHAIN.replace('    }\n  }\n}\nMOTION', '    }\n  }\nMOTION')
-  with pytest.raises(bvh.BvhError, match="line 14: expected JOINT, End Site.*end of hierarchy"):
+  with pytest.raises(bvh.BvhError,
+                     match='line 14: expected JOINT, End Site.*end of hier'):
     bvh.parse(text)
   with pytest.raises(bvh.BvhError, match=r"line 4: expected 'OFFSET'"):
     bvh.parse(CHAIN.replace('  OFFSET 0 0 0\n', '', 1))
@@ -322,6 +345,30 @@ def test_import_stick_figure_into_clip_frame():
   np.testing.assert_allclose(
       positions[:, I['chest']] - positions[:, I['pelvis']],
       2 * (positions[:, I['torso']] - positions[:, I['pelvis']]), atol=1e-9)
+
+
+def test_mapped_legs_set_the_floor():
+  motion = bvh.parse(stick_figure(100, frames=60, legs=True))
+  legs = {f'{side}_{part}': f'{side}_{joint}' for side in ('left', 'right')
+          for part, joint in (('hip', 'thigh'), ('knee', 'shin'),
+                              ('ankle', 'foot'))}
+  mapping = bvh_import.SkeletonMapping(
+      'full body', {**bvh_import.RECORDINGS_MAPPING.points, **legs})
+  assert mapping.has_legs
+  positions, facts = bvh_import.import_motion(motion, mapping)
+  body = bvh_import.Anthropometrics()
+  assert facts['legs'] == 'mapped'
+  np.testing.assert_allclose(positions[:, I['left_ankle'], 2],
+                             body.ankle_height, atol=1e-9)
+  np.testing.assert_allclose(
+      positions[:, I['pelvis'], 2] - positions[:, I['left_hip'], 2], 0.1,
+      atol=1e-9)
+  assert positions[0, I['left_hip'], 1] == pytest.approx(0.09)
+  partial = bvh_import.SkeletonMapping(
+      'half legs', {**bvh_import.RECORDINGS_MAPPING.points,
+                    'left_hip': 'left_thigh'})
+  with pytest.raises(bvh.BvhError, match="lacks keypoints.*'left_knee'"):
+    bvh_import.import_motion(motion, partial)
 
 
 def test_synthesised_knees_bend_forward_when_the_pelvis_drops():
