@@ -21,6 +21,9 @@ PROFILE_EPSILON = 1e-6
 # Phase end times at or below this are treated as elapsed (float residue of
 # subtracting whole cycles from multiples of the cycle time).
 _TIME_EPSILON = 1e-12
+# Path velocities below this at the end of a schedule are round-off of a
+# profile to rest (the peak correction leaves ~1e-15) and become exactly 0.
+_REST_S_DOT = 1e-9
 # Half-width (cycles) of the duration search used when rounding up the phase
 # durations makes the corrected profile violate a bound.
 _SEARCH_CYCLES = 4
@@ -96,6 +99,8 @@ class Path:
     else:
       self.jerk = 0.0
       self.s_ddot = 0.0
+      if self.s_dot < _REST_S_DOT:
+        self.s_dot = 0.0   # Round-off residue of a profile to rest.
 
   def _integrate(self, duration, jerk):
     """Constant-jerk motion for `duration`.
@@ -170,7 +175,8 @@ class Path:
         out.append((start + stop, path.s, 0.0, 0.0, 0.0))
         return out
       start = path.phase_ends[i]
-    out.append((start, path.s, path.s_dot, 0.0, 0.0))
+    v_end = 0.0 if path.s_dot < _REST_S_DOT else path.s_dot
+    out.append((start, path.s, v_end, 0.0, 0.0))
     return out
 
   def max_s_dot(self, after=0.0, before=None):
