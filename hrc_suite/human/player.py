@@ -252,7 +252,11 @@ class Player:
       self._transition = (0.0, duration)
 
   def trigger(self, event):
-    """The task reports `event`; ends the current wait if it is for it."""
+    """The task reports `event`; ends the current wait if it is for it.
+
+    Returns whether it ended a wait. Events while not waiting for them are
+    ignored, so a task calls this every step while its predicate holds.
+    """
     if not self._ready or not self._waiting:
       return False
     if self._current.events[self._phase] != event:
