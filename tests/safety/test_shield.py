@@ -1,0 +1,231 @@
+"""Shield step: construction, read-outs, slices, plan adoption, modes."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hrc_suite import robot_description
+from hrc_suite.human import keypoints
+from hrc_suite.safety import geometry
+from hrc_suite.safety import shield as shield_lib
+
+import conftest as harness
+
+CYCLE = shield_lib.DEFAULT_CYCLE_TIME
+
+
+@pytest.fixture(scope='module')
+def panda():
+  return robot_description.load('panda')
+
+
+def _shield(description, **kwargs):
+  return shield_lib.Shield(description,
+                           tool_capsule=harness.tool_capsule(description),
+                           **kwargs)
+
+
+def _goal(description, shift=0.8):
+  goal = description.q_home.copy()
+  goal[0] += shift
+  return goal
+
+
+def _human_near(shield):
+  """A person whose right hand is 0.35 m in front of the gripper."""
+  _, p2, _ = shield.robot.capsules(shield.q)
+  body = harness.place(harness.STANDING, 0.0, 0.0, math.pi)
+  hand = keypoints.KEYPOINT_INDEX['right_hand']
+  return body + (p2[-1] + np.array([0.35, 0.0, 0.0]) - body[hand])
+
+
+def _blocking_human(shield):
+  """A person whose torso is on the robot's second link."""
+  p1, p2, _ = shield.robot.capsules(shield.q)
+  body = harness.place(harness.STANDING, 0.0, 0.0, 0.0)
+  return body + 0.5 * (p1[1] + p2[1]) - body[keypoints.KEYPOINT_INDEX['torso']]
+
+
+def test_bad_arguments_are_named(panda):
+  with pytest.raises(ValueError, match="mode: expected one of"):
+    shield_lib.Shield(panda, mode='fast')
+  with pytest.raises(ValueError, match='cycle_time'):
+    shield_lib.Shield(panda, cycle_time=0.0)
+  with pytest.raises(ValueError, match='v_safe'):
+    shield_lib.Shield(panda, v_safe=-1.0)
+  shield = shield_lib.Shield(panda)
+  with pytest.raises(ValueError, match='outside the joint limits'):
+    shield.reset(panda.limits.q_max + 0.1)
+  with pytest.raises(ValueError, match=r'7 finite joint positions'):
+    shield.reset(np.zeros(6))
+  with pytest.raises(ValueError, match=r'q_goal must have shape \(7,\)'):
+    shield.new_goal(np.zeros(3))
+  with pytest.raises(ValueError, match='keypoints'):
+    shield.step(np.zeros((3, 3)), 0.0)
+
+
+def test_starts_at_rest_and_defaults(panda):
+  shield = shield_lib.Shield(panda)
+  np.testing.assert_array_equal(shield.q, panda.q_home)
+  assert not shield.dq.any()
+  assert not shield.is_safe   # Nothing verified yet.
+  assert shield_lib.Shield(panda, mode='off').is_safe
+  assert shield.v_safe == panda.shield.v_safe == 0.05
+  assert shield_lib.Shield('schunk').v_safe == 0.1
+  assert shield_lib.Shield(panda, v_safe=0.2).v_safe == 0.2
+
+
+def test_without_human_the_plan_is_followed(panda):
+  shield = _shield(panda)
+  shield.new_goal(_goal(panda))
+  for i in range(50):
+    shield.step(None, i * CYCLE)
+    assert shield.is_safe and not shield.intervened
+  assert shield.human_reach_capsules is None
+  assert shield.min_distance == np.inf
+  assert np.abs(shield.dq).max() > 0.05
+
+
+def test_read_outs(panda):
+  shield = _shield(panda)
+  shield.new_goal(_goal(panda))
+  far = harness.far_away()(0.0)
+  for i in range(60):
+    shield.step(far, i * CYCLE)
+  previous = shield.q.copy()
+  human = _human_near(shield)
+  shield.step(human, 60 * CYCLE)
+  robot = shield.robot_reach_capsules
+  num_capsules = panda.dof + 1
+  k = robot[2].shape[0]
+  assert robot[0].shape == (k, num_capsules, 3)
+  assert robot[2].shape == (k, num_capsules)
+  human_reach = shield.human_reach_capsules
+  assert human_reach[0].shape == (1, k, shield.human.num_bodies, 3)
+  # Slices: the current step (fix L4), then 20 ms slices of the failsafe.
+  assert k >= 2
+  # The first slice encloses the robot at the previous and the new command.
+  for q in (previous, shield.q):
+    p1, p2, r = shield.robot.capsules(q)
+    assert np.all(geometry.capsule_contains_capsule(
+        robot[0][0], robot[1][0], robot[2][0], p1, p2, r, 1e-9))
+  # Distances and speeds are the real-size ones at the command.
+  r1, r2, rr = shield.robot.capsules(shield.q)
+  h1, h2, hr = shield.human.body_capsules(human)
+  expected = geometry.capsule_distance(r1[:, None], r2[:, None], rr[:, None],
+                                       h1[None], h2[None], hr[None]).min()
+  assert shield.min_distance == pytest.approx(expected)
+  assert shield.max_cartesian_speed == pytest.approx(
+      shield.robot.surface_speeds(shield.q, shield.dq).max())
+  assert shield.max_cartesian_speed > 0.01
+  # The reach distance is below the real one (reach sets are larger).
+  assert shield.reach_distance <= shield.min_distance
+
+
+def test_slices_cover_the_failsafe(panda):
+  shield = _shield(panda)
+  shield.new_goal(_goal(panda, 1.5))
+  human = harness.place(harness.STANDING, 1.2, 0.0, math.pi)
+  for i in range(100):
+    shield.step(human, i * CYCLE)
+  assert shield.is_safe and shield.s_dot == pytest.approx(1.0)
+  failsafe = shield._verified
+  interval = panda.shield.reachability_interval_cycles * CYCLE
+  k = shield.robot_reach_capsules[2].shape[0]
+  assert k == 1 + math.ceil(failsafe.end_time() / interval - 1e-9)
+  # The last slice ends at the end of the failsafe, at rest on the plan.
+  s_end, s_dot_end, _ = failsafe.final()
+  assert s_dot_end == 0.0
+  q_end = shield.plan.evaluate(s_end)[0]
+  p1, p2, r = shield.robot.capsules(q_end)
+  robot = shield.robot_reach_capsules
+  assert np.all(geometry.capsule_contains_capsule(
+      robot[0][-1], robot[1][-1], robot[2][-1], p1, p2, r, 1e-9))
+
+
+def test_new_plan_waits_for_verification_b4(panda):
+  shield = _shield(panda)
+  shield.new_goal(_goal(panda))
+  far = harness.far_away()(0.0)
+  t = 0.0
+  for _ in range(40):
+    shield.step(far, t)
+    t += CYCLE
+  old_plan = shield.plan
+  blocking = _blocking_human(shield)
+  new_goal = panda.q_home.copy()
+  new_goal[1] -= 0.5
+  shield.new_goal(new_goal)
+  for _ in range(60):
+    shield.step(blocking, t)
+    t += CYCLE
+    assert not shield.is_safe and shield.intervened
+    # Still braking along the old, verified plan.
+    assert shield.plan is old_plan and shield.goal_pending
+    np.testing.assert_allclose(shield.q, old_plan.evaluate(shield.s)[0],
+                               atol=1e-12)
+  assert not np.abs(shield.dq).any()
+  # The human leaves: the new plan verifies, is adopted and followed.
+  for _ in range(5):
+    shield.step(far, t)
+    t += CYCLE
+  assert shield.is_safe and not shield.goal_pending
+  assert shield.plan is not old_plan
+  np.testing.assert_allclose(shield.plan.goal, new_goal)
+
+
+def test_off_mode_follows_the_plan_and_reports(panda):
+  shield = _shield(panda, mode='off')
+  shield.new_goal(_goal(panda))
+  blocking = None
+  for i in range(80):
+    if i == 20:
+      blocking = _blocking_human(shield)
+    shield.step(blocking, i * CYCLE)
+    assert not shield.intervened
+    if blocking is not None:
+      assert not shield.is_safe
+      assert shield.first_unsafe_interval == 0
+      assert shield.min_distance < 0
+  assert shield.s_dot == pytest.approx(1.0)
+
+
+def test_old_measurements_age(panda):
+  """Without new measurements the human's reachable set keeps growing."""
+  shield = _shield(panda)
+  human = harness.place(harness.STANDING, 1.4, 0.0, math.pi)
+  shield.step(human, 0.0)
+  t = CYCLE
+  while shield.is_safe:
+    shield.step(None, t)
+    t += CYCLE
+    assert t < 2.0, 'an ageing measurement never became unsafe'
+  # The person could have walked 2 m/s * age into the robot: about 0.6 m.
+  assert 0.15 < t < 0.8
+
+
+def test_same_inputs_same_outputs(panda):
+  outputs = []
+  for _ in range(2):
+    shield = _shield(panda, mode='pfl')
+    human = harness.hand_attack(np.array([0.5, 0.0, 1.2]), start=0.05)
+    rng = np.random.RandomState(5)
+    run = harness.simulate(shield, human, 0.6, check=False,
+                           goal=harness.random_goals(panda, rng))
+    outputs.append((run.q, run.dq, run.ddq, run.safe))
+  for a, b in zip(*outputs):
+    np.testing.assert_array_equal(a, b)
+
+
+def test_pfl_moves_slowly_where_ssm_stops(panda):
+  speeds = {}
+  for mode in ('ssm', 'pfl'):
+    shield = _shield(panda, mode=mode)
+    shield.new_goal(_goal(panda, 2.0))
+    blocking = _blocking_human(shield)
+    for i in range(150):
+      shield.step(blocking, i * CYCLE)
+    speeds[mode] = shield.max_cartesian_speed
+  assert speeds['ssm'] == 0.0
+  assert 0.005 < speeds['pfl'] <= panda.shield.v_safe
