@@ -1,0 +1,270 @@
+"""Inverse kinematics for workspace actions: TCP position, gripper down.
+
+The target is a full TCP pose: the given position, the TCP z axis along world
+-z (gripper pointing down) and the TCP x axis at angle `yaw` about world z.
+The solver is a Levenberg-Marquardt (damped least squares) iteration on the
+6-D pose error with Sugihara's error-dependent damping (T. Sugihara, "Solvability-
+unconcerned inverse kinematics by the Levenberg-Marquardt method", IEEE T-RO
+2011), which converges quadratically near a solution and stays well behaved at
+singularities and for unreachable targets. Joint limits are respected by an
+active set: joints at a limit whose step points outward are frozen for that
+iteration, and every iterate is clipped into the limits, so every returned q
+is within limits. A solve that does not meet the tolerances reports
+`success=False` (its q is the best iterate, for diagnostics only).
+
+hrc_suite's parallel gripper is symmetric under a half turn about its axis,
+so by default the TCP x axis may point along yaw or yaw + pi: the solver aims
+for the one nearer the seed's TCP x axis and tries the other if that fails.
+This matters for robots whose wrist joints cannot turn a full circle (the
+Schunk LWA 4P cannot point its gripper down at yaw 0 in front of it).
+"""
+
+import dataclasses
+from typing import Optional
+
+import numpy as np
+import pinocchio as pin
+
+from hrc_suite.control import kinematics
+
+# Reference benchmark IK: residual 1e-3, at most 50 iterations
+# (reference-benchmark.md); the LM iteration here converges in far fewer.
+DEFAULT_MAX_ITERATIONS = 100
+DEFAULT_POSITION_TOLERANCE = 1e-3     # m
+DEFAULT_ORIENTATION_TOLERANCE = 1e-2  # rad
+# Metres of error one radian of orientation error counts as in the LM cost;
+# about the distance from the wrist centre to the TCP.
+DEFAULT_ORIENTATION_WEIGHT = 0.2
+# Constant part of the LM damping (Sugihara's w_bar), in (weighted m)^2.
+DEFAULT_BASE_DAMPING = 1e-6
+# Largest joint change per iteration, rad; keeps steps inside the region where
+# the linearisation holds.
+DEFAULT_MAX_STEP = 0.4
+
+
+@dataclasses.dataclass(frozen=True)
+class IkResult:
+  """Outcome of one IK solve; `q` is within the joint limits."""
+  q: np.ndarray
+  success: bool
+  position_error: float     # m, |target - tcp position|
+  orientation_error: float  # rad, angle between target and TCP rotation
+  iterations: int
+  yaw: float                # rad, the target yaw used (yaw or yaw + pi)
+
+
+def gripper_down_rotation(yaw: float) -> np.ndarray:
+  """TCP rotation with z along world -z and x at `yaw` about world z."""
+  c, s = np.cos(yaw), np.sin(yaw)
+  # Columns: x = (c, s, 0), y = z cross x = (s, -c, 0), z = (0, 0, -1).
+  return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
+
+
+def _wrap(angle):
+  """Angle wrapped into [-pi, pi)."""
+  return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+class InverseKinematics:
+  """Gripper-down position IK for one `KinematicModel`."""
+
+  def __init__(self, model: kinematics.KinematicModel,
+               max_iterations: int = DEFAULT_MAX_ITERATIONS,
+               position_tolerance: float = DEFAULT_POSITION_TOLERANCE,
+               orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE,
+               orientation_weight: float = DEFAULT_ORIENTATION_WEIGHT,
+               base_damping: float = DEFAULT_BASE_DAMPING,
+               max_step: float = DEFAULT_MAX_STEP,
+               half_turn_symmetric: bool = True):
+    if not isinstance(model, kinematics.KinematicModel):
+      raise TypeError(f'model must be a KinematicModel, got {type(model)!r}')
+    if int(max_iterations) != max_iterations or max_iterations < 1:
+      raise ValueError(f'max_iterations must be a positive integer, got '
+                       f'{max_iterations!r}')
+    for name, value in (('position_tolerance', position_tolerance),
+                        ('orientation_tolerance', orientation_tolerance),
+                        ('orientation_weight', orientation_weight),
+                        ('base_damping', base_damping),
+                        ('max_step', max_step)):
+      if not np.isfinite(value) or value <= 0:
+        raise ValueError(f'{name} must be a positive number, got {value!r}')
+    self._model = model
+    self.max_iterations = int(max_iterations)
+    self.position_tolerance = float(position_tolerance)
+    self.orientation_tolerance = float(orientation_tolerance)
+    self._weights = np.array([1.0, 1.0, 1.0] + [orientation_weight] * 3)
+    self._base_damping = float(base_damping)
+    self._max_step = float(max_step)
+    self._identity = np.eye(model.dof)
+    self.half_turn_symmetric = bool(half_turn_symmetric)
+
+  @property
+  def model(self) -> kinematics.KinematicModel:
+    return self._model
+
+  def _error(self, q, target_position, target_rotation):
+    """Weighted 6-D error, weighted Jacobian, position and angle errors."""
+    pose, jacobian = self._model.tcp_pose_and_jacobian(q)
+    error = np.empty(6)
+    error[:3] = target_position - pose[:3, 3]
+    error[3:] = pin.log3(target_rotation @ pose[:3, :3].T)
+    weighted_error = self._weights * error
+    weighted_jacobian = self._weights[:, None] * jacobian
+    return (weighted_error, weighted_jacobian, float(np.linalg.norm(error[:3])),
+            float(np.linalg.norm(error[3:])))
+
+  def _check_target(self, target_position):
+    target = np.asarray(target_position, dtype=float)
+    if target.shape != (3,) or not np.all(np.isfinite(target)):
+      raise ValueError('target_position must be 3 finite numbers (world x, y, '
+                       f'z in m), got {np.asarray(target_position).tolist()!r}')
+    return target
+
+  def solve(self, target_position, q_init, yaw: float = 0.0) -> IkResult:
+    """TCP at target_position, gripper down at `yaw`, starting from q_init."""
+    target = self._check_target(target_position)
+    if not np.isfinite(yaw):
+      raise ValueError(f'yaw must be a finite angle in rad, got {yaw!r}')
+    q = np.clip(self._model.check_q(q_init), self._model.q_min,
+                self._model.q_max)
+    if not self.half_turn_symmetric:
+      return self._solve(target, q, float(yaw))
+    seed_x_axis = self._model.tcp_pose(q)[:2, 0]
+    seed_yaw = np.arctan2(seed_x_axis[1], seed_x_axis[0])
+    nearer = float(yaw)
+    if abs(_wrap(seed_yaw - yaw)) > np.pi / 2:
+      nearer = float(_wrap(yaw + np.pi))
+    result = self._solve(target, q, nearer)
+    if result.success:
+      return result
+    other = self._solve(target, q, float(_wrap(nearer + np.pi)))
+    if other.success or other.position_error < result.position_error:
+      return dataclasses.replace(
+          other, iterations=other.iterations + result.iterations)
+    return dataclasses.replace(
+        result, iterations=other.iterations + result.iterations)
+
+  def _solve(self, target, q, yaw):
+    """One LM run for a fixed target rotation."""
+    q_min, q_max = self._model.q_min, self._model.q_max
+    rotation = gripper_down_rotation(yaw)
+    best = None
+    for iteration in range(self.max_iterations + 1):
+      error, jacobian, position_error, angle_error = self._error(
+          q, target, rotation)
+      cost = float(error @ error)
+      if best is None or cost < best[0]:
+        best = (cost, q.copy(), position_error, angle_error)
+      if (position_error <= self.position_tolerance and
+          angle_error <= self.orientation_tolerance):
+        return IkResult(q, True, position_error, angle_error, iteration, yaw)
+      if iteration == self.max_iterations:
+        break
+      step = self._step(q, error, jacobian, cost)
+      q = np.clip(q + step, q_min, q_max)
+    _, q, position_error, angle_error = best
+    return IkResult(q, False, position_error, angle_error,
+                    self.max_iterations, yaw)
+
+  def _step(self, q, error, jacobian, cost):
+    """LM step with joints that sit at a limit and push outward frozen."""
+    gradient = jacobian.T @ error
+    hessian = jacobian.T @ jacobian
+    damping = (0.5 * cost + self._base_damping) * self._identity
+    step = np.linalg.solve(hessian + damping, gradient)
+    frozen = (((q <= self._model.q_min) & (step < 0)) |
+              ((q >= self._model.q_max) & (step > 0)))
+    if np.any(frozen):
+      free = ~frozen
+      step = np.zeros_like(step)
+      sub = hessian[np.ix_(free, free)] + damping[np.ix_(free, free)]
+      step[free] = np.linalg.solve(sub, gradient[free])
+    largest = np.max(np.abs(step))
+    if largest > self._max_step:
+      step *= self._max_step / largest
+    return step
+
+  def solve_with_restarts(self, target_position, q_init,
+                          random_state: np.random.RandomState,
+                          yaw: float = 0.0, restarts: int = 50) -> IkResult:
+    """`solve` from q_init, then from uniform random joint vectors.
+
+    Returns the first success, otherwise the failed attempt with the smallest
+    position error. Slow; meant for planning-time searches (home poses,
+    reachability), not per-step use.
+    """
+    if not isinstance(random_state, np.random.RandomState):
+      raise TypeError('random_state must be a np.random.RandomState, got '
+                      f'{type(random_state)!r}')
+    best = self.solve(target_position, q_init, yaw)
+    for _ in range(restarts):
+      if best.success:
+        break
+      seed = random_state.uniform(self._model.q_min, self._model.q_max)
+      result = self.solve(target_position, seed, yaw)
+      if result.success or result.position_error < best.position_error:
+        best = result
+    return best
+
+
+def solve_many(solver: InverseKinematics, target_positions, q_init,
+               yaw: float = 0.0, chain: bool = True):
+  """Solves a sequence of targets; with `chain`, each seeds from the last q.
+
+  Returns the list of IkResults. The seed only advances on success, as a
+  workspace controller would keep the last reachable goal.
+  """
+  results = []
+  q = np.asarray(q_init, dtype=float)
+  for target in np.asarray(target_positions, dtype=float):
+    result = solver.solve(target, q if chain else q_init, yaw)
+    results.append(result)
+    if chain and result.success:
+      q = result.q
+  return results
+
+
+# Box of TCP targets over the table for evaluating workspace IK, in the base
+# frame (base at the table's near edge, table top at base height; layout.py):
+# from just above the table top (a 4 cm cube's centre) to 0.4 m above it.
+TABLE_WORKSPACE_LOW = (0.25, -0.40, 0.02)   # m
+TABLE_WORKSPACE_HIGH = (0.70, 0.40, 0.40)   # m
+# TCP of the nominal home pose, base frame, m; robots whose home TCP is
+# closer to the base get a box scaled down by the same factor.
+NOMINAL_HOME_TCP = (0.45, 0.0, 0.25)
+
+
+def table_workspace_box(model: kinematics.KinematicModel):
+  """(low, high) corners of the robot's table workspace box, base frame, m.
+
+  TABLE_WORKSPACE_LOW/HIGH scaled about the base by the robot's home-TCP
+  distance over NOMINAL_HOME_TCP's (at most 1).
+  """
+  base = model.base_pose
+  home = base[:3, :3].T @ (model.tcp_pose(model.description.q_home)[:3, 3] -
+                           base[:3, 3])
+  scale = min(1.0, np.linalg.norm(home) / np.linalg.norm(NOMINAL_HOME_TCP))
+  return (scale * np.asarray(TABLE_WORKSPACE_LOW),
+          scale * np.asarray(TABLE_WORKSPACE_HIGH))
+
+
+def sample_table_targets(model: kinematics.KinematicModel, num_targets: int,
+                         random_state: np.random.RandomState) -> np.ndarray:
+  """(num_targets, 3) world TCP targets uniform in `table_workspace_box`."""
+  if not isinstance(random_state, np.random.RandomState):
+    raise TypeError('random_state must be a np.random.RandomState, got '
+                    f'{type(random_state)!r}')
+  low, high = table_workspace_box(model)
+  local = random_state.uniform(low, high, size=(int(num_targets), 3))
+  base = model.base_pose
+  return local @ base[:3, :3].T + base[:3, 3]
+
+
+def reachable(solver: InverseKinematics, target_position,
+              random_state: np.random.RandomState, yaw: float = 0.0,
+              restarts: int = 50, q_init: Optional[np.ndarray] = None) -> bool:
+  """Whether a thorough restart search finds a solution within limits."""
+  model = solver.model
+  seed = model.description.q_home if q_init is None else q_init
+  return solver.solve_with_restarts(target_position, seed, random_state, yaw,
+                                    restarts).success
