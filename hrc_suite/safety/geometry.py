@@ -136,48 +136,45 @@ def point_box_distance(p, box_min, box_max):
   return np.sqrt(_dot(outside, outside))
 
 
-# Golden-section iterations for segment-box distance: the bracket shrinks by
-# 0.618 per step, 0.618^64 ~ 4e-14 of the segment length.
-_GOLDEN_ITERATIONS = 64
-_INV_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
-
-
 def segment_box_distance(a0, a1, box_min, box_max):
-  """Distance from segments [a0, a1] to axis-aligned boxes (0 if touching).
+  """Exact distance from segments [a0, a1] to axis-aligned boxes (0 if
+  touching or inside).
 
-  The distance of a point to a convex set is convex, so along the segment it
-  is a convex function of the parameter; golden-section search finds its
-  minimum to ~1e-13 of the segment length (plus endpoints checked exactly).
+  Along the segment the squared distance is convex and piecewise quadratic:
+  its pieces end where the segment crosses a slab plane (at most 6 crossings)
+  and inside a piece the set of violated slab bounds is fixed. The minimum
+  is therefore at a crossing, an end, or the clipped stationary point of one
+  piece's quadratic; all these candidates are evaluated.
   """
   a0 = np.asarray(a0, dtype=float)
   d = np.asarray(a1, dtype=float) - a0
   box_min = np.asarray(box_min, dtype=float)
   box_max = np.asarray(box_max, dtype=float)
-  shape = np.broadcast_shapes(a0.shape[:-1], d.shape[:-1], box_min.shape[:-1],
-                              box_max.shape[:-1])
-  lo = np.zeros(shape)
-  hi = np.ones(shape)
-
-  def dist(t):
-    return point_box_distance(a0 + t[..., None] * d, box_min, box_max)
-
-  x1 = hi - _INV_GOLDEN * (hi - lo)
-  x2 = lo + _INV_GOLDEN * (hi - lo)
-  f1, f2 = dist(x1), dist(x2)
-  for _ in range(_GOLDEN_ITERATIONS):
-    left = f1 <= f2  # Minimum in [lo, x2].
-    hi = np.where(left, x2, hi)
-    lo = np.where(left, lo, x1)
-    new_x1 = hi - _INV_GOLDEN * (hi - lo)
-    new_x2 = lo + _INV_GOLDEN * (hi - lo)
-    x1n = np.where(left, new_x1, x2)
-    x2n = np.where(left, x1, new_x2)
-    f1n = np.where(left, dist(new_x1), f2)
-    f2n = np.where(left, f1, dist(new_x2))
-    x1, x2, f1, f2 = x1n, x2n, f1n, f2n
-  best = np.minimum(np.minimum(f1, f2),
-                    np.minimum(dist(np.zeros(shape)), dist(np.ones(shape))))
-  return best
+  shape = np.broadcast_shapes(a0.shape, d.shape, box_min.shape, box_max.shape)
+  a0, d, box_min, box_max = (np.broadcast_to(x, shape)
+                             for x in (a0, d, box_min, box_max))
+  moving = d != 0.0
+  d_safe = np.where(moving, d, 1.0)
+  crossings = np.concatenate([
+      np.where(moving, (box_min - a0) / d_safe, 0.0),
+      np.where(moving, (box_max - a0) / d_safe, 0.0),
+      np.zeros(shape[:-1] + (1,)), np.ones(shape[:-1] + (1,))], axis=-1)
+  breaks = np.sort(np.clip(crossings, 0.0, 1.0), axis=-1)       # (..., 8)
+  lo, hi = breaks[..., :-1], breaks[..., 1:]                     # (..., 7)
+  mid = 0.5 * (lo + hi)
+  a0_, d_ = a0[..., None, :], d[..., None, :]
+  point = a0_ + mid[..., None] * d_                              # (..., 7, 3)
+  lo_b, hi_b = box_min[..., None, :], box_max[..., None, :]
+  below, above = point < lo_b, point > hi_b
+  bound = np.where(below, lo_b, hi_b)
+  active = below | above
+  num = np.where(active, d_ * (a0_ - bound), 0.0).sum(axis=-1)
+  den = np.where(active, d_ * d_, 0.0).sum(axis=-1)
+  stationary = np.where(den > 0, -num / np.where(den > 0, den, 1.0), mid)
+  stationary = np.clip(stationary, lo, hi)
+  candidates = np.concatenate([breaks, stationary], axis=-1)     # (..., 15)
+  points = a0_ + candidates[..., None] * d_
+  return point_box_distance(points, lo_b, hi_b).min(axis=-1)
 
 
 def capsule_box_distance(p1, p2, r, box_min, box_max):

@@ -1,0 +1,241 @@
+"""Tests for hrc_suite.safety.collision_prevention (all seven robots)."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import layout
+from hrc_suite import robot_description
+from hrc_suite.safety import collision_prevention
+from hrc_suite.safety import geometry
+
+
+def _tool(description):
+  """A gripper-like capsule: 12 cm along the flange's z, radius 4.5 cm."""
+  start = description.flange_translation
+  end = start + description.flange_rotation @ np.array([0.0, 0.0, 0.12])
+  return start, end, 0.045
+
+
+def _prevention(name, **kwargs):
+  description = robot_description.load(name)
+  return description, collision_prevention.CollisionPrevention(
+      description, tool_capsule=_tool(description), **kwargs)
+
+
+def _dense_free(prevention, description, q_start, q_goal, count=1500):
+  """Brute force: goal within limits and no collision at `count` samples."""
+  limits = description.limits
+  if np.any(q_goal < limits.q_min) or np.any(q_goal > limits.q_max):
+    return False
+  s = np.linspace(0.0, 1.0, count)[1:]
+  path = q_start + s[:, None] * (q_goal - q_start)
+  return not prevention.in_collision(path).any()
+
+
+def _static_and_self(prevention, q):
+  """Independent exact check of single configurations (N, dof)."""
+  p1, p2, r = prevention.reach.capsules(q)
+  boxes = collision_prevention.workcell_boxes()
+  hit = np.zeros(len(q), dtype=bool)
+  for name, (lo, hi) in boxes.items():
+    dist = geometry.capsule_box_distance(p1, p2, r, np.array(lo),
+                                         np.array(hi))
+    if name == 'pedestal':
+      dist[:, 0] = np.inf  # The base-mounted link stands on it.
+    hit |= np.any(dist < 0, axis=-1)
+  count = len(r)
+  for i in range(count):
+    for j in range(i + 2, count):
+      if (i, j) in prevention.excluded_pairs or (
+          i == prevention.dof - 1 and j == count - 1):
+        continue
+      d = geometry.capsule_distance(p1[:, i], p2[:, i], r[i], p1[:, j],
+                                    p2[:, j], r[j])
+      hit |= d < 0
+  return hit
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_home_is_free_and_exclusions_follow_the_rule(name):
+  description, prevention = _prevention(name)
+  assert not prevention.in_collision(description.q_home)
+  # Excluded pairs overlap at home or at every sampled configuration.
+  rs = np.random.RandomState(11)
+  q = rs.uniform(description.limits.q_min, description.limits.q_max,
+                 (300, description.dof))
+  p1, p2, r = prevention.reach.capsules(np.vstack([description.q_home, q]))
+  for i, j in prevention.excluded_pairs:
+    assert j >= i + 2
+    d = geometry.capsule_distance(p1[:, i], p2[:, i], r[i], p1[:, j],
+                                  p2[:, j], r[j])
+    assert d[0] < 0 or np.all(d < 0)
+  # Configurations: the class agrees with an independent exact check.
+  np.testing.assert_array_equal(prevention.in_collision(q),
+                                _static_and_self(prevention, q))
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_never_lets_a_colliding_path_through(name):
+  """Property over random goals, against a dense brute-force check."""
+  description, prevention = _prevention(name)
+  rs = np.random.RandomState(12)
+  limits = description.limits
+  starts = [description.q_home] * 16
+  goals = list(description.q_home + rs.uniform(-0.4, 0.4,
+                                               (16, description.dof)))
+  for _ in range(14):  # Random free starts, random goals.
+    while True:
+      q = rs.uniform(limits.q_min, limits.q_max)
+      if not prevention.in_collision(q):
+        break
+    starts.append(q)
+    goals.append(rs.uniform(limits.q_min, limits.q_max))
+  verdicts = []
+  for q_start, q_goal in zip(starts, goals):
+    safe = prevention.is_safe(q_start, q_goal)
+    dense = _dense_free(prevention, description, q_start, q_goal)
+    assert not (safe and not dense), (q_start, q_goal)
+    verdicts.append((safe, dense))
+  # Non-trivial: both outcomes occur, and it is not much more conservative
+  # than the dense check.
+  assert {v[0] for v in verdicts} == {True, False}
+  conservative = sum(1 for safe, dense in verdicts if dense and not safe)
+  assert conservative <= 2
+
+
+def test_table_pedestal_and_extra_boxes():
+  description, prevention = _prevention('panda')
+  home = description.q_home
+  p1, p2, r = prevention.reach.capsules(home)
+  # The tool above the table at home; pushing joint 2 forward drives the
+  # arm into the table top.
+  down = home.copy()
+  down[1] = description.limits.q_max[1]
+  assert prevention.in_collision(down)
+  assert not prevention.is_safe(home, down)
+  # The first link is not checked against its pedestal; the others are.
+  assert not prevention._box_checked[prevention.box_names.index('pedestal'),
+                                     0]
+  assert prevention._box_checked[prevention.box_names.index('pedestal'),
+                                 1:].all()
+  # An extra box around the gripper's path: a small move through it fails.
+  tip = p2[-1]
+  box = (tip + [0.05, -0.05, -0.05], tip + [0.15, 0.05, 0.05])
+  _, boxed = _prevention('panda', extra_boxes=[box])
+  move = home.copy()
+  move[0] += 0.0
+  move[1] += 0.25  # Reach forward, towards +x.
+  assert prevention.is_safe(home, move)
+  assert not boxed.is_safe(home, move)
+  with pytest.raises(ValueError, match='extra_boxes'):
+    _prevention('panda', extra_boxes=[((0, 0, 1), (0, 0, 0))])
+
+
+def test_tool_may_touch_the_table_when_allowed():
+  description, strict = _prevention('kinova3')
+  _, lenient = _prevention('kinova3', tool_table_allowance=0.01)
+  table = strict.box_names.index('table')
+  lo, hi = strict.box_min[table], strict.box_max[table]
+
+  def table_distance(q):
+    p1, p2, r = strict.reach.capsules(q)
+    return geometry.capsule_box_distance(p1, p2, r, lo, hi)
+
+  def clear_elsewhere(q):  # The pedestal top is flush with the table.
+    p1, p2, r = strict.reach.capsules(q)
+    others = [geometry.capsule_box_distance(p1, p2, r, strict.box_min[b],
+                                            strict.box_max[b])[1:]
+              for b in range(len(strict.box_names)) if b != table]
+    return np.all(np.array(others) > 0)
+
+  # Lower the tool: move along minus the gradient of its table distance.
+  home = description.q_home
+  h = 1e-6
+  gradient = np.array([(table_distance(home + h * e)[-1] -
+                        table_distance(home)[-1]) / h
+                       for e in np.eye(description.dof)])
+  direction = -gradient / np.linalg.norm(gradient)
+  found = 0
+  for t in np.linspace(0.0, 1.0, 2001):
+    q = home + t * direction
+    d = table_distance(q)
+    if (-0.008 < d[-1] < -0.001 and np.all(d[:-1] > 0) and
+        clear_elsewhere(q)):
+      found += 1
+      assert strict.in_collision(q)
+      assert not lenient.in_collision(q)
+    if d[-1] < -0.02:
+      assert lenient.in_collision(q)
+  assert found > 0
+
+
+def _joint_action(q_current, scale=0.3):
+  return lambda action: q_current + scale * np.asarray(action)
+
+
+@pytest.mark.parametrize('name', ['panda', 'ur5e', 'sawyer'])
+def test_replacement_policies(name):
+  description, prevention = _prevention(name)
+  q = description.q_home
+  to_goal = _joint_action(q, scale=1.0)
+  rs = np.random.RandomState(14)
+  # An action whose goal collides.
+  while True:
+    action = rs.uniform(-1, 1, description.dof)
+    if not prevention.is_safe(q, to_goal(action)):
+      break
+  out, goal, replaced = prevention.filter_action(action, q, to_goal, 'zero')
+  assert replaced and np.all(out == 0) and np.all(goal == q)
+  # Resample: the first safe sample of the seeded sequence.
+  samples = np.random.RandomState(5).uniform(-1, 1, (20, description.dof))
+  safe = [prevention.is_safe(q, to_goal(s)) for s in samples]
+  assert any(safe), 'test needs a safe sample'
+  out, goal, replaced = prevention.filter_action(
+      action, q, to_goal, 'resample', random_state=5)
+  assert replaced
+  np.testing.assert_array_equal(out, samples[safe.index(True)])
+  assert prevention.is_safe(q, goal)
+  # Closest: the safe sample nearest to the proposed action.
+  out, goal, _ = prevention.filter_action(action, q, to_goal, 'closest',
+                                          random_state=5)
+  gaps = [np.linalg.norm(s - action) if ok else np.inf
+          for s, ok in zip(samples, safe)]
+  np.testing.assert_array_equal(out, samples[int(np.argmin(gaps))])
+  # Deterministic given the seed.
+  again, _, _ = prevention.filter_action(action, q, to_goal, 'closest',
+                                         random_state=np.random.RandomState(5))
+  np.testing.assert_array_equal(out, again)
+  # A safe action passes untouched.
+  out, goal, replaced = prevention.filter_action(
+      samples[safe.index(True)], q, to_goal, 'closest', random_state=5)
+  assert not replaced
+  assert prevention.num_replacements == 4
+
+
+def test_no_safe_sample_falls_back_to_zero():
+  description, prevention = _prevention('iiwa')
+  q = description.q_home
+  fails = lambda action: None  # E.g. IK never converges.
+  out, goal, replaced = prevention.filter_action(
+      np.ones(3), q, fails, 'resample', random_state=0, num_samples=5)
+  assert replaced and np.all(out == 0) and np.all(goal == q)
+  with pytest.raises(ValueError, match='policy'):
+    prevention.filter_action(np.ones(3), q, fails, 'nearest')
+  with pytest.raises(ValueError, match='random_state'):
+    prevention.filter_action(np.ones(3), q, fails, 'closest')
+
+
+def test_path_sampling_bounds_the_motion_between_samples():
+  description, prevention = _prevention('iiwa')
+  rs = np.random.RandomState(15)
+  limits = description.limits
+  for _ in range(5):
+    q0, q1 = rs.uniform(limits.q_min, limits.q_max, (2, description.dof))
+    steps = prevention.path_samples(q0, q1)
+    s = np.linspace(0.0, 1.0, steps * 20 + 1)
+    p1, p2, r = prevention.reach.capsules(q0 + s[:, None] * (q1 - q0))
+    # Largest end-point motion within one step (20 sub-samples).
+    moved = np.maximum(np.linalg.norm(p1[20:] - p1[:-20], axis=-1),
+                       np.linalg.norm(p2[20:] - p2[:-20], axis=-1))
+    assert moved.max() <= collision_prevention.DEFAULT_MAX_STEP + 1e-9
+  assert layout.TABLE_TOP_Z == prevention.box_max[0, 2]
