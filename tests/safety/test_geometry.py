@@ -6,7 +6,7 @@ import pytest
 from hrc_suite.safety import geometry
 
 
-def _brute_segment_distance(a0, a1, b0, b1, n=801):
+def _brute_segment_distance(a0, a1, b0, b1, n=401):
   """Grid minimum over both parameters (an upper bound) and its bound."""
   s = np.linspace(0.0, 1.0, n)
   pa = a0 + s[:, None] * (a1 - a0)
@@ -147,6 +147,29 @@ def test_segment_box_distance_matches_sampling():
   assert geometry.capsule_box_distance(
       [-2, 0, 0.3], [2, 0, 0.3], 0.25, box_min, box_max) == (
           pytest.approx(-0.05))
+
+
+def test_segment_box_distance_special_cases():
+  box_min, box_max = np.zeros(3), np.ones(3)
+  # Axis-aligned segments (zero direction components), parallel to a face.
+  assert geometry.segment_box_distance([-1, 2, 0.5], [2, 2, 0.5], box_min,
+                                       box_max) == pytest.approx(1.0)
+  assert geometry.segment_box_distance([2, 2, 2], [2, 2, 5], box_min,
+                                       box_max) == pytest.approx(np.sqrt(3))
+  # Passing a corner diagonally: closest approach inside the segment.
+  assert geometry.segment_box_distance([3, 0, 1.5], [0, 3, 1.5], box_min,
+                                       box_max) == pytest.approx(
+                                           np.hypot(0.5, np.sqrt(0.5)))
+  # Degenerate segment (a point), inside and outside.
+  assert geometry.segment_box_distance([0.5] * 3, [0.5] * 3, box_min,
+                                       box_max) == 0.0
+  assert geometry.segment_box_distance([1, 1, 3], [1, 1, 3], box_min,
+                                       box_max) == pytest.approx(2.0)
+  # Broadcasting over boxes.
+  got = geometry.segment_box_distance([-1, 0.5, 0.5], [-0.5, 0.5, 0.5],
+                                      [[0, 0, 0], [1, 0, 0]],
+                                      [[1, 1, 1], [2, 1, 1]])
+  np.testing.assert_allclose(got, [0.5, 1.5])
 
 
 def test_capsule_contains_capsule():
