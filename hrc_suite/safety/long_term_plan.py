@@ -60,6 +60,20 @@ class LongTermPlan:
     self._last = shape[0] - 1
 
   @classmethod
+  def _from_samples(cls, coefficients, cycle_time, start_time):
+    """Trusted construction from (N, 4, dof) samples (no checks, no copy)."""
+    plan = cls.__new__(cls)
+    coefficients.flags.writeable = False
+    plan._coefficients = coefficients
+    plan.q, plan.dq, plan.ddq, plan.dddq = (coefficients[:, i]
+                                            for i in range(4))
+    plan.cycle_time = float(cycle_time)
+    plan.start_time = float(start_time)
+    plan._inverse_cycle = 1.0 / plan.cycle_time
+    plan._last = coefficients.shape[0] - 1
+    return plan
+
+  @classmethod
   def at_rest(cls, q, cycle_time, start_time=0.0):
     """A one-sample plan: stand still at q."""
     q = np.asarray(q, dtype=float)[None]
@@ -175,14 +189,20 @@ def clamp_goal(q_goal, limits):
 def check_start_state(q0, dq0, ddq0, limits):
   """Raises PlanningError if the plan cannot start here (spec 2.1)."""
   v_max, a_max, j_max = limits.v_max, limits.a_max_ltt, limits.j_max_ltt
+  ramped = np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max))
+  if (np.all(q0 >= limits.q_min - _LIMIT_SLACK) and
+      np.all(q0 <= limits.q_max + _LIMIT_SLACK) and
+      np.all(np.abs(dq0) <= v_max + _LIMIT_SLACK) and
+      np.all(np.abs(ddq0) <= a_max + _LIMIT_SLACK) and
+      np.all(ramped <= v_max + _LIMIT_SLACK)):
+    return
   checks = (
       ('q0 below q_min', q0 < limits.q_min - _LIMIT_SLACK),
       ('q0 above q_max', q0 > limits.q_max + _LIMIT_SLACK),
       ('|dq0| above v_max', np.abs(dq0) > v_max + _LIMIT_SLACK),
       ('|ddq0| above a_max_ltt', np.abs(ddq0) > a_max + _LIMIT_SLACK),
       ('velocity after ramping ddq0 to zero above v_max',
-       np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max)) > v_max
-       + _LIMIT_SLACK),
+       ramped > v_max + _LIMIT_SLACK),
   )
   for what, bad in checks:
     if np.any(bad):
@@ -193,31 +213,39 @@ def check_start_state(q0, dq0, ddq0, limits):
 
 
 def _pieces(profile):
-  """Constant-jerk pieces of one joint: start times, p, v, a, j at starts."""
+  """Constant-jerk pieces of one joint: rows (start time, p, v, a, j)."""
   if profile.accel.duration > 0.0:
     raise PlanningError('Ruckig returned a pre-acceleration phase; the start '
                         'state is outside the planning limits')
-  starts, p, v, a, j = [], [], [], [], []
+  # Each attribute access converts a whole C++ array: read them once.
+  durations, p, v, a, j = profile.t, profile.p, profile.v, profile.a, profile.j
+  rows = []
   time = 0.0
   brake = profile.brake
   if brake.duration > 0.0:
+    b_t, b_p, b_v, b_a, b_j = brake.t, brake.p, brake.v, brake.a, brake.j
     for i in range(2):
-      if brake.t[i] > 0.0:
-        starts.append(time)
-        p.append(brake.p[i])
-        v.append(brake.v[i])
-        a.append(brake.a[i])
-        j.append(brake.j[i])
-        time += brake.t[i]
+      if b_t[i] > 0.0:
+        rows.append((time, b_p[i], b_v[i], b_a[i], b_j[i]))
+        time += b_t[i]
   for i in range(7):
-    starts.append(time)
-    p.append(profile.p[i])
-    v.append(profile.v[i])
-    a.append(profile.a[i])
-    j.append(profile.j[i])
-    time += profile.t[i]
-  return (np.array(starts), np.array(p), np.array(v), np.array(a),
-          np.array(j))
+    rows.append((time, p[i], v[i], a[i], j[i]))
+    time += durations[i]
+  return rows
+
+
+class _Solver:
+  """One reusable Ruckig instance per number of joints (creating one costs
+  more than a whole calculation)."""
+
+  _by_dof = {}
+
+  @classmethod
+  def get(cls, dof):
+    if dof not in cls._by_dof:
+      cls._by_dof[dof] = (ruckig.Ruckig(dof), ruckig.InputParameter(dof),
+                          ruckig.Trajectory(dof))
+    return cls._by_dof[dof]
 
 
 def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
@@ -247,8 +275,7 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   if not cycle_time > 0:
     raise ValueError(f'cycle_time must be positive, got {cycle_time}')
 
-  otg = ruckig.Ruckig(dof)
-  request = ruckig.InputParameter(dof)
+  otg, request, trajectory = _Solver.get(dof)
   request.current_position = q0.tolist()
   request.current_velocity = dq0.tolist()
   request.current_acceleration = ddq0.tolist()
@@ -258,7 +285,6 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   request.max_velocity = limits.v_max.tolist()
   request.max_acceleration = limits.a_max_ltt.tolist()
   request.max_jerk = limits.j_max_ltt.tolist()
-  trajectory = ruckig.Trajectory(dof)
   try:
     result = otg.calculate(request, trajectory)
   except RuntimeError as e:  # Ruckig raises on invalid input.
@@ -266,31 +292,39 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   if result not in (ruckig.Result.Working, ruckig.Result.Finished):
     raise PlanningError(f'Ruckig failed with {result}')
 
-  num = int(np.ceil(trajectory.duration / cycle_time - 1e-9)) + 1
+  # Pieces of constant jerk of all joints, (dof * P, 5) rows, padded to P
+  # per joint with pieces that start after the end. Shifting joint i's
+  # times by i * span makes one sorted array for one searchsorted.
+  pieces = [_pieces(profile) for profile in trajectory.profiles[0]]
+  count = max(len(rows) for rows in pieces)
+  duration = trajectory.duration
+  span = duration + 1.0
+  table = np.full((dof, count, 5), duration + 0.5)
+  for i, rows in enumerate(pieces):
+    table[i, :len(rows)] = rows
+  table = table.reshape(dof * count, 5)
+  shift = np.repeat(np.arange(dof) * span, count)
+  num = int(np.ceil(duration / cycle_time - 1e-9)) + 1
   times = np.arange(num) * cycle_time
-  q = np.empty((num, dof))
-  dq = np.empty((num, dof))
-  ddq = np.empty((num, dof))
-  dddq = np.empty((num, dof))
-  for i, profile in enumerate(trajectory.profiles[0]):
-    starts, p, v, a, j = _pieces(profile)
-    piece = np.searchsorted(starts, times, side='right') - 1
-    d = times - starts[piece]
-    jp = j[piece]
-    q[:, i] = p[piece] + d * (v[piece] + d * (0.5 * a[piece] + d * jp / 6.0))
-    dq[:, i] = v[piece] + d * (a[piece] + 0.5 * d * jp)
-    ddq[:, i] = a[piece] + d * jp
-    dddq[:, i] = jp
+  index = np.searchsorted(table[:, 0] + shift,
+                          times[:, None] + shift[::count], side='right') - 1
+  rows = table[index]                                        # (num, dof, 5)
+  d = times[:, None] - rows[..., 0]
+  p, v, a, j = rows[..., 1], rows[..., 2], rows[..., 3], rows[..., 4]
+  samples = np.empty((num, 4, dof))
+  samples[:, 0] = p + d * (v + d * (0.5 * a + d * j / 6.0))
+  samples[:, 1] = v + d * (a + 0.5 * d * j)
+  samples[:, 2] = a + d * j
+  samples[:, 3] = j
   # The goal at rest from the end of the motion on (held afterwards).
-  end = times >= trajectory.duration
-  q[end] = goal
-  dq[end] = 0.0
-  ddq[end] = 0.0
-  dddq[end] = 0.0
+  end = times >= duration
+  samples[end, 0] = goal
+  samples[end, 1:] = 0.0
+  q = samples[:, 0]
   outside = (q < limits.q_min - _LIMIT_SLACK) | (q > limits.q_max
                                                   + _LIMIT_SLACK)
   if np.any(outside):
     joints = np.nonzero(np.any(outside, axis=0))[0].tolist()
     raise PlanningError(f'The motion to {goal.tolist()} would leave the joint '
                         f'limits on joints {joints}')
-  return LongTermPlan(q, dq, ddq, dddq, cycle_time, start_time)
+  return LongTermPlan._from_samples(samples, cycle_time, start_time)

@@ -92,11 +92,31 @@ class Shield:
           use_combined_model=use_combined_model)
     limits = robot_description.limits
     self.limits = limits
-    self._limit_lists = [_joint_list(x) for x in (
-        limits.a_max, limits.j_max, limits.a_max_ltt, limits.j_max_ltt)]
+    # Per-joint terms of the path bounds (spec 2.3, `path.path_limits`).
+    a_ltt = np.abs(limits.a_max_ltt)
+    self._den_offset = _joint_list(a_ltt * self.max_s_stop)
+    self._den_offset[0] += 1e-9
+    self._acc_numerator = _joint_list(limits.a_max - a_ltt)
+    self._jerk_numerator = _joint_list(limits.j_max
+                                       - np.abs(limits.j_max_ltt))
+    self._jerk_acc = _joint_list(3.0 * a_ltt)
     # Clip bounds of the (dq, ddq, dddq) rows of a state (spec 2.2).
     self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
     self._pfl_speeds = {}
+    # Every robot point stays within this ball around the base (rotations
+    # keep lengths: sum of the fixed translations up to the link, plus the
+    # capsule's farther end, radius and secure radius).
+    self._base = self.robot.base_pose[:3, 3].copy()
+    lengths = np.cumsum([np.linalg.norm(l.fixed_translation)
+                         for l in robot_description.links])
+    p1, p2, radii = robot_description.capsule_arrays()
+    extents = [lengths[i] + max(np.linalg.norm(p1[i]), np.linalg.norm(p2[i]))
+               + radii[i] for i in range(self.dof)]
+    if tool_capsule is not None:
+      t1, t2, t_radius = tool_capsule
+      extents.append(lengths[-1] + max(np.linalg.norm(t1), np.linalg.norm(t2))
+                     + t_radius)
+    self._workspace_radius = max(extents) + self.robot.secure_radius
     # Keypoint indices (2, B) of the human bodies' proximal and distal ends.
     self._body_ends = np.array([
         keypoints.index([b.proximal for b in self.human.config.bodies]),
@@ -129,8 +149,7 @@ class Shield:
     self.intervened = False
     self.first_unsafe_interval = -1
     self.reach_distance = np.inf
-    self.robot_reach_capsules = None
-    self.human_reach_capsules = None
+    self._reach_arguments = None
     self._lazy = {}
 
   def new_goal(self, q_goal):
@@ -183,6 +202,28 @@ class Shield:
     return self._verified.s_dot
 
   @property
+  def robot_reach_capsules(self):
+    """Robot reach capsules of the last check: c1, c2 (K, L, 3), r (K, L);
+    slice 0 is the current step, then the failsafe (None before a check)."""
+    if 'robot_reach' not in self._lazy:
+      if self._reach_arguments is None:
+        return None
+      q_edges, s_edges, _ = self._reach_arguments
+      self._lazy['robot_reach'] = self.robot.reach_capsules(q_edges, s_edges)
+    return self._lazy['robot_reach']
+
+  @property
+  def human_reach_capsules(self):
+    """Human reach capsules of the last check: c1, c2 (M, K, B, 3), r (M, K,
+    B) (None without a measurement or check)."""
+    if 'human_reach' not in self._lazy:
+      if self._reach_arguments is None or self.human.positions is None:
+        return None
+      self._lazy['human_reach'] = self.human.reach_capsules(
+          self.time, self._reach_arguments[2])
+    return self._lazy['human_reach']
+
+  @property
   def max_cartesian_speed(self):
     """Largest surface speed of any robot capsule at the command (m/s)."""
     if 'speed' not in self._lazy:
@@ -231,8 +272,7 @@ class Shield:
       current = path_lib.Path(self._verified.s, 1.0, 0.0, 0.0)
 
     # The monitored path: one intended step, then the failsafe.
-    max_acc, max_jerk = path_lib.path_limits(
-        self._state[4], *self._limit_lists, self.max_s_stop)
+    max_acc, max_jerk = self._path_limits(self._state[4])
     intended = None
     if candidate is None and self._intended is not None and not (
         self._intended.is_finished() and self._intended.s_dot != 1.0):
@@ -250,7 +290,7 @@ class Shield:
           0.0 if s_dot_limit is None else s_dot_limit, max_acc, max_jerk, dt)
     if failsafe is None or intended.s < current.s:
       safe = False   # No monitored path: keep braking on the verified one.
-      self.robot_reach_capsules = self.human_reach_capsules = None
+      self._reach_arguments = None
       self.first_unsafe_interval, self.reach_distance = 0, -np.inf
     else:
       safe = self._verify(plan, current, failsafe, s_dot_limit)
@@ -284,6 +324,15 @@ class Shield:
     return state[0], state[1], state[2]
 
   # -------------------------------------------------------------- internals
+
+  def _path_limits(self, v_nominal):
+    """path.path_limits for this robot with precomputed per-joint terms."""
+    dens = [abs(v) + c for v, c in zip(v_nominal.tolist(), self._den_offset)]
+    acc = min(n / d for n, d in zip(self._acc_numerator, dens))
+    acc = acc if acc > 0.0 else 0.0
+    jerk = min((n - c * acc) / d for n, c, d in zip(
+        self._jerk_numerator, self._jerk_acc, dens))
+    return acc, (jerk if jerk > 0.0 else 0.0)
 
   def _candidate_plan(self):
     """The plan to the pending goal from the current command, or None."""
@@ -359,33 +408,43 @@ class Shield:
     count = max(int(np.ceil(end / self.interval - 1e-9)), 1)
     times = [i * self.interval for i in range(count)] + [end]
     s, s_dot, _, _ = failsafe.sample(times)
-    q_edges = np.empty((len(times) + 1, self.dof))
+    num = len(times) + 1
+    q_edges = np.empty((num, self.dof))
     q_edges[0] = self._state[0]
     q_edges[1:] = plan.positions(np.asarray(s))
-    s_edges = np.empty(len(times) + 1)
+    s_edges = np.empty(num)
     s_edges[0] = current.s
     s_edges[1:] = s
-    if not verification.within_joint_limits(q_edges[-1], self.description):
-      self.robot_reach_capsules = self.human_reach_capsules = None
-      self.first_unsafe_interval, self.reach_distance = len(times) - 1, -np.inf
+    t_edges = np.empty(num)
+    t_edges[0] = 0.0
+    t_edges[1:] = times
+    t_edges[1:] += dt
+    self._reach_arguments = (q_edges, s_edges, t_edges)
+    end_q = q_edges[-1]
+    if np.any(end_q < self.limits.q_min) or np.any(end_q > self.limits.q_max):
+      self.first_unsafe_interval, self.reach_distance = num - 2, -np.inf
       return False
-    robot = self.robot.reach_capsules(q_edges, s_edges)
-    self.robot_reach_capsules = robot
     if self.human.positions is None:
-      self.human_reach_capsules = None
       self.first_unsafe_interval, self.reach_distance = -1, np.inf
       return True
-    horizon = times[-1] + dt
-    lower_bound = self._broad_phase(robot, horizon)
-    if lower_bound > 0.0:
-      self.human_reach_capsules = None
-      self.first_unsafe_interval, self.reach_distance = -1, lower_bound
+    # Broad phase 1: the human's horizon balls against the robot's whole
+    # workspace ball (no kinematics needed).
+    centre, radius = self._human_horizon_balls(t_edges[-1])
+    gap = centre - self._base
+    bound = float((np.sqrt(np.einsum('bi,bi->b', gap, gap)) - radius).min()
+                  - self._workspace_radius)
+    if bound > 0.0:
+      self.first_unsafe_interval, self.reach_distance = -1, bound
       return True
-    t_edges = np.empty(len(times) + 1)
-    t_edges[0] = 0.0
-    t_edges[1:] = np.asarray(times) + dt
+    robot = self.robot.reach_capsules(q_edges, s_edges)
+    self._lazy['robot_reach'] = robot
+    # Broad phase 2: the same balls against every robot reach capsule.
+    bound = _balls_capsules_distance(centre, radius, robot)
+    if bound > 0.0:
+      self.first_unsafe_interval, self.reach_distance = -1, bound
+      return True
     human = self.human.reach_capsules(self.time, t_edges)
-    self.human_reach_capsules = human
+    self._lazy['human_reach'] = human
     safe, first, distance = verification.ssm_verdict(robot, human)
     self.first_unsafe_interval, self.reach_distance = first, distance
     if safe or s_dot_limit is None:
@@ -394,31 +453,34 @@ class Shield:
     # robot must be slower than v_safe.
     return self._slow_enough(plan, current, failsafe, times, s_edges, first)
 
-  def _broad_phase(self, robot, horizon):
-    """Lower bound of the distance between the robot's reach capsules and
-    the human over the whole horizon (s after this cycle's time).
-
-    Each human body is bounded by one ball: its measured capsule grown by
-    max(v_max, measured speed) of its faster end times the age of the
-    measurement plus the horizon and the delay, plus the position error.
-    That ball contains the maximal-velocity (VEL) reachable set of the body
-    over every slice, so a positive bound means every slice is safe.
-    """
+  def _human_horizon_balls(self, horizon):
+    """One ball per human body containing its maximal-velocity (VEL)
+    reachable set over the whole horizon (s after this cycle's time):
+    the measured body capsule grown by max(v_max, measured speed) of its
+    faster end times the measurement's age plus horizon and delay, plus the
+    position error. Returns centres (B, 3) and radii (B,)."""
     human, config = self.human, self.human.config
     p1, p2, radius = human.body_capsules(human.positions)
     speeds = np.sqrt(np.einsum('ni,ni->n', human.velocities,
                                human.velocities))
-    speeds = np.maximum(speeds, config.v_max)[self._body_ends]
+    np.maximum(speeds, config.v_max, out=speeds)
+    ends = speeds[self._body_ends]
     age = self.time - human.last_measurement_time + config.delay + horizon
-    grow = (np.maximum(speeds[0], speeds[1]) * age + radius
+    half = p2 - p1
+    grow = (np.maximum(ends[0], ends[1]) * age + radius
             + config.measurement_error_pos)
-    centre = 0.5 * (p1 + p2)
-    human_radius = 0.5 * np.sqrt(np.einsum('bi,bi->b', p2 - p1, p2 - p1)) + grow
-    c1, c2, r = robot
-    robot_centre = 0.5 * (c1 + c2)
-    half = c2 - c1
-    robot_radius = 0.5 * np.sqrt(np.einsum('kli,kli->kl', half, half)) + r
-    gap = robot_centre[:, :, None, :] - centre
-    distance = (np.sqrt(np.einsum('klbi,klbi->klb', gap, gap))
-                - robot_radius[:, :, None] - human_radius)
-    return float(distance.min())
+    grow += 0.5 * np.sqrt(np.einsum('bi,bi->b', half, half))
+    return 0.5 * (p1 + p2), grow
+
+
+def _balls_capsules_distance(centre, radius, capsules):
+  """Lower bound of the distance between balls (B,) and capsules (K, L):
+  each capsule is bounded by the ball around its midpoint."""
+  c1, c2, r = capsules
+  robot_centre = 0.5 * (c1 + c2)
+  half = c2 - c1
+  robot_radius = 0.5 * np.sqrt(np.einsum('kli,kli->kl', half, half)) + r
+  gap = robot_centre[:, :, None, :] - centre
+  distance = (np.sqrt(np.einsum('klbi,klbi->klb', gap, gap))
+              - robot_radius[:, :, None] - radius)
+  return float(distance.min())
