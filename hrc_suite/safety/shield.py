@@ -150,6 +150,7 @@ class Shield:
     self.first_unsafe_interval = -1
     self.reach_distance = np.inf
     self._reach_arguments = None
+    self._previous_q = self._state[0]
     self._lazy = {}
 
   def new_goal(self, q_goal):
@@ -208,8 +209,12 @@ class Shield:
     if 'robot_reach' not in self._lazy:
       if self._reach_arguments is None:
         return None
-      q_edges, s_edges, _ = self._reach_arguments
-      self._lazy['robot_reach'] = self.robot.reach_capsules(q_edges, s_edges)
+      plan, s_edges, _ = self._reach_arguments
+      q_edges = np.empty((len(s_edges), self.dof))
+      q_edges[0] = self._previous_q
+      q_edges[1:] = plan.positions(np.array(s_edges[1:]))
+      self._lazy['robot_reach'] = self.robot.reach_capsules(
+          q_edges, np.array(s_edges))
     return self._lazy['robot_reach']
 
   @property
@@ -220,7 +225,7 @@ class Shield:
       if self._reach_arguments is None or self.human.positions is None:
         return None
       self._lazy['human_reach'] = self.human.reach_capsules(
-          self.time, self._reach_arguments[2])
+          self.time, np.array(self._reach_arguments[2]))
     return self._lazy['human_reach']
 
   @property
@@ -261,6 +266,7 @@ class Shield:
       self.human.measure(human_keypoints, t)
     self.time = t
     self._lazy = {}
+    self._previous_q = self._state[0]
     dt = self.cycle_time
 
     # Replanning: a candidate plan starts at the current command with path
@@ -407,22 +413,13 @@ class Shield:
     end = failsafe.end_time()
     count = max(int(np.ceil(end / self.interval - 1e-9)), 1)
     times = [i * self.interval for i in range(count)] + [end]
-    s, s_dot, _, _ = failsafe.sample(times)
-    num = len(times) + 1
-    q_edges = np.empty((num, self.dof))
-    q_edges[0] = self._state[0]
-    q_edges[1:] = plan.positions(np.asarray(s))
-    s_edges = np.empty(num)
-    s_edges[0] = current.s
-    s_edges[1:] = s
-    t_edges = np.empty(num)
-    t_edges[0] = 0.0
-    t_edges[1:] = times
-    t_edges[1:] += dt
-    self._reach_arguments = (q_edges, s_edges, t_edges)
-    end_q = q_edges[-1]
+    s = failsafe.sample(times)[0]
+    s_edges = [current.s] + s
+    t_edges = [0.0] + [x + dt for x in times]
+    self._reach_arguments = (plan, s_edges, t_edges)
+    end_q = plan.state(s[-1])[0]
     if np.any(end_q < self.limits.q_min) or np.any(end_q > self.limits.q_max):
-      self.first_unsafe_interval, self.reach_distance = num - 2, -np.inf
+      self.first_unsafe_interval, self.reach_distance = count, -np.inf
       return False
     if self.human.positions is None:
       self.first_unsafe_interval, self.reach_distance = -1, np.inf
@@ -436,15 +433,13 @@ class Shield:
     if bound > 0.0:
       self.first_unsafe_interval, self.reach_distance = -1, bound
       return True
-    robot = self.robot.reach_capsules(q_edges, s_edges)
-    self._lazy['robot_reach'] = robot
+    robot = self.robot_reach_capsules
     # Broad phase 2: the same balls against every robot reach capsule.
     bound = _balls_capsules_distance(centre, radius, robot)
     if bound > 0.0:
       self.first_unsafe_interval, self.reach_distance = -1, bound
       return True
-    human = self.human.reach_capsules(self.time, t_edges)
-    self._lazy['human_reach'] = human
+    human = self.human_reach_capsules
     safe, first, distance = verification.ssm_verdict(robot, human)
     self.first_unsafe_interval, self.reach_distance = first, distance
     if safe or s_dot_limit is None:

@@ -8,7 +8,9 @@ import pytest
 from hrc_suite import robot_description
 from hrc_suite.human import keypoints
 from hrc_suite.safety import geometry
+from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety import verification
 
 import conftest as harness
 
@@ -229,3 +231,26 @@ def test_pfl_moves_slowly_where_ssm_stops(panda):
     speeds[mode] = shield.max_cartesian_speed
   assert speeds['ssm'] == 0.0
   assert 0.005 < speeds['pfl'] <= panda.shield.v_safe
+
+
+def test_broad_phase_is_conservative(panda):
+  """When the broad phase alone declares a cycle safe, the maximal-velocity
+  (VEL) model's reach capsules really miss the robot's in every slice."""
+  shield = _shield(panda, use_combined_model=False)
+  human = harness.walk_in(speed=1.0, stop_x=0.5)
+  rng = np.random.RandomState(4)
+  goals = harness.random_goals(panda, rng)
+  decided = 0
+  for i in range(400):
+    if i % 12 == 0:
+      shield.new_goal(goals())
+    shield.step(human(i * CYCLE), i * CYCLE)
+    if shield.is_safe and 'human_reach' not in shield._lazy:
+      decided += 1
+      robot = shield.robot_reach_capsules
+      c1, c2, r = shield.human_reach_capsules
+      vel = human_reach_lib.VEL
+      safe, _, distance = verification.ssm_verdict(
+          robot, (c1[vel:vel + 1], c2[vel:vel + 1], r[vel:vel + 1]))
+      assert safe and distance >= shield.reach_distance - 1e-9
+  assert decided > 50

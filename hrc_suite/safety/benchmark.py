@@ -1,0 +1,116 @@
+"""Time of one shield cycle per robot, with the human close and far.
+
+`python -m hrc_suite.safety.benchmark` prints the median and 95th
+percentile (microseconds) of `Shield.step` for every robot in two scenes,
+with a new random goal every 12 cycles (the reference's 20 Hz policy at a
+4 ms cycle; replanning is included):
+* close: a person across the table reaching back and forth at the robot's
+  gripper, so verification needs the full human reachable sets and the
+  shield intervenes;
+* far: the same person 3.5 m away (the broad phase settles it).
+"""
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from hrc_suite import robot_description
+from hrc_suite.human import keypoints
+from hrc_suite.safety import shield as shield_lib
+
+# Policy period in shield cycles: 20 Hz at 4 ms (spec 2.4).
+GOAL_EVERY = 12
+# A standing person facing +x (m): spine over the pelvis, arms down.
+_STANDING = {
+    'pelvis': (0.0, 0.0, 0.95), 'torso': (0.0, 0.0, 1.12),
+    'chest': (0.0, 0.0, 1.30), 'neck': (0.0, 0.0, 1.48),
+    'head': (0.0, 0.0, 1.62), 'shoulder': (0.0, 0.19, 1.43),
+    'elbow': (0.02, 0.21, 1.13), 'wrist': (0.05, 0.22, 0.88),
+    'hand': (0.06, 0.22, 0.79), 'hip': (0.0, 0.09, 0.92),
+    'knee': (0.02, 0.09, 0.50), 'ankle': (0.0, 0.09, 0.08),
+}
+
+
+def standing_person(x, y, yaw):
+  """Keypoints (N, 3) of a standing person at (x, y) facing yaw."""
+  points = []
+  for name in keypoints.KEYPOINT_NAMES:
+    side, _, part = name.partition('_')
+    if part:
+      px, py, pz = _STANDING[part]
+      points.append((px, py if side == 'left' else -py, pz))
+    else:
+      points.append(_STANDING[name])
+  c, s = math.cos(yaw), math.sin(yaw)
+  rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+  return np.array(points) @ rotation.T + np.array([x, y, 0.0])
+
+
+def reaching_person(target, x=1.3, period=1.5):
+  """A person across the table whose right forearm and hand move to
+  `target` and back with period `period` s (peak speed below 2 m/s)."""
+  body = standing_person(x, 0.0, math.pi)
+  arm = keypoints.index(['right_elbow', 'right_wrist', 'right_hand'])
+  offset = np.asarray(target) - body[arm[-1]]
+
+  def at(t):
+    out = body.copy()
+    out[arm] += offset * 0.5 * (1.0 - math.cos(2 * math.pi * t / period))
+    return out
+  return at
+
+
+def time_cycles(name, scene, cycles, seed=0):
+  """Per-cycle times (s) of `cycles` shield steps for one robot and scene."""
+  description = robot_description.load(name)
+  shield = shield_lib.Shield(description)
+  rng = np.random.RandomState(seed)
+  limits = description.limits
+  _, p2, _ = shield.robot.capsules(description.q_home)
+  if scene == 'close':
+    human = reaching_person(p2[-1])
+  else:
+    body = standing_person(3.5, 0.0, math.pi)
+    human = lambda t: body
+  times = np.empty(cycles)
+  interventions = 0
+  for i in range(cycles):
+    if i % GOAL_EVERY == 0:
+      shield.new_goal(np.clip(description.q_home + rng.uniform(
+          -1.0, 1.0, description.dof), limits.q_min, limits.q_max))
+    t = i * shield.cycle_time
+    points = human(t)
+    start = time.perf_counter()
+    shield.step(points, t)
+    times[i] = time.perf_counter() - start
+    interventions += shield.intervened
+  return times, interventions / cycles
+
+
+def main(argv=None):
+  parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  parser.add_argument('--cycles', type=int, default=1500)
+  parser.add_argument('--robots', nargs='*',
+                      default=list(robot_description.ROBOT_NAMES))
+  args = parser.parse_args(argv)
+  print(f'Shield cycle time (us), {args.cycles} cycles per row, new goal '
+        f'every {GOAL_EVERY} cycles')
+  print(f'{"robot":10s} {"scene":6s} {"median":>8s} {"p95":>8s} '
+        f'{"interventions":>14s}')
+  rows = []
+  for name in args.robots:
+    for scene in ('close', 'far'):
+      times, interventions = time_cycles(name, scene, args.cycles)
+      times = times[GOAL_EVERY * 4:] * 1e6   # Skip the first plans (warm-up).
+      row = (name, scene, float(np.median(times)),
+             float(np.percentile(times, 95)), interventions)
+      rows.append(row)
+      print(f'{name:10s} {scene:6s} {row[2]:8.1f} {row[3]:8.1f} '
+            f'{100 * interventions:13.0f}%')
+  return rows
+
+
+if __name__ == '__main__':
+  main()
