@@ -28,37 +28,40 @@ def _dot(x, y):
   return np.vecdot(x, y)
 
 
-def segment_closest_parameters(a0, a1, b0, b1):
-  """Parameters (s, t) in [0, 1] of the closest points a0 + s (a1 - a0), ...
+def _clamp01(x):
+  return np.minimum(np.maximum(x, 0.0), 1.0)
 
-  Returns arrays broadcast over the leading axes of the inputs.
+
+def closest_parameters(a, b, c, e, f):
+  """Closest-point parameters (s, t) in [0, 1] of two segments from their
+  dot products: a = d1.d1, b = d1.d2, c = d1.r, e = d2.d2, f = d2.r, with
+  d1, d2 the segment directions and r = a0 - b0 (any matching shapes)."""
+  a_ok = a > _DEGENERATE_SQUARED_LENGTH
+  e_ok = e > _DEGENERATE_SQUARED_LENGTH
+  denom = a * e - b * b           # >= 0 (Cauchy-Schwarz), 0 if parallel.
+  general = denom > _PARALLEL_SIN_SQUARED * a * e
+  # Non-parallel: closest point of the infinite lines, s clamped. Parallel or
+  # degenerate: start from s = 0 (any s works, the reprojection fixes it).
+  s = np.where(general,
+               _clamp01((b * f - c * e) / np.where(general, denom, 1.0)), 0.0)
+  # t closest to the point at s; a point segment b gets t = -1, which forces
+  # the reprojection below onto t = 0.
+  t = np.where(e_ok, (b * s + f) / np.where(e_ok, e, 1.0), -1.0)
+  t_clamped = _clamp01(t)
+  s_reprojected = _clamp01((b * t_clamped - c) / np.where(a_ok, a, 1.0))
+  s = np.where(a_ok & (t != t_clamped), s_reprojected, s)
+  return np.where(a_ok, s, 0.0), t_clamped
+
+
+def segment_closest_parameters(a0, a1, b0, b1):
+  """Parameters (s, t) in [0, 1] of the closest points a0 + s (a1 - a0) and
+  b0 + t (b1 - b0); arrays broadcast over the leading axes of the inputs.
   """
   d1 = np.subtract(a1, a0)
   d2 = np.subtract(b1, b0)
   r = np.subtract(a0, b0)
-  a = _dot(d1, d1)
-  e = _dot(d2, d2)
-  b = _dot(d1, d2)
-  c = _dot(d1, r)
-  f = _dot(d2, r)
-  a_ok = a > _DEGENERATE_SQUARED_LENGTH
-  e_ok = e > _DEGENERATE_SQUARED_LENGTH
-  a_safe = np.where(a_ok, a, 1.0)
-  e_safe = np.where(e_ok, e, 1.0)
-  denom = a * e - b * b
-  general = a_ok & e_ok & (denom > _PARALLEL_SIN_SQUARED * a * e)
-  # Non-parallel: closest point of the infinite lines, s clamped. Parallel or
-  # degenerate: start from s = 0 (any s works, the reprojection fixes it).
-  s = np.where(general,
-               np.clip((b * f - c * e) / np.where(general, denom, 1.0),
-                       0.0, 1.0), 0.0)
-  # t closest to the point at s; a point segment b gets t = -1, which forces
-  # the reprojection below onto t = 0.
-  t = np.where(e_ok, (b * s + f) / e_safe, -1.0)
-  t_clamped = np.clip(t, 0.0, 1.0)
-  s_reprojected = np.clip((b * t_clamped - c) / a_safe, 0.0, 1.0)
-  s = np.where(a_ok, np.where(t != t_clamped, s_reprojected, s), 0.0)
-  return s, t_clamped
+  return closest_parameters(_dot(d1, d1), _dot(d1, d2), _dot(d1, r),
+                            _dot(d2, d2), _dot(d2, r))
 
 
 def segment_closest_points(a0, a1, b0, b1):

@@ -32,27 +32,58 @@ def _check(robot, human):
   return rc1, rc2, rr, hc1, hc2, hr
 
 
-def _bounds(rc1, rc2, rr, hc1, hc2, hr):
-  """Upper and lower bounds (M, K, L, B) of the signed capsule distances."""
-  # Coordinates first: long inner loops for the pairwise arithmetic.
-  r_mid = np.ascontiguousarray(np.moveaxis(rc1 + rc2, -1, 0))   # (3, K, L)
-  h_mid = np.ascontiguousarray(np.moveaxis(hc1 + hc2, -1, 0))   # (3, M, K, B)
-  gap = r_mid[:, None, :, :, None] - h_mid[:, :, :, None, :]
-  gap *= gap
-  centre = gap[0]
-  centre += gap[1]
-  centre += gap[2]
-  np.sqrt(centre, out=centre)
-  centre *= 0.5                                                 # (M, K, L, B)
-  r_len = rc2 - rc1
-  h_len = hc2 - hc1
-  r_half = 0.5 * np.sqrt(np.vecdot(r_len, r_len))
-  h_half = 0.5 * np.sqrt(np.vecdot(h_len, h_len))
-  upper = centre
-  upper -= rr[None, :, :, None]
-  upper -= hr[:, :, None, :]
-  lower = upper - (r_half[None, :, :, None] + h_half[:, :, None, :])
-  return upper, lower
+def _dot3(x, y):
+  """Dot product over the leading (coordinate) axis."""
+  return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+
+
+class _Capsules:
+  """Robot and human capsules, coordinates first (structure of arrays: the
+  pairwise arithmetic then runs over long contiguous rows)."""
+
+  def __init__(self, rc1, rc2, rr, hc1, hc2, hr):
+    self.shape = (hc1.shape[0], rc1.shape[0], rc1.shape[1], hc1.shape[2])
+    self.r_start = np.ascontiguousarray(np.moveaxis(rc1, -1, 0))  # (3, K, L)
+    self.r_dir = np.ascontiguousarray(np.moveaxis(rc2 - rc1, -1, 0))
+    self.h_start = np.ascontiguousarray(np.moveaxis(hc1, -1, 0))  # (3,M,K,B)
+    self.h_dir = np.ascontiguousarray(np.moveaxis(hc2 - hc1, -1, 0))
+    self.r_radius, self.h_radius = rr, hr
+    self.r_len_sq = _dot3(self.r_dir, self.r_dir)                   # (K, L)
+    self.h_len_sq = _dot3(self.h_dir, self.h_dir)                   # (M, K, B)
+
+  def bounds(self):
+    """Upper and lower bounds (M, K, L, B) of the signed distances: the
+    midpoint distance minus the radii, and that minus the half lengths."""
+    r_mid = self.r_start + 0.5 * self.r_dir
+    h_mid = self.h_start + 0.5 * self.h_dir
+    gap = r_mid[:, None, :, :, None] - h_mid[:, :, :, None, :]
+    gap *= gap
+    upper = gap[0]
+    upper += gap[1]
+    upper += gap[2]
+    np.sqrt(upper, out=upper)
+    upper -= self.r_radius[None, :, :, None]
+    upper -= self.h_radius[:, :, None, :]
+    half = (0.5 * np.sqrt(self.r_len_sq)[None, :, :, None] +
+            0.5 * np.sqrt(self.h_len_sq)[:, :, None, :])
+    return upper, upper - half
+
+  def exact(self, m, k, l, b):
+    """Exact signed distances of the pairs (m, k, l, b) (index arrays)."""
+    _, count_k, count_l, count_b = self.shape
+    robot = k * count_l + l
+    human = (m * count_k + k) * count_b + b
+    d1 = self.r_dir.reshape(3, -1)[:, robot]
+    d2 = self.h_dir.reshape(3, -1)[:, human]
+    r = (self.r_start.reshape(3, -1)[:, robot] -
+         self.h_start.reshape(3, -1)[:, human])
+    s, t = geometry.closest_parameters(
+        self.r_len_sq.ravel()[robot], _dot3(d1, d2), _dot3(d1, r),
+        self.h_len_sq.ravel()[human], _dot3(d2, r))
+    r += s * d1
+    r -= t * d2
+    return (np.sqrt(_dot3(r, r)) - self.r_radius.ravel()[robot]
+            - self.h_radius.ravel()[human])
 
 
 def _coarse_lower_bound(rc1, rc2, rr, hc1, hc2, hr):
@@ -72,11 +103,6 @@ def _coarse_lower_bound(rc1, rc2, rr, hc1, hc2, hr):
   return lower.min(axis=2)
 
 
-def _exact(rc1, rc2, rr, hc1, hc2, hr, m, k, l, b):
-  return geometry.capsule_distance(rc1[k, l], rc2[k, l], rr[k, l],
-                                   hc1[m, k, b], hc2[m, k, b], hr[m, k, b])
-
-
 def clearances(robot, human):
   """Minimum signed distance (M, K) between the robot's capsules and the
   body capsules of each human model, per interval (exact).
@@ -84,13 +110,13 @@ def clearances(robot, human):
   robot: (c1 (K, L, 3), c2 (K, L, 3), r (K, L)); human: (c1 (M, K, B, 3),
   c2 (M, K, B, 3), r (M, K, B)).
   """
-  capsules = _check(robot, human)
-  upper, lower = _bounds(*capsules)
+  capsules = _Capsules(*_check(robot, human))
+  upper, lower = capsules.bounds()
   best_upper = upper.min(axis=(2, 3))
   # Pairs that may hold the minimum; the pair of the best upper bound does.
   m, k, l, b = np.nonzero(lower <= best_upper[:, :, None, None])
   out = np.full(upper.shape, np.inf)
-  out[m, k, l, b] = _exact(*capsules, m, k, l, b)
+  out[m, k, l, b] = capsules.exact(m, k, l, b)
   return out.min(axis=(2, 3))
 
 
@@ -109,15 +135,15 @@ def ssm_verdict(robot, human, exact_distance=True):
   a lower bound (>= 0), and where a midpoint upper bound already proves an
   intersection, by that (negative) upper bound.
   """
+  checked = _check(robot, human)
   if exact_distance:
     per_interval = clearances(robot, human).max(axis=0)     # (K,)
   else:
-    capsules = _check(robot, human)
-    coarse = _coarse_lower_bound(*capsules)                 # (M, K)
+    coarse = _coarse_lower_bound(*checked)                  # (M, K)
     if coarse.min() >= 0.0:
-      per_interval = coarse.max(axis=0)
-      return True, -1, float(per_interval.min())
-    upper, lower = _bounds(*capsules)
+      return True, -1, float(coarse.max(axis=0).min())
+    capsules = _Capsules(*checked)
+    upper, lower = capsules.bounds()
     best_upper = upper.min(axis=(2, 3))
     sure_hit = best_upper < 0
     clearance = np.maximum(lower.min(axis=(2, 3)), 0.0)
@@ -125,7 +151,7 @@ def ssm_verdict(robot, human, exact_distance=True):
     if undecided.any():
       m, k, l, b = np.nonzero(undecided)
       exact = np.full(upper.shape, np.inf)
-      exact[m, k, l, b] = _exact(*capsules, m, k, l, b)
+      exact[m, k, l, b] = capsules.exact(m, k, l, b)
       # Pairs with a non-negative lower bound cannot intersect, so a
       # negative minimum over the undecided pairs is the exact clearance.
       exact = exact.min(axis=(2, 3))
