@@ -123,7 +123,6 @@ def test_table_pedestal_and_extra_boxes():
   box = (tip + [0.05, -0.05, -0.05], tip + [0.15, 0.05, 0.05])
   _, boxed = _prevention('panda', extra_boxes=[box])
   move = home.copy()
-  move[0] += 0.0
   move[1] += 0.25  # Reach forward, towards +x.
   assert prevention.is_safe(home, move)
   assert not boxed.is_safe(home, move)
