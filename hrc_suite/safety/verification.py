@@ -86,23 +86,6 @@ class _Capsules:
             - self.h_radius.ravel()[human])
 
 
-def _coarse_lower_bound(rc1, rc2, rr, hc1, hc2, hr):
-  """Lower bound (M, K) of the clearance from one ball around all robot
-  capsules of an interval against a ball around each body capsule."""
-  r_mid = 0.5 * (rc1 + rc2)                                     # (K, L, 3)
-  r_len = rc2 - rc1
-  r_reach = 0.5 * np.sqrt(np.vecdot(r_len, r_len)) + rr         # (K, L)
-  centre = 0.5 * (r_mid.max(axis=1) + r_mid.min(axis=1))        # (K, 3)
-  offset = r_mid - centre[:, None]
-  radius = (np.sqrt(np.vecdot(offset, offset)) + r_reach).max(axis=1)  # (K,)
-  h_mid = 0.5 * (hc1 + hc2)                                     # (M, K, B, 3)
-  h_len = hc2 - hc1
-  h_reach = 0.5 * np.sqrt(np.vecdot(h_len, h_len)) + hr
-  gap = h_mid - centre[:, None]
-  lower = np.sqrt(np.vecdot(gap, gap)) - h_reach - radius[:, None]
-  return lower.min(axis=2)
-
-
 def clearances(robot, human):
   """Minimum signed distance (M, K) between the robot's capsules and the
   body capsules of each human model, per interval (exact).
@@ -130,24 +113,32 @@ def ssm_verdict(robot, human, exact_distance=True):
   negative exactly when the verdict is unsafe.
 
   exact_distance=False gives the same verdict faster: only pairs whose
-  bounds leave the sign open get exact distances. min_distance is then only
-  sign-exact: where a model's interval is clear its clearance is replaced by
-  a lower bound (>= 0), and where a midpoint upper bound already proves an
-  intersection, by that (negative) upper bound.
+  bounds leave the verdict open get exact distances. min_distance is then
+  only sign-exact: where a model's interval is clear its clearance is
+  replaced by a lower bound (>= 0), where a midpoint upper bound already
+  proves an intersection by that (negative) upper bound, and intervals
+  decided by bounds alone keep their bounds.
   """
   checked = _check(robot, human)
   if exact_distance:
     per_interval = clearances(robot, human).max(axis=0)     # (K,)
   else:
-    coarse = _coarse_lower_bound(*checked)                  # (M, K)
-    if coarse.min() >= 0.0:
-      return True, -1, float(coarse.max(axis=0).min())
     capsules = _Capsules(*checked)
     upper, lower = capsules.bounds()
+    best_lower = lower.min(axis=(2, 3))
+    if best_lower.min() >= 0.0:
+      return True, -1, float(best_lower.max(axis=0).min())
+    clearance = np.maximum(best_lower, 0.0)
     best_upper = upper.min(axis=(2, 3))
     sure_hit = best_upper < 0
-    clearance = np.maximum(lower.min(axis=(2, 3)), 0.0)
-    undecided = (lower < 0) & ~sure_hit[:, :, None, None]
+    # Exact distances are needed only where the sign is open, in intervals
+    # no model already proves free, before the first interval every model
+    # proves unsafe.
+    open_mk = ~sure_hit & ~np.any(best_lower >= 0, axis=0)[None]
+    all_hit = np.all(sure_hit, axis=0)
+    if all_hit.any():
+      open_mk[:, int(np.argmax(all_hit)):] = False
+    undecided = (lower < 0) & open_mk[:, :, None, None]
     if undecided.any():
       m, k, l, b = np.nonzero(undecided)
       exact = np.full(upper.shape, np.inf)
