@@ -24,6 +24,9 @@ GOAL_LIMIT_MARGIN = 0.01
 # Taylor weights: q(tau) = sum_c tau^c / c! * (d^c q / ds^c)_k.
 _POWERS = np.arange(4.0)
 _TAYLOR = np.array([1.0, 1.0, 0.5, 1.0 / 6.0])
+# Plan samples computed at once when more are needed (~0.26 s at 4 ms: a
+# failsafe's horizon).
+_SAMPLE_CHUNK = 64
 # Slack for float round-off when checking the start state against limits.
 _LIMIT_SLACK = 1e-9
 
@@ -50,28 +53,63 @@ class LongTermPlan:
     if not cycle_time > 0:
       raise ValueError(f'cycle_time must be positive, got {cycle_time}')
     # (num_samples, 4, dof): q and its derivatives, for one gather per query.
-    self._coefficients = np.stack(arrays, axis=1)
-    self._coefficients.flags.writeable = False
-    self.q, self.dq, self.ddq, self.dddq = (self._coefficients[:, i]
-                                            for i in range(4))
+    coefficients = np.stack(arrays, axis=1)
+    coefficients.flags.writeable = False
+    self._init(coefficients, shape[0], cycle_time, start_time, None)
+
+  def _init(self, coefficients, filled, cycle_time, start_time, sampler):
+    self._coefficients = coefficients
+    self._filled = filled          # Samples [0, filled) are computed.
+    self._sampler = sampler        # Computes samples [a, b) on demand.
     self.cycle_time = float(cycle_time)
     self.start_time = float(start_time)
     self._inverse_cycle = 1.0 / self.cycle_time
-    self._last = shape[0] - 1
+    self._last = coefficients.shape[0] - 1
 
   @classmethod
-  def _from_samples(cls, coefficients, cycle_time, start_time):
-    """Trusted construction from (N, 4, dof) samples (no checks, no copy)."""
+  def _lazy(cls, num_samples, dof, sampler, cycle_time, start_time):
+    """A plan whose `sampler(a, b) -> (b - a, 4, dof)` computes samples when
+    first needed (most of a plan is replaced before it is used)."""
     plan = cls.__new__(cls)
-    coefficients.flags.writeable = False
-    plan._coefficients = coefficients
-    plan.q, plan.dq, plan.ddq, plan.dddq = (coefficients[:, i]
-                                            for i in range(4))
-    plan.cycle_time = float(cycle_time)
-    plan.start_time = float(start_time)
-    plan._inverse_cycle = 1.0 / plan.cycle_time
-    plan._last = coefficients.shape[0] - 1
+    plan._init(np.empty((num_samples, 4, dof)), 0, cycle_time, start_time,
+               sampler)
     return plan
+
+  def _fill(self, k):
+    """Computes the samples up to index k (and a chunk beyond)."""
+    stop = min(max(k + 1, self._filled + _SAMPLE_CHUNK), self._last + 1)
+    self._coefficients[self._filled:stop] = self._sampler(self._filled, stop)
+    self._filled = stop
+
+  def _all(self):
+    if self._filled <= self._last:
+      self._fill(self._last)
+    return self._coefficients
+
+  @property
+  def q(self):
+    """Joint positions of all samples (num_samples, dof), read-only view."""
+    view = self._all()[:, 0]
+    view.flags.writeable = False
+    return view
+
+  @property
+  def dq(self):
+    view = self._all()[:, 1]
+    view.flags.writeable = False
+    return view
+
+  @property
+  def ddq(self):
+    view = self._all()[:, 2]
+    view.flags.writeable = False
+    return view
+
+  @property
+  def dddq(self):
+    view = self._all()[:, 3]
+    view.flags.writeable = False
+    return view
 
   @classmethod
   def at_rest(cls, q, cycle_time, start_time=0.0):
@@ -95,7 +133,9 @@ class LongTermPlan:
 
   @property
   def goal(self):
-    return self.q[-1]
+    if self._sampler is not None:
+      return self._goal
+    return self._coefficients[-1, 0]
 
   def index(self, s):
     """Sample index at or before plan time s (array or scalar), clamped."""
@@ -112,6 +152,8 @@ class LongTermPlan:
     """
     s = np.atleast_1d(np.asarray(s, dtype=float))
     k = self.index(s)
+    if k.max() >= self._filled:
+      self._fill(int(k.max()))
     tau = (s - self.start_time - k * self.cycle_time)[:, None]
     c = self._coefficients[k]
     j = c[:, 3]
@@ -127,8 +169,10 @@ class LongTermPlan:
     np.clip(k, 0, self._last, out=k)
     tau = s - self.start_time - k * self.cycle_time
     weights = np.power(tau[:, None], _POWERS) * _TAYLOR
-    return np.matmul(weights[:, None, :], self._coefficients[k.astype(int)]
-                     )[:, 0]
+    k = k.astype(int)
+    if k.max() >= self._filled:
+      self._fill(int(k.max()))
+    return np.matmul(weights[:, None, :], self._coefficients[k])[:, 0]
 
   def state(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
     """One path state (scalars) -> (5, dof): q, dq, ddq, dddq, v_nominal.
@@ -151,6 +195,8 @@ class LongTermPlan:
         (0.0, s_ddot, s_ddot * t + v2, s_ddot * t2 + v2 * t),
         (0.0, jerk, jerk * t + sa, jerk * t2 + sa * t + v2 * s_dot),
         (0.0, 1.0, t, t2)))
+    if k >= self._filled:
+      self._fill(k)
     return matrix @ self._coefficients[k]
 
   def evaluate(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
@@ -305,26 +351,36 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   table = table.reshape(dof * count, 5)
   shift = np.repeat(np.arange(dof) * span, count)
   num = int(np.ceil(duration / cycle_time - 1e-9)) + 1
-  times = np.arange(num) * cycle_time
-  index = np.searchsorted(table[:, 0] + shift,
-                          times[:, None] + shift[::count], side='right') - 1
-  rows = table[index]                                        # (num, dof, 5)
-  d = times[:, None] - rows[..., 0]
-  p, v, a, j = rows[..., 1], rows[..., 2], rows[..., 3], rows[..., 4]
-  samples = np.empty((num, 4, dof))
-  samples[:, 0] = p + d * (v + d * (0.5 * a + d * j / 6.0))
-  samples[:, 1] = v + d * (a + 0.5 * d * j)
-  samples[:, 2] = a + d * j
-  samples[:, 3] = j
-  # The goal at rest from the end of the motion on (held afterwards).
-  end = times >= duration
-  samples[end, 0] = goal
-  samples[end, 1:] = 0.0
-  q = samples[:, 0]
-  outside = (q < limits.q_min - _LIMIT_SLACK) | (q > limits.q_max
-                                                  + _LIMIT_SLACK)
+  starts = table[:, 0] + shift
+  joint_shift = shift[::count]
+  # Whole-motion joint extremes (exact, from Ruckig) for the limit check.
+  extrema = trajectory.position_extrema
+  low = np.array([e.min for e in extrema])
+  high = np.array([e.max for e in extrema])
+  outside = (low < limits.q_min - _LIMIT_SLACK) | (high > limits.q_max
+                                                    + _LIMIT_SLACK)
   if np.any(outside):
-    joints = np.nonzero(np.any(outside, axis=0))[0].tolist()
     raise PlanningError(f'The motion to {goal.tolist()} would leave the joint '
-                        f'limits on joints {joints}')
-  return LongTermPlan._from_samples(samples, cycle_time, start_time)
+                        f'limits on joints {np.nonzero(outside)[0].tolist()}')
+
+  def sampler(first, stop):
+    times = np.arange(first, stop) * cycle_time
+    index = np.searchsorted(starts, times[:, None] + joint_shift,
+                            side='right') - 1
+    rows = table[index]                                    # (n, dof, 5)
+    d = times[:, None] - rows[..., 0]
+    p, v, a, j = rows[..., 1], rows[..., 2], rows[..., 3], rows[..., 4]
+    samples = np.empty((len(times), 4, dof))
+    samples[:, 0] = p + d * (v + d * (0.5 * a + d * j / 6.0))
+    samples[:, 1] = v + d * (a + 0.5 * d * j)
+    samples[:, 2] = a + d * j
+    samples[:, 3] = j
+    # The goal at rest from the end of the motion on (held afterwards).
+    end = times >= duration
+    samples[end, 0] = goal
+    samples[end, 1:] = 0.0
+    return samples
+
+  plan = LongTermPlan._lazy(num, dof, sampler, cycle_time, start_time)
+  plan._goal = goal
+  return plan
