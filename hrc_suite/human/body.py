@@ -238,18 +238,33 @@ def shoulder_positions(body, pose):
   return neck[:, None, :] + np.einsum('tij,sj->tsi', frame, offsets)
 
 
-def two_link(root, target, first, second, bend_reference, swivel):
+# Arms straighten softly: beyond SOFT_REACH_START of full length the reached
+# distance saturates smoothly at SOFT_REACH_END, so the elbow never whips
+# through the straight-arm singularity (where its speed would be unbounded).
+SOFT_REACH_START = 0.93
+SOFT_REACH_END = 0.985
+
+
+def two_link(root, target, first, second, bend_reference, swivel,
+             soft=False):
   """Middle joint of a two-link chain reaching for `target` (clamped).
 
   Returns (middle, end): the end lies on the ray root->target at the reachable
   distance, so both links keep their lengths exactly. `bend_reference` gives
-  the direction the middle joint bends towards at swivel 0.
+  the direction the middle joint bends towards at swivel 0. With `soft`, the
+  distance saturates smoothly near full extension.
   """
   offset = target - root
   distance = np.linalg.norm(offset, axis=-1, keepdims=True)
   axis = offset / np.maximum(distance, 1e-9)
-  distance = np.clip(distance, abs(first - second) + 1e-4,
-                     first + second - 1e-6)
+  full = first + second
+  if soft:
+    start, span = SOFT_REACH_START * full, (SOFT_REACH_END
+                                            - SOFT_REACH_START) * full
+    distance = np.where(distance > start,
+                        start + span * np.tanh((distance - start) / span),
+                        distance)
+  distance = np.clip(distance, abs(first - second) + 1e-4, full - 1e-6)
   along = (first ** 2 - second ** 2 + distance ** 2) / (2 * distance)
   radius = np.sqrt(np.maximum(first ** 2 - along ** 2, 0.0))
   n1 = _normalise(bend_reference
@@ -296,7 +311,7 @@ def forward_kinematics(body, pose):
     reference = -up + 0.35 * sign * left - 0.3 * forward
     elbow, wrist = two_link(shoulder, wrist_target, body.upper_arm,
                             body.forearm, reference,
-                            sign * pose.swivel[:, side])
+                            sign * pose.swivel[:, side], soft=True)
     out[:, k[f'{name}_shoulder']] = shoulder
     out[:, k[f'{name}_elbow']] = elbow
     out[:, k[f'{name}_wrist']] = wrist

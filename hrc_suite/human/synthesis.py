@@ -29,7 +29,7 @@ LIBRARY_SEED = 20240521
 # 2 m/s (clip.MAX_KEYPOINT_SPEED); slow walking suits work at a table.
 MAX_WALK_SPEED = 0.55
 # Peak hand speed of ordinary reaches (recorded HRC reaches peak at 0.5-2 m/s).
-MAX_HAND_SPEED = 1.5
+MAX_HAND_SPEED = 1.8
 # Minimum-jerk peak speed = 15/8 x mean speed.
 MIN_JERK_PEAK_RATIO = 1.875
 # Foot swing: travel per step at most, lift height (metres).
@@ -38,15 +38,24 @@ FOOT_LIFT = 0.05
 # Quiet standing: knee flex lowers the pelvis below the straight-leg height.
 STANDING_KNEE_DROP = 0.015
 WALKING_KNEE_DROP = 0.035
-# Stored positions are rounded to 2**-13 m (0.12 mm): the zeroed low mantissa
+# Stored positions are rounded to 2**-12 m (0.24 mm): the zeroed low mantissa
 # bits let np.savez_compressed shrink the library about threefold.
-POSITION_QUANTUM = 2.0 ** -13
+POSITION_QUANTUM = 2.0 ** -12
 # Breathing 12-20 breaths/min (0.2-0.33 Hz); postural sway of the body centre
 # in quiet stance is a few millimetres at 0.1-0.5 Hz.
 BREATH_HZ = (0.2, 0.33)
 BREATH_LEAN = 0.008       # rad
-SWAY_AMPLITUDE = 0.006    # m
-HAND_DRIFT = 0.006        # m
+SWAY_AMPLITUDE = 0.02     # m
+SWAY_HZ = (0.1, 0.6)
+TORSO_WANDER = 0.05       # rad, lean and twist
+HAND_DRIFT = 0.02         # m
+HAND_DRIFT_HZ = (0.2, 0.9)
+# Arm swing while walking: forward/back excursion of a free hand (m) at the
+# step rhythm, opposite to the leg on its side.
+ARM_SWING = 0.09
+# A free hand follows the other hand's excursion from rest by this fraction
+# (mirrored sideways): the idle arm moves along with a reach.
+SYMPATHETIC_FRACTION = 0.3
 HEAD_WANDER = 0.06        # rad
 
 SCALAR_CHANNELS = ('pelvis_drop', 'yaw', 'lean', 'side', 'twist',
@@ -209,11 +218,11 @@ class Script:
 
   def reach_duration(self, distance, speed_scale=1.0):
     """Duration of a reach over `distance`: tempo plus a hand-speed cap."""
-    base = (0.45 + 1.0 * distance) * self.tempo
+    base = (0.35 + 0.9 * distance) * self.tempo
     cap = MIN_JERK_PEAK_RATIO * distance / (MAX_HAND_SPEED * speed_scale)
     return max(base, cap)
 
-  def lean_for(self, side, target, margin=0.9, max_lean=0.7):
+  def lean_for(self, side, target, margin=0.96, max_lean=0.7):
     """Smallest forward lean (and knee drop) that brings target in reach."""
     reach = self.body.arm_reach * margin
     base = self.value('lean')
@@ -284,6 +293,31 @@ class Script:
     values.update(extra)
     return self.move(duration, start=start, advance=advance, **values)
 
+  def fidget(self, duration, sides):
+    """Holds for `duration` s while free hands make small idle gestures.
+
+    Each hand in `sides` drifts to a few nearby spots (within ~0.15 m of its
+    current place: adjusting, touching the table edge, resting on the hip)
+    and comes back by the end of the hold.
+    """
+    rs = self.random_state
+    t_end = self.t + duration
+    for side in sides:
+      channel = HAND_CHANNELS[side]
+      home = self.channels[channel].value.copy()
+      t = max(self.t, self.channels[channel].end_time)
+      while t_end - t > 0.9:   # One gesture: out, short pause, back.
+        total = min(t_end - t, rs.uniform(1.2, 2.0))
+        offset = rs.uniform([-0.08, -0.1, -0.05], [0.2, 0.1, 0.2])
+        offset *= min(1.0, total / 1.6)
+        offset[1] *= 1.0 if side == 0 else -1.0
+        self.move(0.45 * total, start=t, advance=False,
+                  **{channel: home + offset})
+        self.move(0.45 * total, start=t + 0.55 * total, advance=False,
+                  **{channel: home})
+        t += total
+    self.t = max(self.t, t_end)
+
   def walk(self, to_xy, yaw=None, duration=None):
     """Walks the pelvis to `to_xy` (and heading `yaw`), stepping."""
     start = self.value('pelvis_xy')
@@ -325,6 +359,7 @@ class Script:
                         b.ankle_height]) for sign in (1.0, -1.0)]
 
     steps = ([], [])   # per foot: (t0, t1, p0, p1)
+    self._step_plans = []
     feet = stance(0.0)
     for t0, t1 in self.walks:
       travel = np.linalg.norm(pelvis_xy_at(np.array([t1]))[0]
@@ -334,6 +369,7 @@ class Script:
               int(math.ceil(turn / 0.6)) + 1)
       slot = (t1 - t0) / n
       first = self.random_state.randint(2)
+      self._step_plans.append((slot, first))
       for k in range(n):
         foot = (first + k) % 2
         s0, s1 = t0 + k * slot, t0 + (k + 1) * slot
@@ -357,6 +393,27 @@ class Script:
         out[inside, foot, 2] += lift
     return out
 
+  def _free(self, local_hand, side):
+    """1 where a hand hangs at rest, fading to 0 at 0.12 m from rest."""
+    rest = self.rest_hand(side)
+    return np.clip(1.0 - np.linalg.norm(local_hand - rest, axis=-1) / 0.12,
+                   0.0, 1.0)
+
+  def _arm_swing(self, times, side, local_hand):
+    """Forward offset of a hanging hand swinging with the steps."""
+    free = self._free(local_hand, side)
+    swing = np.zeros(len(times))
+    for (t0, t1), (slot, first) in zip(self.walks, self._step_plans):
+      inside = (times > t0) & (times < t1)
+      s = (times[inside] - t0) / (t1 - t0)
+      envelope = np.sin(np.pi * s) ** 2
+      # One full swing cycle per two steps; the hand on the side of the
+      # first swinging foot starts backwards.
+      phase = np.pi * (times[inside] - t0) / slot
+      sign = 1.0 if side == first else -1.0
+      swing[inside] = -sign * ARM_SWING * envelope * np.sin(phase)
+    return swing * free
+
   def _idle_noise(self, times, amplitude, count=3, low=0.08, high=0.5):
     """Smooth zero-mean wander: a sum of sines with random frequencies."""
     rs = self.random_state
@@ -375,30 +432,37 @@ class Script:
     times = np.arange(num_frames) / fps
     ch = {name: c.sample(times) for name, c in self.channels.items()}
     scalar = {name: ch[name][:, 0] for name in SCALAR_CHANNELS}
-    sway = np.stack([self._idle_noise(times, SWAY_AMPLITUDE),
-                     self._idle_noise(times, SWAY_AMPLITUDE)], -1)
+    sway = np.stack([self._idle_noise(times, SWAY_AMPLITUDE, 3, *SWAY_HZ),
+                     self._idle_noise(times, SWAY_AMPLITUDE, 3, *SWAY_HZ)], -1)
     pelvis_xy = ch['pelvis_xy'] + sway
     yaw = scalar['yaw']
     breath_hz = self.random_state.uniform(*BREATH_HZ)
-    lean = scalar['lean'] + BREATH_LEAN * np.sin(
+    lean = scalar['lean'] + self._idle_noise(times, TORSO_WANDER) + BREATH_LEAN * np.sin(
         2 * np.pi * breath_hz * times + self.random_state.uniform(0, 6.28))
-    hands = np.empty((num_frames, 2, 3))
-    c, s = np.cos(yaw), np.sin(yaw)
-    for side, hand in enumerate(HAND_CHANNELS):
-      local = ch[hand] + np.stack([self._idle_noise(times, HAND_DRIFT)
-                                   for _ in range(3)], -1)
-      hands[:, side, 0] = pelvis_xy[:, 0] + c * local[:, 0] - s * local[:, 1]
-      hands[:, side, 1] = pelvis_xy[:, 1] + s * local[:, 0] + c * local[:, 1]
-      hands[:, side, 2] = local[:, 2]
     pelvis_channel = self.channels['pelvis_xy']
     yaw_channel = self.channels['yaw']
     ankles = self._feet(times, pelvis_channel.sample,
                         lambda t: yaw_channel.sample(t)[:, 0])
+    hands = np.empty((num_frames, 2, 3))
+    c, s = np.cos(yaw), np.sin(yaw)
+    rest = [self.rest_hand(side) for side in range(2)]
+    for side, hand in enumerate(HAND_CHANNELS):
+      other = ch[HAND_CHANNELS[1 - side]] - rest[1 - side]
+      other[:, 1] *= -1.0
+      local = ch[hand] + self._free(ch[hand], side)[:, None] * (
+          SYMPATHETIC_FRACTION * other)
+      local = local + np.stack([self._idle_noise(
+          times, HAND_DRIFT, 4, *HAND_DRIFT_HZ) for _ in range(3)], -1)
+      local[:, 0] += self._arm_swing(times, side, ch[hand])
+      hands[:, side, 0] = pelvis_xy[:, 0] + c * local[:, 0] - s * local[:, 1]
+      hands[:, side, 1] = pelvis_xy[:, 1] + s * local[:, 0] + c * local[:, 1]
+      hands[:, side, 2] = local[:, 2]
     pose = body_lib.Pose(
         pelvis=np.concatenate([pelvis_xy, (self.standing_height
                                            - scalar['pelvis_drop'])[:, None]],
                               -1),
-        yaw=yaw, lean=lean, side=scalar['side'], twist=scalar['twist'],
+        yaw=yaw, lean=lean, side=scalar['side'],
+        twist=scalar['twist'] + self._idle_noise(times, TORSO_WANDER),
         head_pitch=scalar['head_pitch'],
         head_yaw=scalar['head_yaw'] + self._idle_noise(times, HEAD_WANDER),
         hands=hands,

@@ -70,7 +70,7 @@ def _station(rs, spread=0.04):
   return np.array([rs.uniform(-spread, spread), rs.uniform(-spread, spread)])
 
 
-def _approach(script, rs, distance=(0.6, 1.0), lateral=0.3):
+def _approach(script, rs, distance=(0.8, 1.3), lateral=0.3):
   """Starts back from the station and walks in; hands relaxed."""
   start = np.array([-rs.uniform(*distance), rs.uniform(-lateral, lateral)])
   script.start_at(start, yaw=rs.uniform(-0.15, 0.15))
@@ -101,6 +101,20 @@ def _look_at(script, point, duration, advance=False, start=None):
               head_pitch=float(np.clip(pitch, -0.3, 0.7)))
 
 
+def _arm_point(script, rs, side, lean, fraction, elevation, azimuth):
+  """A clip-frame point at `fraction` of the arm's reach from the shoulder.
+
+  The shoulder is taken with the torso leaning by `lean`; `elevation` is the
+  angle above horizontal, `azimuth` the angle towards the hand's own side.
+  People hand things over and strike with the arm almost straight.
+  """
+  shoulder = script.shoulder_world(side, lean=lean, drop=0.0)
+  yaw = script.value('yaw') + _side_sign(side) * azimuth
+  direction = np.array([np.cos(elevation) * np.cos(yaw),
+                        np.cos(elevation) * np.sin(yaw), np.sin(elevation)])
+  return shoulder + fraction * script.body.arm_reach * direction
+
+
 def _table_point(rs, x, y, height=0.0):
   return np.array([rs.uniform(*x), rs.uniform(*y), TABLE_Z + height])
 
@@ -108,91 +122,107 @@ def _table_point(rs, x, y, height=0.0):
 # ------------------------------------------------------------------ tasks
 
 
-def reach(script, rs):
-  """Working beside the robot: walk in, reach into the shared space, leave."""
+def _walk_in_beside(script, rs):
+  """Walks along the table into the beside station."""
   sign = rs.choice([-1.0, 1.0])
-  script.start_at(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.7, 1.0)]),
+  script.start_at(np.array([rs.uniform(-0.15, 0.0),
+                            sign * rs.uniform(0.8, 1.2)]),
                   yaw=-sign * math.pi / 2 * rs.uniform(0.7, 1.0))
   script.hold(rs.uniform(0.2, 0.6))
   script.walk(_station(rs), yaw=rs.uniform(-0.1, 0.1))
   script.metadata['station'] = 'beside'
-  for i in range(rs.randint(2, 5)):
+
+
+def _walk_off_beside(script, rs):
+  sign = rs.choice([-1.0, 1.0])
+  script.walk(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.7, 1.1)]),
+              yaw=sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+
+
+def reach(script, rs):
+  """Working beside the robot: walk in, reach into the shared space, leave."""
+  _walk_in_beside(script, rs)
+  for i in range(rs.randint(3, 6)):
     side = rs.randint(2)
-    target = _table_point(rs, (0.4, 0.7), (-0.35, 0.45), rs.uniform(0.05, 0.35))
-    _look_at(script, target, 0.5)
+    target = _table_point(rs, (0.45, 0.8), (-0.35, 0.45), rs.uniform(0.05, 0.4))
+    _look_at(script, target, 0.4)
     script.reach(side, target, swivel=rs.uniform(-0.2, 0.4),
-                 wrist=rs.uniform(0.1, 0.5))
+                 wrist=rs.uniform(0.1, 0.5), speed_scale=1.05)
     script.targets[f'reach_{i + 1}'] = target
     script.mark()
-    script.hold(rs.uniform(0.3, 1.2))
+    script.fidget(rs.uniform(0.2, 0.8), [1 - side])
     if rs.uniform() < 0.5:
-      work = _table_point(rs, (0.32, 0.42), (-0.25, 0.25), 0.06)
-      script.reach(side, work, wrist=0.6)
-      script.hold(rs.uniform(0.4, 1.2))
+      work = _table_point(rs, (0.32, 0.45), (-0.25, 0.25), 0.06)
+      script.reach(side, work, wrist=0.6, speed_scale=1.05)
+      script.fidget(rs.uniform(0.3, 1.0), [1 - side])
     script.rest(side, lean=0.0, pelvis_drop=0.0, head_pitch=0.0, head_yaw=0.0)
-    script.hold(rs.uniform(0.2, 0.8))
+    script.hold(rs.uniform(0.1, 0.5))
   if rs.uniform() < 0.7:
-    sign = rs.choice([-1.0, 1.0])
-    script.walk(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.6, 0.9)]),
-                yaw=sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+    _walk_off_beside(script, rs)
 
 
 def pick_place(script, rs):
-  """Beside the robot: pick an object from the table, place it elsewhere."""
-  sign = rs.choice([-1.0, 1.0])
-  script.start_at(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.7, 1.0)]),
-                  yaw=-sign * math.pi / 2 * rs.uniform(0.7, 1.0))
-  script.hold(rs.uniform(0.2, 0.6))
-  script.walk(_station(rs), yaw=rs.uniform(-0.1, 0.1))
-  script.metadata['station'] = 'beside'
+  """Beside the robot: pick objects from the table and place them elsewhere,
+  one after the other without pausing (a brisk work loop)."""
+  _walk_in_beside(script, rs)
   side = _choose_hand(rs)
   script.holding_hand = script.placing_hand = _hand_name(side)
-  for i in range(rs.randint(1, 3)):
-    pick = _table_point(rs, (0.38, 0.55), (-0.1, 0.45), GRIP_ABOVE_CENTRE + 0.02)
-    place = _table_point(rs, (0.45, 0.75), (-0.4, 0.2), GRIP_ABOVE_CENTRE + 0.02)
-    _look_at(script, pick, 0.5)
-    script.reach(side, pick + [0, 0, 0.06], wrist=0.6)
-    script.reach(side, pick, wrist=0.6, duration=rs.uniform(0.4, 0.6))
+  lift_height = GRIP_ABOVE_CENTRE + 0.02
+  for i in range(rs.randint(3, 6)):
+    pick = _table_point(rs, (0.42, 0.65), (-0.1, 0.45), lift_height)
+    place = _table_point(rs, (0.5, 0.85), (-0.4, 0.2), lift_height)
+    _look_at(script, pick, 0.4)
+    script.reach(side, pick + [0, 0, 0.06], wrist=0.6, speed_scale=1.1)
+    script.reach(side, pick, wrist=0.6, duration=rs.uniform(0.25, 0.4))
     script.mark()
-    script.hold(rs.uniform(0.3, 0.5))
+    script.hold(rs.uniform(0.1, 0.25))
     lift = 0.5 * (pick + place) + [0, 0, rs.uniform(0.12, 0.25)]
-    script.reach(side, lift, wrist=0.4)
-    _look_at(script, place, 0.5)
-    script.reach(side, place, wrist=0.6)
+    script.reach(side, lift, wrist=0.4, speed_scale=1.1)
+    _look_at(script, place, 0.4)
+    script.reach(side, place, wrist=0.6, speed_scale=1.1)
     script.mark()
-    script.hold(rs.uniform(0.3, 0.6))
+    script.hold(rs.uniform(0.1, 0.25))
     script.targets[f'pick_{i + 1}'] = pick - [0, 0, GRIP_ABOVE_CENTRE]
     script.targets[f'place_{i + 1}'] = place - [0, 0, GRIP_ABOVE_CENTRE]
-    script.reach(side, place + [0, 0, 0.08], duration=rs.uniform(0.4, 0.6))
-    script.rest(side, lean=0.0, pelvis_drop=0.0, head_pitch=0.0, head_yaw=0.0)
-    script.hold(rs.uniform(0.3, 1.0))
+    script.reach(side, place + [0, 0, 0.08], duration=rs.uniform(0.3, 0.45))
+  script.rest(side, lean=0.0, pelvis_drop=0.0, head_pitch=0.0, head_yaw=0.0)
+  script.fidget(rs.uniform(0.5, 1.5), [0, 1])
   if rs.uniform() < 0.7:
-    sign = rs.choice([-1.0, 1.0])
-    script.walk(np.array([rs.uniform(-0.15, 0.0), sign * rs.uniform(0.6, 0.9)]),
-                yaw=sign * math.pi / 2 * rs.uniform(0.7, 1.0))
+    _walk_off_beside(script, rs)
 
 
 def inspection(script, rs):
   """Approach, wait for the object, inspect it, retreat."""
   _approach(script, rs)
-  point = np.array([rs.uniform(0.42, 0.55), rs.uniform(-0.1, 0.1),
+  point = np.array([rs.uniform(0.62, 0.75), rs.uniform(-0.1, 0.1),
                     rs.uniform(1.15, 1.35)])
   script.targets['inspection_point'] = point
   amplitudes, speeds = IDLE_INSPECTION
   script.idle(EVENTS['inspection'][0], amplitudes, speeds)
-  script.hold(rs.uniform(0.4, 0.8))
+  script.fidget(rs.uniform(1.0, 2.5), [0, 1])
   _look_at(script, point, 0.6, advance=True)
   side = _choose_hand(rs, 0.6)
   near = point + [-0.1, -_side_sign(1 - side) * 0.0, -0.06]
   script.reach(side, near, lean=rs.uniform(0.05, 0.2), wrist=0.0)
-  for _ in range(rs.randint(2, 4)):
-    offset = np.array([rs.uniform(-0.13, -0.07), rs.uniform(-0.08, 0.08),
+  other = 1 - side
+  for _ in range(rs.randint(3, 6)):
+    choice = rs.uniform()
+    if choice < 0.3:
+      # Shift the stance to look from another side (hand stays on the
+      # object's side of the body).
+      step = np.array([rs.uniform(-0.05, 0.1), rs.uniform(-0.15, 0.15)])
+      script.walk(script.value('pelvis_xy') + step)
+    offset = np.array([rs.uniform(-0.08, -0.03), rs.uniform(-0.08, 0.08),
                        rs.uniform(-0.08, 0.02)])
     script.reach(side, point + offset, lean=script.value('lean'),
-                 speed_scale=0.6)
-    _look_at(script, point + [0, rs.uniform(-0.08, 0.08), 0], 0.5,
-             advance=True)
-    script.hold(rs.uniform(0.3, 0.9))
+                 speed_scale=0.8)
+    if choice > 0.6:   # Both hands turn the object over in front.
+      script.reach(other, point + offset * [1, -1, 1], lean=script.value(
+          'lean'), speed_scale=0.8)
+      script.hold(rs.uniform(0.3, 0.8))
+      script.rest(other)
+    _look_at(script, point + [0, rs.uniform(-0.08, 0.08), 0], 0.5)
+    script.fidget(rs.uniform(1.0, 1.8), [other])
   script.rest(side, lean=0.0, head_pitch=0.0, head_yaw=0.0)
   script.mark()
   script.hold(rs.uniform(0.3, 0.8))
@@ -204,7 +234,7 @@ def lifting(script, rs):
   script.start_at(_station(rs, 0.06), yaw=rs.uniform(-0.05, 0.05))
   script.channels['pelvis_drop'].value[:] = 0.0
   script.hold(rs.uniform(0.5, 1.0))
-  grasp_x = rs.uniform(TABLE_EDGE_X + 0.02, TABLE_EDGE_X + 0.08)
+  grasp_x = rs.uniform(TABLE_EDGE_X + 0.18, TABLE_EDGE_X + 0.28)
   half = rs.uniform(0.14, 0.18)
   centre_y = rs.uniform(-0.04, 0.04)
   board_top = TABLE_Z + 0.03
@@ -223,18 +253,18 @@ def lifting(script, rs):
   script.reach_both(held, duration=rs.uniform(1.8, 2.6), lean=0.0,
                     pelvis_drop=0.0, head_pitch=0.2)
   script.mark()
-  for _ in range(rs.randint(2, 4)):
-    script.hold(rs.uniform(0.5, 1.5))
-    if rs.uniform() < 0.5:
-      step = np.array([rs.uniform(-0.2, 0.05), rs.uniform(-0.2, 0.2)])
-      script.walk(script.value('pelvis_xy') + step,
-                  duration=rs.uniform(2.5, 3.5))
+  for _ in range(rs.randint(4, 8)):
+    script.hold(rs.uniform(0.1, 0.6))
+    if rs.uniform() < 0.4:
+      step = np.array([rs.uniform(-0.25, 0.05), rs.uniform(-0.25, 0.25)])
+      script.walk(script.value('pelvis_xy') + step)
     else:
-      dz = rs.uniform(-0.1, 0.1)
-      moved = [script.hand_world(s) + [0, 0, dz] for s in range(2)]
-      script.reach_both(moved, duration=rs.uniform(1.5, 2.5), lean=0.0)
+      delta = [rs.uniform(-0.12, 0.1), rs.uniform(-0.15, 0.15),
+               rs.uniform(-0.15, 0.15)]
+      moved = [script.hand_world(s) + delta for s in range(2)]
+      script.reach_both(moved, duration=rs.uniform(0.8, 1.4), lean=0.0)
     script.mark()
-  script.walk(_station(rs, 0.02), duration=rs.uniform(2.5, 3.0))
+  script.walk(_station(rs, 0.02))
   down = [np.array([grasp_x, centre_y + half, board_top + 0.02]),
           np.array([grasp_x, centre_y - half, board_top + 0.02])]
   script.reach_both(down, speed_scale=0.6)
@@ -251,17 +281,18 @@ def handover_robot_to_human(script, rs):
   _approach(script, rs)
   side = _choose_hand(rs)
   script.holding_hand = _hand_name(side)
-  point = np.array([rs.uniform(0.40, 0.52), _side_sign(side) * rs.uniform(
-      0.0, 0.18), rs.uniform(1.0, 1.2)])
+  lean = rs.uniform(0.0, 0.12)
+  point = _arm_point(script, rs, side, lean, rs.uniform(0.88, 0.94),
+                     rs.uniform(-0.45, -0.15), rs.uniform(-0.15, 0.25))
   script.targets['handover_point'] = point
   _look_at(script, point, 0.6)
-  script.reach(side, point, lean=rs.uniform(0.05, 0.25), wrist=0.0,
+  script.reach(side, point, lean=lean, wrist=0.0, pelvis_drop=0.0,
                swivel=rs.uniform(0.0, 0.4))
   script.hold(rs.uniform(0.2, 0.5))
   amplitudes, speeds = IDLE_ROBOT_TO_HUMAN
   script.idle(EVENTS['handover_robot_to_human'][0], amplitudes, speeds)
   # Forward warp reaches sum(amplitudes) x 1.1**3 past the keyframe: hold.
-  script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.8))
+  script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.8), [1 - side])
   carry = script.to_world(np.array([rs.uniform(0.2, 0.3),
                                     _side_sign(side) * 0.2,
                                     script.standing_height + 0.1]))
@@ -285,20 +316,20 @@ def handover_human_to_robot(script, rs):
   script.reach(side, pick, wrist=0.7, duration=rs.uniform(0.4, 0.6))
   script.mark()
   script.hold(rs.uniform(0.3, 0.6))
-  point = np.array([rs.uniform(0.42, 0.55), _side_sign(side) * rs.uniform(
-      0.0, 0.15), rs.uniform(1.0, 1.2)])
+  lean = rs.uniform(0.0, 0.12)
+  point = _arm_point(script, rs, side, lean, rs.uniform(0.88, 0.94),
+                     rs.uniform(-0.45, -0.15), rs.uniform(-0.15, 0.2))
   script.targets['handover_point'] = point
   _look_at(script, point, 0.6)
-  script.reach(side, point, lean=rs.uniform(0.05, 0.2), wrist=0.1,
-               pelvis_drop=0.0)
+  script.reach(side, point, lean=lean, wrist=0.1, pelvis_drop=0.0)
   amplitudes, speeds = IDLE_HUMAN_TO_ROBOT_PRESENT
   script.idle(EVENTS['handover_human_to_robot'][0], amplitudes, speeds)
-  script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.6))
+  script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.6), [1 - side])
   script.rest(side, lean=0.0, head_pitch=0.3)
   script.hold(0.3)
   amplitudes, speeds = IDLE_HUMAN_TO_ROBOT_WAIT
   script.idle(EVENTS['handover_human_to_robot'][1], amplitudes, speeds)
-  script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.4, 0.8))
+  script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(1.0, 2.0), [0, 1])
   script.move(0.6, head_pitch=0.0, head_yaw=0.0)
   _retreat(script, rs)
 
@@ -308,14 +339,17 @@ def hammering(script, rs):
   side = _choose_hand(rs, 0.8)
   script.holding_hand = _hand_name(side)
   _approach(script, rs)
-  nail = np.array([rs.uniform(0.58, 0.68), _side_sign(side) * rs.uniform(
-      0.0, 0.15), rs.uniform(0.95, 1.08)])
-  contact = nail + [-HAMMER_REACH, 0.0, HAMMER_FACE_BELOW_PALM]
+  lean = rs.uniform(0.05, 0.15)
+  contact = _arm_point(script, rs, side, lean, rs.uniform(0.85, 0.92),
+                       rs.uniform(-0.6, -0.35), rs.uniform(-0.25, 0.05))
+  nail = contact + [HAMMER_REACH * np.cos(script.value('yaw')),
+                    HAMMER_REACH * np.sin(script.value('yaw')),
+                    -HAMMER_FACE_BELOW_PALM]
   script.targets['nail'] = nail
   script.targets['strike_grip'] = contact
   raised = contact + [-rs.uniform(0.06, 0.1), 0.0, rs.uniform(0.18, 0.26)]
   _look_at(script, nail, 0.6)
-  script.reach(side, raised, lean=rs.uniform(0.1, 0.2), wrist=0.0)
+  script.reach(side, raised, lean=lean, wrist=0.0)
   script.hold(rs.uniform(0.2, 0.4))
   script.mark()
   amplitudes, speeds = IDLE_HAMMERING
@@ -372,9 +406,10 @@ def stacking(script, rs):
                  duration=rs.uniform(0.4, 0.6))
     script.rest(hand, lean=0.0, pelvis_drop=0.0, head_pitch=0.3, head_yaw=0.0)
     amplitudes, speeds = wait
-    script.hold(sum(amplitudes) * 1.1 ** 3 * (1 if n == 0 else 0) + 0.2)
+    script.fidget(sum(amplitudes) * 1.1 ** 3 * (1 if n == 0 else 0) + 0.2,
+                  [0, 1])
     script.idle(EVENTS['stacking'][n], amplitudes, speeds)
-    script.hold(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.4, 0.8))
+    script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(1.0, 2.0), [0, 1])
   _retreat(script, rs, distance=(0.4, 0.8))
 
 

@@ -79,7 +79,7 @@ def test_reachable_hand_targets_are_met_exactly():
   direction = rs.normal(size=(50, 2, 3))
   direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
   pose.hands = shoulders + direction * rs.uniform(
-      0.3, 0.85 * b.arm_reach, (50, 2, 1))
+      0.3, 0.75 * b.arm_reach, (50, 2, 1))
   positions = body.forward_kinematics(b, pose)
   hands = positions[:, keypoints.index(['left_hand', 'right_hand'])]
   np.testing.assert_allclose(hands, pose.hands, atol=1e-9)
@@ -98,3 +98,26 @@ def test_standing_body_is_upright_with_feet_on_the_floor():
                                           abs=0.03)
   assert p[k['left_ankle'], 2] == pytest.approx(b.ankle_height, abs=1e-6)
   assert p[k['left_shoulder'], 1] > 0 > p[k['right_shoulder'], 1]
+
+
+def test_elbow_speed_stays_bounded_through_full_extension():
+  # The hand target sweeps out beyond reach at constant speed; the soft
+  # extension limit keeps the elbow from whipping at the singularity.
+  b = body.proportional_body(1.75)
+  num_frames = 400
+  pose = _pose(b, num_frames, np.random.RandomState(0))
+  pose.pelvis[:] = (0.0, 0.0, b.hip_height - 0.02)
+  pose.yaw[:] = pose.lean[:] = pose.side[:] = pose.twist[:] = 0.0
+  pose.swivel[:] = 0.0
+  pose.wrist_bend[:] = 0.0
+  shoulder = body.shoulder_positions(b, pose)[0, 1]
+  distance = np.linspace(0.4, 1.0, num_frames) * b.arm_reach * 1.1
+  pose.hands[:, 1] = shoulder + distance[:, None] * np.array([0.8, -0.36, -0.48])
+  pose.hands[:, 0] = shoulder * [1, -1, 1] + [0.1, 0, -0.5]
+  positions = body.forward_kinematics(b, pose)
+  dt = 0.01
+  hand_speed = np.linalg.norm(np.diff(positions[:, keypoints.KEYPOINT_INDEX[
+      'right_hand']], axis=0), axis=-1) / dt
+  elbow_speed = np.linalg.norm(np.diff(positions[:, keypoints.KEYPOINT_INDEX[
+      'right_elbow']], axis=0), axis=-1) / dt
+  assert elbow_speed.max() < 2.0 * hand_speed.max()

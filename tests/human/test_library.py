@@ -73,7 +73,7 @@ def test_targets_needed_by_the_tasks_are_present(library):
 
 def test_library_size_is_small():
   size = sum(p.stat().st_size for p in LIBRARY.rglob('*') if p.is_file())
-  assert size < 5.5e6
+  assert size < 5.0e6
 
 
 def test_shipped_files_equal_a_fresh_synthesis(library):
