@@ -286,7 +286,7 @@ class Shield:
     if intended is None:
       intended = path_lib.plan_profile(
           current.s, current.s_dot, current.s_ddot, 1.0, max_acc, max_jerk, dt)
-    failsafe = None
+    failsafe, s_dot_limit = None, None
     if intended is not None:
       intended = intended.copy()
       intended.advance(dt)

@@ -190,14 +190,21 @@ def simulate(shield, human, duration, goal=None, goal_every=12,
 
 
 def _check_contacts(shield, human, run):
-  """Fills run.min_clearance and run.violations (mode-dependent)."""
+  """Fills run.min_clearance and run.violations (mode-dependent).
+
+  Pairs checked: the command at t with the human at t, t + dt/2 and t + dt
+  (the robot reaches the command within the cycle), and the midpoint of
+  consecutive commands with the human at t.
+  """
   robot = shield.robot
-  r1, r2, rr = robot.capsules(run.q)                   # (T, L, 3)
-  speeds = robot.surface_speeds(run.q, run.dq)         # (T, L)
   limit = MOVING_SPEED if shield.mode == 'ssm' else shield.v_safe
-  for offset in (0.0, 0.5, 1.0):
-    points = np.array([human(t + offset * shield.cycle_time)
-                       for t in run.times])
+  dt = shield.cycle_time
+  middle = np.concatenate([run.q[:1], 0.5 * (run.q[1:] + run.q[:-1])])
+  cases = ((run.q, 0.0), (run.q, 0.5), (run.q, 1.0), (middle, 0.0))
+  for q, offset in cases:
+    r1, r2, rr = robot.capsules(q)                     # (T, L, 3)
+    speeds = robot.surface_speeds(q, run.dq)           # (T, L)
+    points = np.array([human(t + offset * dt) for t in run.times])
     h1, h2, hr = shield.human.body_capsules(points)    # (T, B, 3)
     distance = geometry.capsule_distance(
         r1[:, :, None], r2[:, :, None], rr[None, :, None],
