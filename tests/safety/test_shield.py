@@ -7,6 +7,7 @@ import pytest
 
 from hrc_suite import robot_description
 from hrc_suite.human import keypoints
+from hrc_suite.safety import benchmark as shield_benchmark
 from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import shield as shield_lib
@@ -254,3 +255,12 @@ def test_broad_phase_is_conservative(panda):
           robot, (c1[vel:vel + 1], c2[vel:vel + 1], r[vel:vel + 1]))
       assert safe and distance >= shield.reach_distance - 1e-9
   assert decided > 50
+
+
+def test_benchmark_runs_and_the_close_scene_intervenes():
+  rows = shield_benchmark.main(['--robots', 'panda', '--cycles', '120'])
+  scenes = {row[1]: row for row in rows}
+  assert set(scenes) == set(shield_benchmark.SCENES)
+  for _, _, median, p95, _ in rows:
+    assert 0 < median <= p95
+  assert scenes['close'][4] > 0 and scenes['far'][4] == 0
