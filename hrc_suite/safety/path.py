@@ -256,7 +256,8 @@ def plan_profile(s, s_dot, s_ddot, target_s_dot, max_s_ddot, max_s_dddot,
   exists (negative bounds or |s_ddot| above the bound).
   """
   eps = PROFILE_EPSILON
-  v, a, v_e, A, J, dt = s_dot, s_ddot, target_s_dot, max_s_ddot, max_s_dddot, cycle_time
+  v, a, v_e, dt = s_dot, s_ddot, target_s_dot, cycle_time
+  A, J = max_s_ddot, max_s_dddot
   if not (A >= 0.0 and J > 0.0) or abs(a) > A + eps:
     return None
   # 1. Already there.

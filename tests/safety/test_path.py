@@ -1,4 +1,4 @@
-"""Path parameterisation: profiles (spec 2.4, B6), path bounds (2.3), advance."""
+"""Path parameterisation: profiles (spec 2.4, B6), bounds (2.3), advance."""
 
 import numpy as np
 import pytest
@@ -29,7 +29,8 @@ def _peak_acceleration(profile):
 
 
 def test_profile_grid_ends_at_target():
-  """Spec section 10: v in [0, 1], a in [-8, 8), target in [0, 1], A=10, J=100."""
+  """Spec section 10: v in [0, 1], a in [-8, 8), target in [0, 1], A=10,
+  J=100."""
   for v in np.linspace(0.0, 1.0, 11):
     for a in np.arange(-8.0, 8.0, 0.5):
       for target in np.linspace(0.0, 1.0, 11):
