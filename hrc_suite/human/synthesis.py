@@ -58,6 +58,9 @@ ARM_SWING = 0.09
 SYMPATHETIC_FRACTION = 0.3
 HEAD_WANDER = 0.06        # rad
 
+# Shortest duration of a move queued behind a still running one (s).
+MIN_QUEUED_MOVE = 0.3
+
 SCALAR_CHANNELS = ('pelvis_drop', 'yaw', 'lean', 'side', 'twist',
                    'head_pitch', 'head_yaw', 'left_swivel', 'right_swivel',
                    'left_wrist', 'right_wrist')
@@ -86,12 +89,10 @@ class Channel:
   def move(self, t0, t1, value):
     if t0 < self.end_time - 1e-9:
       # A move that starts while this channel is still moving begins when
-      # the previous one ends, keeping its end time if enough time is left.
-      if t1 - self.end_time < 0.2:
-        raise ValueError(f'Overlapping moves: segment {t0:.3f}-{t1:.3f} s '
-                         f'overlaps the previous one ending at '
-                         f'{self.end_time:.3f} s')
+      # the previous one ends; it keeps its end time if at least
+      # MIN_QUEUED_MOVE is left, else it lasts MIN_QUEUED_MOVE.
       t0 = self.end_time
+      t1 = max(t1, t0 + MIN_QUEUED_MOVE)
     value = np.atleast_1d(np.asarray(value, dtype=np.float64))
     self.segments.append((t0, t1, self.value.copy(), value.copy()))
     self.value = value.copy()

@@ -205,24 +205,28 @@ def inspection(script, rs):
   near = point + [-0.1, -_side_sign(1 - side) * 0.0, -0.06]
   script.reach(side, near, lean=rs.uniform(0.05, 0.2), wrist=0.0)
   other = 1 - side
-  for _ in range(rs.randint(3, 6)):
+  for _ in range(rs.randint(4, 8)):
     choice = rs.uniform()
-    if choice < 0.3:
+    if choice < 0.5:
       # Shift the stance to look from another side (hand stays on the
       # object's side of the body).
       step = np.array([rs.uniform(-0.05, 0.1), rs.uniform(-0.15, 0.15)])
       script.walk(script.value('pelvis_xy') + step)
     offset = np.array([rs.uniform(-0.08, -0.03), rs.uniform(-0.08, 0.08),
                        rs.uniform(-0.08, 0.02)])
-    script.reach(side, point + offset, lean=script.value('lean'),
-                 speed_scale=0.8)
-    if choice > 0.6:   # Both hands turn the object over in front.
+    if choice > 0.7:   # Both hands turn the object over in front.
+      script.reach(side, point + offset, lean=script.value('lean'),
+                   speed_scale=0.8)
       script.reach(other, point + offset * [1, -1, 1], lean=script.value(
           'lean'), speed_scale=0.8)
-      script.hold(rs.uniform(0.3, 0.8))
+      script.hold(rs.uniform(0.2, 0.5))
       script.rest(other)
+    else:  # One hand feels around the object while the other idles.
+      duration = rs.uniform(0.9, 1.5)
+      script.reach(side, point + offset, lean=script.value('lean'),
+                   duration=duration, advance=False)
+      script.fidget(duration + rs.uniform(0.0, 0.3), [other])
     _look_at(script, point + [0, rs.uniform(-0.08, 0.08), 0], 0.5)
-    script.fidget(rs.uniform(1.0, 1.8), [other])
   script.rest(side, lean=0.0, head_pitch=0.0, head_yaw=0.0)
   script.mark()
   script.hold(rs.uniform(0.3, 0.8))
@@ -233,7 +237,7 @@ def lifting(script, rs):
   """Grasp the board's end with both hands, lift, carry slowly, put down."""
   script.start_at(_station(rs, 0.06), yaw=rs.uniform(-0.05, 0.05))
   script.channels['pelvis_drop'].value[:] = 0.0
-  script.hold(rs.uniform(0.5, 1.0))
+  script.fidget(rs.uniform(0.9, 1.5), [0, 1])
   grasp_x = rs.uniform(TABLE_EDGE_X + 0.18, TABLE_EDGE_X + 0.28)
   half = rs.uniform(0.14, 0.18)
   centre_y = rs.uniform(-0.04, 0.04)
@@ -244,32 +248,37 @@ def lifting(script, rs):
   script.targets['board_grasp_right'] = grasps[1]
   script.metadata['board_size'] = [1.0, 0.4, 0.03]
   _look_at(script, 0.5 * (grasps[0] + grasps[1]), 0.6)
-  script.reach_both(grasps, speed_scale=0.8, left_wrist=0.5, right_wrist=0.5)
+  script.reach_both(grasps, left_wrist=0.5, right_wrist=0.5)
   script.mark()
-  script.hold(rs.uniform(0.5, 0.9))
+  script.hold(rs.uniform(0.2, 0.5))
   lift = rs.uniform(0.15, 0.3)
   held = [g + [rs.uniform(-0.05, 0.0), 0.0, lift] for g in grasps]
   held[1][0] = held[0][0]
-  script.reach_both(held, duration=rs.uniform(1.8, 2.6), lean=0.0,
+  script.reach_both(held, duration=rs.uniform(1.2, 1.8), lean=0.0,
                     pelvis_drop=0.0, head_pitch=0.2)
+  held_local = [script.value('left_hand').copy(),
+                script.value('right_hand').copy()]
   script.mark()
   for _ in range(rs.randint(4, 8)):
-    script.hold(rs.uniform(0.1, 0.6))
+    script.hold(rs.uniform(0.0, 0.3))
     if rs.uniform() < 0.4:
       step = np.array([rs.uniform(-0.25, 0.05), rs.uniform(-0.25, 0.25)])
-      script.walk(script.value('pelvis_xy') + step)
+      script.walk(script.value('pelvis_xy') + step,
+                  duration=rs.uniform(1.8, 2.6))
     else:
-      delta = [rs.uniform(-0.12, 0.1), rs.uniform(-0.15, 0.15),
-               rs.uniform(-0.15, 0.15)]
-      moved = [script.hand_world(s) + delta for s in range(2)]
-      script.reach_both(moved, duration=rs.uniform(0.8, 1.4), lean=0.0)
+      # Around the lifted pose (not cumulative), in the body's frame.
+      delta = np.array([rs.uniform(-0.12, 0.08), rs.uniform(-0.15, 0.15),
+                        rs.uniform(-0.12, 0.12)])
+      script.move(rs.uniform(0.9, 1.5), lean=0.0, **{
+          hand: held_local[s] + delta for s, hand in enumerate(
+              ('left_hand', 'right_hand'))})
     script.mark()
   script.walk(_station(rs, 0.02))
   down = [np.array([grasp_x, centre_y + half, board_top + 0.02]),
           np.array([grasp_x, centre_y - half, board_top + 0.02])]
-  script.reach_both(down, speed_scale=0.6)
+  script.reach_both(down)
   script.mark()
-  script.hold(rs.uniform(0.4, 0.8))
+  script.hold(rs.uniform(0.2, 0.5))
   script.rest(0, advance=False, lean=0.0, pelvis_drop=0.0, head_pitch=0.0,
               head_yaw=0.0)
   script.rest(1)
@@ -340,8 +349,8 @@ def hammering(script, rs):
   script.holding_hand = _hand_name(side)
   _approach(script, rs)
   lean = rs.uniform(0.05, 0.15)
-  contact = _arm_point(script, rs, side, lean, rs.uniform(0.85, 0.92),
-                       rs.uniform(-0.6, -0.35), rs.uniform(-0.25, 0.05))
+  contact = _arm_point(script, rs, side, lean, rs.uniform(0.88, 0.94),
+                       rs.uniform(-0.35, -0.1), rs.uniform(-0.25, 0.05))
   nail = contact + [HAMMER_REACH * np.cos(script.value('yaw')),
                     HAMMER_REACH * np.sin(script.value('yaw')),
                     -HAMMER_FACE_BELOW_PALM]
