@@ -49,6 +49,9 @@ PFL_SPEED_MARGIN = 0.9
 PFL_WINDOW = 6
 # Relative tolerance on path velocities in the PFL speed test.
 _S_DOT_TOLERANCE = 1e-9
+# Subtracted from broad-phase distance bounds (m): covers the round-off of
+# computing distances from squared norms.
+_BROAD_PHASE_SLACK = 1e-6
 # Joint-space differences below this count as "the same command" (rad, rad/s).
 _SAME_COMMAND = 1e-9
 
@@ -100,6 +103,8 @@ class Shield:
     self._jerk_numerator = _joint_list(limits.j_max
                                        - np.abs(limits.j_max_ltt))
     self._jerk_acc = _joint_list(3.0 * a_ltt)
+    self._q_min = _joint_list(limits.q_min)
+    self._q_max = _joint_list(limits.q_max)
     # Clip bounds of the (dq, ddq, dddq) rows of a state (spec 2.2).
     self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
     self._pfl_speeds = {}
@@ -417,8 +422,9 @@ class Shield:
     s_edges = [current.s] + s
     t_edges = [0.0] + [x + dt for x in times]
     self._reach_arguments = (plan, s_edges, t_edges)
-    end_q = plan.state(s[-1])[0]
-    if np.any(end_q < self.limits.q_min) or np.any(end_q > self.limits.q_max):
+    end_q = plan.state(s[-1])[0].tolist()
+    if not all(low <= q <= high for low, q, high in zip(
+        self._q_min, end_q, self._q_max)):
       self.first_unsafe_interval, self.reach_distance = count, -np.inf
       return False
     if self.human.positions is None:
@@ -470,12 +476,16 @@ class Shield:
 
 def _balls_capsules_distance(centre, radius, capsules):
   """Lower bound of the distance between balls (B,) and capsules (K, L):
-  each capsule is bounded by the ball around its midpoint."""
+  each capsule is bounded by the ball around its midpoint. Centre distances
+  come from one matrix product (|a|^2 + |b|^2 - 2 a.b); the round-off of
+  that form is far below _BROAD_PHASE_SLACK, which is subtracted."""
   c1, c2, r = capsules
-  robot_centre = 0.5 * (c1 + c2)
-  half = c2 - c1
-  robot_radius = 0.5 * np.sqrt(np.einsum('kli,kli->kl', half, half)) + r
-  gap = robot_centre[:, :, None, :] - centre
-  distance = (np.sqrt(np.einsum('klbi,klbi->klb', gap, gap))
-              - robot_radius[:, :, None] - radius)
-  return float(distance.min())
+  middle = (0.5 * (c1 + c2)).reshape(-1, 3)
+  half = (c2 - c1).reshape(-1, 3)
+  reach = 0.5 * np.sqrt(np.einsum('ni,ni->n', half, half)) + r.reshape(-1)
+  squared = (np.einsum('ni,ni->n', middle, middle)[:, None]
+             + np.einsum('bi,bi->b', centre, centre)
+             - 2.0 * (middle @ centre.T))
+  np.maximum(squared, 0.0, out=squared)
+  return float((np.sqrt(squared) - reach[:, None] - radius).min()
+               - _BROAD_PHASE_SLACK)
