@@ -39,9 +39,10 @@ from hrc_suite.safety import verification
 MODES = ('ssm', 'pfl', 'off')
 # Default shield cycle (s): human-robot-gym's control_sample_time (spec 2.4).
 DEFAULT_CYCLE_TIME = 0.004
-# PFL: the plan's sampled surface speeds are scaled by this before comparing
-# with v_safe, covering the speed change between samples (4 ms at <= 2
-# rad/s^2 moves a 1 m lever by < 1 %); a design margin of this port.
+# PFL: speeds are compared with this fraction of v_safe. Surface speeds are
+# taken at the plan's samples; between samples (2 ms either side) they change
+# by at most the surface acceleration times 2 ms, a few percent of v_safe at
+# the path speeds PFL allows. A design margin of this port.
 PFL_SPEED_MARGIN = 0.9
 # PFL: samples over which a reachable-set slice can extend (one slice is
 # reachability_interval_cycles = 5 cycles of plan time at s_dot <= 1; one
