@@ -249,7 +249,8 @@ class Human(composer.Entity):
     cache = self._bound(physics)
     k = keypoints.KEYPOINT_INDEX
     reference = cache['reference']
-    reference[:8] = positions[k['left_shoulder']] - positions[k['right_shoulder']]
+    reference[:8] = (positions[k['left_shoulder']]
+                     - positions[k['right_shoulder']])
     reference[8:12] = positions[k['left_hip']] - positions[k['right_hip']]
     mid, _, quat = segment_frames(positions, self._proximal, self._distal,
                                   reference)
@@ -312,8 +313,8 @@ class Human(composer.Entity):
   def release(self, physics, object_body):
     """Releases `object_body` from whichever hand holds it."""
     if object_body not in self._holdables:
-      raise ValueError(f'{getattr(object_body, "full_identifier", object_body)!r}'
-                       ' is not holdable')
+      name = getattr(object_body, 'full_identifier', object_body)
+      raise ValueError(f'{name!r} is not holdable')
     for weld in self._holdables[object_body].values():
       physics.data.eq_active[physics.bind(weld).element_id] = 0
     self._held.pop(object_body, None)

@@ -317,7 +317,8 @@ def forward_kinematics(body, pose):
     out[:, k[f'{name}_wrist']] = wrist
     out[:, k[f'{name}_hand']] = wrist + body.hand * hand_dir
     hip = pelvis + sign * (body.hip_width / 2) * pelvis_frame[..., :, 1]
-    knee_reference = pelvis_frame[..., :, 0] + 0.1 * sign * pelvis_frame[..., :, 1]
+    knee_reference = (pelvis_frame[..., :, 0]
+                      + 0.1 * sign * pelvis_frame[..., :, 1])
     knee, ankle = two_link(hip, pose.ankles[:, side], body.thigh, body.shin,
                            knee_reference, np.zeros(num_frames))
     out[:, k[f'{name}_hip']] = hip

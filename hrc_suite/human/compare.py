@@ -1,6 +1,7 @@
 """Realism check: the shipped synthetic library against real recordings.
 
-  python -m hrc_suite.human.compare --recordings=DIR [--out=docs/motion_library.md]
+  python -m hrc_suite.human.compare --recordings=DIR
+      [--out=docs/motion_library.md]
 
 DIR holds the reference's recordings (one folder per task of BVH files, e.g.
 human-robot-animations/), imported with `bvh_import`. Per task and clip the

@@ -84,7 +84,8 @@ def main(argv=None):
     path = rendering.write_video(out / f'{task}.mp4', frames, args.fps)
     print(f'{task}: {len(frames)} frames -> {path}')
     everything.extend(frames)
-  print(f'all -> {rendering.write_video(out / "all_tasks.mp4", everything, args.fps)}')
+  path = rendering.write_video(out / 'all_tasks.mp4', everything, args.fps)
+  print(f'all tasks -> {path}')
 
 
 if __name__ == '__main__':

@@ -438,8 +438,9 @@ class Script:
     pelvis_xy = ch['pelvis_xy'] + sway
     yaw = scalar['yaw']
     breath_hz = self.random_state.uniform(*BREATH_HZ)
-    lean = scalar['lean'] + self._idle_noise(times, TORSO_WANDER) + BREATH_LEAN * np.sin(
-        2 * np.pi * breath_hz * times + self.random_state.uniform(0, 6.28))
+    lean = (scalar['lean'] + self._idle_noise(times, TORSO_WANDER)
+            + BREATH_LEAN * np.sin(2 * np.pi * breath_hz * times
+                                   + self.random_state.uniform(0, 6.28)))
     pelvis_channel = self.channels['pelvis_xy']
     yaw_channel = self.channels['yaw']
     ankles = self._feet(times, pelvis_channel.sample,

@@ -144,7 +144,8 @@ def reach(script, rs):
   _walk_in_beside(script, rs)
   for i in range(rs.randint(3, 6)):
     side = rs.randint(2)
-    target = _table_point(rs, (0.45, 0.8), (-0.35, 0.45), rs.uniform(0.05, 0.4))
+    target = _table_point(rs, (0.45, 0.72), (-0.35, 0.45),
+                          rs.uniform(0.08, 0.4))
     _look_at(script, target, 0.4)
     script.reach(side, target, swivel=rs.uniform(-0.2, 0.4),
                  wrist=rs.uniform(0.1, 0.5), speed_scale=1.05)
@@ -170,7 +171,7 @@ def pick_place(script, rs):
   lift_height = GRIP_ABOVE_CENTRE + 0.02
   for i in range(rs.randint(3, 6)):
     pick = _table_point(rs, (0.42, 0.65), (-0.1, 0.45), lift_height)
-    place = _table_point(rs, (0.5, 0.85), (-0.4, 0.2), lift_height)
+    place = _table_point(rs, (0.5, 0.75), (-0.4, 0.2), lift_height)
     _look_at(script, pick, 0.4)
     script.reach(side, pick + [0, 0, 0.06], wrist=0.6, speed_scale=1.1)
     script.reach(side, pick, wrist=0.6, duration=rs.uniform(0.25, 0.4))

@@ -106,7 +106,8 @@ def test_hold_moves_the_object_with_the_hand_and_release_drops_it(clip):
   frame = clip.keyframes[0]
   human.set_keypoints(physics, positions[frame])
   physics.forward()
-  hand = human.keypoint_positions(physics)[keypoints.KEYPOINT_INDEX['left_hand']]
+  hand = human.keypoint_positions(physics)[
+      keypoints.KEYPOINT_INDEX['left_hand']]
   physics.bind(box.freejoint).qpos[:3] = hand + (0, 0, 0.06)
   physics.forward()
   human.hold(physics, box, 'left')
@@ -129,7 +130,8 @@ def test_observables_world_and_relative(clip):
   arena = workcell.Workcell()
   human = human_lib.Human()
   human.attach_to(arena)
-  site = arena.mjcf_model.worldbody.add('site', name='probe', pos=(1.0, 0.2, 1.0))
+  site = arena.mjcf_model.worldbody.add('site', name='probe',
+                                       pos=(1.0, 0.2, 1.0))
   human.add_relative_observables(site, ('head', 'right_hand'))
   physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
   positions = _placed(clip)[10]

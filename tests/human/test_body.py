@@ -112,7 +112,8 @@ def test_elbow_speed_stays_bounded_through_full_extension():
   pose.wrist_bend[:] = 0.0
   shoulder = body.shoulder_positions(b, pose)[0, 1]
   distance = np.linspace(0.4, 1.0, num_frames) * b.arm_reach * 1.1
-  pose.hands[:, 1] = shoulder + distance[:, None] * np.array([0.8, -0.36, -0.48])
+  direction = np.array([0.8, -0.36, -0.48])
+  pose.hands[:, 1] = shoulder + distance[:, None] * direction
   pose.hands[:, 0] = shoulder * [1, -1, 1] + [0.1, 0, -0.5]
   positions = body.forward_kinematics(b, pose)
   dt = 0.01
