@@ -19,7 +19,7 @@ HUMAN_EYE_HEIGHT = 1.6     # m, adult standing eye height (about 1.5-1.7 m).
 
 # Cameras: (position, point looked at); all frame the robot and the table.
 _CAMERAS = {
-    'front': ((2.6, -1.1, 1.9), (0.5, 0.0, 1.0)),
+    'front': ((2.25, -0.95, 1.75), (0.45, 0.0, 0.95)),
     'side': ((0.55, -2.5, 1.55), (0.55, 0.0, 1.0)),
     'top': ((0.55, 0.0, 3.4), (0.55, 0.0, layout.TABLE_TOP_Z)),
     'human_view': ((layout.HUMAN_STATION_ACROSS[0],

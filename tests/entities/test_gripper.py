@@ -87,15 +87,25 @@ def _tcp_pose(description, q):
 
 
 def _gripper_down_at(description, target, q0):
-  """Joint vector with the TCP at target, gripper pointing down, x forward."""
+  """Joint vector with the TCP at target, gripper pointing down and its
+  fingers closing along world x or y (so they meet the cube's faces).
+
+  Least squares from q0, then from seeded random starts if that fails.
+  """
   def residual(q):
     position, rot = _tcp_pose(description, q)
     return np.concatenate([position - target, 0.3 * (rot[:, 2] - [0, 0, -1]),
-                           0.3 * (rot[:, 0] - [1, 0, 0])])
-  solution = optimize.least_squares(residual, q0, bounds=(
-      description.limits.q_min, description.limits.q_max))
-  assert np.abs(residual(solution.x)).max() < 1e-5
-  return solution.x
+                           [0.3 * rot[0, 0] * rot[1, 0]]])
+  lim = description.limits
+  starts = [q0] + list(np.random.RandomState(0).uniform(
+      np.maximum(lim.q_min, -3), np.minimum(lim.q_max, 3),
+      (50, description.dof)))
+  for start in starts:
+    solution = optimize.least_squares(residual, start,
+                                      bounds=(lim.q_min, lim.q_max))
+    if np.abs(residual(solution.x)).max() < 1e-6:
+      return solution.x
+  raise AssertionError(f'no gripper-down pose at {target}')
 
 
 def _grasp_scene(name):
@@ -103,7 +113,7 @@ def _grasp_scene(name):
   robot = robot_lib.make_robot(name)
   gripper = robot.attach_gripper(gripper_lib.ParallelGripper())
   arena.attach_robot(robot)
-  cube_position = np.array([0.45, 0.1, layout.TABLE_TOP_Z + CUBE_HALF])
+  cube_position = np.array([0.4, 0.05, layout.TABLE_TOP_Z + CUBE_HALF])
   cube = arena.mjcf_model.worldbody.add('body', name='cube',
                                         pos=cube_position)
   cube.add('freejoint')
@@ -113,13 +123,26 @@ def _grasp_scene(name):
   return robot, gripper, cube, cube_position, physics
 
 
-def test_picks_lifts_and_carries_a_cube_for_five_seconds():
-  robot, gripper, cube, cube_position, physics = _grasp_scene('ur5e')
+# The last link capsules of the IIWA and Kinova Gen3 descriptions reach
+# 0.236 m and 0.129 m beyond the flange (they enclose a tool), past the
+# cube's top face (0.10 m): they swallow the cube or push it out.
+_LAST_CAPSULE_BLOCKS_GRASP = {'iiwa', 'kinova3'}
+
+
+@pytest.mark.parametrize('name', [
+    pytest.param(n, marks=pytest.mark.xfail(
+        strict=True, reason='last link capsule encloses the grasp region'))
+    if n in _LAST_CAPSULE_BLOCKS_GRASP else n for n in robot_lib.ROBOTS])
+def test_picks_lifts_and_carries_a_cube_for_five_seconds(name):
+  robot, gripper, cube, cube_position, physics = _grasp_scene(name)
   description = robot.description
-  seed = np.array([0.0, -1.2, 1.5, 1.2, 1.57, 1.5])
-  q_above = _gripper_down_at(description, cube_position + [0, 0, 0.15], seed)
+  lim = description.limits
+  centre = np.where((lim.q_min <= 0) & (lim.q_max >= 0), 0.0,
+                    (lim.q_min + lim.q_max) / 2)
+  q_above = _gripper_down_at(description, cube_position + [0, 0, 0.15],
+                             centre + 0.3)
   q_grasp = _gripper_down_at(description, cube_position, q_above)
-  q_far = _gripper_down_at(description, cube_position + [0.05, -0.3, 0.25],
+  q_far = _gripper_down_at(description, cube_position + [0.0, -0.2, 0.12],
                            q_above)
   robot.set_joint_positions(physics, q_above)
   physics.forward()
@@ -136,8 +159,8 @@ def test_picks_lifts_and_carries_a_cube_for_five_seconds():
         check()
 
   def rest(q, steps):
-    return np.repeat(q[None], steps, 0), np.zeros((steps, 6)), np.zeros(
-        (steps, 6))
+    zeros = np.zeros((steps, description.dof))
+    return np.repeat(q[None], steps, 0), zeros, zeros
 
   follow(rest(q_above, 50), -1)
   assert not gripper.is_grasping(physics, cube)
