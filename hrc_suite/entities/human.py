@@ -151,6 +151,8 @@ class Human(composer.Entity):
     self._holdables = {}      # object body -> {hand: weld element}
     self._held = {}           # object body -> hand
     self._cache = None
+    self._player = None
+    self._player_clip = None
 
   def _build_observables(self):
     return HumanObservables(self)
@@ -284,6 +286,41 @@ class Human(composer.Entity):
   def keypoint_positions(self, physics):
     """(NUM_KEYPOINTS, 3) world positions of the keypoint sites."""
     return physics.data.site_xpos[self._bound(physics)['sites']].copy()
+
+  # ---------------------------------------------------------------- driving
+
+  def follow(self, player):
+    """Lets `player` (human.player.Player) drive the human in an episode.
+
+    At episode start the player is reset with the episode's random_state;
+    before every physics step it advances by the physics timestep and the
+    capsules move to its keypoints (resized whenever the clip changes). The
+    task triggers the player's events itself. None stops following.
+    """
+    self._player = player
+    self._player_clip = None
+
+  @property
+  def player(self):
+    return self._player
+
+  def _apply_player(self, physics):
+    clip = self._player.clip
+    if clip is not self._player_clip:
+      self.resize(physics, clip)
+      self._player_clip = clip
+    self.set_keypoints(physics, self._player.positions)
+
+  def initialize_episode(self, physics, random_state):
+    if self._player is not None:
+      self._player.reset(random_state)
+      self._player_clip = None
+      self._apply_player(physics)
+
+  def before_substep(self, physics, random_state):
+    if self._player is not None:
+      self._player.advance(physics.timestep())
+      self._apply_player(physics)
 
   # ---------------------------------------------------------------- holding
 

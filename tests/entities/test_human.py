@@ -169,3 +169,24 @@ def test_runs_in_a_composer_environment(clip):
   env.step(np.zeros(0))
   np.testing.assert_allclose(human.keypoint_positions(env.physics),
                              _placed(clip)[0], atol=1e-9)
+
+
+def test_follows_a_player_in_an_environment(clip):
+  from hrc_suite.human import player as player_lib
+  arena = workcell.Workcell()
+  human = human_lib.Human()
+  human.attach_to(arena)
+  station = layout.HUMAN_STATION_ACROSS
+  player = player_lib.Player([clip], station=station)
+  human.follow(player)
+  task = composer.NullTask(arena)
+  task.control_timestep = 0.1
+  env = composer.Environment(task, random_state=0)
+  env.reset()
+  for _ in range(5):
+    env.step(np.zeros(0))
+  assert player.episode_time == pytest.approx(0.5)
+  np.testing.assert_allclose(human.keypoint_positions(env.physics),
+                             player.positions, atol=1e-9)
+  expected = _placed(clip)[int(round(0.5 * clip.fps))]
+  assert np.abs(player.positions - expected).max() < 0.05
