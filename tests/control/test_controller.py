@@ -44,22 +44,27 @@ def _lowest_point(description, q, tool_capsule):
 
 
 def workspace_waypoints(description, random_state, count=4, spread=1.2,
-                        min_move=1.0):
-  """Waypoints around the joint-range centre whose whole trajectory keeps
-  every capsule (and the gripper) above the table; legs move >= min_move."""
+                        min_move=1.0, centre=None, max_tries=2000):
+  """Waypoints around `centre` (default: the joint-range centre) whose whole
+  trajectory keeps every capsule and the gripper above the table; each leg
+  moves some joint by >= min_move."""
   lim = description.limits
-  centre = np.where((lim.q_min <= 0) & (lim.q_max >= 0), 0.0,
-                    (lim.q_min + lim.q_max) / 2)
+  if centre is None:
+    centre = np.where((lim.q_min <= 0) & (lim.q_max >= 0), 0.0,
+                      (lim.q_min + lim.q_max) / 2)
   tool = gripper_lib.ParallelGripper().enclosing_capsule()
   floor = layout.TABLE_TOP_Z + CLEARANCE
+  tries = iter(range(max_tries))
 
   def sample():
-    while True:
+    for _ in tries:
       q = np.clip(centre + random_state.uniform(-spread, spread,
                                                 description.dof),
                   lim.q_min, lim.q_max)
       if _lowest_point(description, q, tool) > floor:
         return q
+    raise AssertionError(f'no clear waypoints around {centre} for '
+                         f'{description.name}')
 
   waypoints = [sample()]
   while len(waypoints) < count:
@@ -72,11 +77,16 @@ def workspace_waypoints(description, random_state, count=4, spread=1.2,
   return np.array(waypoints)
 
 
-def _track(name, limits='full', seed=0):
+def _track(name, limits='full', seed=0, around_home=False):
   """Follows a workspace trajectory; returns the worst errors and torques."""
   arena, robot, _, physics = _scene(name)
   description = robot.description
-  waypoints = workspace_waypoints(description, np.random.RandomState(seed))
+  if around_home:   # Gripper-down poses above the table, as tasks use.
+    waypoints = workspace_waypoints(
+        description, np.random.RandomState(seed), spread=0.6, min_move=0.5,
+        centre=description.q_home)
+  else:
+    waypoints = workspace_waypoints(description, np.random.RandomState(seed))
   q, dq, ddq = trajectory.jerk_limited_trajectory(description, waypoints,
                                                   limits=limits)
   robot.set_joint_positions(physics, q[0])
@@ -138,6 +148,15 @@ _INFEASIBLE = {'kinova3'}
     if n in _INFEASIBLE else n for n in robot_description.ROBOT_NAMES])
 def test_tracks_every_robot_at_full_limits(name):
   joint_error, capsule_error, static_contacts, *_ = _track(name, seed=1)
+  assert static_contacts == 0
+  assert joint_error < JOINT_TOLERANCE, joint_error
+  assert capsule_error < CAPSULE_TOLERANCE, capsule_error
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_tracks_every_robot_around_home_at_full_limits(name):
+  joint_error, capsule_error, static_contacts, *_ = _track(
+      name, seed=2, around_home=True)
   assert static_contacts == 0
   assert joint_error < JOINT_TOLERANCE, joint_error
   assert capsule_error < CAPSULE_TOLERANCE, capsule_error
