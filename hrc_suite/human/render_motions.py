@@ -1,7 +1,7 @@
 """Renders the human performing one shipped motion of each task.
 
   MUJOCO_GL=egl python -m hrc_suite.human.render_motions --out=DIR
-      [--clip_index=0] [--camera=front] [--fps=25] [--robot=panda]
+      [--clip_index=0] [--camera=NAME] [--fps=25] [--robot=panda]
 
 Writes DIR/<task>.mp4 per task and DIR/all_tasks.mp4 (all in a row). The
 clip is played by the player at the task's station; whenever the human waits
@@ -31,10 +31,16 @@ def station_for(task):
           else layout.HUMAN_STATION_ACROSS)
 
 
-def render_task(task, clip_index=0, camera='front', fps=25.0, robot='panda',
+def camera_for(task):
+  """A workcell camera that sees the person at the task's station."""
+  return 'front' if task in BESIDE_TASKS else 'side'
+
+
+def render_task(task, clip_index=0, camera=None, fps=25.0, robot='panda',
                 width=640, height=480, max_seconds=40.0):
   """Frames of one clip of `task` played in the workcell."""
   clip = clip_lib.shipped_library(task)[clip_index]
+  camera = camera or camera_for(task)
   arena = workcell.Workcell()
   if robot:
     from hrc_suite.entities import robot as robot_lib
@@ -68,7 +74,8 @@ def main(argv=None):
   parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
   parser.add_argument('--out', required=True)
   parser.add_argument('--clip_index', type=int, default=0)
-  parser.add_argument('--camera', default='front')
+  parser.add_argument('--camera', default=None,
+                      help='workcell camera; default: one per station')
   parser.add_argument('--fps', type=float, default=25.0)
   parser.add_argument('--robot', default='panda')
   parser.add_argument('--tasks', nargs='*', default=list(clip_lib.MOTION_TASKS),
