@@ -10,6 +10,7 @@ equal `description.forward_kinematics(q)[i]` composed with the base pose.
 
 from typing import Union
 
+from absl import logging
 from dm_control import composer
 from dm_control import mjcf
 from dm_control.composer.observation import observable
@@ -124,6 +125,9 @@ class Robot(composer.Entity):
       full_inertia, fixed = _inertia_for_mujoco(link.inertia)
       if fixed is not None:
         self.inertia_corrections[i] = fixed
+        logging.warning('%s link %d: principal inertia %s breaks A + B >= C; '
+                        'balanced to %s for MuJoCo', description.name, i + 1,
+                        fixed[0], fixed[1])
       body.add('inertial', pos=link.center_of_mass, mass=link.mass,
                fullinertia=full_inertia)
       torque = float(limits.torque[i])

@@ -1,5 +1,7 @@
 """Robot entity: compiles, MuJoCo frames equal the description's FK."""
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -129,3 +131,18 @@ def test_bad_joint_vector_is_named():
   physics = _physics(robot)
   with pytest.raises(ValueError, match=r'ur5e must have shape \(6,\)'):
     robot.set_joint_positions(physics, np.zeros(7))
+
+
+def test_an_inertia_mujoco_would_reject_is_balanced_visibly():
+  description = robot_description.load('ur5e')
+  bad = np.diag([0.001, 0.001, 0.01])   # 0.001 + 0.001 < 0.01.
+  links = list(description.links)
+  links[2] = dataclasses.replace(links[2], inertia=bad)
+  robot = robot_lib.Robot(dataclasses.replace(description, links=tuple(links)))
+  assert set(robot.inertia_corrections) == {2}
+  before, after = robot.inertia_corrections[2]
+  np.testing.assert_allclose(before, [0.001, 0.001, 0.01])
+  assert after[0] + after[1] >= after[2] and after[2] == 0.01
+  physics = _physics(robot)   # Compiles.
+  assert sorted(physics.bind(robot.link_bodies[2]).inertia)[-1] == (
+      pytest.approx(0.01))
