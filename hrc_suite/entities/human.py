@@ -46,10 +46,11 @@ def _part(name):
       else name
 
 
-def _cross(a, b):
-  return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                   a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                   a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
+_NEXT = np.array([1, 2, 0])
+_PREV = np.array([2, 0, 1])
+# Quaternion magnitudes from the rotation's diagonal: 4 |q|^2 = 1 + C diag.
+_DIAGONAL_SIGNS = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0],
+                            [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])
 
 
 def segment_frames(positions, proximal, distal, reference):
@@ -73,7 +74,7 @@ def segment_frames(positions, proximal, distal, reference):
     x[weak] = fallback
     norm[weak] = np.sqrt(np.einsum('ij,ij->i', fallback, fallback))
   x /= norm[:, None]
-  y = _cross(z, x)
+  y = z[:, _NEXT] * x[:, _PREV] - z[:, _PREV] * x[:, _NEXT]   # z cross x
   return 0.5 * (a + b), 0.5 * length, axes_to_quaternion(x, y, z)
 
 
@@ -83,14 +84,12 @@ def axes_to_quaternion(x, y, z):
   Branch-free form: magnitudes from the diagonal, signs from the
   antisymmetric part (continuous; exact to ~1e-8 for unit frames).
   """
-  m00, m11, m22 = x[:, 0], y[:, 1], z[:, 2]
-  q = np.sqrt(np.maximum(0.0, np.stack([1 + m00 + m11 + m22,
-                                        1 + m00 - m11 - m22,
-                                        1 - m00 + m11 - m22,
-                                        1 - m00 - m11 + m22], -1))) * 0.5
-  q[:, 1] = np.copysign(q[:, 1], y[:, 2] - z[:, 1])   # m21 - m12
-  q[:, 2] = np.copysign(q[:, 2], z[:, 0] - x[:, 2])   # m02 - m20
-  q[:, 3] = np.copysign(q[:, 3], x[:, 1] - y[:, 0])   # m10 - m01
+  diagonal = np.column_stack([x[:, 0], y[:, 1], z[:, 2]])
+  q = 0.5 * np.sqrt(np.maximum(0.0, 1.0 + diagonal @ _DIAGONAL_SIGNS.T))
+  antisymmetric = np.column_stack([y[:, 2] - z[:, 1],    # m21 - m12
+                                   z[:, 0] - x[:, 2],    # m02 - m20
+                                   x[:, 1] - y[:, 0]])   # m10 - m01
+  np.copysign(q[:, 1:], antisymmetric, out=q[:, 1:])
   return q / np.sqrt(np.einsum('ij,ij->i', q, q))[:, None]
 
 
