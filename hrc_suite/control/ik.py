@@ -37,6 +37,11 @@ DEFAULT_ORIENTATION_TOLERANCE = 1e-2  # rad
 DEFAULT_ORIENTATION_WEIGHT = 0.2
 # Constant part of the LM damping (Sugihara's w_bar), in (weighted m)^2.
 DEFAULT_BASE_DAMPING = 1e-6
+# A run stops as failed when its cost has not dropped by STALL_PROGRESS
+# (relative) for STALL_ITERATIONS iterations: it sits in a local minimum or at
+# the closest point to an unreachable target.
+STALL_ITERATIONS = 10
+STALL_PROGRESS = 1e-3
 # Largest joint change per iteration, rad; keeps steps inside the region where
 # the linearisation holds.
 DEFAULT_MAX_STEP = 0.4
@@ -148,23 +153,25 @@ class InverseKinematics:
     """One LM run for a fixed target rotation."""
     q_min, q_max = self._model.q_min, self._model.q_max
     rotation = gripper_down_rotation(yaw)
-    best = None
+    best, last_progress = None, 0
     for iteration in range(self.max_iterations + 1):
       error, jacobian, position_error, angle_error = self._error(
           q, target, rotation)
       cost = float(error @ error)
-      if best is None or cost < best[0]:
-        best = (cost, q.copy(), position_error, angle_error)
       if (position_error <= self.position_tolerance and
           angle_error <= self.orientation_tolerance):
         return IkResult(q, True, position_error, angle_error, iteration, yaw)
-      if iteration == self.max_iterations:
+      if best is None or cost < best[0]:
+        if best is None or cost < (1.0 - STALL_PROGRESS) * best[0]:
+          last_progress = iteration
+        best = (cost, q.copy(), position_error, angle_error)
+      if (iteration == self.max_iterations or
+          iteration - last_progress >= STALL_ITERATIONS):
         break
       step = self._step(q, error, jacobian, cost)
       q = np.clip(q + step, q_min, q_max)
     _, q, position_error, angle_error = best
-    return IkResult(q, False, position_error, angle_error,
-                    self.max_iterations, yaw)
+    return IkResult(q, False, position_error, angle_error, iteration, yaw)
 
   def _step(self, q, error, jacobian, cost):
     """LM step with joints that sit at a limit and push outward frozen."""
