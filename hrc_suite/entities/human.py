@@ -269,7 +269,10 @@ class Human(composer.Entity):
     lengths = np.linalg.norm(positions[:, self._distal]
                              - positions[:, self._proximal], axis=-1)
     half = 0.5 * np.median(lengths, axis=0)
-    stature = _stature_from(positions[0])
+    metadata = getattr(clip_or_positions, 'metadata', {}) or {}
+    stature = metadata.get('anthropometrics', {}).get('stature')
+    if not isinstance(stature, (int, float)) or not 1.0 < stature < 2.5:
+      stature = _stature_from(positions[0])
     radius = self._radii * stature / REFERENCE_STATURE
     cache = self._bound(physics)
     geoms = cache['geoms']
