@@ -31,12 +31,15 @@ DEFAULT_NATURAL_FREQUENCY = 60.0   # rad/s
 DEFAULT_DAMPING_RATIO = 1.0        # critically damped
 
 
-def _index(ids):
-  """A slice if the ids are contiguous (views, no copies), else the array."""
+def _contiguous(ids, what):
+  """The slice covering `ids`, which must be consecutive indices."""
   ids = np.asarray(ids, dtype=np.intp)
-  if ids.size and np.array_equal(ids, np.arange(ids[0], ids[0] + ids.size)):
-    return slice(int(ids[0]), int(ids[0]) + ids.size)
-  return ids
+  if not ids.size or not np.array_equal(ids, np.arange(ids[0],
+                                                       ids[0] + ids.size)):
+    raise ValueError(f'the robot\'s {what} are not consecutive in the model '
+                     f'({ids.tolist()}); the controller reads them as one '
+                     'block')
+  return slice(int(ids[0]), int(ids[0]) + ids.size)
 
 
 class JointTrackingController:
@@ -59,20 +62,26 @@ class JointTrackingController:
     if np.any(physics.model.jnt_type[joints.element_id] !=
               mujoco.mjtJoint.mjJNT_HINGE):
       raise ValueError('JointTrackingController needs hinge joints')
-    self._qpos = _index(joints.qposadr)
-    self._dofs = _index(joints.dofadr)
-    self._ctrl = _index(actuators.element_id)
-    self._model = physics.model.ptr
-    self._data = physics.data.ptr
+    qpos = _contiguous(joints.qposadr, 'joint positions')
+    dofs = _contiguous(joints.dofadr, 'degrees of freedom')
+    ctrl = _contiguous(actuators.element_id, 'actuators')
+    model, data = physics.model.ptr, physics.data.ptr
+    self._model, self._data = model, data
+    # Views into MjData (its buffers never move): no per-call allocation.
+    self._q = data.qpos[qpos]
+    self._dq = data.qvel[dofs]
+    self._bias = data.qfrc_bias[dofs]
+    self._passive = data.qfrc_passive[dofs]
+    self._ctrl = data.ctrl[ctrl]
+    self._acceleration = np.zeros(model.nv)
+    self._product = np.zeros(model.nv)
+    self._arm_acceleration = self._acceleration[dofs]
+    self._arm_product = self._product[dofs]
     self._torque_limit = np.asarray(robot.description.limits.torque,
                                     dtype=float)
     self._negative_limit = -self._torque_limit
-    self._damping_step = (physics.model.dof_damping[self._dofs] *
-                          physics.model.opt.timestep)
-    self._half_step = physics.model.opt.timestep / 2
-    self._acceleration = np.zeros(physics.model.nv)
-    self._product = np.zeros(physics.model.nv)
-    self._error = np.zeros(self._dof)
+    self._damping_step = model.dof_damping[dofs] * model.opt.timestep
+    self._half_step = model.opt.timestep / 2
     self._torque = np.zeros(self._dof)
     self._scratch = np.zeros(self._dof)
 
@@ -85,28 +94,30 @@ class JointTrackingController:
 
     The returned array is reused by the next call; copy it to keep it.
     """
-    data = self._data
-    error, scratch, acc = self._error, self._scratch, self._acceleration
-    # a = ddq_d + Kp (q_d - q) + Kd (dq_d - dq)
-    np.subtract(q_d, data.qpos[self._qpos], out=error)
-    np.multiply(error, self.kp, out=error)
+    if physics.data.ptr is not self._data:
+      raise ValueError('this controller was built for another physics '
+                       '(e.g. before a recompile); build a new one')
+    error, scratch = self._arm_acceleration, self._scratch
+    # a = ddq_d + Kp (q_d - q) + Kd (dq_d - h/2 ddq_d - dq), written straight
+    # into the arm's block of the full-size acceleration vector.
+    np.subtract(q_d, self._q, out=error)
+    error *= self.kp
     # MuJoCo's semi-implicit Euler moves q with the end-of-step velocity, so
     # qvel acts as the velocity half a step earlier than its time stamp:
     # compare it with dq_d(t - h/2) = dq_d - h/2 ddq_d, or the damping term
     # holds a steady lag of Kd h a / (2 Kp) (6.5e-4 rad at 10 rad/s^2).
     np.multiply(ddq_d, -self._half_step, out=scratch)
     scratch += dq_d
-    scratch -= data.qvel[self._dofs]
-    np.multiply(scratch, self.kd, out=scratch)
-    np.add(error, scratch, out=error)
-    np.add(error, ddq_d, out=error)
-    acc[self._dofs] = error
-    mujoco.mj_mulM(self._model, data, self._product, acc)
+    scratch -= self._dq
+    scratch *= self.kd
+    error += scratch
+    error += ddq_d
+    mujoco.mj_mulM(self._model, self._data, self._product, self._acceleration)
     torque = self._torque
     np.multiply(self._damping_step, error, out=torque)
-    torque += self._product[self._dofs]
-    torque += data.qfrc_bias[self._dofs]
-    torque -= data.qfrc_passive[self._dofs]
+    torque += self._arm_product
+    torque += self._bias
+    torque -= self._passive
     np.clip(torque, self._negative_limit, self._torque_limit, out=torque)
-    data.ctrl[self._ctrl] = torque
+    self._ctrl[:] = torque
     return torque

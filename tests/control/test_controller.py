@@ -223,6 +223,14 @@ def test_reuses_its_output_buffer():
   assert first is second
 
 
+def test_refuses_a_physics_it_was_not_built_for():
+  _, robot, _, physics = _scene('panda')
+  controller = controller_lib.JointTrackingController(physics, robot)
+  other = mjcf.Physics.from_mjcf_model(robot.mjcf_model.root_model)
+  with pytest.raises(ValueError, match='another physics'):
+    controller(other, np.zeros(7), np.zeros(7), np.zeros(7))
+
+
 def test_bad_gains_raise():
   _, robot, _, physics = _scene('panda')
   with pytest.raises(ValueError, match='natural_frequency'):
