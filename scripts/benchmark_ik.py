@@ -100,7 +100,8 @@ def measure(name, num_targets, seed=0):
 
 def main():
   parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-  parser.add_argument('robots', nargs='*', default=robot_description.ROBOT_NAMES)
+  parser.add_argument('robots', nargs='*',
+                      default=robot_description.ROBOT_NAMES)
   parser.add_argument('--targets', type=int, default=200)
   args = parser.parse_args()
   print(f'{"robot":8s} {"reach%":>6s} {"home ok%":>8s} {"home<5mm%":>9s} '

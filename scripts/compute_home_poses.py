@@ -34,7 +34,7 @@ from hrc_suite.control import ik
 from hrc_suite.control import kinematics
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from make_robot_descriptions import to_json  # pylint: disable=g-import-not-at-top
+from make_robot_descriptions import to_json  # pylint: disable=g-bad-import-order
 
 # TCP in the base frame, m: 0.45 m in front, 0.25 m above the table top
 # (issue 2). The Schunk LWA 4P cannot hold its gripper vertical that high:

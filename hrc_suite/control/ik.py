@@ -1,16 +1,17 @@
 """Inverse kinematics for workspace actions: TCP position, gripper down.
 
 The target is a full TCP pose: the given position, the TCP z axis along world
--z (gripper pointing down) and the TCP x axis at angle `yaw` about world z.
-The solver is a Levenberg-Marquardt (damped least squares) iteration on the
-6-D pose error with Sugihara's error-dependent damping (T. Sugihara, "Solvability-
+-z (gripper pointing down) and the TCP x axis at angle `yaw` about world z. The
+solver is a Levenberg-Marquardt (damped least squares) iteration on the 6-D
+pose error with Sugihara's error-dependent damping (T. Sugihara, "Solvability-
 unconcerned inverse kinematics by the Levenberg-Marquardt method", IEEE T-RO
 2011), which converges quadratically near a solution and stays well behaved at
 singularities and for unreachable targets. Joint limits are respected by an
 active set: joints at a limit whose step points outward are frozen for that
-iteration, and every iterate is clipped into the limits, so every returned q
-is within limits. A solve that does not meet the tolerances reports
-`success=False` (its q is the best iterate, for diagnostics only).
+iteration, and every iterate is clipped into the limits, so every returned q is
+within limits. A solve that does not meet the tolerances reports
+`success=False` (its q is the best iterate, for diagnostics only). Collisions
+(table, self) are not considered here; the collision prevention checks goals.
 
 hrc_suite's parallel gripper is symmetric under a half turn about its axis,
 so by default the TCP x axis may point along yaw or yaw + pi: the solver aims
@@ -20,7 +21,6 @@ Schunk LWA 4P cannot point its gripper down at yaw 0 in front of it).
 """
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 import pinocchio as pin
@@ -214,23 +214,6 @@ class InverseKinematics:
     return best
 
 
-def solve_many(solver: InverseKinematics, target_positions, q_init,
-               yaw: float = 0.0, chain: bool = True):
-  """Solves a sequence of targets; with `chain`, each seeds from the last q.
-
-  Returns the list of IkResults. The seed only advances on success, as a
-  workspace controller would keep the last reachable goal.
-  """
-  results = []
-  q = np.asarray(q_init, dtype=float)
-  for target in np.asarray(target_positions, dtype=float):
-    result = solver.solve(target, q if chain else q_init, yaw)
-    results.append(result)
-    if chain and result.success:
-      q = result.q
-  return results
-
-
 # Box of TCP targets over the table for evaluating workspace IK, in the base
 # frame (base at the table's near edge, table top at base height; layout.py):
 # from just above the table top (a 4 cm cube's centre) to 0.4 m above it.
@@ -265,13 +248,3 @@ def sample_table_targets(model: kinematics.KinematicModel, num_targets: int,
   local = random_state.uniform(low, high, size=(int(num_targets), 3))
   base = model.base_pose
   return local @ base[:3, :3].T + base[:3, 3]
-
-
-def reachable(solver: InverseKinematics, target_position,
-              random_state: np.random.RandomState, yaw: float = 0.0,
-              restarts: int = 50, q_init: Optional[np.ndarray] = None) -> bool:
-  """Whether a thorough restart search finds a solution within limits."""
-  model = solver.model
-  seed = model.description.q_home if q_init is None else q_init
-  return solver.solve_with_restarts(target_position, seed, random_state, yaw,
-                                    restarts).success

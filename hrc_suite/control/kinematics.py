@@ -91,7 +91,8 @@ class KinematicModel:
     model = pin.Model()
     model.name = description.name
     parent, parent_frame = 0, 0
-    base = pin.SE3(self._base_pose[:3, :3].copy(), self._base_pose[:3, 3].copy())
+    base = pin.SE3(self._base_pose[:3, :3].copy(),
+                   self._base_pose[:3, 3].copy())
     for i, link in enumerate(description.links):
       placement = _se3(link.fixed_rotation, link.fixed_translation)
       if i == 0:

@@ -98,7 +98,8 @@ def test_tcp_is_offset_along_flange_z(name):
     # The flange is the description's flange transform after the last link.
     last = description.forward_kinematics(q)[-1]
     np.testing.assert_allclose(
-        flange[:3, 3], last[:3, 3] + last[:3, :3] @ description.flange_translation,
+        flange[:3, 3],
+        last[:3, 3] + last[:3, :3] @ description.flange_translation,
         atol=1e-5)
 
 
