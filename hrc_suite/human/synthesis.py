@@ -21,7 +21,7 @@ import numpy as np
 from hrc_suite.human import body as body_lib
 from hrc_suite.human import clip as clip_lib
 
-DEFAULT_FPS = 30.0
+DEFAULT_FPS = 25.0
 LIBRARY_SEED = 20240521
 
 # Speeds. Peak pelvis speed while walking: the swing foot moves at about
