@@ -87,6 +87,30 @@ def test_link_frames_match_mujoco(name):
 
 
 @pytest.mark.parametrize('name', ROBOTS)
+def test_tcp_matches_mujoco_gripper_tcp_site(name):
+  gripper_module = pytest.importorskip('hrc_suite.entities.gripper')
+  robot_module = pytest.importorskip('hrc_suite.entities.robot')
+  from dm_control import mjcf  # pylint: disable=g-import-not-at-top
+  description = robot_description.load(name)
+  robot = robot_module.Robot(description)
+  gripper = gripper_module.ParallelGripper()
+  robot.attach_gripper(gripper)
+  physics = mjcf.Physics.from_mjcf_model(robot.mjcf_model)
+  model = kinematics.KinematicModel(
+      description, tcp_offset=gripper_module.ParallelGripper.TCP_OFFSET)
+  joints = physics.bind(robot.joints)
+  tcp = physics.bind(robot.tcp_site)
+  for q in _random_configurations(description, seed=3, n=10):
+    joints.qpos = q
+    physics.forward()
+    pose = model.tcp_pose(q)
+    np.testing.assert_allclose(pose[:3, 3], tcp.xpos,
+                               atol=10 * _rotation_tolerance(description))
+    np.testing.assert_allclose(pose[:3, :3].reshape(9), tcp.xmat,
+                               atol=_rotation_tolerance(description))
+
+
+@pytest.mark.parametrize('name', ROBOTS)
 def test_tcp_is_offset_along_flange_z(name):
   description = robot_description.load(name)
   model = kinematics.KinematicModel(description, tcp_offset=0.12)
@@ -190,6 +214,12 @@ def test_bad_input_raises_clear_errors():
 # scripts/compute_home_poses.py).
 HOME_TCP = {name: (0.45, 0.0, 0.25) for name in ROBOTS}
 HOME_TCP['schunk'] = (0.40, 0.0, 0.15)
+# Link indices of shoulder, elbow and wrist (as in compute_home_poses.py).
+ARM_POINTS = {
+    'panda': (1, 3, 5), 'sawyer': (1, 3, 5), 'iiwa': (1, 3, 5),
+    'jaco': (1, 3, 5), 'kinova3': (1, 3, 5), 'ur5e': (1, 2, 3),
+    'schunk': (1, 2, 4),
+}
 HOME_LIMIT_MARGIN = 0.2    # rad from every joint limit.
 HOME_CLEARANCE = 0.02      # m, capsules above the table top / off the pedestal.
 
@@ -219,6 +249,12 @@ def test_home_pose_is_a_gripper_down_ready_pose(name):
                              HOME_TCP[name], atol=1e-4)
   np.testing.assert_allclose(tcp[:3, 2], (0, 0, -1), atol=1e-4)
   assert abs(tcp[1, 0]) < 1e-3   # TCP x axis along world +-x.
+  # Elbow up: above the straight line from shoulder to wrist.
+  frames = model.link_frames(q)
+  shoulder, elbow, wrist = (frames[i, :3, 3] for i in ARM_POINTS[name])
+  t = np.dot(elbow - shoulder, wrist - shoulder) / np.sum(
+      (wrist - shoulder) ** 2)
+  assert elbow[2] > shoulder[2] + t * (wrist[2] - shoulder[2]) + 0.05
   # Away from singularities: the TCP Jacobian has full rank with margin.
   jacobian = model.tcp_jacobian(q).copy()
   jacobian[3:] *= 0.2  # m per rad
