@@ -162,6 +162,26 @@ def build(name, raw):
     inertia_flat[-6:] = [ixx, 0, 0, ixx, 0, izz]
     notes.append('Last link had placeholder dynamics (1e-6); set to 0.5 kg '
                  'with the inertia of a solid cylinder r=0.04 m, h=0.12 m.')
+  # The last link's SaRA capsule also encloses the maker's default tool
+  # (robosuite grippers), reaching 0.11-0.24 m past the flange where our
+  # gripper's fingers close. hrc_suite models its gripper separately (with its
+  # own enclosing capsule for the shield), so these capsules are cut back to
+  # the wrist housing, ending at most a few cm past the flange.
+  wrist_capsules = {
+      'panda': ([0, 0, 0.0], [0, 0, 0.05], 0.06),
+      'sawyer': ([0, 0.015, 0.0], [0, 0.015, 0.0], 0.0657647),
+      'iiwa': ([0, 0, 0.0], [0, 0, 0.0], 0.08),
+      'kinova3': ([0, 0, 0.0], [0, 0, 0.0], 0.07),
+  }
+  if name in wrist_capsules:
+    p1, p2, radius = wrist_capsules[name]
+    old = raw['capsules'][-1]
+    notes.append(
+        'Last link capsule cut back to the wrist housing (p1 %s, p2 %s, r %s; '
+        'source p1 %s, p2 %s, r %s enclosed the default tool, which '
+        'hrc_suite replaces by its own gripper and gripper capsule).'
+        % (p1, p2, radius, old['p1'], old['p2'], old['radius']))
+    raw['capsules'][-1] = dict(p1=p1, p2=p2, radius=radius)
   inertias = []
   for i in range(n):
     ixx, ixy, ixz, iyy, iyz, izz = inertia_flat[6 * i:6 * i + 6]

@@ -123,16 +123,7 @@ def _grasp_scene(name):
   return robot, gripper, cube, cube_position, physics
 
 
-# The last link capsules of the IIWA and Kinova Gen3 descriptions reach
-# 0.236 m and 0.129 m beyond the flange (they enclose a tool), past the
-# cube's top face (0.10 m): they swallow the cube or push it out.
-_LAST_CAPSULE_BLOCKS_GRASP = {'iiwa', 'kinova3'}
-
-
-@pytest.mark.parametrize('name', [
-    pytest.param(n, marks=pytest.mark.xfail(
-        strict=True, reason='last link capsule encloses the grasp region'))
-    if n in _LAST_CAPSULE_BLOCKS_GRASP else n for n in robot_lib.ROBOTS])
+@pytest.mark.parametrize('name', robot_lib.ROBOTS)
 def test_picks_lifts_and_carries_a_cube_for_five_seconds(name):
   robot, gripper, cube, cube_position, physics = _grasp_scene(name)
   description = robot.description
