@@ -68,7 +68,8 @@ def reaching_person(target, x=1.3, period=1.5):
 
 
 def time_cycles(name, scene, cycles, seed=0):
-  """Per-cycle times (s) of `cycles` shield steps for one robot and scene."""
+  """Per-cycle wall and thread CPU times (s) of `cycles` shield steps for one
+  robot and scene, and the fraction of cycles with an intervention."""
   description = robot_description.load(name)
   shield = shield_lib.Shield(description)
   rng = np.random.RandomState(seed)
@@ -80,6 +81,7 @@ def time_cycles(name, scene, cycles, seed=0):
     body = standing_person(SCENE_DISTANCE[scene], 0.0, math.pi)
     human = lambda t: body
   times = np.empty(cycles)
+  cpu_times = np.empty(cycles)
   interventions = 0
   for i in range(cycles):
     if i % GOAL_EVERY == 0:
@@ -87,11 +89,12 @@ def time_cycles(name, scene, cycles, seed=0):
           -1.0, 1.0, description.dof), limits.q_min, limits.q_max))
     t = i * shield.cycle_time
     points = human(t)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.thread_time()
     shield.step(points, t)
     times[i] = time.perf_counter() - start
+    cpu_times[i] = time.thread_time() - cpu_start
     interventions += shield.intervened
-  return times, interventions / cycles
+  return times, cpu_times, interventions / cycles
 
 
 def main(argv=None):
@@ -101,19 +104,22 @@ def main(argv=None):
                       default=list(robot_description.ROBOT_NAMES))
   args = parser.parse_args(argv)
   print(f'Shield cycle time (us), {args.cycles} cycles per row, new goal '
-        f'every {GOAL_EVERY} cycles')
+        f'every {GOAL_EVERY} cycles; wall clock and thread CPU time (the '
+        'latter is immune to preemption by other processes)')
   print(f'{"robot":10s} {"scene":6s} {"median":>8s} {"p95":>8s} '
-        f'{"interventions":>14s}')
+        f'{"cpu med":>8s} {"cpu p95":>8s} {"interventions":>14s}')
   rows = []
   for name in args.robots:
     for scene in SCENES:
-      times, interventions = time_cycles(name, scene, args.cycles)
-      times = times[GOAL_EVERY * 4:] * 1e6   # Skip the first plans (warm-up).
+      times, cpu_times, interventions = time_cycles(name, scene, args.cycles)
+      skip = GOAL_EVERY * 4   # The first plans (warm-up).
+      times, cpu_times = times[skip:] * 1e6, cpu_times[skip:] * 1e6
       row = (name, scene, float(np.median(times)),
-             float(np.percentile(times, 95)), interventions)
+             float(np.percentile(times, 95)), interventions,
+             float(np.median(cpu_times)), float(np.percentile(cpu_times, 95)))
       rows.append(row)
       print(f'{name:10s} {scene:6s} {row[2]:8.1f} {row[3]:8.1f} '
-            f'{100 * interventions:13.0f}%')
+            f'{row[5]:8.1f} {row[6]:8.1f} {100 * interventions:13.0f}%')
   return rows
 
 

@@ -261,6 +261,6 @@ def test_benchmark_runs_and_the_close_scene_intervenes():
   rows = shield_benchmark.main(['--robots', 'panda', '--cycles', '120'])
   scenes = {row[1]: row for row in rows}
   assert set(scenes) == set(shield_benchmark.SCENES)
-  for _, _, median, p95, _ in rows:
-    assert 0 < median <= p95
+  for _, _, median, p95, _, cpu_median, cpu_p95 in rows:
+    assert 0 < median <= p95 and 0 < cpu_median <= cpu_p95
   assert scenes['close'][4] > 0 and scenes['far'][4] == 0
