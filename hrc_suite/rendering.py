@@ -65,7 +65,7 @@ def write_video(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
     # macro_block_size=1 keeps odd sizes; yuv420p plays everywhere.
     with imageio.get_writer(path, fps=fps, codec='libx264', quality=7,
                             macro_block_size=1,
-                            ffmpeg_params=['-pix_fmt', 'yuv420p']) as writer:
+                            pixelformat='yuv420p') as writer:
       for frame in frames:
         writer.append_data(np.asarray(frame, dtype=np.uint8))
   else:
