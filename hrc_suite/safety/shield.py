@@ -218,7 +218,7 @@ class Shield:
       plan, s_edges, _ = self._reach_arguments
       q_edges = np.empty((len(s_edges), self.dof))
       q_edges[0] = self._previous_q
-      q_edges[1:] = plan.positions(np.array(s_edges[1:]))
+      q_edges[1:] = plan.positions(s_edges[1:])
       self._lazy['robot_reach'] = self.robot.reach_capsules(
           q_edges, np.array(s_edges))
     return self._lazy['robot_reach']
