@@ -44,7 +44,7 @@ def _median_us(durations):
 
 
 def physics_step_times(robot_name: str, steps: int):
-  """(median µs of a controlled workcell step, median µs of bare mj_step)."""
+  """Median µs of: controller + physics.step, physics.step alone, mj_step."""
   from dm_control import mjcf
   from hrc_suite.control import controller as controller_lib
   from hrc_suite.control import trajectory
@@ -75,22 +75,29 @@ def physics_step_times(robot_name: str, steps: int):
     physics.step()
     controlled[k] = time.perf_counter() - start
 
+  wrapped = np.empty(steps)
+  for k in range(steps):
+    start = time.perf_counter()
+    physics.step()
+    wrapped[k] = time.perf_counter() - start
+
   model, data = physics.model.ptr, physics.data.ptr
   bare = np.empty(steps)
   for k in range(steps):
     start = time.perf_counter()
     mujoco.mj_step(model, data)
     bare[k] = time.perf_counter() - start
-  return _median_us(controlled), _median_us(bare)
+  return _median_us(controlled), _median_us(wrapped), _median_us(bare)
 
 
 def run_physics(robots, steps):
   print('\n## Physics step (workcell + robot + gripper + controller)\n')
-  print('| robot | controlled step [µs] | bare mj_step [µs] | ratio |')
-  print('|---|---|---|---|')
+  print('| robot | controller + physics.step [µs] | dm_control physics.step '
+        '[µs] | bare mj_step [µs] | ratio to bare |')
+  print('|---|---|---|---|---|')
   for name in robots:
-    controlled, bare = physics_step_times(name, steps)
-    print(f'| {name} | {controlled:.1f} | {bare:.1f} | '
+    controlled, wrapped, bare = physics_step_times(name, steps)
+    print(f'| {name} | {controlled:.1f} | {wrapped:.1f} | {bare:.1f} | '
           f'{controlled / bare:.2f} |')
 
 
