@@ -263,6 +263,8 @@ class Shield:
   def step(self, human_keypoints, t):
     """One cycle at time t: returns the command (q, dq, ddq).
 
+    Call once every cycle_time (the command advances the path by one
+    cycle); the robot should reach the command within the cycle.
     human_keypoints: (N_kp, 3) positions measured at t, or None if there is
     no new measurement (the last one then ages; with no measurement ever the
     workcell is taken to be empty).
