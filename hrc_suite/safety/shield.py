@@ -23,6 +23,10 @@ Differences to the original (shield spec section 9), on purpose:
   (the commanded speed is s_dot times smaller while braking).
 * PFL bounds the robot's speed over the whole rest of the plan, since the
   robot keeps moving at the limited path speed after the failsafe ends.
+* Before the exact check, the maximal-velocity (VEL) model over the whole
+  horizon (one ball per body) is tried against the robot's workspace ball
+  and reach capsules: a cheap model that, if collision-free, settles the
+  cycle under SSM's "some model is collision-free" rule.
 """
 
 import numpy as np
