@@ -20,7 +20,7 @@ from hrc_suite.human import keypoints
 from hrc_suite.human import bvh_import
 from hrc_suite.safety import shield as shield_lib
 
-import conftest as harness
+import shield_harness as harness
 
 ROBOTS = robot_description.ROBOT_NAMES
 

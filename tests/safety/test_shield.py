@@ -13,7 +13,7 @@ from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.safety import verification
 
-import conftest as harness
+import shield_harness as harness
 
 CYCLE = shield_lib.DEFAULT_CYCLE_TIME
 
