@@ -1,0 +1,118 @@
+"""Task registry: `suite.load(domain, task)` returns a composer Environment.
+
+Tasks register with the `register` decorator on a factory that takes the
+task kwargs and returns an `HrcTask`; tags (e.g. 'coexistence', 'dense')
+group them. Names are (domain, task) pairs, e.g. ('reach', 'dense').
+
+  env = suite.load('reach', 'dense', task_kwargs={'robot': 'schunk'},
+                   environment_kwargs={'random_state': 0})
+"""
+
+import collections
+import importlib
+
+from dm_control import composer
+
+# Modules whose import registers tasks (one per benchmark task).
+_TASK_MODULES = ('hrc_suite.tasks.reach',)
+
+TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
+        'assembly', 'dense', 'sparse', 'delayed', 'ssm', 'pfl')
+
+_REGISTRY = collections.OrderedDict()   # (domain, task) -> factory
+_TAGGED = collections.defaultdict(list)   # tag -> [(domain, task)]
+_LOADED = False
+
+
+def register(domain, task, tags=()):
+  """Decorator registering `factory(**task_kwargs) -> HrcTask`."""
+  unknown = [t for t in tags if t not in TAGS]
+  if unknown:
+    raise ValueError(f'Unknown tags {unknown}: expected some of '
+                     f'{", ".join(TAGS)}')
+
+  def decorator(factory):
+    key = (domain, task)
+    if key in _REGISTRY:
+      raise ValueError(f'Task {domain}/{task} is already registered')
+    _REGISTRY[key] = factory
+    for tag in tags:
+      _TAGGED[tag].append(key)
+    return factory
+
+  return decorator
+
+
+def fixed_kwargs(task_kwargs, **fixed):
+  """task_kwargs with `fixed` values; a conflicting value is an error."""
+  for name, value in fixed.items():
+    if name in task_kwargs and task_kwargs[name] != value:
+      raise ValueError(f'{name}={task_kwargs[name]!r} conflicts with the '
+                       f'registered task, which fixes {name}={value!r}')
+  return {**task_kwargs, **fixed}
+
+
+def _load_modules():
+  global _LOADED
+  if not _LOADED:
+    _LOADED = True
+    for module in _TASK_MODULES:
+      importlib.import_module(module)
+
+
+def all_tasks():
+  """Tuple of every registered (domain, task)."""
+  _load_modules()
+  return tuple(_REGISTRY)
+
+
+def tasks_with_tag(tag):
+  """The (domain, task) pairs carrying `tag`."""
+  if tag not in TAGS:
+    raise ValueError(f'Unknown tag {tag!r}: expected one of '
+                     f'{", ".join(TAGS)}')
+  _load_modules()
+  return tuple(_TAGGED[tag])
+
+
+def __getattr__(name):
+  if name == 'ALL_TASKS':   # Computed on first use (registration imports).
+    return all_tasks()
+  raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+
+
+def build_task(domain, task, task_kwargs=None):
+  """The task object of (domain, task) built with task_kwargs."""
+  _load_modules()
+  domains = sorted({d for d, _ in _REGISTRY})
+  if domain not in domains:
+    raise ValueError(f'Unknown domain {domain!r}: expected one of '
+                     f'{", ".join(domains)}')
+  if (domain, task) not in _REGISTRY:
+    names = sorted(t for d, t in _REGISTRY if d == domain)
+    raise ValueError(f'Unknown task {task!r} for domain {domain!r}: '
+                     f'expected one of {", ".join(names)}')
+  return _REGISTRY[(domain, task)](**dict(task_kwargs or {}))
+
+
+def load(domain, task, task_kwargs=None, environment_kwargs=None):
+  """A composer.Environment of the task.
+
+  task_kwargs go to the task (see `hrc_suite.tasks.base.HrcTask`), except
+  'seed', which seeds the environment's random_state unless
+  environment_kwargs gives one. The time limit comes from the task: it is
+  set half an RL step before the task's horizon so that floating-point
+  accumulation of physics time cannot add an extra step.
+  """
+  task_kwargs = dict(task_kwargs or {})
+  environment_kwargs = dict(environment_kwargs or {})
+  seed = task_kwargs.pop('seed', None)
+  hrc_task = build_task(domain, task, task_kwargs)
+  environment_kwargs.setdefault('random_state', seed)
+  if 'time_limit' in environment_kwargs:
+    raise ValueError('time_limit is a task kwarg (task_kwargs), not an '
+                     'environment kwarg')
+  environment_kwargs.setdefault('strip_singleton_obs_buffer_dim', True)
+  time_limit = (hrc_task.horizon - 0.5) * hrc_task.control_timestep
+  return composer.Environment(hrc_task, time_limit=time_limit,
+                              **environment_kwargs)

@@ -1,0 +1,128 @@
+"""Agent action spaces: an action in [-1, 1]^n becomes a joint goal.
+
+* 'joint': q_goal = q + JOINT_STEP * a (a has one entry per joint), clipped
+  into the joint limits.
+* 'cartesian': the TCP target is the current TCP position + CARTESIAN_STEP *
+  a[:3], kept inside a workspace box above the table; inverse kinematics
+  from the current q with the gripper pointing down gives the joint goal.
+  When IK fails the previous goal is kept (and the failure is counted).
+
+Tasks with a gripper append one dimension: -1 open, +1 closed. Actions
+outside [-1, 1] are clipped (documented behaviour, as in the reference);
+NaN or infinite entries and wrong shapes raise a ValueError.
+"""
+
+from dm_env import specs
+import numpy as np
+
+from hrc_suite.control import ik as ik_lib
+
+ACTION_SPACES = ('joint', 'cartesian')
+# Reference benchmark (reference-benchmark.md): 0.2 rad per RL step in joint
+# space, 0.1 m per RL step in the workspace.
+JOINT_STEP = 0.2       # rad
+CARTESIAN_STEP = 0.1   # m
+# Workspace box of TCP targets in the robot base frame (m): over the table
+# (which starts 0.15 m in front of the base), from 3 cm above its top to
+# 0.6 m above it. Scaled down with the robot's reach (see `workspace_box`).
+WORKSPACE_LOW = (0.2, -0.55, 0.03)
+WORKSPACE_HIGH = (0.8, 0.55, 0.6)
+# TCP yaw of every Cartesian goal (gripper down, fingers closing along y).
+GRIPPER_YAW = 0.0
+
+
+def validate_action(action, shape):
+  """The action as a float array clipped to [-1, 1]; clear errors else."""
+  action = np.asarray(action, dtype=np.float64)
+  if action.shape != shape:
+    raise ValueError(f'action must have shape {shape}, got {action.shape}')
+  finite = np.isfinite(action)
+  if not finite.all():
+    bad = np.flatnonzero(~finite)
+    raise ValueError('action has non-finite entries at indices '
+                     f'{bad.tolist()}: {action[bad].tolist()}')
+  return np.clip(action, -1.0, 1.0)
+
+
+def workspace_box(kinematic_model):
+  """(low, high) world corners of the Cartesian workspace box.
+
+  WORKSPACE_LOW/HIGH in the base frame, scaled about the base like
+  `ik.table_workspace_box` for robots with a short reach, then moved to the
+  world.
+  """
+  nominal_low, _ = ik_lib.table_workspace_box(kinematic_model)
+  scale = nominal_low[0] / ik_lib.TABLE_WORKSPACE_LOW[0]
+  base = kinematic_model.base_pose
+  low = base[:3, 3] + scale * np.asarray(WORKSPACE_LOW)
+  high = base[:3, 3] + scale * np.asarray(WORKSPACE_HIGH)
+  low[2] = base[2, 3] + WORKSPACE_LOW[2]   # Keep the height above the table.
+  return low, high
+
+
+class JointActionSpace:
+  """Joint-space deltas: q_goal = clip(q + JOINT_STEP * a, limits)."""
+
+  name = 'joint'
+
+  def __init__(self, kinematic_model, step=JOINT_STEP):
+    self._model = kinematic_model
+    self.step = float(step)
+    self.num_arm = kinematic_model.dof
+
+  def goal(self, q, arm_action, current_goal):
+    """(joint goal, True) for the arm part of an action (never fails)."""
+    del current_goal
+    goal = q + self.step * arm_action
+    return np.clip(goal, self._model.q_min, self._model.q_max), True
+
+
+class CartesianActionSpace:
+  """TCP position deltas turned into joint goals by gripper-down IK."""
+
+  name = 'cartesian'
+
+  def __init__(self, kinematic_model, step=CARTESIAN_STEP, box=None):
+    self._model = kinematic_model
+    self._ik = ik_lib.InverseKinematics(kinematic_model)
+    self.step = float(step)
+    self.num_arm = 3
+    self.low, self.high = box if box is not None else workspace_box(
+        kinematic_model)
+
+  @property
+  def ik(self):
+    return self._ik
+
+  def target(self, q, arm_action):
+    """TCP target (world) of an action from joint positions q."""
+    tcp = self._model.tcp_pose(q)[:3, 3]
+    return np.clip(tcp + self.step * arm_action, self.low, self.high)
+
+  def goal(self, q, arm_action, current_goal):
+    """(joint goal, IK succeeded): on IK failure the current goal."""
+    result = self._ik.solve(self.target(q, arm_action), q, GRIPPER_YAW)
+    if result.success:
+      return result.q, True
+    return current_goal.copy(), False
+
+
+def make_action_space(name, kinematic_model):
+  if name == 'joint':
+    return JointActionSpace(kinematic_model)
+  if name == 'cartesian':
+    return CartesianActionSpace(kinematic_model)
+  raise ValueError(f'Unknown action_space {name!r}: expected one of '
+                   f'{", ".join(ACTION_SPACES)}')
+
+
+def action_spec(action_space, with_gripper):
+  """Bounded [-1, 1] spec of the agent's action."""
+  size = action_space.num_arm + (1 if with_gripper else 0)
+  names = ([f'joint{i + 1}' for i in range(action_space.num_arm)]
+           if action_space.name == 'joint' else ['dx', 'dy', 'dz'])
+  if with_gripper:
+    names.append('gripper')
+  return specs.BoundedArray(shape=(size,), dtype=np.float64,
+                            minimum=-np.ones(size), maximum=np.ones(size),
+                            name='\t'.join(names))

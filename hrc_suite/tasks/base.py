@@ -1,0 +1,601 @@
+"""HrcTask: the shielded step loop every benchmark task shares.
+
+One RL step (control_timestep, 0.1 s) runs L = shield_substeps physics steps
+of physics_timestep (4 ms), so control_timestep must equal L x
+physics_timestep: the shield is verified once per physics step, and an RL
+step is exactly L shield cycles.
+
+* before_step: validate the action (NaN/inf or a wrong shape raise a
+  ValueError; entries outside [-1, 1] are clipped), map it to a joint goal
+  (`actions`), let collision prevention replace it if its straight joint
+  path hits the workcell or the robot itself, then `shield.new_goal`. The
+  last action dimension drives the gripper where the task has one.
+* before_substep, in this order (the task's hook runs before the entities',
+  so nothing relies on entity hooks): player.advance(dt) ->
+  human.set_keypoints -> shield.step(keypoints, t) -> controller.
+* after_substep: the contact monitor (`contacts`).
+* after_step: self-collision check (capsule model), the task's own logic
+  (`_update_task`, `_human_events`), reward (with optional delay and the
+  collision penalty), termination, metrics (`metrics`).
+
+Subclasses set the class constants below and override `_build_task`,
+`_initialize_task`, `_update_task`, `_task_reward`, and optionally
+`_human_events`, `_failed`, `_task_state`/`_set_task_state` and
+`_task_observables`.
+"""
+
+import collections
+import copy
+import math
+import pathlib
+
+from dm_control import composer
+from dm_control.composer.observation import observable
+import mujoco
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite.control import controller as controller_lib
+from hrc_suite.control import kinematics
+from hrc_suite.entities import gripper as gripper_lib
+from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import robot as robot_lib
+from hrc_suite.entities import workcell as workcell_lib
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
+from hrc_suite.human import player as player_lib
+from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.safety import geometry
+from hrc_suite.safety import shield as shield_lib
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import contacts
+from hrc_suite.tasks import metrics as metrics_lib
+
+DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
+DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
+DEFAULT_CONTROL_TIMESTEP = 0.1        # s, 10 Hz RL step
+COLLISION_PREVENTION_POLICIES = cp_lib.POLICIES + ('off',)
+# PFL safe speed: the reference code that produced the paper used 50 mm/s
+# (reference-benchmark.md, Decision).
+DEFAULT_V_SAFE = 0.05                 # m/s
+# Reward of an illegal contact (static, self, critical human): the
+# reference's default (its paper runs used 0).
+DEFAULT_COLLISION_REWARD = -10.0
+# Human keypoints observed relative to the end effector (paper: head, hands).
+OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
+_SEED_RANGE = 2**31 - 1
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def _choice(name, value, valid):
+  if value not in valid:
+    raise ValueError(f'Unknown {name} {value!r}: expected one of '
+                     f'{", ".join(map(repr, valid))}')
+  return value
+
+
+def _positive(name, value):
+  if not (isinstance(value, (int, float)) and math.isfinite(value)
+          and value > 0):
+    raise ValueError(f'{name} must be a positive number, got {value!r}')
+  return float(value)
+
+
+def load_motions(motions, task):
+  """Clips from None (the task's shipped library), a folder or a list."""
+  if motions is None:
+    return clip_lib.shipped_library(task)
+  if isinstance(motions, (str, pathlib.Path)):
+    return clip_lib.load_folder(motions)
+  clips = list(motions)
+  if not clips or not all(isinstance(c, clip_lib.Clip) for c in clips):
+    raise ValueError('motions must be None (shipped library), a folder path '
+                     f'or a non-empty list of Clips, got {motions!r}')
+  return clips
+
+
+class HrcTask(composer.Task):
+  """A robot, a gripper and a human in the workcell, shielded."""
+
+  # Task facts (reference-benchmark.md); subclasses override.
+  MOTIONS = 'reach'                          # shipped library name
+  HUMAN_STATION = layout.HUMAN_STATION_ACROSS
+  HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)    # uniform +- (x, y, yaw)
+  DEFAULT_SHIELD = 'ssm'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('sparse',)                      # first is the default
+  DEFAULT_REWARD_DELAY = 0                   # RL steps
+  HORIZON = 1000                             # RL steps
+  HAS_GRIPPER_ACTION = True
+  OBSERVATION_PRESETS = {}                   # name -> observable names
+  EXTRA_COUNTERS = ()
+
+  def __init__(self, robot='panda', action_space=None, shield=None,
+               shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
+               physics_timestep=DEFAULT_PHYSICS_TIMESTEP,
+               control_timestep=DEFAULT_CONTROL_TIMESTEP, motions=None,
+               reward=None, reward_delay=None, done_at_success=True,
+               collision_prevention='zero', time_limit=None,
+               observations='paper', v_safe=DEFAULT_V_SAFE,
+               critical_speed=None,
+               collision_reward=DEFAULT_COLLISION_REWARD):
+    _choice('robot', robot, robot_lib.ROBOTS)
+    action_space = _choice('action_space',
+                           action_space or self.DEFAULT_ACTION_SPACE,
+                           actions.ACTION_SPACES)
+    shield = _choice('shield', shield or self.DEFAULT_SHIELD,
+                     shield_lib.MODES)
+    if not isinstance(shield_substeps, int) or shield_substeps < 1:
+      raise ValueError('shield_substeps must be a positive integer, got '
+                       f'{shield_substeps!r}')
+    physics_timestep = _positive('physics_timestep', physics_timestep)
+    control_timestep = _positive('control_timestep', control_timestep)
+    expected = shield_substeps * physics_timestep
+    if abs(control_timestep - expected) > 1e-9 * expected:
+      raise ValueError(
+          f'control_timestep ({control_timestep} s) must equal '
+          f'shield_substeps ({shield_substeps}) x physics_timestep '
+          f'({physics_timestep} s) = {expected} s: the shield runs once per '
+          'physics step, shield_substeps times per RL step')
+    self.reward_kind = _choice('reward', reward or self.REWARDS[0],
+                               self.REWARDS)
+    delay = self.DEFAULT_REWARD_DELAY if reward_delay is None else reward_delay
+    if not isinstance(delay, int) or delay < 0:
+      raise ValueError(f'reward_delay must be an integer >= 0 (RL steps), '
+                       f'got {reward_delay!r}')
+    self.reward_delay = delay
+    if not isinstance(done_at_success, bool):
+      raise ValueError(f'done_at_success must be True or False, got '
+                       f'{done_at_success!r}')
+    self.done_at_success = done_at_success
+    self.collision_prevention_policy = _choice(
+        'collision_prevention', collision_prevention,
+        COLLISION_PREVENTION_POLICIES)
+    if time_limit is None:
+      time_limit = self.HORIZON * control_timestep
+    self.time_limit = _positive('time_limit', time_limit)
+    self.horizon = max(1, int(round(self.time_limit / control_timestep)))
+    v_safe = _positive('v_safe', v_safe)
+    if critical_speed is None:
+      critical_speed = v_safe if shield == 'pfl' else (
+          contacts.SSM_STOPPED_SPEED)
+    critical_speed = _positive('critical_speed', critical_speed)
+    if not (isinstance(collision_reward, (int, float))
+            and math.isfinite(collision_reward) and collision_reward <= 0):
+      raise ValueError('collision_reward must be a finite number <= 0, got '
+                       f'{collision_reward!r}')
+    self.collision_reward = float(collision_reward)
+    self.shield_mode = shield
+    self.shield_substeps = shield_substeps
+    self.critical_speed = critical_speed
+
+    # Scene.
+    self._arena = workcell_lib.Workcell()
+    self._robot = robot_lib.make_robot(robot)
+    self._gripper = self._robot.attach_gripper(
+        gripper_lib.ParallelGripper())
+    self._arena.attach_robot(self._robot)
+    self._human = human_lib.Human()
+    self._human.attach_to(self._arena)
+
+    # Models of the robot for IK, the shield and collision prevention.
+    description = self._robot.description
+    base_pose = np.eye(4)
+    base_pose[:3, 3] = layout.ROBOT_BASE_POS
+    self._kinematics = kinematics.KinematicModel(
+        description, base_pose, tcp_offset=gripper_lib.TCP_OFFSET)
+    p1, p2, radius = self._gripper.enclosing_capsule()
+    rotation, translation = (description.flange_rotation,
+                             description.flange_translation)
+    tool_capsule = (translation + rotation @ p1, translation + rotation @ p2,
+                    radius)
+    self._shield = shield_lib.Shield(
+        description, mode=shield, cycle_time=physics_timestep,
+        base_pose=base_pose, tool_capsule=tool_capsule, v_safe=v_safe)
+    self._collision_checker = cp_lib.CollisionPrevention(
+        description, base_pose=base_pose, tool_capsule=tool_capsule)
+    self._action_space = actions.make_action_space(action_space,
+                                                   self._kinematics)
+    self._player = player_lib.Player(
+        load_motions(motions, self.MOTIONS), station=self.HUMAN_STATION,
+        placement_range=self.HUMAN_PLACEMENT_RANGE)
+    self._observed_keypoints = np.array(
+        keypoints.index(OBSERVED_HUMAN_KEYPOINTS))
+
+    self._object_geoms = []
+    self._build_task()
+    self.set_timesteps(control_timestep, physics_timestep)
+    self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
+    self._physics_ptr = None
+    self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
+    self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
+    self._init_episode_state()
+    self._setup_observables(observations)
+
+  # ------------------------------------------------------------ properties
+
+  @property
+  def root_entity(self):
+    return self._arena
+
+  @property
+  def arena(self):
+    return self._arena
+
+  @property
+  def robot(self):
+    return self._robot
+
+  @property
+  def gripper(self):
+    return self._gripper
+
+  @property
+  def human(self):
+    return self._human
+
+  @property
+  def player(self):
+    return self._player
+
+  @property
+  def shield(self):
+    return self._shield
+
+  @property
+  def kinematics(self):
+    return self._kinematics
+
+  @property
+  def collision_checker(self):
+    return self._collision_checker
+
+  @property
+  def action_space_name(self):
+    return self._action_space.name
+
+  @property
+  def episode_metrics(self):
+    """Metrics of the episode so far (a dict of numbers)."""
+    return self._metrics.episode
+
+  @property
+  def step_metrics(self):
+    """Metrics of the last RL step (a dict of numbers)."""
+    return self._metrics.step
+
+  @property
+  def q_goal(self):
+    """The joint goal given to the shield by the last action."""
+    return self._q_goal.copy()
+
+  def action_spec(self, physics):
+    del physics
+    return actions.action_spec(self._action_space, self.HAS_GRIPPER_ACTION)
+
+  # ------------------------------------------------------ subclass hooks
+
+  def _build_task(self):
+    """Adds the task's entities; append object geoms to _object_geoms."""
+
+  def _initialize_task(self, physics, random_state):
+    """Samples the episode's goals and objects (physics positions set)."""
+
+  def _update_task(self, physics):
+    """After every RL step: updates success, phase, counters. Returns a
+    dict of step metrics (must contain 'success')."""
+    return {'success': 0.0}
+
+  def _task_reward(self, physics):
+    """The task's reward for the RL step just done (before delay)."""
+    return 0.0
+
+  def _human_events(self, physics):
+    """Events whose predicates hold now (triggered on the player)."""
+    return ()
+
+  def _failed(self, physics):
+    """True if the episode ends in failure now (e.g. a dropped board)."""
+    return False
+
+  def _task_state(self):
+    return {}
+
+  def _set_task_state(self, state):
+    del state
+
+  def _task_observables(self):
+    """Task-specific observables: name -> observable."""
+    return {}
+
+  @property
+  def reward_range(self):
+    """(lowest, highest) reward of one RL step."""
+    low, high = self._task_reward_range()
+    return low + min(self.collision_reward, 0.0), high
+
+  def _task_reward_range(self):
+    return (0.0, 0.0)
+
+  # ------------------------------------------------------------ observables
+
+  def _setup_observables(self, observations):
+    robot, gripper = self._robot, self._gripper
+    tcp = robot.tcp_site
+    obs = collections.OrderedDict()
+    obs['joint_positions'] = observable.MJCFFeature('qpos', robot.joints)
+    obs['joint_velocities'] = observable.MJCFFeature('qvel', robot.joints)
+    obs['gripper_aperture'] = observable.Generic(
+        lambda physics: np.array([gripper.aperture(physics)]))
+    obs['eef_position'] = observable.MJCFFeature('xpos', tcp)
+    obs['eef_quaternion'] = observable.Generic(
+        lambda physics: robot.tcp_pose(physics)[1])
+    obs['human_keypoints'] = observable.Generic(
+        self._human.keypoint_positions)
+    obs['human_in_eef_frame'] = observable.Generic(self._human_in_eef)
+    obs['human_distances'] = observable.Generic(
+        lambda physics: np.linalg.norm(self._human_in_eef(physics), axis=-1))
+    obs['safe_contact'] = observable.Generic(
+        lambda physics: self._step_flags[1:2].astype(np.float64))
+    obs['critical_contact'] = observable.Generic(
+        lambda physics: self._step_flags[2:3].astype(np.float64))
+    obs['static_collision'] = observable.Generic(
+        lambda physics: self._step_flags[0:1].astype(np.float64))
+    for name, value in self._task_observables().items():
+      obs[name] = value
+    presets = dict(self.OBSERVATION_PRESETS)
+    presets['full'] = tuple(obs)
+    if isinstance(observations, str):
+      selected = presets.get(observations)
+      if selected is None:
+        raise ValueError(f'Unknown observations preset {observations!r}: '
+                         f'expected one of {", ".join(sorted(presets))} or '
+                         'a list of observable names')
+    else:
+      selected = list(observations)
+      unknown = [n for n in selected if n not in obs]
+      if unknown or not selected:
+        raise ValueError(f'Unknown observables {unknown}: expected a '
+                         f'non-empty list from {", ".join(obs)}')
+    for name, value in obs.items():
+      value.enabled = name in selected
+    self.observation_names = tuple(n for n in obs if n in selected)
+    self._task_obs = obs
+    # Entity observables are not part of the task's observation.
+    for entity in self._arena.iter_entities():
+      for value in entity.observables.as_dict().values():
+        value.enabled = False
+
+  @property
+  def task_observables(self):
+    return self._task_obs
+
+  def _human_in_eef(self, physics):
+    site = physics.bind(self._robot.tcp_site)
+    points = self._human.keypoint_positions(physics)[self._observed_keypoints]
+    return (points - site.xpos) @ site.xmat.reshape(3, 3)
+
+  # ---------------------------------------------------------------- episode
+
+  def _init_episode_state(self):
+    self._q_goal = self._robot.description.q_home.copy()
+    self._time = 0.0
+    self._steps = 0
+    self._intervened = False
+    self._reward = 0.0
+    self._pending_rewards = collections.deque()
+    self._terminate = False
+    self._discount = 1.0
+    self._human_clip = None
+    self._step_flags[:] = False
+    self._contact_steps[:] = 0
+    self._cp_random = np.random.RandomState(0)
+    self._step_info = {}
+
+  def after_compile(self, physics, random_state):
+    del random_state
+    self._bind(physics)
+
+  def _bind(self, physics):
+    """Caches controller, monitor and views for a compiled physics."""
+    self._physics_ptr = physics.data.ptr
+    self._controller = controller_lib.JointTrackingController(
+        physics, self._robot)
+    static = list(self._arena.static_geoms)
+    robot_geoms = list(self._robot.link_geoms) + list(self._gripper.geoms)
+    self._monitor = contacts.ContactMonitor(
+        physics, static, robot_geoms, self._object_geoms,
+        self._human.geoms, critical_speed=self.critical_speed)
+    joints = physics.bind(self._robot.joints)
+    self._qpos_index = np.array(joints.qposadr)
+    self._qvel_index = np.array(joints.dofadr)
+    fingers = physics.bind(self._gripper.finger_joints)
+    self._finger_qpos_index = np.array(fingers.qposadr)
+
+  def initialize_episode(self, physics, random_state):
+    if physics.data.ptr is not self._physics_ptr:
+      self._bind(physics)
+    self._init_episode_state()
+    data = physics.data
+    q_home = self._robot.description.q_home
+    data.qpos[self._qpos_index] = q_home
+    data.qvel[self._qvel_index] = 0.0
+    data.qpos[self._finger_qpos_index] = gripper_lib.MAX_APERTURE / 2
+    self._gripper.set_command(physics, -1.0)
+    self._cp_random = np.random.RandomState(random_state.randint(_SEED_RANGE))
+    self._player.reset(random_state)
+    self._move_human(physics)
+    self._shield.reset(q_home, 0.0)
+    self._metrics.reset()
+    physics.forward()
+    self._initialize_task(physics, random_state)
+
+  def _move_human(self, physics):
+    clip = self._player.clip
+    if clip is not self._human_clip:
+      self._human.resize(physics, clip)
+      self._human_clip = clip
+    self._human.set_keypoints(physics, self._player.positions)
+
+  # ------------------------------------------------------------- step loop
+
+  def before_step(self, physics, action, random_state):
+    del random_state
+    spec_shape = (self._action_space.num_arm + int(self.HAS_GRIPPER_ACTION),)
+    action = actions.validate_action(action, spec_shape)
+    q = physics.data.qpos[self._qpos_index]
+    arm = action[:self._action_space.num_arm]
+    space, current = self._action_space, self._q_goal
+    outcome = {}
+
+    def to_goal(arm_action):
+      goal, ok = space.goal(q, arm_action, current)
+      outcome.setdefault('ik_failed', not ok)
+      return goal
+
+    replaced = False
+    if self.collision_prevention_policy == 'off':
+      goal = to_goal(arm)
+    else:
+      _, goal, replaced = self._collision_checker.filter_action(
+          arm, q, to_goal, self.collision_prevention_policy,
+          random_state=self._cp_random)
+    self._q_goal = np.asarray(goal, dtype=float).copy()
+    self._shield.new_goal(self._q_goal)
+    if self.HAS_GRIPPER_ACTION:
+      self._gripper.set_command(physics, action[-1])
+    self._step_info = {'action_replacements': int(replaced),
+                       'ik_failures': int(outcome.get('ik_failed', False))}
+    self._intervened = False
+    self._step_flags[:] = False
+
+  def before_substep(self, physics, action, random_state):
+    del action, random_state
+    player = self._player
+    player.advance(self.physics_timestep)
+    self._move_human(physics)
+    self._time = player.episode_time
+    q, dq, ddq = self._shield.step(player.positions, self._time)
+    self._intervened |= self._shield.intervened
+    self._controller(physics, q, dq, ddq)
+
+  def after_substep(self, physics, random_state):
+    del physics, random_state
+    flags = self._monitor.update()
+    if flags.any():
+      self._step_flags |= flags
+      self._contact_steps += flags
+
+  def _self_colliding(self, q):
+    checker = self._collision_checker
+    if not len(checker.pairs):
+      return False
+    p1, p2, r = checker.reach.capsules(q[None])
+    i, j = checker.pairs[:, 0], checker.pairs[:, 1]
+    distance = geometry.capsule_distance(p1[0, i], p2[0, i], r[i],
+                                         p1[0, j], p2[0, j], r[j])
+    return bool(np.any(distance < 0.0))
+
+  def after_step(self, physics, random_state):
+    del random_state
+    self._steps += 1
+    q = physics.data.qpos[self._qpos_index]
+    self_collision = self._self_colliding(q)
+    step = dict(self._update_task(physics))
+    for event in self._human_events(physics):
+      self._player.trigger(event)
+    illegal = self_collision or self._step_flags[0] or self._step_flags[2]
+    task_reward = float(self._task_reward(physics))
+    success = bool(step.get('success', 0.0))
+    failed = bool(self._failed(physics))
+    self._terminate = failed or (success and self.done_at_success)
+    last = self._terminate or self._steps >= self.horizon
+    self._pending_rewards.append(task_reward)
+    if last:
+      reward = sum(self._pending_rewards)
+      self._pending_rewards.clear()
+    elif len(self._pending_rewards) > self.reward_delay:
+      reward = self._pending_rewards.popleft()
+    else:
+      reward = 0.0
+    if illegal:
+      reward += self.collision_reward
+    self._reward = float(reward)
+    self._discount = 0.0 if self._terminate else 1.0
+    step.update(self._step_info)
+    step['reward'] = self._reward
+    step['shield_interventions'] = int(self._intervened)
+    step['self_collisions'] = int(self_collision)
+    step['goals_reached'] = int(success)
+    step['min_human_distance'] = self._shield.min_distance
+    for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
+      step[f'contacts_{name}'] = int(count)
+    self._contact_steps[:] = 0
+    self._metrics.record(step)
+
+  def get_reward(self, physics):
+    del physics
+    return self._reward
+
+  def should_terminate_episode(self, physics):
+    del physics
+    return self._terminate
+
+  def get_discount(self, physics):
+    del physics
+    return self._discount
+
+  # -------------------------------------------------------------- snapshots
+
+  def get_state(self, physics):
+    """A snapshot of the episode: physics, human, shield, task, metrics."""
+    size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
+    physics_state = np.empty(size)
+    mujoco.mj_getState(physics.model.ptr, physics.data.ptr, physics_state,
+                       _STATE_SPEC)
+    return {
+        'physics': physics_state,
+        'player': self._player.get_state(),
+        # Shield has no get/set_state: a deep copy of its mutable state.
+        'shield': copy.deepcopy(self._shield.__dict__),
+        'task': {
+            'q_goal': self._q_goal.copy(), 'time': self._time,
+            'steps': self._steps, 'reward': self._reward,
+            'pending_rewards': list(self._pending_rewards),
+            'terminate': self._terminate, 'discount': self._discount,
+            'step_flags': self._step_flags.copy(),
+            'cp_random': self._cp_random.get_state(),
+            'metrics': copy.deepcopy(self._metrics.state()),
+            'own': copy.deepcopy(self._task_state()),
+        },
+    }
+
+  def set_state(self, physics, state):
+    """Restores a snapshot from get_state (same task configuration)."""
+    size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
+    physics_state = np.asarray(state['physics'], dtype=np.float64)
+    if physics_state.shape != (size,):
+      raise ValueError(f'physics state must have {size} entries for this '
+                       f'model, got shape {physics_state.shape}')
+    if physics.data.ptr is not self._physics_ptr:
+      self._bind(physics)
+    mujoco.mj_setState(physics.model.ptr, physics.data.ptr, physics_state,
+                       _STATE_SPEC)
+    self._player.set_state(state['player'])
+    self._human_clip = None
+    self._human.resize(physics, self._player.clip)
+    self._human_clip = self._player.clip
+    self._shield.__dict__.update(copy.deepcopy(state['shield']))
+    task = state['task']
+    self._q_goal = np.array(task['q_goal'], dtype=float)
+    self._time = float(task['time'])
+    self._steps = int(task['steps'])
+    self._reward = float(task['reward'])
+    self._pending_rewards = collections.deque(task['pending_rewards'])
+    self._terminate = bool(task['terminate'])
+    self._discount = float(task['discount'])
+    self._step_flags[:] = task['step_flags']
+    self._cp_random.set_state(task['cp_random'])
+    self._metrics.set_state(copy.deepcopy(task['metrics']))
+    self._set_task_state(copy.deepcopy(task['own']))
+    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)

@@ -1,0 +1,108 @@
+"""Safety and task metrics per RL step and per episode, and an observer.
+
+A task keeps two dicts of plain numbers (`step_metrics`, `episode_metrics`)
+that any consumer can read after `env.step` without touching task
+internals. `EpisodeMetricsObserver` follows Acme's observer protocol
+(`observe_first`, `observe`, `get_metrics`); `run_episode` plays one episode
+with a policy and returns the episode's metrics.
+"""
+
+import numpy as np
+
+from hrc_suite.tasks import contacts
+
+# Counters every task reports; tasks add their own (e.g. handovers).
+# * shield_interventions: RL steps in which the shield overrode the intended
+#   motion in at least one physics step.
+# * contacts_<type>: physics steps with at least one contact of that type;
+#   self_collisions: RL steps whose final configuration self-collides (robot
+#   capsule model).
+# * action_replacements: actions replaced by collision prevention.
+# * ik_failures: Cartesian actions whose IK failed (the goal was kept).
+# * goals_reached: RL steps at which the task's goal was reached.
+COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
+             'self_collisions', 'goals_reached')
+            + tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES))
+
+
+class EpisodeMetrics:
+  """Accumulates step metrics into episode metrics."""
+
+  def __init__(self, extra_counters=()):
+    self.counters = COUNTERS + tuple(extra_counters)
+    self.episode = {}
+    self.step = {}
+    self.reset()
+
+  def reset(self):
+    self.episode = {name: 0 for name in self.counters}
+    self.episode.update({'success': 0.0, 'return': 0.0, 'steps': 0,
+                         'min_human_distance': float('inf')})
+    self.step = {}
+
+  def record(self, step):
+    """Adds one RL step's metrics (a dict of numbers)."""
+    self.step = dict(step)
+    episode = self.episode
+    for name in self.counters:
+      episode[name] += step.get(name, 0)
+    episode['steps'] += 1
+    episode['return'] += float(step.get('reward', 0.0))
+    if step.get('success', 0.0):
+      episode['success'] = 1.0
+    distance = step.get('min_human_distance')
+    if distance is not None:
+      episode['min_human_distance'] = min(episode['min_human_distance'],
+                                          float(distance))
+
+  def state(self):
+    return {'episode': dict(self.episode), 'step': dict(self.step)}
+
+  def set_state(self, state):
+    self.episode = dict(state['episode'])
+    self.step = dict(state['step'])
+
+
+class EpisodeMetricsObserver:
+  """Acme-style observer collecting `env.task.episode_metrics` per episode.
+
+  Use with any loop that calls observe_first after reset and observe after
+  each step; `get_metrics` returns the last finished (or current) episode's
+  metrics, `episodes` all finished ones.
+  """
+
+  def __init__(self):
+    self.episodes = []
+    self._current = None
+
+  def observe_first(self, env, timestep):
+    del timestep
+    self._current = dict(env.task.episode_metrics)
+
+  def observe(self, env, timestep, action=None):
+    del action
+    self._current = dict(env.task.episode_metrics)
+    if timestep.last():
+      self.episodes.append(self._current)
+
+  def get_metrics(self):
+    return dict(self._current or {})
+
+  def summary(self):
+    """Mean of every metric over the finished episodes."""
+    if not self.episodes:
+      return {}
+    keys = self.episodes[0].keys()
+    return {k: float(np.mean([e[k] for e in self.episodes])) for k in keys}
+
+
+def run_episode(env, policy, observer=None):
+  """Plays one episode; policy(timestep) -> action. Returns its metrics."""
+  observer = observer or EpisodeMetricsObserver()
+  timestep = env.reset()
+  observer.observe_first(env, timestep)
+  while not timestep.last():
+    action = policy(timestep)
+    timestep = env.step(action)
+    observer.observe(env, timestep, action)
+  return observer.get_metrics()
