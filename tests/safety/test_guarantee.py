@@ -44,6 +44,18 @@ def _assert_no_violation(run, what):
       f' distance, robot speed): {run.violations[:3]}')
 
 
+def _assert_within_joint_limits(shield, run):
+  """Commands stay within position, velocity, acceleration and jerk limits
+  (acceleration and jerk by finite differences of the commands), through
+  goal changes every 48 ms and interventions."""
+  limits, dt = shield.limits, shield.cycle_time
+  assert np.all(run.q >= limits.q_min) and np.all(run.q <= limits.q_max)
+  assert np.all(np.abs(run.dq) <= limits.v_max * (1 + 1e-9))
+  acc = np.diff(run.dq, axis=0) / dt
+  assert np.all(np.abs(acc) <= limits.a_max * (1 + 1e-6))
+  assert np.all(np.abs(np.diff(acc, axis=0) / dt) <= limits.j_max * (1 + 1e-6))
+
+
 def test_scenarios_are_adversarial():
   """Without the shield the same runs do hit the human at speed, so the
   property tests below can fail."""
@@ -68,6 +80,7 @@ def test_ssm_no_contact_while_moving(name, scenario):
       shield.description, np.random.RandomState(7)))
   _assert_no_violation(run, f'{name} {scenario}')
   assert run.intervened.any()   # The human did get in the way.
+  _assert_within_joint_limits(shield, run)
 
 
 @pytest.mark.parametrize('name', ROBOTS)
@@ -77,6 +90,7 @@ def test_pfl_contact_only_below_v_safe(name):
   run = harness.simulate(shield, human, 1.6, goal=harness.random_goals(
       shield.description, np.random.RandomState(8)))
   _assert_no_violation(run, f'{name} pfl')
+  _assert_within_joint_limits(shield, run)
   # PFL lets the robot keep moving slowly where SSM would stop it.
   speeds = shield.robot.surface_speeds(run.q[-50:], run.dq[-50:]).max(axis=1)
   assert np.all(speeds <= shield.v_safe)
