@@ -13,8 +13,9 @@ is measured
   reference's largest workspace action), each solve seeded with the previous
   successful solution (the realistic per-RL-step use);
 "success" is the solver's own verdict (1 mm, 0.01 rad), "within 5 mm" the
-TCP position error of the returned q. Median wall time per solve is for the
-random-walk solves. Deterministic (seed 0).
+TCP position error of the returned q. Median wall time and iterations per
+solve are for the reachable random-walk steps (ms/fail: unreachable ones).
+Deterministic (seed 0) apart from the times.
 """
 
 import argparse
@@ -77,13 +78,16 @@ def measure(name, num_targets, seed=0):
   walk_reachable = np.array([
       reference.solve_with_restarts(t, q_home, random_state,
                                     restarts=100).success for t in walk])
-  walk_results, times, q = [], [], q_home
+  walk_results, times, fail_times, q = [], [], [], q_home
   for target, is_reachable in zip(walk, walk_reachable):
     start = time.perf_counter()
     result = fast.solve(target, q)
-    times.append(time.perf_counter() - start)
+    elapsed = time.perf_counter() - start
     if is_reachable:
       walk_results.append(result)
+      times.append(elapsed)
+    else:
+      fail_times.append(elapsed)
     if result.success:
       q = result.q
 
@@ -95,6 +99,7 @@ def measure(name, num_targets, seed=0):
       reachable=reachable.mean(), from_home=rates(from_home),
       walk_reachable=walk_reachable.mean(), walk=rates(walk_results),
       median_ms=1e3 * np.median(times),
+      unreachable_ms=1e3 * np.median(fail_times) if fail_times else np.nan,
       median_iterations=np.median([r.iterations for r in walk_results]))
 
 
@@ -106,14 +111,15 @@ def main():
   args = parser.parse_args()
   print(f'{"robot":8s} {"reach%":>6s} {"home ok%":>8s} {"home<5mm%":>9s} '
         f'{"walk reach%":>11s} {"walk ok%":>8s} {"walk<5mm%":>9s} '
-        f'{"ms/solve":>8s} {"iters":>5s}')
+        f'{"ms/solve":>8s} {"iters":>5s} {"ms/fail":>7s}')
   for name in args.robots:
     m = measure(name, args.targets)
     print(f'{name:8s} {100 * m["reachable"]:6.1f} '
           f'{100 * m["from_home"][0]:8.1f} {100 * m["from_home"][1]:9.1f} '
           f'{100 * m["walk_reachable"]:11.1f} {100 * m["walk"][0]:8.1f} '
           f'{100 * m["walk"][1]:9.1f} {m["median_ms"]:8.3f} '
-          f'{m["median_iterations"]:5.0f}', flush=True)
+          f'{m["median_iterations"]:5.0f} {m["unreachable_ms"]:7.3f}',
+          flush=True)
 
 
 if __name__ == '__main__':
