@@ -13,6 +13,7 @@ library (`task_motions.py` holds the per-task scripts).
 """
 
 import argparse
+import dataclasses
 import math
 import pathlib
 
@@ -60,6 +61,23 @@ HEAD_WANDER = 0.06        # rad
 
 # Shortest duration of a move queued behind a still running one (s).
 MIN_QUEUED_MOVE = 0.3
+
+# Idle phases. The player replays a waiting clip at d t_A / dt = sum_i S_i
+# cos(w_i (t - t_I)), at most sum_i S_i x f**3 with the randomisation factor
+# f**clip(N(0, 1), -3, 3), anywhere in t_I +- sum_i u_i x f**3 (clip.py). The
+# generator keeps (peak keypoint speed in that window, outside fast phases) x
+# (peak replay rate) below this limit, a margin under the shield's 2 m/s
+# (clip.MAX_KEYPOINT_SPEED), by slowing the phase's S_i where needed.
+IDLE_SPEED_LIMIT = 1.9
+# Slowest the generator may make an idle phase (fraction of its authored S_i);
+# a script that needs more should hold still longer around its keyframe.
+MIN_IDLE_SPEED_SCALE = 0.4
+# Highest idle sine frequency w_i / 2 pi (Hz) under the widest randomisation
+# (S_i x f**3 over u_i / f**3): a waiting person shifts and sways at a few
+# tenths of a hertz (postural sway 0.1-0.5 Hz, see SWAY_HZ), never jitters.
+MAX_IDLE_HZ = 0.5
+# Stored idle slopes are rounded down to this step.
+IDLE_SPEED_QUANTUM = 1e-3
 
 SCALAR_CHANNELS = ('pelvis_drop', 'yaw', 'lean', 'side', 'twist',
                    'head_pitch', 'head_yaw', 'left_swivel', 'right_swivel',
@@ -497,6 +515,86 @@ class Script:
     return clip_lib.validate(clip, source=f'synthesised clip {self.name!r}')
 
 
+def idle_window(phase):
+  """Largest |t_A - t_I| (s) of a phase's warp over all randomisations."""
+  return float(np.sum(np.abs(phase.amplitudes))) * (
+      phase.amplitude_std_factor ** 3)
+
+
+def idle_max_rate(phase):
+  """Largest replay rate |d t_A / dt| of a phase over all randomisations."""
+  return float(np.sum(np.abs(phase.speeds))) * phase.speed_std_factor ** 3
+
+
+def idle_max_hz(phase):
+  """Highest sine frequency (Hz) of a phase over all randomisations."""
+  omegas = np.abs(phase.speeds) / phase.amplitudes
+  factor = (phase.speed_std_factor * phase.amplitude_std_factor) ** 3
+  return float(omegas.max()) * factor / (2 * np.pi)
+
+
+def idle_window_speed(clip, phase):
+  """Peak keypoint speed (m/s) of `clip` in the phase's warp window.
+
+  Frame intervals inside `clip.fast_phases` are left out; the window is
+  widened by one frame on each side (the player anchors the wait at the
+  first step at or after t_I).
+  """
+  speeds = clip_lib.keypoint_speeds(clip).max(axis=1)
+  for start, end in clip.fast_phases:
+    speeds[start:end] = 0.0
+  t_i = clip.keyframe_time(phase.keyframe)
+  reach = idle_window(phase)
+  first = max(0, int(math.floor((t_i - reach) * clip.fps)) - 1)
+  last = min(len(speeds), int(math.ceil((t_i + reach) * clip.fps)) + 1)
+  return float(speeds[first:last].max()) if last > first else 0.0
+
+
+def idle_speed_bound(clip, phase):
+  """Worst-case keypoint speed (m/s) while `clip` waits in `phase`.
+
+  (peak clip speed in the warp window) x (peak replay rate): a bound on every
+  keypoint's speed outside fast phases for any randomisation and any wait.
+  """
+  return idle_window_speed(clip, phase) * idle_max_rate(phase)
+
+
+def fit_idle_phases(clip, limit=IDLE_SPEED_LIMIT):
+  """`clip` with each idle phase's S_i scaled so idle_speed_bound <= limit.
+
+  The window depends on the amplitudes only, so one scaling suffices; the
+  applied scales go into metadata['idle_speed_scales']. Raises ValueError if
+  a phase jitters (above MAX_IDLE_HZ) or needs slowing below
+  MIN_IDLE_SPEED_SCALE.
+  """
+  phases, scales = [], []
+  for i, phase in enumerate(clip.idle_phases):
+    if idle_max_hz(phase) > MAX_IDLE_HZ:
+      raise ValueError(
+          f'{clip.name} idle phase {i} ({phase.event}): sines up to '
+          f'{idle_max_hz(phase):.2f} Hz, expected at most {MAX_IDLE_HZ} Hz '
+          f'(u = {phase.amplitudes.tolist()} s, S = {phase.speeds.tolist()})')
+    bound = idle_speed_bound(clip, phase)
+    scale = 1.0
+    if bound > limit:
+      scale = limit / bound
+      if scale < MIN_IDLE_SPEED_SCALE:
+        raise ValueError(
+            f'{clip.name} idle phase {i} ({phase.event}): worst-case speed '
+            f'{bound:.2f} m/s needs the idle slopes scaled by {scale:.2f}, '
+            f'expected at least {MIN_IDLE_SPEED_SCALE}: hold still longer '
+            f'around the keyframe')
+      speeds = np.floor(phase.speeds * scale / IDLE_SPEED_QUANTUM) * (
+          IDLE_SPEED_QUANTUM)
+      phase = dataclasses.replace(phase, speeds=speeds)
+    phases.append(phase)
+    scales.append(round(scale, 4))
+  if not phases:
+    return clip
+  metadata = dict(clip.metadata, idle_speed_scales=scales)
+  return clip.replace(idle_phases=tuple(phases), metadata=metadata)
+
+
 def _merge_spans(spans):
   merged = []
   for start, end in sorted(spans):
@@ -511,7 +609,9 @@ def synthesise(task, index, seed=LIBRARY_SEED, fps=DEFAULT_FPS, attempts=6):
   """Clip `index` of `task`: deterministic in (task, index, seed).
 
   If a keypoint would exceed clip.MAX_KEYPOINT_SPEED outside the documented
-  fast phases, the same motion is re-timed with a slower tempo.
+  fast phases, the same motion is re-timed with a slower tempo. Idle phases
+  are then slowed where their worst case would exceed IDLE_SPEED_LIMIT
+  (`fit_idle_phases`).
   """
   from hrc_suite.human import task_motions  # Scripts import this module.
   if task not in task_motions.TASK_SCRIPTS:
@@ -528,7 +628,7 @@ def synthesise(task, index, seed=LIBRARY_SEED, fps=DEFAULT_FPS, attempts=6):
     task_motions.TASK_SCRIPTS[task](script, random_state)
     clip = script.render(fps)
     if not len(clip_lib.speed_violations(clip)):
-      return clip
+      return fit_idle_phases(clip)
     slow_down *= 1.2
   speeds = clip_lib.keypoint_speeds(clip).max()
   raise RuntimeError(f'{task} clip {index}: keypoint speed {speeds:.2f} m/s '

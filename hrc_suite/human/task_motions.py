@@ -8,8 +8,12 @@ where the table edge is at the same x and the robot base at
 ROBOT_BASE_BESIDE. Every script draws its variation (targets, hands, timing,
 number of repetitions) from the given random_state only.
 
-Idle phases use the reference benchmark's values (reference-benchmark.md and
-the recordings' _info.json, 100 fps), converted from frames to seconds.
+Idle phases: amplitudes u_i (seconds of clip time) and periods of natural
+waiting (a slow sway of a second or so every 10-15 s plus a smaller, quicker
+shift), not the reference's values: those add a 0.6-0.7 frame sine at
+70-125 Hz whose slope of 2.6-3.1 drives keypoints past 2 m/s (see
+docs/motion_library.md). The generator then checks each phase's worst case
+and slows it where needed (synthesis.fit_idle_phases).
 """
 
 import math
@@ -34,21 +38,62 @@ GRIP_ABOVE_CENTRE = 0.035
 HAMMER_REACH = 0.26
 HAMMER_FACE_BELOW_PALM = 0.04
 
-_FRAMES_PER_SECOND_OF_REFERENCE = 100.0   # the recordings' frame rate.
 
 
-def _seconds(amplitudes_in_frames):
-  return [a / _FRAMES_PER_SECOND_OF_REFERENCE for a in amplitudes_in_frames]
+def _idle_sines(*sines):
+  """(amplitudes u_i in s, slopes S_i) from (amplitude s, period s) pairs.
+
+  u sin(2 pi t / period) has slope S = 2 pi u / period at t = 0.
+  """
+  amplitudes = [float(u) for u, _ in sines]
+  speeds = [round(2 * math.pi * u / period, 3) for u, period in sines]
+  return amplitudes, speeds
 
 
-# Reference idle phases: (amplitudes in seconds, dimensionless speeds).
-IDLE_ROBOT_TO_HUMAN = (_seconds([270, 0.7]), [1.0, 3.1])
-IDLE_HUMAN_TO_ROBOT_PRESENT = (_seconds([270, 0.7]), [1.0, 3.1])
-IDLE_HUMAN_TO_ROBOT_WAIT = (_seconds([10, 6.3, 2.4]), [0.12, 0.07, 0.034])
-IDLE_INSPECTION = (_seconds([10, 4.1, 7.7]), [0.15, 0.21, 0.0165])
-IDLE_HAMMERING = (_seconds([200, 0.6]), [1.0, 2.6])
-IDLE_STACKING_SECOND = (_seconds([100, 0.7]), [1.0, 3.1])
-IDLE_STACKING_FOURTH = (_seconds([8, 2.3, 2.4]), [0.09, 0.07, 0.034])
+# Reaching out and waiting for the handover: the arm drifts back by up to a
+# second of the reach and out again every ~12 s, with a smaller 5 s shift.
+# Slopes sum to 0.8: the hand keeps most of its speed on arriving.
+IDLE_HANDOVER_REACH = _idle_sines((1.2, 12.0), (0.15, 5.0))
+# Standing and watching the robot (inspection, placing, stacking): slow sway
+# over ~0.8 s of the clip, 4 s and 8 s shifts on top.
+IDLE_WATCHING = _idle_sines((0.8, 20.0), (0.2, 8.0), (0.06, 4.0))
+# Hammering until the nail is in: the blows go on at their own pace
+# (slopes sum to 1 at the keyframe), drifting over +-2 s of blows.
+IDLE_HAMMERING = _idle_sines((2.0, 16.0), (0.3, 9.0))
+
+IDLE_ROBOT_TO_HUMAN = IDLE_HANDOVER_REACH
+IDLE_HUMAN_TO_ROBOT_PRESENT = IDLE_HANDOVER_REACH
+IDLE_HUMAN_TO_ROBOT_WAIT = IDLE_WATCHING
+IDLE_INSPECTION = IDLE_WATCHING
+IDLE_STACKING_SECOND = IDLE_WATCHING
+IDLE_STACKING_FOURTH = IDLE_WATCHING
+
+def _warp_reach(amplitudes):
+  """Largest |t_A - t_I| (s) of an idle phase: sum u_i x 1.1**3."""
+  return sum(amplitudes) * clip_lib.DEFAULT_STD_FACTOR ** 3
+
+
+def _wait(script, rs, event, idle, sides, after, before=None):
+  """An idle phase for `event` amid a still stretch of the clip.
+
+  Hands in `sides` make small gestures meanwhile. The clip stays still for
+  the warp's reach after the keyframe plus uniform(*after) s, so a forward
+  warp never shows what follows the event. `before` is None (a backward warp
+  replays the preceding move), 'still' (the person stands for the warp's
+  reach before the keyframe) or 'gestures' (stands, gesturing with `sides`).
+  """
+  amplitudes, speeds = idle
+  reach = _warp_reach(amplitudes)
+  if before == 'gestures':
+    script.fidget(reach + 0.1, sides)
+  elif before == 'still':
+    script.hold(reach + 0.1)
+  elif before is not None:
+    raise ValueError(f"before must be None, 'still' or 'gestures', got "
+                     f'{before!r}')
+  script.idle(event, amplitudes, speeds)
+  script.fidget(reach + rs.uniform(*after), sides)
+
 
 # Events each task's idle phases wait for, in order (agreed in clip.py).
 EVENTS = clip_lib.TASK_EVENTS
@@ -198,9 +243,8 @@ def inspection(script, rs):
   point = np.array([rs.uniform(0.62, 0.75), rs.uniform(-0.1, 0.1),
                     rs.uniform(1.15, 1.35)])
   script.targets['inspection_point'] = point
-  amplitudes, speeds = IDLE_INSPECTION
-  script.idle(EVENTS['inspection'][0], amplitudes, speeds)
-  script.fidget(rs.uniform(1.0, 2.5), [0, 1])
+  _wait(script, rs, EVENTS['inspection'][0], IDLE_INSPECTION, [0, 1],
+        after=(0.2, 1.0), before='gestures')
   _look_at(script, point, 0.6, advance=True)
   side = _choose_hand(rs, 0.6)
   near = point + [-0.1, -_side_sign(1 - side) * 0.0, -0.06]
@@ -299,10 +343,9 @@ def handover_robot_to_human(script, rs):
   script.reach(side, point, lean=lean, wrist=0.0, pelvis_drop=0.0,
                swivel=rs.uniform(0.0, 0.4))
   script.hold(rs.uniform(0.2, 0.5))
-  amplitudes, speeds = IDLE_ROBOT_TO_HUMAN
-  script.idle(EVENTS['handover_robot_to_human'][0], amplitudes, speeds)
-  # Forward warp reaches sum(amplitudes) x 1.1**3 past the keyframe: hold.
-  script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.8), [1 - side])
+  # A backward warp draws the arm back along the reach and out again.
+  _wait(script, rs, EVENTS['handover_robot_to_human'][0], IDLE_ROBOT_TO_HUMAN,
+        [1 - side], after=(2.0, 2.8))
   carry = script.to_world(np.array([rs.uniform(0.2, 0.3),
                                     _side_sign(side) * 0.2,
                                     script.standing_height + 0.1]))
@@ -332,14 +375,11 @@ def handover_human_to_robot(script, rs):
   script.targets['handover_point'] = point
   _look_at(script, point, 0.6)
   script.reach(side, point, lean=lean, wrist=0.1, pelvis_drop=0.0)
-  amplitudes, speeds = IDLE_HUMAN_TO_ROBOT_PRESENT
-  script.idle(EVENTS['handover_human_to_robot'][0], amplitudes, speeds)
-  script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(0.3, 0.6), [1 - side])
+  _wait(script, rs, EVENTS['handover_human_to_robot'][0],
+        IDLE_HUMAN_TO_ROBOT_PRESENT, [1 - side], after=(2.0, 2.5))
   script.rest(side, lean=0.0, head_pitch=0.3)
-  script.hold(0.3)
-  amplitudes, speeds = IDLE_HUMAN_TO_ROBOT_WAIT
-  script.idle(EVENTS['handover_human_to_robot'][1], amplitudes, speeds)
-  script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(1.0, 2.0), [0, 1])
+  _wait(script, rs, EVENTS['handover_human_to_robot'][1],
+        IDLE_HUMAN_TO_ROBOT_WAIT, [0, 1], after=(1.0, 2.0), before='still')
   script.move(0.6, head_pitch=0.0, head_yaw=0.0)
   _retreat(script, rs)
 
@@ -365,7 +405,7 @@ def hammering(script, rs):
   amplitudes, speeds = IDLE_HAMMERING
   # The idle phase loops the blows (forwards and backwards) until the nail is
   # in: blows must cover the warp's reach on both sides of the keyframe.
-  reach_time = sum(amplitudes) * 1.1 ** 3
+  reach_time = _warp_reach(amplitudes)
   start = script.t
   anchored = False
   while not anchored or script.t < start + 2 * reach_time + 0.5:
@@ -415,11 +455,8 @@ def stacking(script, rs):
     script.reach(hand, place + grip + [0, 0, 0.1],
                  duration=rs.uniform(0.4, 0.6))
     script.rest(hand, lean=0.0, pelvis_drop=0.0, head_pitch=0.3, head_yaw=0.0)
-    amplitudes, speeds = wait
-    script.fidget(sum(amplitudes) * 1.1 ** 3 * (1 if n == 0 else 0) + 0.2,
-                  [0, 1])
-    script.idle(EVENTS['stacking'][n], amplitudes, speeds)
-    script.fidget(sum(amplitudes) * 1.1 ** 3 + rs.uniform(1.0, 2.0), [0, 1])
+    _wait(script, rs, EVENTS['stacking'][n], wait, [0, 1], after=(1.0, 2.0),
+          before='gestures')
   _retreat(script, rs, distance=(0.4, 0.8))
 
 
