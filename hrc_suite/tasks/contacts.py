@@ -74,7 +74,7 @@ class ContactMonitor:
   def surface_speed(self, body, point):
     """Speed (m/s) of the point (world) rigidly attached to `body`."""
     data = self._data
-    mujoco.mj_objectVelocity(self._model, data, mujoco.mjtObj.mjOBJ_BODY,
+    mujoco.mj_objectVelocity(self._model, data, mujoco.mjtObj.mjOBJ_XBODY,
                              int(body), self._velocity, 0)
     angular, linear = self._velocity[:3], self._velocity[3:]
     offset = point - data.xpos[body]

@@ -1,0 +1,407 @@
+"""The shared step loop (HrcTask), exercised through the reach task."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import layout
+from hrc_suite import suite
+from hrc_suite.control import ik as ik_lib
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import base
+from hrc_suite.tasks import contacts
+from hrc_suite.tasks import metrics
+from hrc_suite.tasks import reach
+
+
+def _env(seed=0, **task_kwargs):
+  task_kwargs.setdefault('time_limit', 1.0)
+  return suite.load('reach', task_kwargs.pop('reward', 'dense'),
+                    task_kwargs=task_kwargs,
+                    environment_kwargs={'random_state': seed})
+
+
+def _random_actions(env, count, seed=1):
+  rs = np.random.RandomState(seed)
+  spec = env.action_spec()
+  return [rs.uniform(-1.0, 1.0, spec.shape) for _ in range(count)]
+
+
+# ------------------------------------------------------------------ kwargs
+
+
+@pytest.mark.parametrize('kwargs, message', [
+    ({'robot': 'r2d2'}, 'Unknown robot'),
+    ({'action_space': 'polar'}, 'Unknown action_space'),
+    ({'shield': 'strong'}, 'Unknown shield'),
+    ({'collision_prevention': 'maybe'}, 'Unknown collision_prevention'),
+    ({'observations': 'tiny'}, 'Unknown observations preset'),
+    ({'observations': ['goal_difference', 'x_ray']}, 'x_ray'),
+    ({'control_timestep': 0.05}, 'must equal shield_substeps'),
+    ({'shield_substeps': 0}, 'shield_substeps'),
+    ({'reward_delay': -1}, 'reward_delay'),
+    ({'time_limit': 0.0}, 'time_limit'),
+    ({'collision_reward': 5.0}, 'collision_reward'),
+    ({'motions': []}, 'motions'),
+])
+def test_bad_kwargs_raise_clearly(kwargs, message):
+  with pytest.raises(ValueError, match=message):
+    reach.Reach(**kwargs)
+
+
+def test_error_lists_valid_values():
+  with pytest.raises(ValueError, match="'joint', 'cartesian'"):
+    reach.Reach(action_space='polar')
+  with pytest.raises(ValueError, match="'ssm', 'pfl', 'off'"):
+    reach.Reach(shield='strong')
+
+
+def test_broken_motion_folder_raises(tmp_path):
+  (tmp_path / 'broken.json').write_text('{not json')
+  with pytest.raises(ValueError):
+    reach.Reach(motions=tmp_path)
+  with pytest.raises(ValueError, match='not a folder'):
+    reach.Reach(motions=tmp_path / 'missing')
+
+
+def test_substeps_and_timesteps_are_consistent():
+  task = reach.Reach(shield_substeps=10, physics_timestep=0.004,
+                     control_timestep=0.04)
+  assert task.physics_steps_per_control_step == 10
+  assert task.horizon == reach.Reach.HORIZON   # 100 RL steps of 0.04 s
+  assert task.time_limit == pytest.approx(4.0)
+
+
+# ----------------------------------------------------------------- actions
+
+
+@pytest.mark.parametrize('space, size', [('joint', 7), ('cartesian', 3)])
+def test_action_spec_is_agent_only_and_bounded(space, size):
+  env = _env(action_space=space)
+  spec = env.action_spec()
+  assert spec.shape == (size,)
+  np.testing.assert_array_equal(spec.minimum, -1.0)
+  np.testing.assert_array_equal(spec.maximum, 1.0)
+
+
+@pytest.mark.parametrize('bad', [np.nan, np.inf, -np.inf])
+def test_non_finite_actions_raise_naming_entries(bad):
+  env = _env()
+  env.reset()
+  action = np.zeros(7)
+  action[[2, 5]] = bad
+  with pytest.raises(ValueError, match=r'indices \[2, 5\]'):
+    env.step(action)
+
+
+def test_wrong_action_shape_raises_with_expected_shape():
+  env = _env()
+  env.reset()
+  with pytest.raises(ValueError, match=r'shape \(7,\)'):
+    env.step(np.zeros(6))
+
+
+def test_out_of_range_actions_are_clipped():
+  goals = []
+  for scale in (1.0, 7.0):
+    env = _env(collision_prevention='off')
+    env.reset()
+    action = np.zeros(7)
+    action[0] = scale
+    env.step(action)
+    goals.append(env.task.q_goal)
+  np.testing.assert_array_equal(goals[0], goals[1])
+
+
+def test_joint_goal_is_q_plus_step_times_action():
+  env = _env(collision_prevention='off')
+  env.reset()
+  physics, task = env.physics, env.task
+  q = task.robot.joint_positions(physics)
+  action = np.full(7, 0.5)
+  env.step(action)
+  expected = np.clip(q + actions.JOINT_STEP * action,
+                     task.kinematics.q_min, task.kinematics.q_max)
+  np.testing.assert_allclose(task.q_goal, expected)
+
+
+def test_cartesian_goal_moves_tcp_by_step_inside_box():
+  env = _env(action_space='cartesian', collision_prevention='off')
+  env.reset()
+  task, physics = env.task, env.physics
+  q = task.robot.joint_positions(physics)
+  tcp = task.kinematics.tcp_pose(q)[:3, 3]
+  action = np.array([1.0, 0.0, 0.0])
+  env.step(action)
+  reached = task.kinematics.tcp_pose(task.q_goal)[:3, 3]
+  target = np.clip(tcp + [actions.CARTESIAN_STEP, 0, 0],
+                   task._action_space.low, task._action_space.high)
+  np.testing.assert_allclose(reached, target, atol=2e-3)
+  # The goal keeps the gripper pointing down.
+  rotation = task.kinematics.tcp_pose(task.q_goal)[:3, :3]
+  assert rotation[2, 2] < -0.99
+
+
+def test_ik_failure_keeps_goal_and_is_counted():
+  env = _env(action_space='cartesian', collision_prevention='off')
+  env.reset()
+  task = env.task
+  space = task._action_space
+  # A box far outside the robot's reach: every target is unreachable.
+  space.low = np.array([5.0, 5.0, 5.0])
+  space.high = np.array([5.1, 5.1, 5.1])
+  before = task.q_goal
+  env.step(np.zeros(3))
+  np.testing.assert_array_equal(task.q_goal, before)
+  assert task.step_metrics['ik_failures'] == 1
+  assert task.episode_metrics['ik_failures'] == 1
+
+
+def _near_table_with_downward_action(policy):
+  """An env with the TCP 4 cm above the table and the joint action that
+  moves it straight down fastest (a goal inside the table)."""
+  env = _env(collision_prevention=policy, time_limit=2.0,
+             done_at_success=False)
+  env.reset()
+  task, physics = env.task, env.physics
+  model = task.kinematics
+  target = np.array([0.5, 0.0, layout.TABLE_TOP_Z + 0.04])
+  result = ik_lib.InverseKinematics(model).solve(
+      target, task.robot.description.q_home)
+  assert result.success
+  task.robot.set_joint_positions(physics, result.q)
+  task.shield.reset(result.q, task.player.episode_time)
+  physics.forward()
+  down = -np.sign(model.tcp_jacobian(result.q)[2])
+  return env, result.q, down
+
+
+def test_collision_prevention_replaces_a_goal_into_the_table():
+  env, q_low, down = _near_table_with_downward_action('zero')
+  env.step(down)
+  task = env.task
+  assert task.step_metrics['action_replacements'] == 1
+  np.testing.assert_allclose(task.q_goal, q_low, atol=1e-3)   # Stays.
+  for _ in range(5):
+    env.step(down)
+  assert task.episode_metrics['contacts_static'] == 0
+
+
+def test_monitor_sees_static_contacts_without_collision_prevention():
+  env, _, down = _near_table_with_downward_action('off')
+  for _ in range(5):
+    env.step(down)
+  task = env.task
+  assert task.episode_metrics['contacts_static'] > 0
+  assert task.step_metrics['reward'] <= task.collision_reward
+
+
+# --------------------------------------------------------- determinism etc.
+
+
+def _rollout(env, actions_):
+  observations = []
+  for action in actions_:
+    observations.append(env.step(action).observation)
+  return observations
+
+
+def _assert_same(first, second):
+  assert len(first) == len(second)
+  for a, b in zip(first, second):
+    assert a.keys() == b.keys()
+    for key in a:
+      np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+@pytest.mark.parametrize('space', ['joint', 'cartesian'])
+def test_same_seed_same_observations(space):
+  runs = []
+  for _ in range(2):
+    env = _env(seed=3, action_space=space, observations='full',
+               time_limit=10.0)
+    first = env.reset().observation
+    runs.append([first] + _rollout(env, _random_actions(env, 12)))
+  _assert_same(*runs)
+  other = _env(seed=4, action_space=space, observations='full')
+  different = other.reset().observation
+  assert not np.array_equal(different['goal_position'],
+                            runs[0][0]['goal_position'])
+
+
+@pytest.mark.parametrize('space', ['joint', 'cartesian'])
+def test_snapshot_restore_is_bit_exact(space):
+  env = _env(seed=5, action_space=space, observations='full',
+             collision_prevention='resample', time_limit=10.0)
+  env.reset()
+  _rollout(env, _random_actions(env, 6, seed=2))
+  state = env.task.get_state(env.physics)
+  replay = _random_actions(env, 10, seed=3)
+  first = _rollout(env, replay)
+  metrics_first = dict(env.task.episode_metrics)
+  # Wander off, then restore and replay.
+  _rollout(env, _random_actions(env, 5, seed=4))
+  env.task.set_state(env.physics, state)
+  second = _rollout(env, replay)
+  _assert_same(first, second)
+  assert env.task.episode_metrics == metrics_first
+
+
+def test_snapshot_moves_to_a_fresh_environment():
+  env = _env(seed=6, observations='full', time_limit=10.0)
+  env.reset()
+  _rollout(env, _random_actions(env, 4))
+  state = env.task.get_state(env.physics)
+  replay = _random_actions(env, 6, seed=9)
+  first = _rollout(env, replay)
+  fresh = _env(seed=99, observations='full', time_limit=10.0)
+  fresh.reset()
+  fresh.task.set_state(fresh.physics, state)
+  _assert_same(first, _rollout(fresh, replay))
+
+
+def test_set_state_rejects_a_foreign_physics_state():
+  env = _env()
+  env.reset()
+  state = env.task.get_state(env.physics)
+  state['physics'] = state['physics'][:-3]
+  with pytest.raises(ValueError, match='physics state'):
+    env.task.set_state(env.physics, state)
+
+
+# ------------------------------------------------------------------ rewards
+
+
+def test_reward_delay_shifts_rewards_and_keeps_the_return():
+  rewards = {}
+  for delay in (0, 3):
+    env = _env(seed=2, reward='sparse', reward_delay=delay, time_limit=1.0)
+    env.reset()
+    rewards[delay] = [env.step(a).reward
+                      for a in _random_actions(env, 10, seed=5)]
+  assert rewards[3][:3] == [0.0, 0.0, 0.0]
+  assert rewards[3][3:9] == rewards[0][:6]
+  assert sum(rewards[3]) == pytest.approx(sum(rewards[0]))
+
+
+# ------------------------------------------------------------------ metrics
+
+
+def test_metrics_and_observer():
+  env = _env(seed=1, time_limit=0.5)
+  observer = metrics.EpisodeMetricsObserver()
+  rewards = []
+
+  def policy(timestep):
+    if timestep.reward is not None:
+      rewards.append(timestep.reward)
+    return np.zeros(env.action_spec().shape)
+
+  result = metrics.run_episode(env, policy, observer)
+  for name in metrics.COUNTERS + ('success', 'return', 'steps'):
+    assert name in result
+  assert result['steps'] == 5
+  assert observer.episodes == [result]
+  rewards.append(env.task.step_metrics['reward'])
+  assert result['return'] == pytest.approx(sum(rewards))
+  assert env.task.step_metrics['shield_interventions'] in (0, 1)
+  assert observer.summary()['steps'] == 5.0
+
+
+# -------------------------------------------------------- contact monitor
+
+
+def _clip_with_keypoint_at(task, point, keypoint):
+  """A still human whose `keypoint` sits at `point` (world)."""
+  shipped = clip_lib.shipped_library('reach')[0]
+  frame = shipped.positions[:1].astype(np.float64)
+  x, y, yaw = task.HUMAN_STATION
+  c, s = np.cos(yaw), np.sin(yaw)
+  rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+  world = frame[0] @ rot_t + np.array([x, y, 0.0])
+  shift = (np.asarray(point) - world[keypoints.KEYPOINT_INDEX[keypoint]]) @ rot_t.T
+  positions = np.repeat(frame + shift, 50, axis=0)
+  return shipped.replace(name='hand_in_robot', positions=positions,
+                         keyframes=(), idle_phases=(), fast_phases=(),
+                         targets={})
+
+
+def _human_in_robot_env(shield, seed=0):
+  probe = reach.Reach(robot='panda')
+  q_home = probe.robot.description.q_home
+  # The torso on the circle the TCP sweeps when the base joint turns from
+  # home towards +y, 90 degrees on: the robot sweeps into the person.
+  tcp = probe.kinematics.tcp_pose(q_home)[:3, 3]
+  radius = np.linalg.norm(tcp[:2])
+  angle = np.arctan2(tcp[1], tcp[0]) + np.pi / 2
+  torso = np.array([radius * np.cos(angle), radius * np.sin(angle), tcp[2]])
+  clip = _clip_with_keypoint_at(probe, torso, 'torso')
+  return suite.load('reach', 'dense', task_kwargs={
+      'robot': 'panda', 'shield': shield, 'motions': [clip],
+      'collision_prevention': 'off', 'done_at_success': False,
+      'time_limit': 3.0}, environment_kwargs={'random_state': seed})
+
+
+def _push_towards_human(env, steps=30):
+  env.reset()
+  assert env.physics.data.ncon == 0   # Not touching at the start.
+  action = np.zeros(7)
+  action[0] = 1.0     # Base joint turns the arm towards +y (the hand).
+  for _ in range(steps):
+    env.step(action)
+  return env.task.episode_metrics
+
+
+def test_monitor_sees_human_contacts_without_shield():
+  result = _push_towards_human(_human_in_robot_env('off'))
+  assert result['contacts_human_critical'] > 0
+
+
+def test_shield_prevents_critical_contacts_with_the_same_human():
+  result = _push_towards_human(_human_in_robot_env('ssm'))
+  assert result['contacts_human_critical'] == 0
+  assert result['shield_interventions'] > 0
+
+
+def test_random_actions_with_shield_have_no_critical_contacts():
+  for seed in range(3):
+    env = _env(seed=seed, time_limit=4.0, done_at_success=False)
+    result = metrics.run_episode(
+        env, lambda ts, rs=np.random.RandomState(seed): rs.uniform(
+            -1.0, 1.0, env.action_spec().shape))
+    assert result['contacts_human_critical'] == 0
+    assert result['contacts_static'] == 0
+    assert result['self_collisions'] == 0
+
+
+def test_contact_monitor_surface_speed_of_a_turning_link():
+  env = _env()
+  env.reset()
+  physics, task = env.physics, env.task
+  monitor = task._monitor
+  dq = np.zeros(7)
+  dq[0] = 2.0
+  task.robot.set_joint_velocities(physics, dq)
+  physics.forward()
+  body = physics.bind(task.robot.link_bodies[0]).element_id
+  axis_point = physics.bind(task.robot.link_bodies[0]).xpos.copy()
+  point = axis_point + np.array([0.3, 0.0, 0.0])
+  # A point 0.3 m from the base joint's (vertical) axis turning at 2 rad/s.
+  assert monitor.surface_speed(body, point) == pytest.approx(0.6, rel=1e-6)
+
+
+def test_contact_monitor_rejects_negative_threshold():
+  env = _env()
+  env.reset()
+  with pytest.raises(ValueError, match='critical_speed'):
+    contacts.ContactMonitor(env.physics, [], [], critical_speed=-1.0)
+
+
+def test_defaults_follow_the_reference():
+  task = reach.Reach()
+  assert task.shield_mode == 'ssm'
+  assert task.horizon == 100
+  assert task.physics_steps_per_control_step == base.DEFAULT_SHIELD_SUBSTEPS
+  assert task.critical_speed == contacts.SSM_STOPPED_SPEED
+  assert reach.Reach(shield='pfl').critical_speed == base.DEFAULT_V_SAFE
