@@ -1,0 +1,116 @@
+"""Visual-only goal markers and the "object at target" check.
+
+A `TargetMarker` is a sphere (or flat disc) with no collision and no mass
+effect: attach it with `arena.attach(marker)` (a fixed body, no joint) and
+move it per episode with `marker.set_pose(physics, position)`.
+"""
+
+import numbers
+
+from dm_control import composer
+from dm_control import mjcf
+from dm_control.composer.observation import observable
+import numpy as np
+
+MARKER_RADIUS = 0.02                     # m
+MARKER_RGBA = (0.1, 0.85, 0.2, 0.45)     # translucent green.
+DISC_HALF_THICKNESS = 0.001              # m
+SHAPES = ('sphere', 'disc')
+
+
+class TargetMarker(composer.Entity):
+  """A translucent sphere or disc marking a goal; it never touches anything."""
+
+  def _build(self, radius=MARKER_RADIUS, rgba=MARKER_RGBA, shape='sphere',
+             name='target'):
+    if (not isinstance(radius, numbers.Real) or not np.isfinite(radius)
+        or radius <= 0):
+      raise ValueError(f'Marker radius must be a positive finite number, got '
+                       f'{radius!r}')
+    if shape not in SHAPES:
+      raise ValueError(f'Unknown marker shape {shape!r}: expected one of '
+                       f'{", ".join(SHAPES)}')
+    rgba = np.asarray(rgba, dtype=float)
+    if rgba.shape != (4,) or np.any((rgba < 0) | (rgba > 1)):
+      raise ValueError(f'rgba must be 4 values in [0, 1], got {rgba.tolist()}')
+    self._radius = float(radius)
+    self._mjcf_root = mjcf.RootElement(model=name)
+    self._body = self._mjcf_root.worldbody.add('body', name=name)
+    if shape == 'sphere':
+      kind, size = 'sphere', (self._radius,)
+    else:
+      kind, size = 'cylinder', (self._radius, DISC_HALF_THICKNESS)
+    # Visual only: no collisions, no mass (mass 0 on a jointless body).
+    self._geom = self._body.add('geom', name='geom', type=kind, size=size,
+                                rgba=rgba, contype=0, conaffinity=0, mass=0,
+                                group=1)
+    self._site = self._body.add('site', name='site', size=(0.004,), group=4)
+
+  def _build_observables(self):
+    return TargetMarkerObservables(self)
+
+  @property
+  def mjcf_model(self):
+    return self._mjcf_root
+
+  @property
+  def radius(self):
+    return self._radius
+
+  @property
+  def body(self):
+    return self._body
+
+  @property
+  def geom(self):
+    return self._geom
+
+  @property
+  def site(self):
+    """The marker's centre."""
+    return self._site
+
+  def position(self, physics):
+    return physics.bind(self._site).xpos.copy()
+
+
+class TargetMarkerObservables(composer.Observables):
+  """World position of the marker's centre."""
+
+  @composer.observable
+  def position(self):
+    return observable.MJCFFeature('xpos', self._entity.site)
+
+
+def position_of(physics, thing):
+  """World position of a prop or marker (its body or site), an MJCF body or
+  site, or a 3-vector."""
+  if isinstance(thing, TargetMarker):
+    return physics.bind(thing.site).xpos
+  body = getattr(thing, 'body', None)
+  if isinstance(thing, composer.Entity) and body is not None:
+    return physics.bind(body).xpos
+  if isinstance(thing, mjcf.Element):
+    if thing.tag not in ('body', 'site', 'geom'):
+      raise ValueError(f'Cannot take the position of a <{thing.tag}> element '
+                       f'{thing.full_identifier!r}: expected a body, site or '
+                       'geom')
+    return physics.bind(thing).xpos
+  position = np.asarray(thing, dtype=float)
+  if position.shape != (3,) or not np.all(np.isfinite(position)):
+    raise ValueError(f'Expected a prop, marker, MJCF body/site/geom or a '
+                     f'finite 3-vector, got {thing!r}')
+  return position
+
+
+def distance_to_target(physics, obj, target):
+  """Euclidean distance (m) between `obj` and `target` (see position_of)."""
+  delta = position_of(physics, obj) - position_of(physics, target)
+  return float(np.sqrt(delta @ delta))
+
+
+def is_within(physics, obj, target, distance):
+  """True if `obj` is within `distance` metres of `target`."""
+  if not distance >= 0:
+    raise ValueError(f'distance must be non-negative, got {distance!r}')
+  return distance_to_target(physics, obj, target) <= distance
