@@ -1,0 +1,64 @@
+"""The task registry: names, tags, errors and environment construction."""
+
+from dm_control import composer
+import numpy as np
+import pytest
+
+from hrc_suite import suite
+from hrc_suite.tasks import reach
+
+
+def test_reach_tasks_are_registered():
+  assert ('reach', 'dense') in suite.ALL_TASKS
+  assert ('reach', 'sparse') in suite.ALL_TASKS
+  assert ('reach', 'dense') in suite.tasks_with_tag('dense')
+  assert ('reach', 'sparse') in suite.tasks_with_tag('sparse')
+  assert ('reach', 'sparse') not in suite.tasks_with_tag('dense')
+  assert ('reach', 'dense') in suite.tasks_with_tag('coexistence')
+
+
+def test_unknown_names_list_the_valid_ones():
+  with pytest.raises(ValueError, match=r"Unknown domain 'walk'.*reach"):
+    suite.load('walk', 'dense')
+  with pytest.raises(ValueError, match=r"Unknown task 'shaped'.*dense, "
+                     r"sparse"):
+    suite.load('reach', 'shaped')
+  with pytest.raises(ValueError, match='Unknown tag'):
+    suite.tasks_with_tag('fun')
+
+
+def test_register_rejects_duplicates_and_unknown_tags():
+  with pytest.raises(ValueError, match='already registered'):
+    suite.register('reach', 'dense')(lambda **kwargs: None)
+  with pytest.raises(ValueError, match='Unknown tags'):
+    suite.register('x', 'y', tags=('fast',))
+
+
+def test_load_builds_an_environment_with_the_task_time_limit():
+  env = suite.load('reach', 'sparse', task_kwargs={'time_limit': 0.5,
+                                                   'seed': 1})
+  assert isinstance(env, composer.Environment)
+  assert isinstance(env.task, reach.Reach)
+  timestep = env.reset()
+  assert timestep.observation['goal_difference'].shape == (7,)  # no buffer
+  steps = 0
+  while not timestep.last():
+    timestep = env.step(np.zeros(7))
+    steps += 1
+  assert steps == 5
+  assert timestep.discount == 1.0   # Truncation, not termination.
+
+
+def test_seed_in_task_kwargs_makes_runs_repeatable():
+  goals = []
+  for seed in (7, 7, 8):
+    env = suite.load('reach', 'dense', task_kwargs={'seed': seed})
+    env.reset()
+    goals.append(env.task.goal_position)
+  np.testing.assert_array_equal(goals[0], goals[1])
+  assert not np.array_equal(goals[0], goals[2])
+
+
+def test_time_limit_belongs_to_the_task():
+  with pytest.raises(ValueError, match='task kwarg'):
+    suite.load('reach', 'dense', environment_kwargs={'time_limit': 3.0})
