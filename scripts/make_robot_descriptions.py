@@ -182,6 +182,18 @@ def build(name, raw):
         'hrc_suite replaces by its own gripper and gripper capsule).'
         % (p1, p2, radius, old['p1'], old['p2'], old['radius']))
     raw['capsules'][-1] = dict(p1=p1, p2=p2, radius=radius)
+  if name == 'sawyer':
+    # The last fixed rotation is printed to 4 digits (0.9848, 0.1736): a
+    # rotation by 10 degrees. Store it exactly so every model agrees.
+    c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
+    rot = np.array(raw['transforms'][-1]['rotation'])
+    exact = np.where(np.isclose(np.abs(rot), 0.9848, atol=1e-4),
+                     np.sign(rot) * c, rot)
+    exact = np.where(np.isclose(np.abs(exact), 0.1736, atol=1e-4),
+                     np.sign(exact) * s, exact)
+    raw['transforms'][-1]['rotation'] = exact.tolist()
+    notes.append('Last fixed rotation stored with exact cos/sin of 10 deg '
+                 '(source: 4 digits).')
   inertias = []
   for i in range(n):
     ixx, ixy, ixz, iyy, iyz, izz = inertia_flat[6 * i:6 * i + 6]

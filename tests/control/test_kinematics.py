@@ -20,15 +20,7 @@ def _random_configurations(description, seed=0, n=NUM_CONFIGURATIONS):
                               size=(n, description.dof))
 
 
-def _rotation_tolerance(description):
-  """1e-6 plus how far the description's rotations are from SO(3).
-
-  Sawyer's last fixed rotation is printed with four digits (off SO(3) by
-  3e-5); the model uses the nearest proper rotation.
-  """
-  defect = max(np.abs(l.fixed_rotation @ l.fixed_rotation.T - np.eye(3)).max()
-               for l in description.links)
-  return 1e-6 + defect
+ROTATION_TOLERANCE = 1e-6
 
 
 def _base_pose():
@@ -45,7 +37,7 @@ def test_link_frames_match_description_fk(name):
   description = robot_description.load(name)
   base = _base_pose()
   model = kinematics.KinematicModel(description, base_pose=base)
-  tolerance = _rotation_tolerance(description)
+  tolerance = ROTATION_TOLERANCE
   for q in _random_configurations(description):
     ours = model.link_frames(q)
     expected = description.forward_kinematics(q, base=base)
@@ -77,13 +69,10 @@ def test_link_frames_match_mujoco(name):
     frames = model.link_frames(q)
     np.testing.assert_allclose(frames[:, :3, 3], bodies.xpos,
                                atol=POSITION_TOLERANCE)
-    # MuJoCo turns Sawyer's slightly non-orthonormal rotation into a unit
-    # quaternion by a different projection than the model's nearest
-    # rotation; both differ from it by less than the printed digits.
     np.testing.assert_allclose(frames[:, :3, :3].reshape(-1, 9), bodies.xmat,
-                               atol=_rotation_tolerance(description))
+                               atol=ROTATION_TOLERANCE)
     np.testing.assert_allclose(model.flange_pose(q)[:3, 3], flange.xpos,
-                               atol=10 * _rotation_tolerance(description))
+                               atol=POSITION_TOLERANCE)
 
 
 @pytest.mark.parametrize('name', ROBOTS)
@@ -105,9 +94,9 @@ def test_tcp_matches_mujoco_gripper_tcp_site(name):
     physics.forward()
     pose = model.tcp_pose(q)
     np.testing.assert_allclose(pose[:3, 3], tcp.xpos,
-                               atol=10 * _rotation_tolerance(description))
+                               atol=POSITION_TOLERANCE)
     np.testing.assert_allclose(pose[:3, :3].reshape(9), tcp.xmat,
-                               atol=_rotation_tolerance(description))
+                               atol=ROTATION_TOLERANCE)
 
 
 @pytest.mark.parametrize('name', ROBOTS)
