@@ -9,7 +9,9 @@ at the end of a reach by the arm's two-link solution (`body.py`). Steps are
 planned under the pelvis during walks. On top come breathing, postural sway
 and small idle drifts of the hands and head. `render` turns the script into a
 `Clip`; `python -m hrc_suite.human.synthesis --out=DIR` writes the shipped
-library (`task_motions.py` holds the per-task scripts).
+library (`task_motions.py` holds the per-task scripts). Every clip is checked
+against the shield's 2 m/s human speed, also while an idle phase warps it
+(`idle_speed_bound`, `fit_idle_phases`).
 """
 
 import argparse

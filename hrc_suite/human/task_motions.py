@@ -9,8 +9,8 @@ ROBOT_BASE_BESIDE. Every script draws its variation (targets, hands, timing,
 number of repetitions) from the given random_state only.
 
 Idle phases: amplitudes u_i (seconds of clip time) and periods of natural
-waiting (a slow sway of a second or so every 10-15 s plus a smaller, quicker
-shift), not the reference's values: those add a 0.6-0.7 frame sine at
+waiting (a slow sway of a second or so every 12-20 s plus smaller, quicker
+shifts), not the reference's values: those add a 0.6-0.7 frame sine at
 70-125 Hz whose slope of 2.6-3.1 drives keypoints past 2 m/s (see
 docs/motion_library.md). The generator then checks each phase's worst case
 and slows it where needed (synthesis.fit_idle_phases).
