@@ -1,7 +1,7 @@
 """Visual-only goal markers and the "object at target" check.
 
-A `TargetMarker` is a sphere (or flat disc) with no collision and no mass
-effect: attach it with `arena.attach(marker)` (a fixed body, no joint) and
+A `TargetMarker` is a sphere (or flat disc) drawn as a site on a body
+without joints, so it has no collision and no mass effect: attach it with `arena.attach(marker)` (a fixed body, no joint) and
 move it per episode with `marker.set_pose(physics, position)`.
 """
 
@@ -16,10 +16,11 @@ MARKER_RADIUS = 0.02                     # m
 MARKER_RGBA = (0.1, 0.85, 0.2, 0.45)     # translucent green.
 DISC_HALF_THICKNESS = 0.001              # m
 SHAPES = ('sphere', 'disc')
+MARKER_GROUP = 0                         # visible by default.
 
 
 class TargetMarker(composer.Entity):
-  """A translucent sphere or disc marking a goal; it never touches anything."""
+  """A translucent sphere or disc marking a goal; it touches nothing."""
 
   def _build(self, radius=MARKER_RADIUS, rgba=MARKER_RGBA, shape='sphere',
              name='target'):
@@ -40,11 +41,9 @@ class TargetMarker(composer.Entity):
       kind, size = 'sphere', (self._radius,)
     else:
       kind, size = 'cylinder', (self._radius, DISC_HALF_THICKNESS)
-    # Visual only: no collisions, no mass (mass 0 on a jointless body).
-    self._geom = self._body.add('geom', name='geom', type=kind, size=size,
-                                rgba=rgba, contype=0, conaffinity=0, mass=0,
-                                group=1)
-    self._site = self._body.add('site', name='site', size=(0.004,), group=4)
+    # A site: drawn, but never collides and has no mass.
+    self._site = self._body.add('site', name='site', type=kind, size=size,
+                                rgba=rgba, group=MARKER_GROUP)
 
   def _build_observables(self):
     return TargetMarkerObservables(self)
@@ -62,12 +61,8 @@ class TargetMarker(composer.Entity):
     return self._body
 
   @property
-  def geom(self):
-    return self._geom
-
-  @property
   def site(self):
-    """The marker's centre."""
+    """The marker's visual site; its origin is the goal."""
     return self._site
 
   def position(self, physics):
