@@ -12,7 +12,11 @@ step is exactly L shield cycles.
   last action dimension drives the gripper where the task has one.
 * before_substep, in this order (the task's hook runs before the entities',
   so nothing relies on entity hooks): player.advance(dt) ->
-  human.set_keypoints -> shield.step(keypoints, t) -> controller.
+  human.set_keypoints -> shield.step(keypoints, t) -> controller. The
+  player is advanced through the RL step's substeps at the end of
+  before_step and its poses are played back substep by substep
+  (`human_playback`: events only change between RL steps, so this is the
+  same motion, computed with one vectorised call per RL step).
 * after_substep: the contact monitor (`contacts`).
 * after_step: self-collision check (capsule model), the task's own logic
   (`_update_task`, `_human_events`), reward (with optional delay and the
@@ -49,6 +53,7 @@ from hrc_suite.safety import geometry
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
@@ -199,6 +204,8 @@ class HrcTask(composer.Task):
     self._player = player_lib.Player(
         load_motions(motions, self.MOTIONS), station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
+    self._playback = human_playback.HumanPlayback(
+        self._human, self._player, shield_substeps)
     self._observed_keypoints = np.array(
         keypoints.index(OBSERVED_HUMAN_KEYPOINTS))
 
@@ -386,7 +393,8 @@ class HrcTask(composer.Task):
     self._pending_rewards = collections.deque()
     self._terminate = False
     self._discount = 1.0
-    self._human_clip = None
+    self._substep = 0
+    self._playback.forget_clip()
     self._step_flags[:] = False
     self._contact_steps[:] = 0
     self._cp_random = np.random.RandomState(0)
@@ -399,6 +407,8 @@ class HrcTask(composer.Task):
   def _bind(self, physics):
     """Caches controller, monitor and views for a compiled physics."""
     self._physics_ptr = physics.data.ptr
+    self._dt = float(physics.model.opt.timestep)
+    self._playback.bind(physics)
     self._controller = controller_lib.JointTrackingController(
         physics, self._robot)
     static = list(self._arena.static_geoms)
@@ -424,18 +434,11 @@ class HrcTask(composer.Task):
     self._gripper.set_command(physics, -1.0)
     self._cp_random = np.random.RandomState(random_state.randint(_SEED_RANGE))
     self._player.reset(random_state)
-    self._move_human(physics)
+    self._playback.show_current(physics)
     self._shield.reset(q_home, 0.0)
     self._metrics.reset()
     physics.forward()
     self._initialize_task(physics, random_state)
-
-  def _move_human(self, physics):
-    clip = self._player.clip
-    if clip is not self._human_clip:
-      self._human.resize(physics, clip)
-      self._human_clip = clip
-    self._human.set_keypoints(physics, self._player.positions)
 
   # ------------------------------------------------------------- step loop
 
@@ -468,14 +471,16 @@ class HrcTask(composer.Task):
                        'ik_failures': int(outcome.get('ik_failed', False))}
     self._intervened = False
     self._step_flags[:] = False
+    self._substep = 0
+    self._playback.advance(self._dt)
 
   def before_substep(self, physics, action, random_state):
     del action, random_state
-    player = self._player
-    player.advance(self.physics_timestep)
-    self._move_human(physics)
-    self._time = player.episode_time
-    q, dq, ddq = self._shield.step(player.positions, self._time)
+    k = self._substep
+    self._substep = k + 1
+    positions = self._playback.apply(physics, k)
+    self._time = self._playback.times[k]
+    q, dq, ddq = self._shield.step(positions, self._time)
     self._intervened |= self._shield.intervened
     self._controller(physics, q, dq, ddq)
 
@@ -582,9 +587,7 @@ class HrcTask(composer.Task):
     mujoco.mj_setState(physics.model.ptr, physics.data.ptr, physics_state,
                        _STATE_SPEC)
     self._player.set_state(state['player'])
-    self._human_clip = None
-    self._human.resize(physics, self._player.clip)
-    self._human_clip = self._player.clip
+    self._playback.show_clip(physics)
     self._shield.__dict__.update(copy.deepcopy(state['shield']))
     task = state['task']
     self._q_goal = np.array(task['q_goal'], dtype=float)

@@ -405,3 +405,20 @@ def test_defaults_follow_the_reference():
   assert task.physics_steps_per_control_step == base.DEFAULT_SHIELD_SUBSTEPS
   assert task.critical_speed == contacts.SSM_STOPPED_SPEED
   assert reach.Reach(shield='pfl').critical_speed == base.DEFAULT_V_SAFE
+
+
+def test_batched_human_playback_matches_set_keypoints():
+  env = _env(seed=4, time_limit=10.0)
+  env.reset()
+  for action in _random_actions(env, 3):
+    env.step(action)
+  physics, task = env.physics, env.task
+  played_pos = physics.data.mocap_pos.copy()
+  played_quat = physics.data.mocap_quat.copy()
+  # The pose after the step is the player's current pose, as Human puts it.
+  task.human.set_keypoints(physics, task.player.positions)
+  np.testing.assert_allclose(played_pos, physics.data.mocap_pos, atol=1e-12)
+  np.testing.assert_allclose(played_quat, physics.data.mocap_quat,
+                             atol=1e-12)
+  # The player moved the human during the step.
+  assert task.player.episode_time == pytest.approx(0.3)   # 3 RL steps

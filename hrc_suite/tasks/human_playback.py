@@ -1,0 +1,118 @@
+"""The human's motion for one RL step, computed at once, played per substep.
+
+The player's motion depends on the task only through events, which tasks
+trigger between RL steps (after_step). So at the start of an RL step the
+player can be advanced through all L substeps at once, keeping the keypoints
+of each substep; the capsule frames of all L x S segments then come from one
+vectorised `human.segment_frames` call instead of L calls (it dominates the
+human's per-substep cost). Each substep only copies its rows into MuJoCo's
+mocap arrays and hands its keypoints to the shield, exactly as if the player
+had been advanced in that substep.
+
+The capsule frames follow `Human.set_keypoints` (same segments, same
+reference lines: shoulder line for head, torso and arms, hip line for the
+legs, world z for the pelvis); tests check the two agree.
+"""
+
+import numpy as np
+
+from hrc_suite.entities import human as human_lib
+from hrc_suite.human import keypoints
+
+_LEG_PARTS = ('thigh', 'shin')
+
+
+class HumanPlayback:
+  """Batches a Player's keypoints over an RL step onto a Human."""
+
+  def __init__(self, human, player, substeps):
+    self._human = human
+    self._player = player
+    self.substeps = int(substeps)
+    k, s = keypoints.NUM_KEYPOINTS, len(human_lib.SEGMENTS)
+    index = keypoints.KEYPOINT_INDEX
+    proximal = np.array(keypoints.index([seg[1] for seg in
+                                         human_lib.SEGMENTS]))
+    distal = np.array(keypoints.index([seg[2] for seg in
+                                       human_lib.SEGMENTS]))
+    offsets = (k * np.arange(self.substeps))[:, None]
+    self._proximal = (proximal[None] + offsets).ravel()
+    self._distal = (distal[None] + offsets).ravel()
+    names = [seg[0] for seg in human_lib.SEGMENTS]
+    self._hip_line = np.array([any(p in n for p in _LEG_PARTS)
+                               for n in names])
+    self._vertical = np.array([n == 'pelvis' for n in names])
+    self._shoulder_line = ~(self._hip_line | self._vertical)
+    self._shoulders = (index['left_shoulder'], index['right_shoulder'])
+    self._hips = (index['left_hip'], index['right_hip'])
+    self.positions = np.zeros((self.substeps, k, 3))
+    self.times = np.zeros(self.substeps)
+    self.clips = [None] * self.substeps
+    self._reference = np.zeros((self.substeps, s, 3))
+    self._reference[:, self._vertical] = (0.0, 0.0, 1.0)
+    self._middles = np.zeros((self.substeps, s, 3))
+    self._quaternions = np.zeros((self.substeps, s, 4))
+    self._physics_ptr = None
+    self._shown_clip = None
+
+  def bind(self, physics):
+    """Mocap indices of the human's capsules and keypoints in `physics`."""
+    model = physics.model
+    bodies = [model.name2id(frame.full_identifier, 'body')
+              for frame in self._human.segment_bodies]
+    self._segment_mocap = model.body_mocapid[bodies].copy()
+    sites = physics.bind(list(self._human.keypoint_sites)).element_id
+    self._keypoint_mocap = model.body_mocapid[model.site_bodyid[sites]].copy()
+    self._mocap_pos = physics.data.ptr.mocap_pos
+    self._mocap_quat = physics.data.ptr.mocap_quat
+    self._physics_ptr = physics.data.ptr
+
+  def show_current(self, physics):
+    """Puts the human at the player's current pose (episode start,
+    snapshots); resizes the capsules to the current clip."""
+    self._resize(physics, self._player.clip)
+    self._human.set_keypoints(physics, self._player.positions)
+
+  def show_clip(self, physics):
+    """Sizes the capsules for the player's current clip (after restoring a
+    snapshot, whose physics state already holds the human's pose)."""
+    self._shown_clip = None
+    self._resize(physics, self._player.clip)
+
+  def _resize(self, physics, clip):
+    if clip is not self._shown_clip:
+      self._human.resize(physics, clip)
+      self._shown_clip = clip
+
+  def forget_clip(self):
+    self._shown_clip = None
+
+  def advance(self, dt):
+    """Advances the player through the RL step's substeps."""
+    player = self._player
+    for k in range(self.substeps):
+      player.advance(dt)
+      self.positions[k] = player.positions
+      self.times[k] = player.episode_time
+      self.clips[k] = player.clip
+    reference = self._reference
+    left, right = self._shoulders
+    reference[:, self._shoulder_line] = (self.positions[:, left]
+                                        - self.positions[:, right])[:, None]
+    left, right = self._hips
+    reference[:, self._hip_line] = (self.positions[:, left]
+                                   - self.positions[:, right])[:, None]
+    middles, _, quaternions = human_lib.segment_frames(
+        self.positions.reshape(-1, 3), self._proximal, self._distal,
+        reference.reshape(-1, 3))
+    self._middles[:] = middles.reshape(self._middles.shape)
+    self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
+
+  def apply(self, physics, k):
+    """Moves the human to substep k's pose; returns its keypoints."""
+    if self.clips[k] is not self._shown_clip:
+      self._resize(physics, self.clips[k])
+    self._mocap_pos[self._segment_mocap] = self._middles[k]
+    self._mocap_quat[self._segment_mocap] = self._quaternions[k]
+    self._mocap_pos[self._keypoint_mocap] = self.positions[k]
+    return self.positions[k]
