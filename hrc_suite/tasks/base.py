@@ -471,6 +471,7 @@ class HrcTask(composer.Task):
                        'ik_failures': int(outcome.get('ik_failed', False))}
     self._intervened = False
     self._step_flags[:] = False
+    self._monitor.reset()
     self._substep = 0
     self._playback.advance(self._dt)
 
@@ -533,6 +534,7 @@ class HrcTask(composer.Task):
     step['self_collisions'] = int(self_collision)
     step['goals_reached'] = int(success)
     step['min_human_distance'] = self._shield.min_distance
+    step['max_human_contact_speed'] = self._monitor.max_human_contact_speed
     for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
       step[f'contacts_{name}'] = int(count)
     self._contact_steps[:] = 0

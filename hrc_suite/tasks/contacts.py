@@ -62,13 +62,11 @@ class ContactMonitor:
     self._model, self._data = model.ptr, physics.data.ptr
     self._geom_body = model.geom_bodyid.copy()
     self._velocity = np.zeros(6)
-    self.step_flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
+    self._flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
     self.max_human_contact_speed = 0.0
-    self.reset()
 
   def reset(self):
-    """Clears the per-step flags."""
-    self.step_flags[:] = False
+    """Starts a new interval for `max_human_contact_speed`."""
     self.max_human_contact_speed = 0.0
 
   def surface_speed(self, body, point):
@@ -82,9 +80,10 @@ class ContactMonitor:
 
   def update(self):
     """Classifies the current contacts; returns flags (len(CONTACT_TYPES),)
-    of the types present now (also OR-ed into `step_flags`)."""
+    of the types present now (an array reused by the next call)."""
     data = self._data
-    flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
+    flags = self._flags
+    flags[:] = False
     ncon = data.ncon
     if ncon == 0:
       return flags
@@ -106,5 +105,4 @@ class ContactMonitor:
         self.max_human_contact_speed = max(self.max_human_contact_speed,
                                            speed)
         flags[2 if speed > self.critical_speed else 1] = True
-    self.step_flags |= flags
     return flags

@@ -20,6 +20,10 @@ from hrc_suite.tasks import contacts
 # * action_replacements: actions replaced by collision prevention.
 # * ik_failures: Cartesian actions whose IK failed (the goal was kept).
 # * goals_reached: RL steps at which the task's goal was reached.
+# Besides: success (0/1, reached at least once), return, steps,
+# min_human_distance (m, robot capsules at the shield's command to the human
+# body capsules, the minimum over RL step ends) and max_human_contact_speed
+# (m/s, the robot's fastest surface point in a human contact).
 COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
              'self_collisions', 'goals_reached')
             + tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES))
@@ -37,7 +41,8 @@ class EpisodeMetrics:
   def reset(self):
     self.episode = {name: 0 for name in self.counters}
     self.episode.update({'success': 0.0, 'return': 0.0, 'steps': 0,
-                         'min_human_distance': float('inf')})
+                         'min_human_distance': float('inf'),
+                         'max_human_contact_speed': 0.0})
     self.step = {}
 
   def record(self, step):
@@ -54,6 +59,10 @@ class EpisodeMetrics:
     if distance is not None:
       episode['min_human_distance'] = min(episode['min_human_distance'],
                                           float(distance))
+    speed = step.get('max_human_contact_speed')
+    if speed is not None:
+      episode['max_human_contact_speed'] = max(
+          episode['max_human_contact_speed'], float(speed))
 
   def state(self):
     return {'episode': dict(self.episode), 'step': dict(self.step)}

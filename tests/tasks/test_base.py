@@ -320,9 +320,10 @@ def _clip_with_keypoint_at(task, point, keypoint):
   c, s = np.cos(yaw), np.sin(yaw)
   rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
   world = frame[0] @ rot_t + np.array([x, y, 0.0])
-  shift = (np.asarray(point) - world[keypoints.KEYPOINT_INDEX[keypoint]]) @ rot_t.T
+  offset = np.asarray(point) - world[keypoints.KEYPOINT_INDEX[keypoint]]
+  shift = offset @ rot_t.T
   positions = np.repeat(frame + shift, 50, axis=0)
-  return shipped.replace(name='hand_in_robot', positions=positions,
+  return shipped.replace(name='person_in_robot_path', positions=positions,
                          keyframes=(), idle_phases=(), fast_phases=(),
                          targets={})
 
@@ -356,6 +357,7 @@ def _push_towards_human(env, steps=30):
 def test_monitor_sees_human_contacts_without_shield():
   result = _push_towards_human(_human_in_robot_env('off'))
   assert result['contacts_human_critical'] > 0
+  assert result['max_human_contact_speed'] > contacts.SSM_STOPPED_SPEED
 
 
 def test_shield_prevents_critical_contacts_with_the_same_human():
