@@ -62,3 +62,15 @@ def test_seed_in_task_kwargs_makes_runs_repeatable():
 def test_time_limit_belongs_to_the_task():
   with pytest.raises(ValueError, match='task kwarg'):
     suite.load('reach', 'dense', environment_kwargs={'time_limit': 3.0})
+
+
+def test_episodes_reuse_the_compiled_model():
+  env = suite.load('reach', 'dense', task_kwargs={'time_limit': 0.2})
+  env.reset()
+  data = env.physics.data.ptr
+  first_goal = env.task.goal_position
+  for _ in range(2):
+    env.step(np.zeros(7))
+  env.reset()
+  assert env.physics.data.ptr is data
+  assert not np.array_equal(env.task.goal_position, first_goal)
