@@ -8,24 +8,20 @@ from dm_control import mjcf
 
 from hrc_suite import layout
 from hrc_suite.control import controller as controller_lib
-from hrc_suite.control import ik as ik_lib
-from hrc_suite.control import kinematics
-from hrc_suite.control import trajectory
 from hrc_suite.entities import collision_groups
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import markers
 from hrc_suite.entities import nail_board
 from hrc_suite.entities import props
-from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import task_motions
 
+import grasping   # tests/entities/grasping.py
+
 TOP = layout.TABLE_TOP_Z
-BASE = np.eye(4)
-BASE[:3, 3] = layout.ROBOT_BASE_POS
 # Hammer lying on its side, +y (the grip site's approach side) up.
 ON_ITS_SIDE = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
@@ -44,18 +40,12 @@ PROPS = {
 
 
 def _scene(*entities, robot_name='ur5e'):
-  """Workcell with the entities and, unless robot_name is None, a robot."""
-  arena = workcell.Workcell()
-  robot = gripper = None
-  if robot_name is not None:
-    robot = robot_lib.make_robot(robot_name)
-    gripper = robot.attach_gripper(gripper_lib.ParallelGripper())
-    arena.attach_robot(robot)
+  """grasping.scene, with markers attached as fixed entities."""
+  free = [e for e in entities if not isinstance(e, markers.TargetMarker)]
+  arena, robot, gripper = grasping.scene(*free, robot_name=robot_name)
   for entity in entities:
     if isinstance(entity, markers.TargetMarker):
       arena.attach(entity)
-    else:
-      arena.add_free_entity(entity)
   return arena, robot, gripper
 
 
@@ -224,56 +214,18 @@ def test_target_marker_is_visual_only_and_helpers_measure_distance():
 # --- The robot grasps a prop at its grip site and lifts it for 2 s. ---
 
 
-def _yaw_of(site_binding):
-  x_axis = site_binding.xmat.reshape(3, 3)[:, 0]
-  return float(np.arctan2(x_axis[1], x_axis[0]))
-
-
 def _grasp_and_lift(prop, site, position, quat, robot_name='ur5e'):
-  """Returns (gripped every step of the 2 s hold, prop lift (m), largest TCP
-  to grip-site distance while held (m))."""
+  """Returns (gripped every step of the lift and 2 s hold, prop lift (m),
+  largest TCP to grip-site distance while held (m))."""
   arena, robot, gripper = _scene(prop, robot_name=robot_name)
   physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
-  description = robot.description
   prop.set_pose(physics, position, quat)
   physics.forward()
-  model = kinematics.KinematicModel(description, base_pose=BASE,
-                                    tcp_offset=gripper_lib.TCP_OFFSET)
-  solver = ik_lib.InverseKinematics(model)
-  grip = physics.bind(site)
-  yaw = _yaw_of(grip)
-  grasp = solver.solve(grip.xpos.copy(), description.q_home, yaw)
-  above = solver.solve(grip.xpos + (0, 0, 0.15), grasp.q, yaw)
-  assert grasp.success and above.success
-  robot.set_joint_positions(physics, above.q)
-  physics.forward()
-  controller = controller_lib.JointTrackingController(physics, robot)
-  tcp = physics.bind(robot.tcp_site)
   start = physics.bind(prop.body).xpos.copy()
-
-  def follow(path, command, record=None):
-    for q, dq, ddq in zip(*path):
-      controller(physics, q, dq, ddq)
-      gripper.set_command(physics, command)
-      physics.step()
-      if record is not None:
-        record.append((props.is_gripped(physics, gripper, prop),
-                       np.linalg.norm(tcp.xpos - grip.xpos)))
-
-  def rest(q, steps):
-    zeros = np.zeros((steps, description.dof))
-    return np.repeat(q[None], steps, 0), zeros, zeros
-
-  follow(rest(above.q, 75), -1)
-  follow(trajectory.jerk_limited_trajectory(description, [above.q, grasp.q],
-                                            limits='ltt'), -1)
-  assert not props.is_gripped(physics, gripper, prop)
-  follow(rest(grasp.q, 50), 1)
-  held = []
-  follow(trajectory.jerk_limited_trajectory(description, [grasp.q, above.q],
-                                            limits='ltt'), 1, held)
-  follow(rest(above.q, 500), 1, held)   # 2 s
-  gripped, distance = np.array(held).T
+  pick = grasping.PickUp(physics, robot, gripper, prop, site)
+  assert pick.pick()
+  pick.hold(2.0)
+  gripped, distance = np.array(pick.held).T
   lift = physics.bind(prop.body).xpos[2] - start[2]
   return gripped.all(), lift, distance.max()
 
