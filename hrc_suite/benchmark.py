@@ -2,9 +2,9 @@
 
 Prints, per robot, the median wall time of one 4 ms physics step of the
 workcell with robot, gripper and tracking controller, next to a bare
-`mujoco.mj_step` of the same model, so the overhead is a ratio; and (when
-the safety package is present) the shield's cycle time. Numbers are recorded
-in docs/benchmarks.md.
+`mujoco.mj_step` of the same model, so the overhead is a ratio; and the
+shield's cycle time with the human close, across the table and far. Numbers
+are recorded in docs/benchmarks.md.
 """
 
 import platform
@@ -102,12 +102,9 @@ def run_physics(robots, steps):
 
 
 def run_shield(robots):
-  try:
-    from hrc_suite.safety import benchmark as shield_benchmark
-  except ImportError as e:
-    print(f'\n(shield benchmark unavailable: {e})')
-    return
-  shield_benchmark.main(robots)
+  from hrc_suite.safety import benchmark as shield_benchmark
+  print('\n## Shield cycle\n')
+  shield_benchmark.main(['--robots', *robots])
 
 
 def main(argv):
