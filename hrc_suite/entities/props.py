@@ -312,6 +312,7 @@ class Board(Prop):
     self._human_grip_site = body.add(
         'site', name='human_grip_site', size=(0.005,),
         pos=(length / 2 - HUMAN_GRIP_INSET, 0, thickness / 2), group=4)
+    self._id_cache = None
 
   def _build_observables(self):
     return BoardObservables(self)
@@ -340,14 +341,19 @@ class Board(Prop):
   def human_grip_site(self):
     return self._human_grip_site
 
+  def _body_id(self, physics):
+    if self._id_cache is None or self._id_cache[0] is not physics:
+      self._id_cache = (physics, int(physics.bind(self._body).element_id))
+    return self._id_cache[1]
+
   def normal(self, physics):
     """World direction of the board's top-face normal."""
-    return physics.bind(self._body).xmat[2::3].copy()   # column z.
+    return physics.data.xmat[self._body_id(physics), 2::3].copy()  # z column
 
   def tilt(self, physics):
     """Angle (rad) between the board's normal and world z."""
-    return float(np.arccos(np.clip(physics.bind(self._body).xmat[8],
-                                   -1.0, 1.0)))
+    cosine = physics.data.xmat[self._body_id(physics), 8]
+    return float(np.arccos(min(max(cosine, -1.0), 1.0)))
 
 
 class BoardObservables(PropObservables):

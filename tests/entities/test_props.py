@@ -259,6 +259,43 @@ def test_robot_grasps_and_lifts_the_nail_board_by_its_handle():
   assert distance < 0.01
 
 
+def test_robot_and_a_partner_lift_the_board_level():
+  board = props.Board()
+  arena, robot, gripper = _scene(board)
+  start = np.array([0.85, 0.0, TOP + props.BOARD_SIZE[2] / 2])
+  board.root_body.pos = start   # The weld's relative pose is taken here.
+  # The partner's hand: a mocap body welded at the human's end.
+  hand_position = start + np.asarray(board.human_grip_site.pos)
+  hand = arena.mjcf_model.worldbody.add('body', name='partner_hand',
+                                        mocap=True, pos=hand_position)
+  arena.mjcf_model.equality.add('weld', body1=hand, body2=board.body,
+                                solref=(0.01, 1.0))
+  physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+  pick = grasping.PickUp(physics, robot, gripper, board,
+                         board.robot_grip_site)
+  start_height = []
+  tilts = []
+
+  def partner_follows():   # The hand rises as the robot's TCP does.
+    if not start_height:
+      start_height.append(pick.tcp.xpos[2])
+    rise = max(0.0, pick.tcp.xpos[2] - start_height[0])
+    physics.data.mocap_pos[0] = hand_position + (0, 0, rise)
+    tilts.append(board.tilt(physics))
+
+  pick.follow(pick.rest(pick.q_above, 75), -1)
+  pick.follow(pick.move(pick.q_above, pick.q_grasp), -1)
+  pick.follow(pick.rest(pick.q_grasp, 50), 1)
+  pick.follow(pick.move(pick.q_grasp, pick.q_above), 1, record=True,
+              hook=partner_follows)
+  pick.hold(2.0, hook=partner_follows)
+  gripped, distance = np.array(pick.held).T
+  assert gripped.all() and distance.max() < 0.01
+  assert max(tilts) < np.radians(2.0)
+  assert physics.bind(board.body).xpos[2] - start[2] == pytest.approx(
+      0.15, abs=0.01)
+
+
 # --- The human holds the hammer and it follows the hand. ---
 
 
