@@ -75,7 +75,7 @@ def test_starts_at_rest_and_defaults(panda):
   assert not shield.is_safe   # Nothing verified yet.
   assert shield_lib.Shield(panda, mode='off').is_safe
   assert shield.v_safe == panda.shield.v_safe == 0.05
-  assert shield_lib.Shield('schunk').v_safe == 0.1
+  assert shield_lib.Shield('schunk').v_safe == 0.05   # suite default
   assert shield_lib.Shield(panda, v_safe=0.2).v_safe == 0.2
 
 
