@@ -366,6 +366,39 @@ def test_shield_prevents_critical_contacts_with_the_same_human():
   assert result['shield_interventions'] > 0
 
 
+def _clips_moved_towards_robot(task, distance):
+  """The shipped reach clips with the person `distance` m closer to the
+  robot (the station faces the robot's workspace)."""
+  _, _, yaw = task.HUMAN_STATION
+  c, s = np.cos(yaw), np.sin(yaw)
+  rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+  shift = np.array([0.0, -distance, 0.0]) @ rot_t.T
+  return [clip.replace(positions=(clip.positions + shift).astype(np.float32))
+          for clip in clip_lib.shipped_library('reach')]
+
+
+def test_random_actions_near_a_moving_human():
+  """The human works 0.45 m closer than usual: unshielded random motion hits
+  them at speed; shielded, the same seeds make no critical contact."""
+  clips = _clips_moved_towards_robot(reach.Reach, 0.45)
+  totals = {}
+  for shield in ('off', 'ssm'):
+    for seed in range(3):
+      env = _env(seed=seed, shield=shield, motions=clips, time_limit=6.0,
+                 done_at_success=False)
+      rs = np.random.RandomState(seed)
+      result = metrics.run_episode(
+          env, lambda ts: rs.uniform(-1.0, 1.0, env.action_spec().shape))
+      for name in ('contacts_human_critical', 'shield_interventions',
+                   'contacts_static', 'self_collisions'):
+        totals[shield, name] = totals.get((shield, name), 0) + result[name]
+  assert totals['off', 'contacts_human_critical'] > 0
+  assert totals['ssm', 'contacts_human_critical'] == 0
+  assert totals['ssm', 'shield_interventions'] > 0
+  assert totals['ssm', 'contacts_static'] == 0
+  assert totals['ssm', 'self_collisions'] == 0
+
+
 def test_random_actions_with_shield_have_no_critical_contacts():
   for seed in range(3):
     env = _env(seed=seed, time_limit=4.0, done_at_success=False)
