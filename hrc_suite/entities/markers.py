@@ -1,8 +1,10 @@
 """Visual-only goal markers and the "object at target" check.
 
 A `TargetMarker` is a sphere (or flat disc) drawn as a site on a body
-without joints, so it has no collision and no mass effect: attach it with `arena.attach(marker)` (a fixed body, no joint) and
-move it per episode with `marker.set_pose(physics, position)`.
+without joints or geoms, so it has no collision and no mass effect. Attach
+it with `arena.attach(marker)` (fixed) and move it per episode with
+`marker.set_pose(physics, position)`; attached to a moving body's frame it
+follows that body.
 """
 
 import numbers

@@ -67,7 +67,7 @@ BOARD_MASS = 2.5                 # kg, including the handle.
 # Handle: thin along x so the fingers, closing along x, take the board's
 # weight moment (about y) through the pads' normal forces.
 HANDLE_HALF_SIZE = (0.015, 0.04, 0.03)   # m: 3 cm thick, 8 cm wide, 6 cm tall.
-HANDLE_INSET = 0.08              # m from the board's robot end (-x).
+HANDLE_INSET = 0.08              # m from the board's robot end (-x), default.
 HUMAN_GRIP_INSET = 0.1           # m from the board's human end (+x).
 # Fingertips sit 1 cm beyond the TCP (gripper.py: pads end at 0.13 m, TCP at
 # 0.12 m): the TCP goes this far below the handle's top, leaving the pads
@@ -264,15 +264,19 @@ class Hammer(Prop):
     return self._head_site
 
 
-def _check_board_size(size):
+def _check_board_size(size, handle_inset):
   values = np.asarray(size, dtype=float)
   if values.shape != (3,) or not np.all(np.isfinite(values) & (values > 0)):
     raise ValueError('Board size must be 3 positive lengths (length, width, '
                      f'thickness), got {size!r}')
-  if values[0] <= 2 * (HANDLE_INSET + HANDLE_HALF_SIZE[0]) or (
+  if not 0 <= handle_inset < np.inf:
+    raise ValueError(f'Board handle_inset must be a distance >= 0 m, got '
+                     f'{handle_inset!r}')
+  if values[0] / 2 < handle_inset + 2 * HANDLE_HALF_SIZE[0] or (
       values[1] < 2 * HANDLE_HALF_SIZE[1]):
     raise ValueError(f'Board size {size!r} is too small for its handle '
-                     f'({2 * np.array(HANDLE_HALF_SIZE)} m)')
+                     f'({2 * np.array(HANDLE_HALF_SIZE)} m, {handle_inset} m '
+                     'from the end, on the robot\'s half)')
   return values
 
 
@@ -283,10 +287,13 @@ class Board(Prop):
   human end at +x), z normal to its top face. Sites: `robot_grip_site` (TCP
   frame of a top grasp on the handle, fingers closing along x),
   `human_grip_site` (centre of the human's end, on the top face).
+  `handle_inset`: distance (m) from the robot's end to the handle, so a task
+  can put the handle where its robots reach.
   """
 
-  def _build(self, size=BOARD_SIZE, mass=BOARD_MASS, name='board'):
-    self._size = _check_board_size(size)
+  def _build(self, size=BOARD_SIZE, mass=BOARD_MASS,
+             handle_inset=HANDLE_INSET, name='board'):
+    self._size = _check_board_size(size, handle_inset)
     self._mass = _check_positive(mass, 'Board mass')
     handle_mass = WOOD_DENSITY * 8 * np.prod(HANDLE_HALF_SIZE)
     if handle_mass >= self._mass:
@@ -299,7 +306,7 @@ class Board(Prop):
     self._plate = self._add_collision_geom(
         name='plate', type='box', size=self._size / 2, material=wood,
         mass=self._mass - handle_mass)
-    handle_x = -length / 2 + HANDLE_INSET + HANDLE_HALF_SIZE[0]
+    handle_x = -length / 2 + handle_inset + HANDLE_HALF_SIZE[0]
     handle_top = thickness / 2 + 2 * HANDLE_HALF_SIZE[2]
     self._handle = self._add_collision_geom(
         name='handle', type='box', size=HANDLE_HALF_SIZE,

@@ -99,6 +99,10 @@ def test_bad_arguments_raise_clear_errors():
     props.Board(size=(1.0, 0.4))
   with pytest.raises(ValueError, match='too small'):
     props.Board(size=(0.1, 0.4, 0.03))
+  with pytest.raises(ValueError, match='too small'):
+    props.Board(handle_inset=0.48)
+  with pytest.raises(ValueError, match='handle_inset'):
+    props.Board(handle_inset=-0.1)
   with pytest.raises(ValueError, match='handle'):
     props.Board(mass=0.01)
   with pytest.raises(ValueError, match='4 colours'):
@@ -171,7 +175,11 @@ def test_observables_and_board_tilt():
   # Grip sites sit where documented: on the board's handle, human's end.
   robot_site = physics.bind(board.robot_grip_site).xpos
   human_site = physics.bind(board.human_grip_site).xpos
-  assert np.linalg.norm(human_site - robot_site) > 0.7
+  assert np.linalg.norm(human_site - robot_site) == pytest.approx(
+      1.0 - props.HANDLE_INSET - props.HANDLE_HALF_SIZE[0]
+      - props.HUMAN_GRIP_INSET, abs=0.03)   # Up to the sites' heights.
+  inset = props.Board(handle_inset=0.3)
+  assert inset.robot_grip_site.pos[0] == pytest.approx(-0.5 + 0.3 + 0.015)
 
 
 def test_target_marker_is_visual_only_and_helpers_measure_distance():
