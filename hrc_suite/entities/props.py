@@ -37,10 +37,10 @@ STACKING_COLOURS = ((0.0, 0.45, 0.70, 1.0), (0.90, 0.62, 0.0, 1.0),
                     (0.0, 0.62, 0.45, 1.0), (0.80, 0.40, 0.0, 1.0))
 CUBE_RGBA = (0.8, 0.15, 0.15, 1.0)
 
-# --- Hammer: a typical 16 oz wood-handled claw hammer (head 0.45 kg, 13 in
-# = 0.33 m long, about 0.6 kg overall). Body frame: the handle runs along
-# +x from its butt to the head, whose axis is z; the face points along -z,
-# the claw along +z; the origin is where the handle axis meets the head axis.
+# --- Hammer: a typical 16 oz wood-handled claw hammer (head 0.45 kg, 12-13
+# in = 0.31-0.33 m long, about 0.6 kg overall). Body frame: the handle runs
+# along +x from its butt to the head, whose axis is z; the face points along
+# -z, the claw along +z; the origin is where the handle and head axes meet.
 HAMMER_HEAD_MASS = 0.45        # kg (16 oz).
 HAMMER_HANDLE_MASS = 0.13      # kg: hickory (~800 kg/m^3), 0.30 x 25 x 22 mm.
 HAMMER_HANDLE_LENGTH = 0.30    # m from the butt to the head's axis.
@@ -238,6 +238,9 @@ class Hammer(Prop):
     self._head_site = body.add('site', name='head_site', size=(0.005,),
                                pos=(0, 0, -HAMMER_FACE_OFFSET), group=4)
 
+  def _build_observables(self):
+    return HammerObservables(self)
+
   @property
   def mass(self):
     return HAMMER_HEAD_MASS + HAMMER_HANDLE_MASS
@@ -262,6 +265,14 @@ class Hammer(Prop):
   @property
   def head_site(self):
     return self._head_site
+
+
+class HammerObservables(PropObservables):
+  """Adds the world position of the striking face's centre."""
+
+  @composer.observable
+  def head_position(self):
+    return observable.MJCFFeature('xpos', self._entity.head_site)
 
 
 def _check_board_size(size, handle_inset):

@@ -184,7 +184,7 @@ def test_a_resting_nail_does_not_move():
   physics.step(1250)   # Dropped 5 cm, then 5 s at rest.
   assert physics.bind(board.body).xpos[2] == pytest.approx(
       layout.TABLE_TOP_Z + nail_board.BLOCK_HALF_SIZE[2], abs=2e-3)
-  assert abs(board.depth(physics) - before) < 1e-5
+  assert abs(board.depth(physics) - before) < 1e-6
 
 
 def test_the_hammer_prop_drives_the_nail():

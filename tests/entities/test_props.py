@@ -172,6 +172,7 @@ def test_observables_and_board_tilt():
   np.testing.assert_allclose(cube.observables.position(physics),
                              (0.4, -0.2, 1.0))
   np.testing.assert_allclose(cube.position(physics), (0.4, -0.2, 1.0))
+  np.testing.assert_allclose(cube.quaternion(physics), IDENTITY, atol=1e-12)
   # Grip sites sit where documented: on the board's handle, human's end.
   robot_site = physics.bind(board.robot_grip_site).xpos
   human_site = physics.bind(board.human_grip_site).xpos
@@ -359,16 +360,34 @@ def test_human_holds_the_hammer_and_it_follows_the_hand():
   assert site.xpos[2] < height - 0.05
 
 
-def test_props_in_a_composer_environment():
+def test_observables_in_a_composer_environment():
   cube = props.Cube()
   hammer = props.Hammer()
+  board = nail_board.NailBoard()
+  marker = markers.TargetMarker()
   arena = workcell.Workcell()
-  arena.add_free_entity(cube)
-  arena.add_free_entity(hammer)
+  for entity in (cube, hammer, board):
+    arena.add_free_entity(entity)
+    entity.observables.enable_all()
+  arena.attach(marker)
+  marker.observables.enable_all()
   task = composer.NullTask(arena)
-  env = composer.Environment(task)
+  env = composer.Environment(task, strip_singleton_obs_buffer_dim=True)
   env.reset()
   cube.set_pose(env.physics, (0.5, 0.0, TOP + 0.3), IDENTITY)
+  hammer.set_pose(env.physics, (0.6, 0.3, TOP + 0.3), IDENTITY)
+  board.set_pose(env.physics, (0.4, 0.3, TOP + 0.03), IDENTITY)
+  marker.set_pose(env.physics, (0.4, -0.2, TOP + 0.1))
   env.physics.forward()
-  env.step(np.zeros(0))
-  assert env.physics.bind(cube.body).xpos[2] < TOP + 0.3
+  observation = env.step(np.zeros(0)).observation
+  physics = env.physics
+  assert observation['cube/position'][2] < TOP + 0.3   # Falling.
+  np.testing.assert_allclose(observation['cube/position'],
+                             physics.bind(cube.body).xpos)
+  np.testing.assert_allclose(observation['cube/quaternion'],
+                             physics.bind(cube.body).xquat)
+  np.testing.assert_allclose(observation['hammer/head_position'],
+                             physics.bind(hammer.head_site).xpos)
+  np.testing.assert_allclose(observation['nail_board/nail_progress'], [0.0])
+  np.testing.assert_allclose(observation['target/position'],
+                             (0.4, -0.2, TOP + 0.1))
