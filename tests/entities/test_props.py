@@ -183,6 +183,18 @@ def test_observables_and_board_tilt():
   assert inset.robot_grip_site.pos[0] == pytest.approx(-0.5 + 0.3 + 0.015)
 
 
+@pytest.mark.parametrize('shape', markers.SHAPES)
+def test_target_marker_compiles_alone_and_with_a_robot(shape):
+  marker = markers.TargetMarker(shape=shape)
+  physics = mjcf.Physics.from_mjcf_model(marker.mjcf_model)
+  assert physics.model.nv == 0 and physics.model.ngeom == 0
+  arena, _, _ = _scene(marker)
+  physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+  marker.set_pose(physics, (0.5, 0.0, 1.0))
+  physics.forward()
+  np.testing.assert_allclose(marker.position(physics), (0.5, 0.0, 1.0))
+
+
 def test_target_marker_is_visual_only_and_helpers_measure_distance():
   marker = markers.TargetMarker(radius=0.05, rgba=(0, 1, 0, 0.5))
   cube = props.Cube()
