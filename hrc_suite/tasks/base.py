@@ -215,6 +215,7 @@ class HrcTask(composer.Task):
     self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
     self._physics_ptr = None
     self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
+    self._command_dq = np.zeros(self._robot.dof)
     self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
     self._init_episode_state()
     self._setup_observables(observations)
@@ -397,6 +398,7 @@ class HrcTask(composer.Task):
     self._playback.forget_clip()
     self._step_flags[:] = False
     self._contact_steps[:] = 0
+    self._command_dq[:] = 0.0
     self._cp_random = np.random.RandomState(0)
     self._step_info = {}
 
@@ -413,10 +415,11 @@ class HrcTask(composer.Task):
         physics, self._robot)
     static = list(self._arena.static_geoms)
     robot_geoms = list(self._robot.link_geoms) + list(self._gripper.geoms)
+    joints = physics.bind(self._robot.joints)
     self._monitor = contacts.ContactMonitor(
         physics, static, robot_geoms, self._object_geoms,
-        self._human.geoms, critical_speed=self.critical_speed)
-    joints = physics.bind(self._robot.joints)
+        self._human.geoms, critical_speed=self.critical_speed,
+        robot_dofs=joints.dofadr)
     self._qpos_index = np.array(joints.qposadr)
     self._qvel_index = np.array(joints.dofadr)
     fingers = physics.bind(self._gripper.finger_joints)
@@ -483,11 +486,12 @@ class HrcTask(composer.Task):
     self._time = self._playback.times[k]
     q, dq, ddq = self._shield.step(positions, self._time)
     self._intervened |= self._shield.intervened
+    self._command_dq[:] = dq
     self._controller(physics, q, dq, ddq)
 
   def after_substep(self, physics, random_state):
     del physics, random_state
-    flags = self._monitor.update()
+    flags = self._monitor.update(self._command_dq)
     if flags.any():
       self._step_flags |= flags
       self._contact_steps += flags
@@ -571,6 +575,7 @@ class HrcTask(composer.Task):
             'pending_rewards': list(self._pending_rewards),
             'terminate': self._terminate, 'discount': self._discount,
             'step_flags': self._step_flags.copy(),
+            'command_dq': self._command_dq.copy(),
             'cp_random': self._cp_random.get_state(),
             'metrics': copy.deepcopy(self._metrics.state()),
             'own': copy.deepcopy(self._task_state()),
@@ -600,6 +605,7 @@ class HrcTask(composer.Task):
     self._terminate = bool(task['terminate'])
     self._discount = float(task['discount'])
     self._step_flags[:] = task['step_flags']
+    self._command_dq[:] = task['command_dq']
     self._cp_random.set_state(task['cp_random'])
     self._metrics.set_state(copy.deepcopy(task['metrics']))
     self._set_task_state(copy.deepcopy(task['own']))

@@ -399,6 +399,17 @@ def test_random_actions_near_a_moving_human():
   assert totals['ssm', 'self_collisions'] == 0
 
 
+def test_a_person_walking_into_a_still_robot_is_not_critical():
+  """The kinematic human shoves the robot (measured link speeds of m/s);
+  the robot's own (commanded) speed is zero, so contacts are allowed."""
+  clips = _clips_moved_towards_robot(reach.Reach, 0.75)
+  env = _env(seed=1, motions=clips, time_limit=8.0, done_at_success=False)
+  result = metrics.run_episode(env, lambda ts: np.zeros(7))
+  assert result['contacts_human_allowed'] > 0
+  assert result['contacts_human_critical'] == 0
+  assert result['max_human_contact_speed'] == 0.0
+
+
 def test_random_actions_with_shield_have_no_critical_contacts():
   for seed in range(3):
     env = _env(seed=seed, time_limit=4.0, done_at_success=False)
@@ -424,6 +435,16 @@ def test_contact_monitor_surface_speed_of_a_turning_link():
   point = axis_point + np.array([0.3, 0.0, 0.0])
   # A point 0.3 m from the base joint's (vertical) axis turning at 2 rad/s.
   assert monitor.surface_speed(body, point) == pytest.approx(0.6, rel=1e-6)
+  assert monitor.commanded_speed(body, point, dq) == pytest.approx(0.6,
+                                                                   rel=1e-6)
+  # Further out on the arm, measured and commanded speeds agree too.
+  dq = np.linspace(-1.0, 1.0, 7)
+  task.robot.set_joint_velocities(physics, dq)
+  physics.forward()
+  body = physics.bind(task.robot.link_bodies[5]).element_id
+  point = physics.bind(task.robot.link_bodies[5]).xpos + [0.05, 0.02, 0.0]
+  assert monitor.commanded_speed(body, point, dq) == pytest.approx(
+      monitor.surface_speed(body, point), rel=1e-9)
 
 
 def test_contact_monitor_rejects_negative_threshold():
