@@ -42,12 +42,17 @@ def render_task(task, clip_index=0, camera=None, fps=25.0, robot='panda',
   clip = clip_lib.shipped_library(task)[clip_index]
   camera = camera or camera_for(task)
   arena = workcell.Workcell()
+  robot_entity = None
   if robot:
     from hrc_suite.entities import robot as robot_lib
-    arena.attach_robot(robot_lib.make_robot(robot))
+    robot_entity = robot_lib.make_robot(robot)
+    arena.attach_robot(robot_entity)
   human = human_lib.Human()
   human.attach_to(arena)
   physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+  if robot_entity is not None:  # In its ready pose, not stretched upright.
+    robot_entity.set_joint_positions(physics,
+                                     robot_entity.description.q_home)
   human.resize(physics, clip)
   player = player_lib.Player([clip], station=station_for(task))
   player.reset(np.random.RandomState(0))
