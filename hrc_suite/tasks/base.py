@@ -124,6 +124,31 @@ class HrcTask(composer.Task):
                observations='paper', v_safe=DEFAULT_V_SAFE,
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD):
+    """Builds the scene; every argument is checked, errors list valid values.
+
+    Args:
+      robot: one of robot_description.ROBOT_NAMES.
+      action_space: 'joint' or 'cartesian' (None: the task's default).
+      shield: 'ssm', 'pfl' or 'off' (None: the task's default).
+      shield_substeps: L, physics steps (= shield cycles) per RL step.
+      physics_timestep: s, also the shield's cycle time.
+      control_timestep: s, must equal shield_substeps x physics_timestep.
+      motions: None (the task's shipped clips), a folder of clips, or a list
+        of `clip.Clip`s (e.g. one side of a train/test split).
+      reward: one of the task's REWARDS (None: its first).
+      reward_delay: RL steps by which task rewards are paid late (None: the
+        task's default); what is still owed is paid at the episode's end.
+      done_at_success: end the episode (discount 0) at success.
+      collision_prevention: 'zero', 'resample', 'closest' or 'off'.
+      time_limit: s (None: the task's HORIZON RL steps).
+      observations: a preset name ('paper', 'full', ...) or a list of
+        observable names.
+      v_safe: m/s, PFL's safe robot speed at a human contact.
+      critical_speed: m/s, robot speed above which a human contact is
+        critical (None: v_safe with PFL, contacts.SSM_STOPPED_SPEED else).
+      collision_reward: <= 0, added at RL steps with a static, self or
+        critical human contact.
+    """
     _choice('robot', robot, robot_lib.ROBOTS)
     action_space = _choice('action_space',
                            action_space or self.DEFAULT_ACTION_SPACE,
