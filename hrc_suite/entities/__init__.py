@@ -1,1 +1,1 @@
-"""Composer entities: robots, gripper, workcell arena (and later human, props)."""
+"""Composer entities: robots, gripper, workcell arena, human, props, markers."""

@@ -166,8 +166,7 @@ def main(argv=None):
   library = {t: clip_lib.shipped_library(t) for t in clip_lib.MOTION_TASKS}
   rows = compare(recordings, library)
   print(markdown_table(rows))
-  command = ('python -m hrc_suite.human.compare '
-             '--recordings=../shared/motions/human-robot-animations')
+  command = f'python -m hrc_suite.human.compare --recordings={args.recordings}'
   print(f'written to {write_report(rows, args.out, command)}')
 
 
