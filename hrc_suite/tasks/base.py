@@ -34,7 +34,6 @@ import math
 import pathlib
 
 from dm_control import composer
-from dm_control.composer.observation import observable
 import mujoco
 import numpy as np
 
@@ -46,7 +45,6 @@ from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.human import keypoints
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import geometry
@@ -55,6 +53,7 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
+from hrc_suite.tasks import observations as observations_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
 DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
@@ -66,8 +65,6 @@ DEFAULT_V_SAFE = 0.05                 # m/s
 # Reward of an illegal contact (static, self, critical human): the
 # reference's default (its paper runs used 0).
 DEFAULT_COLLISION_REWARD = -10.0
-# Human keypoints observed relative to the end effector (paper: head, hands).
-OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
 _SEED_RANGE = 2**31 - 1
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -231,8 +228,6 @@ class HrcTask(composer.Task):
         placement_range=self.HUMAN_PLACEMENT_RANGE)
     self._playback = human_playback.HumanPlayback(
         self._human, self._player, shield_substeps)
-    self._observed_keypoints = np.array(
-        keypoints.index(OBSERVED_HUMAN_KEYPOINTS))
 
     self._object_geoms = []
     self._build_task()
@@ -353,46 +348,11 @@ class HrcTask(composer.Task):
   # ------------------------------------------------------------ observables
 
   def _setup_observables(self, observations):
-    robot, gripper = self._robot, self._gripper
-    tcp = robot.tcp_site
-    obs = collections.OrderedDict()
-    obs['joint_positions'] = observable.MJCFFeature('qpos', robot.joints)
-    obs['joint_velocities'] = observable.MJCFFeature('qvel', robot.joints)
-    obs['gripper_aperture'] = observable.Generic(
-        lambda physics: np.array([gripper.aperture(physics)]))
-    obs['eef_position'] = observable.MJCFFeature('xpos', tcp)
-    obs['eef_quaternion'] = observable.Generic(
-        lambda physics: robot.tcp_pose(physics)[1])
-    obs['human_keypoints'] = observable.Generic(
-        self._human.keypoint_positions)
-    obs['human_in_eef_frame'] = observable.Generic(self._human_in_eef)
-    obs['human_distances'] = observable.Generic(
-        lambda physics: np.linalg.norm(self._human_in_eef(physics), axis=-1))
-    obs['safe_contact'] = observable.Generic(
-        lambda physics: self._step_flags[1:2].astype(np.float64))
-    obs['critical_contact'] = observable.Generic(
-        lambda physics: self._step_flags[2:3].astype(np.float64))
-    obs['static_collision'] = observable.Generic(
-        lambda physics: self._step_flags[0:1].astype(np.float64))
-    for name, value in self._task_observables().items():
-      obs[name] = value
-    presets = dict(self.OBSERVATION_PRESETS)
-    presets['full'] = tuple(obs)
-    if isinstance(observations, str):
-      selected = presets.get(observations)
-      if selected is None:
-        raise ValueError(f'Unknown observations preset {observations!r}: '
-                         f'expected one of {", ".join(sorted(presets))} or '
-                         'a list of observable names')
-    else:
-      selected = list(observations)
-      unknown = [n for n in selected if n not in obs]
-      if unknown or not selected:
-        raise ValueError(f'Unknown observables {unknown}: expected a '
-                         f'non-empty list from {", ".join(obs)}')
-    for name, value in obs.items():
-      value.enabled = name in selected
-    self.observation_names = tuple(n for n in obs if n in selected)
+    obs = observations_lib.shared_observables(
+        self._robot, self._gripper, self._human, self._step_flags)
+    obs.update(self._task_observables())
+    self.observation_names = observations_lib.select(
+        obs, self.OBSERVATION_PRESETS, observations)
     self._task_obs = obs
     # Entity observables are not part of the task's observation.
     for entity in self._arena.iter_entities():
@@ -402,11 +362,6 @@ class HrcTask(composer.Task):
   @property
   def task_observables(self):
     return self._task_obs
-
-  def _human_in_eef(self, physics):
-    site = physics.bind(self._robot.tcp_site)
-    points = self._human.keypoint_positions(physics)[self._observed_keypoints]
-    return (points - site.xpos) @ site.xmat.reshape(3, 3)
 
   # ---------------------------------------------------------------- episode
 

@@ -1,0 +1,75 @@
+"""Observables every task shares, and selection by preset or by name.
+
+Shared (paper Table II): joint angles and velocities, gripper aperture,
+end-effector (TCP) pose, human keypoints in the world, head and hands in the
+TCP frame and their distances, safe and critical human contact and static
+collision flags of the last RL step. Tasks add goals and objects.
+"""
+
+import collections
+
+from dm_control.composer.observation import observable
+import numpy as np
+
+from hrc_suite.human import keypoints
+
+# Human keypoints observed relative to the end effector (paper: head, hands).
+OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
+
+
+def in_frame(physics, site, points):
+  """Points (N, 3) in the frame of `site`."""
+  frame = physics.bind(site)
+  return (points - frame.xpos) @ frame.xmat.reshape(3, 3)
+
+
+def shared_observables(robot, gripper, human, contact_flags):
+  """name -> observable; contact_flags: the task's (static, human allowed,
+  human critical, ...) flags of the last RL step (an array it updates)."""
+  tcp = robot.tcp_site
+  observed = np.array(keypoints.index(OBSERVED_HUMAN_KEYPOINTS))
+
+  def human_in_eef(physics):
+    return in_frame(physics, tcp, human.keypoint_positions(physics)[observed])
+
+  obs = collections.OrderedDict()
+  obs['joint_positions'] = observable.MJCFFeature('qpos', robot.joints)
+  obs['joint_velocities'] = observable.MJCFFeature('qvel', robot.joints)
+  obs['gripper_aperture'] = observable.Generic(
+      lambda physics: np.array([gripper.aperture(physics)]))
+  obs['eef_position'] = observable.MJCFFeature('xpos', tcp)
+  obs['eef_quaternion'] = observable.Generic(
+      lambda physics: robot.tcp_pose(physics)[1])
+  obs['human_keypoints'] = observable.Generic(human.keypoint_positions)
+  obs['human_in_eef_frame'] = observable.Generic(human_in_eef)
+  obs['human_distances'] = observable.Generic(
+      lambda physics: np.linalg.norm(human_in_eef(physics), axis=-1))
+  obs['static_collision'] = observable.Generic(
+      lambda physics: contact_flags[0:1].astype(np.float64))
+  obs['safe_contact'] = observable.Generic(
+      lambda physics: contact_flags[1:2].astype(np.float64))
+  obs['critical_contact'] = observable.Generic(
+      lambda physics: contact_flags[2:3].astype(np.float64))
+  return obs
+
+
+def select(observables, presets, selection):
+  """Enables the observables named by a preset or a list; returns the
+  enabled names in order. 'full' (every observable) is always a preset."""
+  presets = dict(presets)
+  presets['full'] = tuple(observables)
+  if isinstance(selection, str):
+    names = presets.get(selection)
+    if names is None:
+      raise ValueError(f'Unknown observations preset {selection!r}: '
+                       f'expected one of {", ".join(sorted(presets))} or a '
+                       'list of observable names')
+  else:
+    names = list(selection)
+    unknown = [n for n in names if n not in observables]
+    if unknown or not names:
+      raise ValueError(f'Unknown observables {unknown}: expected a non-empty '
+                       f'list from {", ".join(observables)}')
+  for name, value in observables.items():
+    value.enabled = name in names
+  return tuple(n for n in observables if n in names)
