@@ -27,6 +27,9 @@ setuptools.setup(
         'imageio>=2.30',
         'imageio-ffmpeg>=0.4.9',  # ships its own ffmpeg binary.
         'tqdm',
+        # Compiled kernels of the shield's per-cycle geometry
+        # (hrc_suite/safety/kernels.py).
+        'numba>=0.60',
     ],
     extras_require={
         'train': ['jax>=0.4.30', 'flax', 'optax', 'distrax', 'tensorboardX',

@@ -67,11 +67,11 @@ def reaching_person(target, x=1.3, period=1.5):
   return at
 
 
-def time_cycles(name, scene, cycles, seed=0):
+def time_cycles(name, scene, cycles, seed=0, mode='ssm'):
   """Per-cycle wall and thread CPU times (s) of `cycles` shield steps for one
   robot and scene, and the fraction of cycles with an intervention."""
   description = robot_description.load(name)
-  shield = shield_lib.Shield(description)
+  shield = shield_lib.Shield(description, mode=mode)
   rng = np.random.RandomState(seed)
   limits = description.limits
   _, p2, _ = shield.robot.capsules(description.q_home)
@@ -102,8 +102,9 @@ def main(argv=None):
   parser.add_argument('--cycles', type=int, default=1500)
   parser.add_argument('--robots', nargs='*',
                       default=list(robot_description.ROBOT_NAMES))
+  parser.add_argument('--mode', choices=('ssm', 'pfl'), default='ssm')
   args = parser.parse_args(argv)
-  print(f'Shield cycle time (us), {args.cycles} cycles per row, new goal '
+  print(f'Shield ({args.mode}) cycle time (us), {args.cycles} cycles per row, new goal '
         f'every {GOAL_EVERY} cycles; wall clock and thread CPU time (the '
         'latter is immune to preemption by other processes)')
   print(f'{"robot":10s} {"scene":6s} {"median":>8s} {"p95":>8s} '
@@ -111,7 +112,8 @@ def main(argv=None):
   rows = []
   for name in args.robots:
     for scene in SCENES:
-      times, cpu_times, interventions = time_cycles(name, scene, args.cycles)
+      times, cpu_times, interventions = time_cycles(name, scene, args.cycles,
+                                                 mode=args.mode)
       skip = GOAL_EVERY * 4   # The first plans (warm-up).
       times, cpu_times = times[skip:] * 1e6, cpu_times[skip:] * 1e6
       row = (name, scene, float(np.median(times)),

@@ -29,6 +29,7 @@ import numpy as np
 
 from hrc_suite.human import keypoints as keypoint_set
 from hrc_suite.safety import geometry
+from hrc_suite.safety import kernels
 
 DEFAULT_MODEL_PATH = (pathlib.Path(__file__).resolve().parents[1] / 'assets' /
                       'human' / 'shield_human_model.json')
@@ -225,6 +226,10 @@ class HumanReach:
     self._ext_bodies = [np.array([body_index[c] for c in e.covers], dtype=int)
                         for e in config.extremities]
     self._ext_chains = [self._chain(e) for e in config.extremities]
+    # Contiguous arguments of the compiled velocity-model kernel.
+    self._kernel_ends = np.ascontiguousarray(self._ends, dtype=np.int64)
+    self._kernel_v_max = np.ascontiguousarray(config.v_max, dtype=float)
+    self._kernel_a_max = np.ascontiguousarray(config.a_max, dtype=float)
     self.reset()
 
   def _chain(self, extremity):
@@ -244,6 +249,7 @@ class HumanReach:
     self._covariance = np.diag([self.config.kalman_initial_pos_var,
                                 self.config.kalman_initial_vel_var])
     self._extremity_lengths = self._ext_length.copy()
+    self._length_positions = None   # Positions awaiting a length update.
 
   @property
   def has_velocity(self):
@@ -300,11 +306,23 @@ class HumanReach:
     self._covariance = cov - np.outer(gain, cov[0])
 
   def _update_extremity_lengths(self):
-    p = self.positions
+    # Only the POS model uses the lengths: computed when first needed from
+    # the positions of this measurement (positions are replaced, never
+    # modified in place, so keeping the reference is enough).
+    self._length_positions = self.positions
+
+  def _extremity_lengths_now(self):
+    """Arm extremity lengths: the model's, or longer if the arm measured
+    at the last velocity update was longer."""
+    p = self._length_positions
+    if p is None:
+      return self._extremity_lengths
+    self._length_positions = None
     for e, chain in enumerate(self._ext_chains):
       if len(chain):
         length = np.linalg.norm(p[chain[:, 1]] - p[chain[:, 0]], axis=-1).sum()
         self._extremity_lengths[e] = max(self._ext_length[e], length)
+    return self._extremity_lengths
 
   def body_capsules(self, keypoints):
     """Real-size body capsules: p1 (B, 3), p2 (B, 3), r (B,)."""
@@ -339,11 +357,13 @@ class HumanReach:
       core = 0.5 * cfg.a_max * (t * t)[:, None]
     return vel_radius, centre, core + e_p + e_v * t[:, None]
 
-  def reach_capsules(self, t_cycle, t_edges):
+  def reach_capsules(self, t_cycle, t_edges, compiled=True):
     """Body capsules over K intervals: c1, c2 (M, K, B, 3), r (M, K, B).
 
     t_edges (K+1,) are relative to t_cycle (the interval [t_cycle + t_k,
     t_cycle + t_{k+1}]). Models: [COMBINED] or [POS, VEL, ACCEL].
+    compiled=False computes the velocity model with NumPy (the reference)
+    instead of the kernel.
     """
     if self.positions is None:
       raise RuntimeError('HumanReach.reach_capsules: no measurement yet; '
@@ -360,12 +380,28 @@ class HumanReach:
     k = t.shape[0] - 1
     b = self.num_bodies
     ends = self._ends
-    vel_radius, centre, radius = self.keypoint_balls(t)
+    if compiled and self.has_velocity:
+      error_vel = np.ascontiguousarray(np.broadcast_to(
+          self._velocity_error(), (self.num_keypoints,)), dtype=float)
+      c1, c2, r = kernels.human_velocity_capsules(
+          self.positions, self.velocities, self._kernel_v_max,
+          self._kernel_a_max, t, self.config.measurement_error_pos,
+          error_vel, self._kernel_ends, self._half_thickness,
+          self.use_combined_model)
+      if self.use_combined_model:
+        return c1[None], c2[None], r[None]
+      kp_centre, kp_r = np.concatenate([c1, c2], axis=1), r
+      vel_radius = self.config.measurement_error_pos + (
+          t[:, None] * self.config.v_max)
+    else:
+      vel_radius, centre, radius = self.keypoint_balls(t)
     # VEL balls grow about a fixed centre: the t_b ball encloses the t_a one.
     vel_r = vel_radius[1:, ends]                                  # (K, 2B)
     vel_r = np.maximum(vel_r[:, :b], vel_r[:, b:]) + self._half_thickness
     vel_ends = np.broadcast_to(self.positions[ends], (k, 2 * b, 3))
-    if centre is None:  # No velocity yet: the velocity model is VEL too.
+    if compiled and self.has_velocity:
+      pass   # The velocity model's capsules come from the kernel above.
+    elif centre is None:  # No velocity yet: the velocity model is VEL too.
       kp_centre, kp_r = vel_ends, vel_r
     else:
       c, r = geometry.enclosing_ball(centre[:-1], radius[:-1], centre[1:],
@@ -384,10 +420,11 @@ class HumanReach:
     radii[VEL] = vel_r
     radii[ACCEL] = kp_r
     t_b = t[1:]
+    lengths = self._extremity_lengths_now()
     for e, bodies in enumerate(self._ext_bodies):
       centres[POS][:, bodies] = self.positions[self._ext_base[e]]
       centres[POS][:, bodies + b] = self.positions[self._ext_base[e]]
-      ball = (self._ext_speed[e] * t_b + self._extremity_lengths[e]
+      ball = (self._ext_speed[e] * t_b + lengths[e]
               + self._ext_radius[e] + self.config.measurement_error_pos)
       radii[POS][:, bodies] = ball[:, None]
     return centres[:, :, :b], centres[:, :, b:], radii

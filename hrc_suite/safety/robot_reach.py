@@ -16,6 +16,7 @@ chord midpoints of its two end points with radius
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite.safety import kernels
 
 
 def pose_matrix(pose):
@@ -115,6 +116,16 @@ class RobotReach:
                        f'{self.num_capsules} values, got {alpha.tolist()}')
     self.alpha = alpha
     self._static_radius = self.radii + self.secure_radius   # (L,)
+    # Contiguous float64 / int64 arguments of the compiled kernels.
+    self._kernel_model = tuple(np.ascontiguousarray(x) for x in (
+        self._fixed_rest[:, :3], self._fixed_cos[:, :3],
+        self._fixed_sin[:, :3], self._points))
+    self._kernel_frames = np.ascontiguousarray(self.frame_index,
+                                               dtype=np.int64)
+    self._kernel_alpha = np.ascontiguousarray(self.alpha, dtype=float)
+    self._kernel_static = np.ascontiguousarray(self._static_radius,
+                                               dtype=float)
+    self._kernel_radii = np.ascontiguousarray(self.radii, dtype=float)
 
   def _check_q(self, q, name='q'):
     q = np.asarray(q, dtype=float)
@@ -155,20 +166,25 @@ class RobotReach:
     ends = ends.reshape(q.shape[:-1] + ends.shape[1:])
     return ends[..., 0, :], ends[..., 1, :], self.radii
 
-  def reach_capsules(self, q_edges, s_edges):
+  def reach_capsules(self, q_edges, s_edges, compiled=True):
     """Capsules enclosing every link over each of K intervals.
 
     q_edges (K+1, dof): configurations at the interval edges; s_edges (K+1,):
     path positions (plan time, s) at the edges. Returns c1, c2 (K, L, 3) and
     r (K, L), including the curvature term and the secure radius.
+    compiled=False runs the NumPy reference instead of the kernel.
     """
-    q_edges = np.asarray(q_edges, dtype=float)
-    s_edges = np.asarray(s_edges, dtype=float)
+    q_edges = np.ascontiguousarray(q_edges, dtype=float)
+    s_edges = np.ascontiguousarray(s_edges, dtype=float)
     if (q_edges.ndim != 2 or q_edges.shape[1] != self.dof or
         s_edges.shape != (q_edges.shape[0],) or q_edges.shape[0] < 2):
       raise ValueError(f'reach_capsules: expected q_edges (K+1, {self.dof}) '
                        f'and s_edges (K+1,) with K >= 1, got {q_edges.shape} '
                        f'and {s_edges.shape}')
+    if compiled:
+      return kernels.robot_reach(q_edges, s_edges, *self._kernel_model,
+                                 self._kernel_frames, self._kernel_alpha,
+                                 self._kernel_static)
     ends = self._endpoints(self._chain(q_edges))           # (K+1, L, 2, 3)
     start, end = ends[:-1], ends[1:]
     centres = 0.5 * (start + end)
@@ -179,19 +195,26 @@ class RobotReach:
               + (ds * ds * 0.125)[:, None] * self.alpha + self._static_radius)
     return centres[:, :, 0], centres[:, :, 1], radius
 
-  def surface_speeds(self, q, dq):
+  def surface_speeds(self, q, dq, compiled=True):
     """Upper bound of the surface speed of each capsule (..., L), m/s.
 
     Point velocity on link i: v(p) = w_i x p - U_i with w_i = sum_{k<=i}
     dq_k z_k and U_i = sum_{k<=i} dq_k z_k x o_k, o_k the origin of joint k's
     frame (on its axis; fixes L7). Velocity is affine along the segment, so
     the maximum is at an end point; ||w|| r covers the surface.
+    compiled=False runs the NumPy reference instead of the kernel.
     """
     q = self._check_q(q)
     dq = self._check_q(dq, 'dq')
     q, dq = np.broadcast_arrays(q, dq)
     batch = q.shape[:-1]
     dq = dq.reshape(-1, self.dof)
+    if compiled:
+      out = kernels.surface_speeds(
+          np.ascontiguousarray(q.reshape(-1, self.dof)),
+          np.ascontiguousarray(dq), *self._kernel_model,
+          self._kernel_frames, self._kernel_radii)
+      return out.reshape(batch + (self.num_capsules,))
     chain = self._chain(q.reshape(-1, self.dof))
     frames = chain[:, :self.dof]
     spin = frames[..., :3, 2] * dq[..., None]               # dq_k z_k

@@ -35,6 +35,7 @@ from hrc_suite import robot_description as robot_description_lib
 from hrc_suite.human import keypoints
 from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
+from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import robot_reach as robot_reach_lib
@@ -158,7 +159,7 @@ class Shield:
     self.is_safe = self.mode == 'off'
     self.intervened = False
     self.first_unsafe_interval = -1
-    self.reach_distance = np.inf
+    self._reach_distance = np.inf
     self._reach_arguments = None
     self._previous_q = self._state[0]
     self._lazy = {}
@@ -239,6 +240,18 @@ class Shield:
     return self._lazy['human_reach']
 
   @property
+  def reach_distance(self):
+    """Clearance (m) of the last check: verification.ssm_verdict's
+    min_distance (inf when nothing was near; a broad phase's lower bound
+    when one settled the cycle; -inf when no path could be checked).
+    Computed when first asked (the verdict itself stops early)."""
+    if self._reach_distance is None:
+      self._reach_distance = verification.ssm_verdict(
+          self.robot_reach_capsules, self.human_reach_capsules,
+          compiled=True)[2]
+    return self._reach_distance
+
+  @property
   def max_cartesian_speed(self):
     """Largest surface speed of any robot capsule at the command (m/s)."""
     if 'speed' not in self._lazy:
@@ -309,7 +322,7 @@ class Shield:
     if failsafe is None or intended.s < current.s:
       safe = False   # No monitored path: keep braking on the verified one.
       self._reach_arguments = None
-      self.first_unsafe_interval, self.reach_distance = 0, -np.inf
+      self.first_unsafe_interval, self._reach_distance = 0, -np.inf
     else:
       safe = self._verify(plan, current, failsafe, s_dot_limit)
     self.is_safe = safe
@@ -432,10 +445,10 @@ class Shield:
     end_q = plan.state(s[-1])[0].tolist()
     if not all(low <= q <= high for low, q, high in zip(
         self._q_min, end_q, self._q_max)):
-      self.first_unsafe_interval, self.reach_distance = count, -np.inf
+      self.first_unsafe_interval, self._reach_distance = count, -np.inf
       return False
     if self.human.positions is None:
-      self.first_unsafe_interval, self.reach_distance = -1, np.inf
+      self.first_unsafe_interval, self._reach_distance = -1, np.inf
       return True
     # Broad phase 1: the human's horizon balls against the robot's whole
     # workspace ball (no kinematics needed).
@@ -444,19 +457,20 @@ class Shield:
     bound = float((np.sqrt(np.einsum('bi,bi->b', gap, gap)) - radius).min()
                   - self._workspace_radius)
     if bound > 0.0:
-      self.first_unsafe_interval, self.reach_distance = -1, bound
+      self.first_unsafe_interval, self._reach_distance = -1, bound
       return True
     robot = self.robot_reach_capsules
     # Broad phase 2: the same balls against every robot reach capsule.
     bound = _balls_capsules_distance(centre, radius, robot)
     if bound > 0.0:
-      self.first_unsafe_interval, self.reach_distance = -1, bound
+      self.first_unsafe_interval, self._reach_distance = -1, bound
       return True
     human = self.human_reach_capsules
-    safe, first, distance = verification.ssm_verdict(robot, human)
-    self.first_unsafe_interval, self.reach_distance = first, distance
-    if safe or s_dot_limit is None:
-      return safe
+    first = int(kernels.ssm_first_unsafe(
+        *robot, *(np.ascontiguousarray(x) for x in human)))
+    self.first_unsafe_interval, self._reach_distance = first, None
+    if first < 0 or s_dot_limit is None:
+      return first < 0
     # PFL: contact is possible from slice `first` on; from then on the
     # robot must be slower than v_safe.
     return self._slow_enough(plan, current, failsafe, times, s_edges, first)
@@ -483,9 +497,16 @@ class Shield:
 
 def _balls_capsules_distance(centre, radius, capsules):
   """Lower bound of the distance between balls (B,) and capsules (K, L):
-  each capsule is bounded by the ball around its midpoint. Centre distances
-  come from one matrix product (|a|^2 + |b|^2 - 2 a.b); the round-off of
-  that form is far below _BROAD_PHASE_SLACK, which is subtracted."""
+  each capsule is bounded by the ball around its midpoint; the round-off
+  is far below _BROAD_PHASE_SLACK, which is subtracted (compiled:
+  kernels.balls_capsules_distance)."""
+  return float(kernels.balls_capsules_distance(centre, radius, *capsules)
+               - _BROAD_PHASE_SLACK)
+
+
+def balls_capsules_distance_reference(centre, radius, capsules):
+  """NumPy reference of _balls_capsules_distance: centre distances from
+  one matrix product (|a|^2 + |b|^2 - 2 a.b)."""
   c1, c2, r = capsules
   middle = (0.5 * (c1 + c2)).reshape(-1, 3)
   half = (c2 - c1).reshape(-1, 3)

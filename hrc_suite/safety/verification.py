@@ -11,11 +11,16 @@ distance of two capsules lies in [|m_a - m_b| - h_a - h_b - r_a - r_b,
 |m_a - m_b| - r_a - r_b]. Per (model, interval) only pairs whose lower bound
 does not exceed the best upper bound can hold the minimum; the exact
 distance (geometry.capsule_distance) is computed for those alone.
+
+The functions here are the readable NumPy reference; `compiled=True` and
+`first_unsafe_interval` run the same maths as compiled kernels
+(`kernels.ssm_clearances`, `kernels.ssm_first_unsafe`).
 """
 
 import numpy as np
 
 from hrc_suite.safety import geometry
+from hrc_suite.safety import kernels
 
 
 def _check(robot, human):
@@ -103,7 +108,18 @@ def clearances(robot, human):
   return out.min(axis=(2, 3))
 
 
-def ssm_verdict(robot, human, exact_distance=True):
+def first_unsafe_interval(robot, human):
+  """The verdict alone, compiled: the first interval in which every human
+  model meets a robot capsule, or -1 if the motion is safe (equals
+  ssm_verdict(robot, human)[1]; stops at the first unsafe interval)."""
+  return int(kernels.ssm_first_unsafe(*_contiguous(robot, human)))
+
+
+def _contiguous(robot, human):
+  return tuple(np.ascontiguousarray(x) for x in _check(robot, human))
+
+
+def ssm_verdict(robot, human, exact_distance=True, compiled=False):
   """(safe, first_unsafe_interval or -1, min_distance).
 
   robot: (c1 (K, L, 3), c2, r (K, L)); human: (c1 (M, K, B, 3), c2,
@@ -118,9 +134,15 @@ def ssm_verdict(robot, human, exact_distance=True):
   replaced by a lower bound (>= 0), where a midpoint upper bound already
   proves an intersection by that (negative) upper bound, and intervals
   decided by bounds alone keep their bounds.
+
+  compiled=True computes the exact distances with the compiled kernel
+  (exact_distance is then ignored: the distance is always exact).
   """
   checked = _check(robot, human)
-  if exact_distance:
+  if compiled:
+    per_interval = kernels.ssm_clearances(
+        *(np.ascontiguousarray(x) for x in checked)).max(axis=0)
+  elif exact_distance:
     per_interval = clearances(robot, human).max(axis=0)     # (K,)
   else:
     capsules = _Capsules(*checked)

@@ -1,0 +1,387 @@
+"""Compiled (numba) kernels of the shield's per-cycle geometry.
+
+Each kernel computes exactly what a readable NumPy function computes (the
+reference, tested against it on random inputs to 1e-12):
+* `segment_distance`: geometry.closest_parameters / capsule distance, same
+  operations in the same order (parallel and point segments included, B3);
+* `ssm_first_unsafe` / `ssm_clearances`: verification.ssm_verdict, the
+  first with an early exit at the first unsafe interval;
+* `robot_reach`: robot_reach.RobotReach.reach_capsules (batched FK, chord
+  capsules, curvature and secure radius);
+* `surface_speeds`: robot_reach.RobotReach.surface_speeds;
+* `human_velocity_capsules`: the velocity model (COMBINED or ACCEL) of
+  human_reach.HumanReach.reach_capsules;
+* `balls_capsules_distance`: the shield's second broad phase.
+
+Compiled with cache=True (the machine code is stored in __pycache__ and
+reloaded by later processes) and fastmath=False (IEEE arithmetic, no
+reassociation: the results match the NumPy reference). Callers pass
+C-contiguous float64 arrays so every kernel has one signature.
+"""
+
+import math
+
+import numba
+import numpy as np
+
+# Same constants as geometry (kept in one place there; re-read here so the
+# kernels compile them in as literals).
+from hrc_suite.safety.geometry import _DEGENERATE_SQUARED_LENGTH
+from hrc_suite.safety.geometry import _PARALLEL_SIN_SQUARED
+from hrc_suite.safety.geometry import _TINY_DISTANCE
+
+_jit = numba.njit(cache=True, fastmath=False, nogil=True)
+
+# Speeds below this (m/s) have no direction (human_reach._MIN_SPEED).
+_MIN_SPEED = 1e-12
+
+
+@_jit
+def _clamp01(x):
+  return min(max(x, 0.0), 1.0)
+
+
+@_jit
+def segment_distance(p0, p1, p2, q0, q1, q2, d0, d1, d2, e0, e1, e2):
+  """Distance between segments p + s d and q + t e (s, t in [0, 1]), as
+  geometry.segment_distance computes it (closest_parameters, then the
+  gap p - q + s d - t e)."""
+  a = d0 * d0 + d1 * d1 + d2 * d2
+  e = e0 * e0 + e1 * e1 + e2 * e2
+  r0, r1, r2 = p0 - q0, p1 - q1, p2 - q2
+  b = d0 * e0 + d1 * e1 + d2 * e2
+  c = d0 * r0 + d1 * r1 + d2 * r2
+  f = e0 * r0 + e1 * r1 + e2 * r2
+  a_ok = a > _DEGENERATE_SQUARED_LENGTH
+  e_ok = e > _DEGENERATE_SQUARED_LENGTH
+  denom = a * e - b * b
+  if denom > _PARALLEL_SIN_SQUARED * a * e:
+    s = _clamp01((b * f - c * e) / denom)
+  else:
+    s = 0.0
+  t = (b * s + f) / e if e_ok else -1.0
+  t_clamped = _clamp01(t)
+  if a_ok:
+    if t != t_clamped:
+      s = _clamp01((b * t_clamped - c) / a)
+  else:
+    s = 0.0
+  r0 += s * d0
+  r1 += s * d1
+  r2 += s * d2
+  r0 -= t_clamped * e0
+  r1 -= t_clamped * e1
+  r2 -= t_clamped * e2
+  return math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+
+
+@_jit
+def _pair_distance(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b):
+  """Signed distance of robot capsule (k, l) and human capsule (m, k, b)."""
+  return (segment_distance(
+      rc1[k, l, 0], rc1[k, l, 1], rc1[k, l, 2],
+      hc1[m, k, b, 0], hc1[m, k, b, 1], hc1[m, k, b, 2],
+      rc2[k, l, 0] - rc1[k, l, 0], rc2[k, l, 1] - rc1[k, l, 1],
+      rc2[k, l, 2] - rc1[k, l, 2],
+      hc2[m, k, b, 0] - hc1[m, k, b, 0], hc2[m, k, b, 1] - hc1[m, k, b, 1],
+      hc2[m, k, b, 2] - hc1[m, k, b, 2]) - rr[k, l] - hr[m, k, b])
+
+
+@_jit
+def _lower_bound(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b):
+  """Lower bound of that distance: midpoint distance minus half lengths and
+  radii (verification's broad phase; exact arithmetic would make it a
+  bound, round-off is far below the 1e-9 margin subtracted)."""
+  g0 = 0.5 * (rc1[k, l, 0] + rc2[k, l, 0]) - 0.5 * (hc1[m, k, b, 0]
+                                                    + hc2[m, k, b, 0])
+  g1 = 0.5 * (rc1[k, l, 1] + rc2[k, l, 1]) - 0.5 * (hc1[m, k, b, 1]
+                                                    + hc2[m, k, b, 1])
+  g2 = 0.5 * (rc1[k, l, 2] + rc2[k, l, 2]) - 0.5 * (hc1[m, k, b, 2]
+                                                    + hc2[m, k, b, 2])
+  x0 = rc2[k, l, 0] - rc1[k, l, 0]
+  x1 = rc2[k, l, 1] - rc1[k, l, 1]
+  x2 = rc2[k, l, 2] - rc1[k, l, 2]
+  y0 = hc2[m, k, b, 0] - hc1[m, k, b, 0]
+  y1 = hc2[m, k, b, 1] - hc1[m, k, b, 1]
+  y2 = hc2[m, k, b, 2] - hc1[m, k, b, 2]
+  return (math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+          - 0.5 * math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+          - 0.5 * math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+          - rr[k, l] - hr[m, k, b] - 1e-9)
+
+
+@_jit
+def ssm_clearances(rc1, rc2, rr, hc1, hc2, hr):
+  """Exact minimum signed distance (M, K) per human model and interval
+  (verification.clearances): pairs whose lower bound cannot beat the best
+  distance so far are skipped."""
+  count_m, count_k, count_b = hr.shape
+  count_l = rr.shape[1]
+  out = np.empty((count_m, count_k))
+  for m in range(count_m):
+    for k in range(count_k):
+      best = np.inf
+      for l in range(count_l):
+        for b in range(count_b):
+          if _lower_bound(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b) < best:
+            d = _pair_distance(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b)
+            if d < best:
+              best = d
+      out[m, k] = best
+  return out
+
+
+@_jit
+def ssm_first_unsafe(rc1, rc2, rr, hc1, hc2, hr):
+  """First interval in which every human model meets a robot capsule
+  (strictly: signed distance < 0), or -1: ssm_verdict's verdict, stopping
+  at the first unsafe interval and at the first hit of each model."""
+  count_m, count_k, count_b = hr.shape
+  count_l = rr.shape[1]
+  for k in range(count_k):
+    all_hit = True
+    for m in range(count_m):
+      hit = False
+      for l in range(count_l):
+        for b in range(count_b):
+          if _lower_bound(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b) < 0.0:
+            if _pair_distance(rc1, rc2, rr, k, l, hc1, hc2, hr, m,
+                              b) < 0.0:
+              hit = True
+              break
+        if hit:
+          break
+      if not hit:
+        all_hit = False
+        break
+    if all_hit:
+      return k
+  return -1
+
+
+@_jit
+def _frames(q, fixed_rest, fixed_cos, fixed_sin):
+  """Link frames (N, dof, 3, 4) (top rows of the 4x4 transforms) for q
+  (N, dof): A_i Rz(q_i) = rest_i + cos q_i cos_i + sin q_i sin_i, chained."""
+  count, dof = q.shape
+  out = np.empty((count, dof, 3, 4))
+  local = np.empty((3, 4))
+  for n in range(count):
+    for i in range(dof):
+      c = math.cos(q[n, i])
+      s = math.sin(q[n, i])
+      for r in range(3):
+        for col in range(4):
+          local[r, col] = (fixed_rest[i, r, col] + c * fixed_cos[i, r, col]
+                           + s * fixed_sin[i, r, col])
+      if i == 0:
+        out[n, 0] = local
+      else:
+        for r in range(3):
+          for col in range(4):
+            x = (out[n, i - 1, r, 0] * local[0, col]
+                 + out[n, i - 1, r, 1] * local[1, col]
+                 + out[n, i - 1, r, 2] * local[2, col])
+            if col == 3:
+              x += out[n, i - 1, r, 3]
+            out[n, i, r, col] = x
+  return out
+
+
+@_jit
+def _endpoints(frames, points, frame_index):
+  """Capsule end points (N, L, 2, 3) in the world."""
+  count = frames.shape[0]
+  count_l = points.shape[0]
+  out = np.empty((count, count_l, 2, 3))
+  for n in range(count):
+    for l in range(count_l):
+      f = frame_index[l]
+      for j in range(2):
+        for r in range(3):
+          out[n, l, j, r] = (frames[n, f, r, 0] * points[l, j, 0]
+                             + frames[n, f, r, 1] * points[l, j, 1]
+                             + frames[n, f, r, 2] * points[l, j, 2]
+                             + frames[n, f, r, 3])
+  return out
+
+
+@_jit
+def robot_reach(q_edges, s_edges, fixed_rest, fixed_cos, fixed_sin, points,
+                frame_index, alpha, static_radius):
+  """Reach capsules c1, c2 (K, L, 3), r (K, L) over the K intervals between
+  configurations q_edges (K+1, dof) at path positions s_edges (K+1,)."""
+  ends = _endpoints(_frames(q_edges, fixed_rest, fixed_cos, fixed_sin),
+                    points, frame_index)
+  count_k = q_edges.shape[0] - 1
+  count_l = points.shape[0]
+  c1 = np.empty((count_k, count_l, 3))
+  c2 = np.empty((count_k, count_l, 3))
+  radius = np.empty((count_k, count_l))
+  for k in range(count_k):
+    ds = s_edges[k + 1] - s_edges[k]
+    curvature = ds * ds * 0.125
+    for l in range(count_l):
+      longest = 0.0
+      for j in range(2):
+        chord_sq = 0.0
+        for r in range(3):
+          start = ends[k, l, j, r]
+          end = ends[k + 1, l, j, r]
+          middle = 0.5 * (start + end)
+          if j == 0:
+            c1[k, l, r] = middle
+          else:
+            c2[k, l, r] = middle
+          chord = end - start
+          chord_sq += chord * chord
+        longest = max(longest, chord_sq)
+      radius[k, l] = (0.5 * math.sqrt(longest) + curvature * alpha[l]
+                      + static_radius[l])
+  return c1, c2, radius
+
+
+@_jit
+def surface_speeds(q, dq, fixed_rest, fixed_cos, fixed_sin, points,
+                   frame_index, radii):
+  """Upper bounds (N, L) of the capsules' surface speeds at (q, dq) (N,
+  dof): |w x p - U| at both ends (maximum) plus |w| r."""
+  frames = _frames(q, fixed_rest, fixed_cos, fixed_sin)
+  ends = _endpoints(frames, points, frame_index)
+  count, dof = q.shape
+  count_l = points.shape[0]
+  out = np.empty((count, count_l))
+  omega = np.empty((dof, 3))
+  offset = np.empty((dof, 3))
+  for n in range(count):
+    w0 = w1 = w2 = u0 = u1 = u2 = 0.0
+    for i in range(dof):
+      z0 = frames[n, i, 0, 2] * dq[n, i]
+      z1 = frames[n, i, 1, 2] * dq[n, i]
+      z2 = frames[n, i, 2, 2] * dq[n, i]
+      o0, o1, o2 = frames[n, i, 0, 3], frames[n, i, 1, 3], frames[n, i, 2, 3]
+      w0 += z0
+      w1 += z1
+      w2 += z2
+      u0 += z1 * o2 - z2 * o1
+      u1 += z2 * o0 - z0 * o2
+      u2 += z0 * o1 - z1 * o0
+      omega[i, 0], omega[i, 1], omega[i, 2] = w0, w1, w2
+      offset[i, 0], offset[i, 1], offset[i, 2] = u0, u1, u2
+    for l in range(count_l):
+      f = frame_index[l]
+      a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
+      best = 0.0
+      for j in range(2):
+        p0, p1, p2 = ends[n, l, j, 0], ends[n, l, j, 1], ends[n, l, j, 2]
+        v0 = a1 * p2 - a2 * p1 - offset[f, 0]
+        v1 = a2 * p0 - a0 * p2 - offset[f, 1]
+        v2 = a0 * p1 - a1 * p0 - offset[f, 2]
+        best = max(best, v0 * v0 + v1 * v1 + v2 * v2)
+      out[n, l] = (math.sqrt(best)
+                   + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * radii[l])
+  return out
+
+
+@_jit
+def human_velocity_capsules(positions, velocities, v_max, a_max, t,
+                            error_pos, error_vel, ends, half_thickness,
+                            combined):
+  """Velocity-model body capsules c1, c2 (K, B, 3), r (K, B) over the K
+  intervals between prediction times t (K+1,): per keypoint the COMBINED
+  (combined=True) or ACCEL ball at each time, the smallest ball enclosing
+  the balls at both ends of an interval, and per body the capsule between
+  its end keypoints' balls with the larger radius plus half its thickness.
+  error_vel (N,) is the velocity error of each keypoint."""
+  count_n = positions.shape[0]
+  count_t = t.shape[0]
+  centre = np.empty((count_t, count_n, 3))
+  radius = np.empty((count_t, count_n))
+  for n in range(count_n):
+    vx, vy, vz = velocities[n, 0], velocities[n, 1], velocities[n, 2]
+    speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+    scale = max(speed, _MIN_SPEED)
+    direction = (vx / scale, vy / scale, vz / scale)
+    vm, am = v_max[n], a_max[n]
+    for i in range(count_t):
+      ti = t[i]
+      if combined:
+        t_up = min((vm - speed) / am, ti)
+        t_m = min(vm / am, ti)
+        t_dn = min((vm + speed) / am, ti)
+        up_sq, dn_sq = t_up * t_up, t_dn * t_dn
+        along = t_m * (ti - 0.5 * t_m)
+        across = 0.25 * (ti * (t_up + t_dn) - 0.5 * (up_sq + dn_sq))
+        if (t_dn < ti) or (t_up >= ti):
+          core = am * along
+        else:
+          core = am * math.sqrt(across * across + along * along)
+        shift = speed * ti + 0.5 * am * (ti * (t_up - t_dn)
+                                         - 0.5 * (up_sq - dn_sq))
+        if speed > vm:
+          core = speed * ti
+          shift = 0.0
+        for r in range(3):
+          centre[i, n, r] = positions[n, r] + shift * direction[r]
+      else:
+        core = 0.5 * am * (ti * ti)
+        for r in range(3):
+          centre[i, n, r] = positions[n, r] + ti * velocities[n, r]
+      radius[i, n] = core + error_pos + error_vel[n] * ti
+  count_k = count_t - 1
+  count_b = half_thickness.shape[0]
+  c1 = np.empty((count_k, count_b, 3))
+  c2 = np.empty((count_k, count_b, 3))
+  body_r = np.empty((count_k, count_b))
+  ball_c = np.empty(3)
+  for k in range(count_k):
+    for b in range(count_b):
+      largest = 0.0
+      for side in range(2):
+        n = ends[side * count_b + b]
+        # geometry.enclosing_ball of the balls at t_k and t_{k+1}.
+        r1, r2 = radius[k, n], radius[k + 1, n]
+        d0 = centre[k, n, 0] - centre[k + 1, n, 0]
+        d1 = centre[k, n, 1] - centre[k + 1, n, 1]
+        d2 = centre[k, n, 2] - centre[k + 1, n, 2]
+        d = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        lam = min(max((r1 - r2) / max(d, _TINY_DISTANCE), -1.0), 1.0)
+        weight = 0.5 + 0.5 * lam
+        ball_c[0] = centre[k + 1, n, 0] + weight * d0
+        ball_c[1] = centre[k + 1, n, 1] + weight * d1
+        ball_c[2] = centre[k + 1, n, 2] + weight * d2
+        ball_r = max(max(r1, r2), 0.5 * (r1 + r2 + d))
+        if side == 0:
+          c1[k, b] = ball_c
+          largest = ball_r
+        else:
+          c2[k, b] = ball_c
+          largest = max(largest, ball_r)
+      body_r[k, b] = largest + half_thickness[b]
+  return c1, c2, body_r
+
+
+@_jit
+def balls_capsules_distance(centre, radius, c1, c2, r):
+  """Lower bound (before the slack) of the distance between balls (B,) and
+  capsules (K, L): each capsule bounded by the ball around its midpoint."""
+  count_k, count_l = r.shape
+  count_b = radius.shape[0]
+  best = np.inf
+  for k in range(count_k):
+    for l in range(count_l):
+      m0 = 0.5 * (c1[k, l, 0] + c2[k, l, 0])
+      m1 = 0.5 * (c1[k, l, 1] + c2[k, l, 1])
+      m2 = 0.5 * (c1[k, l, 2] + c2[k, l, 2])
+      h0 = c2[k, l, 0] - c1[k, l, 0]
+      h1 = c2[k, l, 1] - c1[k, l, 1]
+      h2 = c2[k, l, 2] - c1[k, l, 2]
+      reach = 0.5 * math.sqrt(h0 * h0 + h1 * h1 + h2 * h2) + r[k, l]
+      for b in range(count_b):
+        g0 = m0 - centre[b, 0]
+        g1 = m1 - centre[b, 1]
+        g2 = m2 - centre[b, 2]
+        d = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) - reach - radius[b]
+        if d < best:
+          best = d
+  return best
