@@ -118,7 +118,8 @@ class HrcTask(composer.Task):
                control_timestep=DEFAULT_CONTROL_TIMESTEP, motions=None,
                reward=None, reward_delay=None, done_at_success=True,
                collision_prevention='zero', time_limit=None,
-               observations='paper', v_safe=DEFAULT_V_SAFE,
+               observations='paper', observation_noise=None,
+               observation_delay=None, v_safe=DEFAULT_V_SAFE,
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD):
     """Builds the scene; every argument is checked, errors list valid values.
@@ -140,6 +141,11 @@ class HrcTask(composer.Task):
       time_limit: s (None: the task's HORIZON RL steps).
       observations: a preset name ('paper', 'full', ...) or a list of
         observable names.
+      observation_noise: None or {observable name: bound}: uniform noise in
+        [-bound, bound] (drawn from the environment's random_state, so
+        snapshots restore the noise-free state, not the noise stream).
+      observation_delay: None or {observable name: seconds}, a multiple of
+        physics_timestep.
       v_safe: m/s, PFL's safe robot speed at a human contact.
       critical_speed: m/s, robot speed above which a human contact is
         critical (None: v_safe with PFL, contacts.SSM_STOPPED_SPEED else).
@@ -239,6 +245,9 @@ class HrcTask(composer.Task):
     self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
     self._init_episode_state()
     self._setup_observables(observations)
+    observations_lib.configure_noise_and_delay(
+        self._task_obs, observation_noise, observation_delay,
+        physics_timestep)
 
   # ------------------------------------------------------------ properties
 

@@ -73,3 +73,42 @@ def select(observables, presets, selection):
   for name, value in observables.items():
     value.enabled = name in names
   return tuple(n for n in observables if n in names)
+
+
+def _uniform_noise(bound):
+  def corrupt(value, random_state):
+    value = np.asarray(value, dtype=np.float64)
+    return value + random_state.uniform(-bound, bound, value.shape)
+  return corrupt
+
+
+def configure_noise_and_delay(observables, noise, delay, physics_timestep):
+  """Bounded uniform noise and delays on selected observables.
+
+  noise: None or {name: bound}: uniform in [-bound, bound] added to every
+  entry (drawn from the environment's random_state). delay: None or
+  {name: seconds}, a multiple of the physics timestep.
+  """
+  for what, settings in (('observation_noise', noise),
+                         ('observation_delay', delay)):
+    if settings is None:
+      continue
+    if not isinstance(settings, dict):
+      raise ValueError(f'{what} must be None or a dict of observable name ->'
+                       f' number, got {settings!r}')
+    for name, value in settings.items():
+      if name not in observables:
+        raise ValueError(f'{what}: unknown observable {name!r}, expected one'
+                         f' of {", ".join(observables)}')
+      if not (isinstance(value, (int, float)) and np.isfinite(value)
+              and value >= 0):
+        raise ValueError(f'{what}[{name!r}] must be a finite number >= 0, '
+                         f'got {value!r}')
+      if what == 'observation_noise':
+        observables[name].corruptor = _uniform_noise(float(value))
+      else:
+        steps = value / physics_timestep
+        if abs(steps - round(steps)) > 1e-6:
+          raise ValueError(f'{what}[{name!r}] = {value} s is not a multiple '
+                           f'of the physics timestep {physics_timestep} s')
+        observables[name].delay = int(round(steps))

@@ -478,3 +478,46 @@ def test_batched_human_playback_matches_set_keypoints():
                              atol=1e-12)
   # The player moved the human during the step.
   assert task.player.episode_time == pytest.approx(0.3)   # 3 RL steps
+
+
+# ------------------------------------------------------- observation options
+
+
+def test_observation_noise_is_bounded_and_seeded():
+  observed = []
+  for noise in (None, {'eef_position': 0.01}, {'eef_position': 0.01}):
+    env = _env(seed=2, observations=['eef_position', 'joint_positions'],
+               observation_noise=noise)
+    steps = [env.reset().observation]
+    steps += _rollout(env, _random_actions(env, 3))
+    observed.append(steps)
+  clean, noisy, again = observed
+  for a, b, c in zip(clean, noisy, again):
+    difference = b['eef_position'] - a['eef_position']
+    assert np.all(np.abs(difference) <= 0.01) and np.any(difference != 0)
+    np.testing.assert_array_equal(b['eef_position'], c['eef_position'])
+    np.testing.assert_array_equal(b['joint_positions'], a['joint_positions'])
+
+
+def test_observation_delay_lags_by_the_given_time():
+  runs = {}
+  for delay in (None, {'joint_positions': 0.1}):
+    env = _env(seed=2, observations=['joint_positions'],
+               observation_delay=delay)
+    env.reset()
+    runs[delay is None] = _rollout(env, [np.full(7, 0.5)] * 4)
+  undelayed, delayed = runs[True], runs[False]
+  for k in range(1, 4):
+    np.testing.assert_array_equal(delayed[k]['joint_positions'],
+                                  undelayed[k - 1]['joint_positions'])
+
+
+@pytest.mark.parametrize('kwargs, message', [
+    ({'observation_noise': {'x_ray': 0.1}}, 'unknown observable'),
+    ({'observation_noise': {'eef_position': -1.0}}, '>= 0'),
+    ({'observation_delay': {'eef_position': 0.005}}, 'multiple'),
+    ({'observation_delay': [0.1]}, 'dict'),
+])
+def test_bad_observation_options_raise(kwargs, message):
+  with pytest.raises(ValueError, match=message):
+    reach.Reach(**kwargs)
