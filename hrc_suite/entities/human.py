@@ -13,8 +13,18 @@ The capsules collide with the robot and objects only (collision_groups), so
 contacts with the robot are detected and the human never collides with itself
 or the table. `set_keypoints` moves everything in one vectorised write;
 `resize` sets capsule lengths to a clip's segment lengths (size, rbound and
-aabb); `hold` / `release` weld an object to a hand with its current relative
-pose.
+aabb); `hold` / `release` weld an object to a hand (at its current relative
+pose or a given one, changeable while held with `set_grip`).
+
+While a hand holds an object, contacts between that hand's capsule and the
+object are off (the capsule encloses a gripped handle and would push the
+object out of the hand against the weld): `hold` moves the object's geoms
+from the OBJECT collision bit to HELD_OBJECT_BIT and takes that bit out of
+the holding hand's conaffinity; every human capsule has it otherwise, so the
+held object still collides with the rest of the body, the robot, the table
+and other objects. `release` restores the bits. (One bit for all held
+objects: a hand that holds one object does not collide with another held
+object either.)
 """
 
 import numpy as np
@@ -38,6 +48,12 @@ CAPSULE_RADII = {
 SEGMENTS = keypoints.SEGMENTS + (('pelvis', 'left_hip', 'right_hip'),)
 HANDS = ('left', 'right')
 _SKIN = (0.85, 0.65, 0.5, 1.0)
+# Collision bit of a held object (unused by collision_groups' scheme): every
+# capsule but the holding hand has it in its conaffinity.
+HELD_OBJECT_BIT = 16
+assert not HELD_OBJECT_BIT & (collision_groups.STATIC | collision_groups.ROBOT
+                              | collision_groups.OBJECT
+                              | collision_groups.HUMAN)
 _SITE_RGBA = (0.1, 0.3, 0.9, 1.0)
 
 
@@ -131,6 +147,7 @@ class Human(composer.Entity):
           'geom', name='capsule', type='capsule',
           size=(radius, lengths[seg_name] / 2), rgba=_SKIN, mass=1.0)
       collision_groups.set_human(geom)
+      geom.conaffinity = collision_groups.HUMAN_CONAFFINITY | HELD_OBJECT_BIT
       self._segment_parts.append(part)
       self._segment_geoms.append(geom)
     self._keypoint_parts = []
@@ -149,6 +166,7 @@ class Human(composer.Entity):
     self._keypoint_frames = None
     self._holdables = {}      # object body -> {hand: weld element}
     self._held = {}           # object body -> hand
+    self._held_bits = {}      # object body -> (geom ids, contype, conaff.)
     self._cache = None
     self._player = None
     self._player_clip = None
@@ -326,28 +344,65 @@ class Human(composer.Entity):
 
   # ---------------------------------------------------------------- holding
 
-  def hold(self, physics, object_body, hand):
-    """Welds `object_body` to `hand` ('left'/'right') at the current pose."""
+  def hold(self, physics, object_body, hand, relative_pose=None):
+    """Welds `object_body` to `hand` ('left'/'right').
+
+    relative_pose: None (keep the current pose relative to the hand) or
+    (position (3,), quaternion (4,) w-first) of the object in the hand
+    capsule's frame. Contacts between that hand and the object are off
+    until `release` (module doc).
+    """
     if hand not in HANDS:
       raise ValueError(f'Unknown hand {hand!r}: expected "left" or "right"')
     if object_body not in self._holdables:
       raise ValueError(f'{object_body.full_identifier!r} is not holdable: '
                        'call human.add_holdable(body) before compiling')
     self.release(physics, object_body)
-    eq = physics.bind(self._holdables[object_body][hand])
-    eq_id = eq.element_id
+    if relative_pose is None:
+      relative_pose = self.relative_pose(physics, object_body, hand)
+    self._held[object_body] = hand
+    self.set_grip(physics, object_body, *relative_pose)
+    eq_id = physics.bind(self._holdables[object_body][hand]).element_id
+    physics.data.eq_active[eq_id] = 1
+    model = physics.model
+    body_id = physics.bind(object_body).element_id
+    geoms = np.flatnonzero(model.geom_bodyid == body_id)
+    self._held_bits[object_body] = (geoms, model.geom_contype[geoms].copy(),
+                                    model.geom_conaffinity[geoms].copy())
+    model.geom_contype[geoms] = HELD_OBJECT_BIT
+    model.geom_conaffinity[geoms] &= ~collision_groups.HUMAN
+    hand_geom = self._bound(physics)['geoms'][self._hand_segment[hand]]
+    model.geom_conaffinity[hand_geom] &= ~HELD_OBJECT_BIT
+
+  def relative_pose(self, physics, object_body, hand):
+    """(position, quaternion) of `object_body` in `hand`'s capsule frame."""
     hand_body = self._bound(physics)['hand_bodies'][hand]
     obj = physics.bind(object_body)
     data = physics.data
-    p1, q1 = data.xpos[hand_body], data.xquat[hand_body]
     r1 = data.xmat[hand_body].reshape(3, 3)
-    rel_pos = r1.T @ (obj.xpos - p1)
-    rel_quat = _quat_mul(_quat_conj(q1), obj.xquat)
-    physics.model.eq_data[eq_id, 0:3] = 0.0
-    physics.model.eq_data[eq_id, 3:6] = rel_pos
-    physics.model.eq_data[eq_id, 6:10] = rel_quat
-    data.eq_active[eq_id] = 1
-    self._held[object_body] = hand
+    rel_pos = r1.T @ (obj.xpos - data.xpos[hand_body])
+    rel_quat = _quat_mul(_quat_conj(data.xquat[hand_body]), obj.xquat)
+    return rel_pos, rel_quat
+
+  def set_grip(self, physics, object_body, position, quaternion):
+    """Changes the pose at which a held object is welded to the hand."""
+    hand = self._held.get(object_body)
+    if hand is None:
+      name = getattr(object_body, 'full_identifier', object_body)
+      raise ValueError(f'{name!r} is not held')
+    position = np.asarray(position, dtype=np.float64)
+    quaternion = np.asarray(quaternion, dtype=np.float64)
+    norm = np.linalg.norm(quaternion) if quaternion.shape == (4,) else 0.0
+    if position.shape != (3,) or not np.all(np.isfinite(position)) or not (
+        np.isfinite(norm) and norm > 0):
+      raise ValueError('relative pose must be a finite position (3,) and a '
+                       f'non-zero quaternion (4,), got {position!r}, '
+                       f'{quaternion!r}')
+    eq_id = physics.bind(self._holdables[object_body][hand]).element_id
+    data = physics.model.eq_data[eq_id]
+    data[0:3] = 0.0
+    data[3:6] = position
+    data[6:10] = quaternion / norm
 
   def release(self, physics, object_body):
     """Releases `object_body` from whichever hand holds it."""
@@ -356,7 +411,16 @@ class Human(composer.Entity):
       raise ValueError(f'{name!r} is not holdable')
     for weld in self._holdables[object_body].values():
       physics.data.eq_active[physics.bind(weld).element_id] = 0
-    self._held.pop(object_body, None)
+    hand = self._held.pop(object_body, None)
+    bits = self._held_bits.pop(object_body, None)
+    if bits is not None:
+      geoms, contype, conaffinity = bits
+      model = physics.model
+      model.geom_contype[geoms] = contype
+      model.geom_conaffinity[geoms] = conaffinity
+      if hand not in self._held.values():
+        hand_geom = self._bound(physics)['geoms'][self._hand_segment[hand]]
+        model.geom_conaffinity[hand_geom] |= HELD_OBJECT_BIT
 
   def holding(self, object_body):
     """The hand holding `object_body`, or None."""

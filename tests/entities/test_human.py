@@ -121,6 +121,8 @@ def test_hold_moves_the_object_with_the_hand_and_release_drops_it(clip):
   human.release(physics, box)
   assert human.holding(box) is None
   height = physics.bind(box).xpos[2]
+  # The box overlaps the hand it was held in; lower the body away from it.
+  human.set_keypoints(physics, positions[frame] + shift - (0, 0, 0.5))
   for _ in range(100):
     physics.step()
   assert physics.bind(box).xpos[2] < height - 0.05
@@ -190,3 +192,74 @@ def test_follows_a_player_in_an_environment(clip):
                              player.positions, atol=1e-9)
   expected = _placed(clip)[int(round(0.5 * clip.fps))]
   assert np.abs(player.positions - expected).max() < 0.05
+
+
+def _hand_box_contacts(physics, human, box, hand):
+  names = [s[0] for s in human_lib.SEGMENTS]
+  hand_geom = physics.bind(human.geoms[names.index(f'{hand}_hand')]).element_id
+  box_geoms = set(np.flatnonzero(physics.model.geom_bodyid
+                                 == physics.bind(box).element_id))
+  count = 0
+  for c in physics.data.contact[:physics.data.ncon]:
+    pair = {c.geom1, c.geom2}
+    count += hand_geom in pair and bool(pair & box_geoms)
+  return count
+
+
+def test_holding_hand_does_not_push_the_held_object_out(clip):
+  _, _, human, box, physics = _scene()
+  positions = _placed(clip)
+  frame = clip.keyframes[0]
+  human.set_keypoints(physics, positions[frame])
+  physics.forward()
+  hand = human.keypoint_positions(physics)[
+      keypoints.KEYPOINT_INDEX['left_hand']]
+  # The box overlaps the hand capsule: without the exclusion the contact
+  # pushes it out against the weld.
+  physics.bind(box.freejoint).qpos[:3] = hand
+  physics.forward()
+  assert _hand_box_contacts(physics, human, box, 'left') > 0
+  default = (physics.model.geom_contype.copy(),
+             physics.model.geom_conaffinity.copy())
+  human.hold(physics, box, 'left')
+  start = physics.bind(box).xpos.copy()
+  for _ in range(250):
+    physics.step()
+    assert _hand_box_contacts(physics, human, box, 'left') == 0
+  assert np.linalg.norm(physics.bind(box).xpos - start) < 0.005
+  # The other hand still collides with the held box.
+  other = human.geoms[[s[0] for s in human_lib.SEGMENTS].index('right_hand')]
+  box_geom = np.flatnonzero(physics.model.geom_bodyid
+                            == physics.bind(box).element_id)[0]
+  right = physics.bind(other).element_id
+  m = physics.model
+  assert (m.geom_contype[right] & m.geom_conaffinity[box_geom]) or (
+      m.geom_contype[box_geom] & m.geom_conaffinity[right])
+  human.release(physics, box)
+  np.testing.assert_array_equal(physics.model.geom_contype, default[0])
+  np.testing.assert_array_equal(physics.model.geom_conaffinity, default[1])
+  physics.forward()
+  assert _hand_box_contacts(physics, human, box, 'left') > 0
+
+
+def test_hold_at_a_given_relative_pose_and_set_grip(clip):
+  _, _, human, box, physics = _scene()
+  positions = _placed(clip)
+  human.set_keypoints(physics, positions[clip.keyframes[0]])
+  physics.forward()
+  offset = np.array([0.0, 0.0, 0.15])
+  human.hold(physics, box, 'right', relative_pose=(offset, (1, 0, 0, 0)))
+  for _ in range(300):
+    physics.step()
+  pos, quat = human.relative_pose(physics, box, 'right')
+  np.testing.assert_allclose(pos, offset, atol=0.01)
+  assert abs(abs(quat[0]) - 1.0) < 1e-3
+  human.set_grip(physics, box, -offset, (0, 0, 0, 1))
+  for _ in range(300):
+    physics.step()
+  pos, quat = human.relative_pose(physics, box, 'right')
+  np.testing.assert_allclose(pos, -offset, atol=0.01)
+  assert abs(abs(quat[3]) - 1.0) < 1e-2
+  human.release(physics, box)
+  with pytest.raises(ValueError, match='not held'):
+    human.set_grip(physics, box, offset, (1, 0, 0, 0))
