@@ -404,6 +404,16 @@ class Human(composer.Entity):
     data[3:6] = position
     data[6:10] = quaternion / norm
 
+  def grip(self, physics, object_body):
+    """(position, quaternion) at which a held object is welded to its hand
+    (its capsule frame), or None if it is not held."""
+    hand = self._held.get(object_body)
+    if hand is None:
+      return None
+    eq_id = physics.bind(self._holdables[object_body][hand]).element_id
+    data = physics.model.eq_data[eq_id]
+    return data[3:6].copy(), data[6:10].copy()
+
   def release(self, physics, object_body):
     """Releases `object_body` from whichever hand holds it."""
     if object_body not in self._holdables:

@@ -1,0 +1,483 @@
+"""Handovers of a hammer between the robot and a human across the table
+(reference-benchmark.md, paper Table I).
+
+Robot to human (`RobotToHuman`): the hammer lies on the table within the
+robot's reach, head towards the robot. The robot picks it up and brings the
+handle to the human, who reaches out and waits for 'object_received'. The
+handover happens when the handle touches the palm (the hand capsule of the
+clip's holding hand; checked geometrically, within TOUCH_TOLERANCE, because a
+held object's contact with its hand is off) while the human waits: the human
+holds it (`Human.hold`), the event fires, the robot must let go and the human
+finishes the clip (takes it back, retreats).
+
+Human to robot (`HumanToRobot`): the hammer lies where the clip picks it up
+('object_pick'). At the clip's first keyframe the human holds it and, until
+the presentation keyframe, turns it in the hand to the presenting grip
+(handle along the hand, head forward, lying on its side so a gripper-down
+grasp at `Hammer.grip_site` works). While the human waits for 'object_taken'
+a robot grasp (both fingers touch it) makes the human let go and fires the
+event; the robot places it within SUCCESS_DISTANCE of a target on the table
+('object_placed' fires once it lies there released) and the human retreats.
+
+Success (both): the object is where it belongs (held by the human / at the
+target) and the human's motion has completed: by default the end of the
+episode's first clip, so the success reward arrives after the human's
+retreat, 1.5-4 s after the event for the shipped clips (the task's
+reward delay). `success_after=s` instead counts success s seconds after
+the handover event (object received / placed). The base's extra
+`reward_delay` (RL steps) stays 0 by default.
+
+Rewards (sparse): +1 success; robot to human: 0 while the human holds the
+object and the robot does not, -0.25 while the robot grips it, -1
+otherwise; human to robot: 0 with the object at the target, -0.25 while
+gripped, -1 otherwise. Failure: the hammer falls off the table. PFL shield,
+horizon 1000 RL steps, human placement +-(0, 0.2 m, 0.1 rad).
+
+Observations: 'paper' = object gripped, EEF->object, EEF->target (world
+vectors), gripper aperture, distances EEF->head / left / right hand. The
+target is the holding hand's palm (robot to human) or the table target.
+"""
+
+import math
+
+from dm_control.composer.observation import observable
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite import suite
+from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import props
+from hrc_suite.human import keypoints
+from hrc_suite.safety import geometry
+from hrc_suite.tasks import base
+
+# Reference: human placement randomisation for the handovers.
+PLACEMENT_RANGE = (0.0, 0.2, 0.1)        # m, m, rad
+SUCCESS_DISTANCE = 0.1                   # m, object to target (reference)
+GRIPPED_REWARD = -0.25                   # reference
+# The handle touches the palm: hand capsule to handle capsule distance, m.
+TOUCH_TOLERANCE = 0.01
+# Handle capsule radius: its half width (props.HAMMER_HANDLE_HALF_SECTION).
+HANDLE_RADIUS = props.HAMMER_HANDLE_HALF_SECTION[0]
+# The hammer lies on its side: body origin this high above the table top.
+REST_HEIGHT = props.HAMMER_HANDLE_HALF_SECTION[0]
+# Below the table top by this much the hammer has fallen off: failure.
+DROP_HEIGHT = 0.1                        # m
+# Robot-to-human start: hammer yaw about pi (head towards the robot), +-.
+START_YAW_RANGE = 0.3                    # rad
+# Sampling region (fraction of the robot's table workspace box) for the
+# hammer's centre of mass (robot to human) and the target (human to robot).
+REGION_X = (0.15, 0.75)
+REGION_Y = (0.2, 0.8)
+TARGET_RGBA = (0.1, 0.8, 0.2, 0.4)
+# The human picks the hammer if the palm is this close to its grip point.
+PICK_DISTANCE = 0.15                     # m
+
+
+def _lying_quaternion(yaw):
+  """Hammer on its side (body y up), handle axis (body x) at `yaw`."""
+  c, s = math.cos(yaw), math.sin(yaw)
+  rotation = np.array([[c, 0.0, s], [s, 0.0, -c], [0.0, 1.0, 0.0]])
+  return human_lib.matrix_to_quaternion(rotation[None])[0]
+
+
+def _slerp(q0, q1, t):
+  q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
+  dot = float(q0 @ q1)
+  if dot < 0.0:
+    q1, dot = -q1, -dot
+  if dot > 0.9995:
+    q = q0 + t * (q1 - q0)
+  else:
+    angle = math.acos(dot)
+    q = (math.sin((1 - t) * angle) * q0 + math.sin(t * angle) * q1) / (
+        math.sin(angle))
+  return q / np.linalg.norm(q)
+
+
+class _Handover(base.HrcTask):
+  """Hammer, table region, human holding logic shared by both handovers."""
+
+  HUMAN_STATION = layout.HUMAN_STATION_ACROSS
+  HUMAN_PLACEMENT_RANGE = PLACEMENT_RANGE
+  DEFAULT_SHIELD = 'pfl'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('sparse',)
+  HORIZON = 1000
+  HAS_GRIPPER_ACTION = True
+  EXTRA_COUNTERS = ('handovers',)
+  OBSERVATION_PRESETS = {'paper': (
+      'object_gripped', 'object_difference', 'target_difference',
+      'gripper_aperture', 'human_distances')}
+  EVENT = None   # the event after which success_after counts
+
+  def __init__(self, success_after=None, **kwargs):
+    """success_after: None (success when the first clip ends) or seconds
+    after the handover event; other kwargs: `base.HrcTask`."""
+    if success_after is not None and not (
+        isinstance(success_after, (int, float))
+        and math.isfinite(success_after) and success_after >= 0):
+      raise ValueError('success_after must be None or a number of seconds '
+                       f'>= 0, got {success_after!r}')
+    self.success_after = success_after
+    super().__init__(**kwargs)
+
+  def _build_task(self):
+    self._hammer = props.Hammer()
+    self._arena.add_free_entity(self._hammer)
+    self._human.add_holdable(self._hammer.body)
+    self._object_geoms.extend(self._hammer.geoms)
+    low, high = ik_lib.table_workspace_box(self._kinematics)
+    base_pos = self._kinematics.base_pose[:3, 3]
+    fx, fy = np.array(REGION_X), np.array(REGION_Y)
+    self._region = (base_pos[:2] + [low[0] + fx[0] * (high[0] - low[0]),
+                                    low[1] + fy[0] * (high[1] - low[1])],
+                    base_pos[:2] + [low[0] + fx[1] * (high[0] - low[0]),
+                                    low[1] + fy[1] * (high[1] - low[1])])
+    self._palm = keypoints.KEYPOINT_INDEX
+    self._holding_hand = 'right'    # until the first episode's clip
+    self._reset_flags()
+
+  def _reset_flags(self):
+    self._success = False
+    self._gripped = False
+    self._event_time = None     # player episode time of the handover event
+    self._clip_done = False
+    self._at_target = False
+    self._grip_pose = None
+
+  @property
+  def hammer(self):
+    return self._hammer
+
+  # ------------------------------------------------------------ progress
+
+  def _holder(self):
+    return self._human.holding(self._hammer.body)
+
+  def _hand(self):
+    """The current clip's holding hand (its palm is the target)."""
+    return self._holding_hand
+
+  def _palm_position(self, physics):
+    index = self._palm[f'{self._hand()}_hand']
+    return self._human.keypoint_positions(physics)[index]
+
+  def _object_position(self, physics):
+    return physics.bind(self._hammer.grip_site).xpos.copy()
+
+  def _update_common(self, physics):
+    self._holding_hand = self._player.clip.holding_hand or 'right'
+    self._gripped = self._gripper.is_grasping(physics, self._hammer.body)
+    if not self._clip_done and self._player.get_state()['k'] > 0:
+      self._clip_done = True
+
+  def _completed(self):
+    if self.success_after is None:
+      return self._clip_done
+    return (self._event_time is not None and self._player.episode_time
+            - self._event_time >= self.success_after - 1e-9)
+
+  def _failed(self, physics):
+    height = physics.bind(self._hammer.body).xpos[2]
+    return bool(height < layout.TABLE_TOP_Z - DROP_HEIGHT)
+
+  def _task_reward_range(self):
+    return (-1.0, 1.0)
+
+  def _sample_in_region(self, random_state):
+    xy = random_state.uniform(*self._region)
+    return np.array([xy[0], xy[1], layout.TABLE_TOP_Z + REST_HEIGHT])
+
+  def _place_hammer(self, physics, grip_point, yaw):
+    """Lies the hammer on its side with `grip_site` at grip_point."""
+    quat = _lying_quaternion(yaw)
+    offset = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    site_x = self._hammer.grip_site.pos[0]
+    self._hammer.set_pose(physics, grip_point - site_x * offset, quat)
+    self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
+
+  # ---------------------------------------------------------- snapshots
+
+  def _task_state(self):
+    return {'success': self._success, 'gripped': self._gripped,
+            'event_time': self._event_time, 'clip_done': self._clip_done,
+            'holder': self._holder(), 'grip': self._grip_pose,
+            'holding_hand': self._holding_hand}
+
+  def _set_task_state(self, state):
+    self._success = bool(state['success'])
+    self._gripped = bool(state['gripped'])
+    self._event_time = state['event_time']
+    self._clip_done = bool(state['clip_done'])
+    self._pending_hold = (state['holder'], state['grip'])
+    self._holding_hand = state['holding_hand']
+
+  def get_state(self, physics):
+    body = self._hammer.body
+    hand = self._holder()
+    self._grip_pose = None
+    if hand is not None:
+      self._grip_pose = self._human.grip(physics, body)
+    return super().get_state(physics)
+
+  def set_state(self, physics, state):
+    """Restores a snapshot, including the human's grip (model data)."""
+    super().set_state(physics, state)
+    hand, grip = self._pending_hold
+    body = self._hammer.body
+    self._human.release(physics, body)
+    if hand is not None:
+      self._human.hold(physics, body, hand, relative_pose=grip)
+    physics.forward()
+
+  # -------------------------------------------------------- observables
+
+  def target(self, physics):
+    """World position of the target (palm or table target)."""
+    return self._target(physics)
+
+  def _target(self, physics):
+    raise NotImplementedError
+
+  def _task_observables(self):
+    tcp = self._robot.tcp_site
+
+    def eef(physics):
+      return physics.bind(tcp).xpos
+
+    def in_eef(physics, point):
+      site = physics.bind(tcp)
+      return (point - site.xpos) @ site.xmat.reshape(3, 3)
+
+    obj = self._object_position
+    return {
+        'object_gripped': observable.Generic(
+            lambda p: np.array([float(self._gripped)])),
+        'object_difference': observable.Generic(lambda p: obj(p) - eef(p)),
+        'target_difference': observable.Generic(
+            lambda p: self._target(p) - eef(p)),
+        'object_position': observable.Generic(obj),
+        'object_quaternion': observable.Generic(
+            lambda p: physics_quat(p, self._hammer.body)),
+        'object_in_eef_frame': observable.Generic(
+            lambda p: in_eef(p, obj(p))),
+        'object_distance': observable.Generic(
+            lambda p: np.array([np.linalg.norm(obj(p) - eef(p))])),
+        'target_position': observable.Generic(self._target),
+        'target_in_eef_frame': observable.Generic(
+            lambda p: in_eef(p, self._target(p))),
+        'target_distance': observable.Generic(
+            lambda p: np.array([np.linalg.norm(self._target(p) - eef(p))])),
+        'object_held_by_human': observable.Generic(
+            lambda p: np.array([float(self._holder() is not None)])),
+    }
+
+
+def physics_quat(physics, body):
+  return physics.bind(body).xquat.copy()
+
+
+class RobotToHuman(_Handover):
+  """The robot hands the hammer to the human."""
+
+  MOTIONS = 'handover_robot_to_human'
+  EVENT = 'object_received'
+
+  def _initialize_task(self, physics, random_state):
+    self._human.release(physics, self._hammer.body)
+    self._reset_flags()
+    self._holding_hand = self._player.clip.holding_hand or 'right'
+    grip = self._sample_in_region(random_state)
+    yaw = math.pi + random_state.uniform(-START_YAW_RANGE, START_YAW_RANGE)
+    self._place_hammer(physics, grip, yaw)
+    physics.forward()
+
+  def palm_touches_handle(self, physics):
+    """True if the holding hand's capsule is within TOUCH_TOLERANCE of the
+    handle (both as capsules)."""
+    names = [s[0] for s in human_lib.SEGMENTS]
+    hand = physics.bind(self._human.geoms[names.index(
+        f'{self._hand()}_hand')])
+    axis = hand.xmat.reshape(3, 3)[:, 2] * hand.size[1]
+    handle = physics.bind(self._hammer.handle)
+    half = handle.xmat.reshape(3, 3)[:, 0] * handle.size[0]
+    distance = geometry.capsule_distance(
+        hand.xpos - axis, hand.xpos + axis, hand.size[0],
+        handle.xpos - half, handle.xpos + half, HANDLE_RADIUS)
+    return bool(distance <= TOUCH_TOLERANCE)
+
+  def _update_task(self, physics):
+    self._update_common(physics)
+    handovers = 0
+    if (self._holder() is None and self._event_time is None
+        and self._player.waiting_for == self.EVENT
+        and self.palm_touches_handle(physics)):
+      self._human.hold(physics, self._hammer.body, self._hand())
+      self._event_time = self._player.episode_time
+      handovers = 1
+    self._success = self._holder() is not None and self._completed()
+    return {'success': float(self._success), 'handovers': handovers}
+
+  def _human_events(self, physics):
+    del physics
+    if self._holder() is not None:
+      return (self.EVENT,)
+    return ()
+
+  def _task_reward(self, physics):
+    del physics
+    if self._success:
+      return 1.0
+    if self._gripped:
+      return GRIPPED_REWARD
+    if self._holder() is not None:
+      return 0.0
+    return -1.0
+
+  def _target(self, physics):
+    return self._palm_position(physics)
+
+
+class HumanToRobot(_Handover):
+  """The human hands the hammer to the robot, which places it on the table."""
+
+  MOTIONS = 'handover_human_to_robot'
+  EVENT = 'object_placed'
+
+  def _build_task(self):
+    super()._build_task()
+    body = self._arena.mjcf_model.worldbody.add(
+        'body', name='handover_target', mocap=True)
+    body.add('site', name='handover_target', type='cylinder',
+             size=(SUCCESS_DISTANCE, 0.001), rgba=TARGET_RGBA, group=0)
+    self._target_body = body
+    self._picked = False
+    self._pick_grip = None
+
+  @staticmethod
+  def presenting_grip(hand_half_length):
+    """(position, quaternion) of the hammer in the hand capsule's frame when
+    presented: handle along the hand (z), head forward, body y along the
+    hand frame's y (up for a forward-pointing hand), `human_grip_site` at
+    the capsule's distal end."""
+    # Columns: hammer x = hand z, hammer y = hand y, hammer z = -hand x.
+    rotation = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    position = np.array([0.0, 0.0, hand_half_length + props.HAMMER_HUMAN_GRIP])
+    return position, human_lib.matrix_to_quaternion(rotation[None])[0]
+
+  def _initialize_task(self, physics, random_state):
+    self._human.release(physics, self._hammer.body)
+    self._reset_flags()
+    self._holding_hand = self._player.clip.holding_hand or 'right'
+    self._picked = False
+    self._pick_grip = None
+    target = self._sample_in_region(random_state)
+    physics.bind(self._target_body).mocap_pos = target
+    # The hammer where this clip's hand picks it, head towards the robot,
+    # the palm over its human grip point.
+    pick = np.array(self._player.targets_world['object_pick'], dtype=float)
+    yaw = self._player.placement[2]    # the human faces -x at yaw pi.
+    direction = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    grip = pick + [0.0, 0.0, REST_HEIGHT] + direction * (
+        props.HAMMER_HUMAN_GRIP + self._hammer.grip_site.pos[0])
+    self._place_hammer(physics, grip, yaw)
+    physics.forward()
+
+  def _target(self, physics):
+    return physics.bind(self._target_body).mocap_pos.copy()
+
+  def _object_at_target(self, physics):
+    delta = self._object_position(physics) - self._target(physics)
+    return bool(np.linalg.norm(delta) <= SUCCESS_DISTANCE)
+
+  def _clip_times(self):
+    clip = self._player.clip
+    return clip.keyframe_time(0), clip.keyframe_time(1)
+
+  def _update_task(self, physics):
+    self._update_common(physics)
+    hand, handovers = self._hand(), 0
+    t_pick, t_present = self._clip_times()
+    first_clip = not self._clip_done
+    clip_time = self._player.clip_time
+    if (not self._picked and first_clip and not self._gripped
+        and not self._player.in_transition and clip_time >= t_pick):
+      grip = physics.bind(self._hammer.human_grip_site).xpos
+      if np.linalg.norm(grip - self._palm_position(physics)) < PICK_DISTANCE:
+        self._human.hold(physics, self._hammer.body, hand)
+        self._pick_grip = self._human.relative_pose(
+            physics, self._hammer.body, hand)
+      self._picked = True
+    if self._holder() is not None and self._pick_grip is not None:
+      # Turning the hammer in the hand from the picking to the presenting
+      # grip between the two keyframes (the capsule hand has no wrist).
+      s = min(max((clip_time - t_pick) / (t_present - t_pick), 0.0), 1.0)
+      s = s * s * (3.0 - 2.0 * s)
+      names = [seg[0] for seg in human_lib.SEGMENTS]
+      half = physics.bind(self._human.geoms[names.index(
+          f'{hand}_hand')]).size[1]
+      end_pos, end_quat = self.presenting_grip(half)
+      position = (1 - s) * self._pick_grip[0] + s * end_pos
+      self._human.set_grip(physics, self._hammer.body, position,
+                           _slerp(self._pick_grip[1], end_quat, s))
+      if s >= 1.0:
+        self._pick_grip = None
+    if self._holder() is not None and self._gripped and (
+        self._player.waiting_for == 'object_taken'):
+      self._human.release(physics, self._hammer.body)
+      self._pick_grip = None
+      handovers = 1
+    self._at_target = self._object_at_target(physics)
+    placed = (self._picked and self._holder() is None and self._at_target
+              and not self._gripped)
+    if placed and self._event_time is None:
+      self._event_time = self._player.episode_time
+    self._success = placed and self._completed()
+    return {'success': float(self._success), 'handovers': handovers}
+
+  def _human_events(self, physics):
+    del physics
+    events = []
+    if self._holder() is None and self._gripped:
+      events.append('object_taken')
+    if self._event_time is not None and self._at_target:
+      events.append(self.EVENT)
+    return events
+
+  def _task_reward(self, physics):
+    del physics
+    if self._success:
+      return 1.0
+    if self._at_target:
+      return 0.0
+    if self._gripped:
+      return GRIPPED_REWARD
+    return -1.0
+
+  def _task_state(self):
+    state = super()._task_state()
+    state.update(picked=self._picked, pick_grip=self._pick_grip,
+                 at_target=self._at_target)
+    return state
+
+  def _set_task_state(self, state):
+    super()._set_task_state(state)
+    self._picked = bool(state['picked'])
+    self._pick_grip = state['pick_grip']
+    self._at_target = bool(state['at_target'])
+
+
+@suite.register('handover', 'robot_to_human',
+                tags=('handover', 'sparse', 'delayed', 'pfl'))
+def robot_to_human(**task_kwargs):
+  """The robot brings the hammer to the human's hand."""
+  return RobotToHuman(**task_kwargs)
+
+
+@suite.register('handover', 'human_to_robot',
+                tags=('handover', 'sparse', 'delayed', 'pfl'))
+def human_to_robot(**task_kwargs):
+  """The robot takes the presented hammer and places it at a target."""
+  return HumanToRobot(**task_kwargs)
