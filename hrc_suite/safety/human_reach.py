@@ -250,6 +250,7 @@ class HumanReach:
                                 self.config.kalman_initial_vel_var])
     self._extremity_lengths = self._ext_length.copy()
     self._length_positions = None   # Positions awaiting a length update.
+    self._error_vel = (None, None)    # (sample period, velocity errors).
 
   @property
   def has_velocity(self):
@@ -381,8 +382,11 @@ class HumanReach:
     b = self.num_bodies
     ends = self._ends
     if compiled and self.has_velocity:
-      error_vel = np.ascontiguousarray(np.broadcast_to(
-          self._velocity_error(), (self.num_keypoints,)), dtype=float)
+      if self._error_vel[0] != self._last_period:
+        self._error_vel = (self._last_period, np.ascontiguousarray(
+            np.broadcast_to(self._velocity_error(), (self.num_keypoints,)),
+            dtype=float))
+      error_vel = self._error_vel[1]
       c1, c2, r = kernels.human_velocity_capsules(
           self.positions, self.velocities, self._kernel_v_max,
           self._kernel_a_max, t, self.config.measurement_error_pos,

@@ -385,3 +385,63 @@ def balls_capsules_distance(centre, radius, c1, c2, r):
         if d < best:
           best = d
   return best
+
+
+@_jit
+def horizon_balls(positions, velocities, v_max, body_ends, half_thickness,
+                  age, error_pos, base):
+  """The shield's VEL balls over the whole horizon, one per body: centres
+  (B, 3) at the body capsule's midpoint, radii (B,) = max(v_max, measured
+  speed) of the faster end x age + thickness / 2 + position error + half
+  the body length; and the smallest gap between any ball and the point
+  `base` (3,) (centre distance minus radius)."""
+  count_b = half_thickness.shape[0]
+  centre = np.empty((count_b, 3))
+  grow = np.empty(count_b)
+  gap = np.inf
+  for b in range(count_b):
+    fastest = 0.0
+    for side in range(2):
+      n = body_ends[side, b]
+      vx, vy, vz = velocities[n, 0], velocities[n, 1], velocities[n, 2]
+      speed = max(math.sqrt(vx * vx + vy * vy + vz * vz), v_max[n])
+      if side == 0:
+        fastest = speed
+      else:
+        fastest = max(fastest, speed)
+    i, j = body_ends[0, b], body_ends[1, b]
+    h0 = positions[j, 0] - positions[i, 0]
+    h1 = positions[j, 1] - positions[i, 1]
+    h2 = positions[j, 2] - positions[i, 2]
+    radius = fastest * age + half_thickness[b] + error_pos
+    radius += 0.5 * math.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+    grow[b] = radius
+    distance = 0.0
+    for r in range(3):
+      centre[b, r] = 0.5 * (positions[i, r] + positions[j, r])
+      d = centre[b, r] - base[r]
+      distance += d * d
+    gap = min(gap, math.sqrt(distance) - radius)
+  return centre, grow, gap
+
+
+@_jit
+def plan_positions(coefficients, start_time, inverse_cycle, cycle_time, s,
+                   out, first):
+  """Joint positions on a plan at plan times s (K,) into out[first:]
+  (LongTermPlan.positions: Taylor expansion from the sample at or before
+  s, clamped to the plan; coefficients (N, 4, dof) = q, dq, ddq, dddq)."""
+  last = coefficients.shape[0] - 1
+  dof = coefficients.shape[2]
+  for i in range(s.shape[0]):
+    x = s[i]
+    k = int(math.floor((x - start_time) * inverse_cycle))
+    k = 0 if k < 0 else (last if k > last else k)
+    t = x - start_time - k * cycle_time
+    t2 = 0.5 * t * t
+    t3 = t2 * t / 3.0
+    for d in range(dof):
+      out[first + i, d] = (coefficients[k, 0, d] + t * coefficients[k, 1, d]
+                           + t2 * coefficients[k, 2, d]
+                           + t3 * coefficients[k, 3, d])
+  return out

@@ -18,6 +18,8 @@ and samples it exactly (piecewise constant jerk) every cycle.
 import numpy as np
 import ruckig
 
+from hrc_suite.safety import kernels
+
 # Goals are kept this far inside the joint limits (rad; spec 2.1, the
 # original's planning tolerance).
 GOAL_LIMIT_MARGIN = 0.01
@@ -159,9 +161,27 @@ class LongTermPlan:
     q = c[:, 0] + tau * (c[:, 1] + tau * (0.5 * c[:, 2] + tau * j / 6.0))
     return q, v, a, j
 
-  def positions(self, s):
+  def positions(self, s, out=None, first=0):
     """Joint positions (K, dof) at plan times s (K values); the fast path
-    for the few edges of a failsafe (index arithmetic in Python floats)."""
+    for the few edges of a failsafe (a compiled kernel). With `out`, they
+    are written to out[first:first + K] (C-contiguous float64) instead."""
+    s = np.ascontiguousarray(s, dtype=float)
+    if out is None:
+      out = np.empty((s.shape[0], self._coefficients.shape[2]))
+      first = 0
+    if s.shape[0]:
+      top = int((float(s.max()) - self.start_time) * self._inverse_cycle
+                // 1.0)
+      top = 0 if top < 0 else (self._last if top > self._last else top)
+      if top >= self._filled:
+        self._fill(top)
+      kernels.plan_positions(self._coefficients, self.start_time,
+                             self._inverse_cycle, self.cycle_time, s, out,
+                             first)
+    return out[first:first + s.shape[0]]
+
+  def positions_reference(self, s):
+    """NumPy reference of `positions` (index arithmetic in Python floats)."""
     start, inverse, cycle, last = (self.start_time, self._inverse_cycle,
                                    self.cycle_time, self._last)
     indices, weights = [], []

@@ -29,6 +29,8 @@ Differences to the original (shield spec section 9), on purpose:
   cycle under SSM's "some model is collision-free" rule.
 """
 
+import math
+
 import numpy as np
 
 from hrc_suite import robot_description as robot_description_lib
@@ -129,9 +131,15 @@ class Shield:
                      + t_radius)
     self._workspace_radius = max(extents) + self.robot.secure_radius
     # Keypoint indices (2, B) of the human bodies' proximal and distal ends.
-    self._body_ends = np.array([
+    self._body_ends = np.ascontiguousarray([
         keypoints.index([b.proximal for b in self.human.config.bodies]),
-        keypoints.index([b.distal for b in self.human.config.bodies])])
+        keypoints.index([b.distal for b in self.human.config.bodies])],
+                                           dtype=np.int64)
+    config = self.human.config
+    self._half_thickness = np.array([b.thickness / 2 for b in config.bodies])
+    self._human_v_max = np.ascontiguousarray(config.v_max, dtype=float)
+    self._human_delay = float(config.delay)
+    self._human_error_pos = float(config.measurement_error_pos)
     self.reset(robot_description.q_home if q_init is None else q_init)
 
   # --------------------------------------------------------------- commands
@@ -220,10 +228,7 @@ class Shield:
     if 'robot_reach' not in self._lazy:
       if self._reach_arguments is None:
         return None
-      plan, s_edges, _ = self._reach_arguments
-      q_edges = np.empty((len(s_edges), self.dof))
-      q_edges[0] = self._previous_q
-      q_edges[1:] = plan.positions(s_edges[1:])
+      _, s_edges, _, q_edges = self._reach_arguments
       self._lazy['robot_reach'] = self.robot.reach_capsules(
           q_edges, np.array(s_edges))
     return self._lazy['robot_reach']
@@ -436,38 +441,46 @@ class Shield:
     """Checks the slice current -> intended step, then the failsafe."""
     dt = self.cycle_time
     end = failsafe.end_time()
-    count = max(int(np.ceil(end / self.interval - 1e-9)), 1)
+    count = max(math.ceil(end / self.interval - 1e-9), 1)
     times = [i * self.interval for i in range(count)] + [end]
     s = failsafe.sample(times)[0]
     s_edges = [current.s] + s
     t_edges = [0.0] + [x + dt for x in times]
-    self._reach_arguments = (plan, s_edges, t_edges)
-    end_q = plan.state(s[-1])[0].tolist()
+    q_edges = np.empty((count + 2, self.dof))
+    q_edges[0] = self._previous_q
+    plan.positions(s, out=q_edges, first=1)
+    self._reach_arguments = (plan, s_edges, t_edges, q_edges)
+    end_q = q_edges[-1].tolist()
     if not all(low <= q <= high for low, q, high in zip(
         self._q_min, end_q, self._q_max)):
       self.first_unsafe_interval, self._reach_distance = count, -np.inf
       return False
-    if self.human.positions is None:
+    human = self.human
+    if human.positions is None:
       self.first_unsafe_interval, self._reach_distance = -1, np.inf
       return True
     # Broad phase 1: the human's horizon balls against the robot's whole
     # workspace ball (no kinematics needed).
-    centre, radius = self._human_horizon_balls(t_edges[-1])
-    gap = centre - self._base
-    bound = float((np.sqrt(np.einsum('bi,bi->b', gap, gap)) - radius).min()
-                  - self._workspace_radius)
+    age = (self.time - human.last_measurement_time + self._human_delay
+           + t_edges[-1])
+    centre, radius, gap = kernels.horizon_balls(
+        human.positions, human.velocities, self._human_v_max,
+        self._body_ends, self._half_thickness, age, self._human_error_pos,
+        self._base)
+    bound = gap - self._workspace_radius
     if bound > 0.0:
       self.first_unsafe_interval, self._reach_distance = -1, bound
       return True
     robot = self.robot_reach_capsules
     # Broad phase 2: the same balls against every robot reach capsule.
-    bound = _balls_capsules_distance(centre, radius, robot)
+    bound = kernels.balls_capsules_distance(centre, radius,
+                                            *robot) - _BROAD_PHASE_SLACK
     if bound > 0.0:
       self.first_unsafe_interval, self._reach_distance = -1, bound
       return True
     human = self.human_reach_capsules
-    first = int(kernels.ssm_first_unsafe(
-        *robot, *(np.ascontiguousarray(x) for x in human)))
+    first = kernels.ssm_first_unsafe(
+        *robot, *(np.ascontiguousarray(x) for x in human))
     self.first_unsafe_interval, self._reach_distance = first, None
     if first < 0 or s_dot_limit is None:
       return first < 0
@@ -476,7 +489,8 @@ class Shield:
     return self._slow_enough(plan, current, failsafe, times, s_edges, first)
 
   def _human_horizon_balls(self, horizon):
-    """One ball per human body containing its maximal-velocity (VEL)
+    """NumPy reference of the first broad phase's balls (the shield runs
+    kernels.horizon_balls): one ball per human body containing its maximal-velocity (VEL)
     reachable set over the whole horizon (s after this cycle's time):
     the measured body capsule grown by max(v_max, measured speed) of its
     faster end times the measurement's age plus horizon and delay, plus the
