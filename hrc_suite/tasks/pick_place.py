@@ -1,0 +1,281 @@
+"""Pick and place: move a cube to a target on the table while a person works
+beside the robot (reference-benchmark.md, paper Table I).
+
+* Scene: a 4 cm cube (`props.Cube`) and a flat target disc on the table,
+  one on each side of the robot's centre line (the side is drawn per
+  episode). Both are drawn uniformly in REGION_X x REGION_ABS_Y (robot base
+  frame) and kept only if gripper-down IK reaches the point above them
+  (HOVER_HEIGHT) and the grasp height from there without static or self
+  collision, so every robot (the Schunk included) can do the task.
+* The person (the 12 'pick_place' clips, station `layout.HUMAN_STATION_
+  BESIDE`) picks and places their own things beside the workspace; the
+  clips wait for no event. `pick_place/close` shifts the station
+  CLOSE_STATION_SHIFT towards the robot's centre line, so the reaches enter
+  the shared space (and can reach the +y half of the object regions).
+* Success: the cube's centre within SUCCESS_DISTANCE of the target point
+  (the centre of a cube resting on the target disc).
+* Reward (sparse, reference): +1 at success, -0.25 while the cube is
+  gripped, -1 otherwise; illegal contacts add the collision reward. Done at
+  success (configurable); horizon 1000 RL steps; no reward delay; SSM.
+* Observations: 'paper' = object gripped, EEF->object, EEF->target
+  (world-frame vectors), gripper aperture, distances EEF->head / left hand /
+  right hand; 'full' adds everything in `HrcTask` and the cube's and
+  target's world positions, positions in the TCP frame, distances, the
+  cube's quaternion and whether it is at the target.
+* Counters: grasps (RL steps at which the cube became gripped),
+  gripped_steps, object_at_target_steps.
+
+The base's collision prevention forbids any tool contact with the table,
+but the tool capsule (radius ~6.4 cm around the fingers) reaches 7.4 cm
+below the TCP; this task allows the tool capsule TOOL_TABLE_ALLOWANCE of
+table penetration so the fingertips can go down to a cube's centre (they
+stay TABLE_CLEARANCE above the table).
+"""
+
+import math
+
+from dm_control.composer.observation import observable
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite import suite
+from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import props
+from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import base
+
+SUCCESS_DISTANCE = 0.1       # m, cube to target (reference)
+REWARD_SUCCESS = 1.0         # reference sparse reward
+REWARD_GRIPPED = -0.25
+REWARD_OTHERWISE = -1.0
+# Object and target regions in the robot base frame (m): x ahead of the
+# base, |y| to either side. Chosen where gripper-down IK of the Schunk (low,
+# close workspace) and the KUKA iiwa (reaches from x ~0.35 m) overlap with
+# the other robots': about 70 % of draws are reachable for those two, all
+# for the others.
+REGION_X = (0.30, 0.45)
+REGION_ABS_Y = (0.10, 0.25)
+HOVER_HEIGHT = 0.2           # m above the cube centre (reference expert)
+# A grasp puts the TCP (1 cm above the fingertips) this far above the cube
+# centre: pads 4 cm long cover the cube's upper 3 cm.
+GRASP_TCP_ABOVE_CENTRE = 0.005   # m
+SAMPLE_ATTEMPTS = 200
+# Fingertips' minimum clearance above the table allowed by collision
+# prevention (see module doc).
+TABLE_CLEARANCE = 0.005      # m
+TARGET_RGBA = (0.1, 0.8, 0.2, 0.35)
+TARGET_HALF_THICKNESS = 0.0005   # m, the drawn disc
+# `close`: the beside station moved towards the robot's centre line (-y),
+# the person then stands 0.15 m from the table's side edge instead of 0.3 m
+# (layout: station y 1.05 m, table edge y 0.75 m), and hands at the clips'
+# pick and place points come within ~0.15 m of the centre line.
+CLOSE_STATION_SHIFT = 0.15   # m
+
+
+class PickPlace(base.HrcTask):
+  """Pick a cube up and put it on the target on the other side."""
+
+  MOTIONS = 'pick_place'
+  HUMAN_STATION = layout.HUMAN_STATION_BESIDE
+  HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)
+  DEFAULT_SHIELD = 'ssm'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('sparse',)
+  DEFAULT_REWARD_DELAY = 0
+  HORIZON = 1000
+  HAS_GRIPPER_ACTION = True
+  OBSERVATION_PRESETS = {'paper': ('object_gripped', 'eef_to_object',
+                                   'eef_to_target', 'gripper_aperture',
+                                   'human_distances')}
+  EXTRA_COUNTERS = ('grasps', 'gripped_steps', 'object_at_target_steps')
+
+  def _build_task(self):
+    self._cube = props.Cube()
+    self._arena.add_free_entity(self._cube)
+    self._object_geoms.extend(self._cube.geoms)
+    # The target is a mocap body: its position is physics state, so
+    # snapshots carry it. A flat disc whose radius is the success distance.
+    body = self._arena.mjcf_model.worldbody.add(
+        'body', name='pick_place_target', mocap=True)
+    body.add('site', name='pick_place_target', type='cylinder',
+             size=(SUCCESS_DISTANCE, TARGET_HALF_THICKNESS),
+             pos=(0.0, 0.0, -self._cube.size / 2 + TARGET_HALF_THICKNESS),
+             rgba=TARGET_RGBA, group=0)
+    self._target_body = body
+    self._ik = ik_lib.InverseKinematics(self._kinematics)
+    # Collision prevention that lets the fingertips reach a cube's centre.
+    _, _, radius = self._gripper.enclosing_capsule()
+    # The capsule's lowest point is `radius` below the fingertips (its end
+    # point, gripper.enclosing_capsule).
+    self.tool_table_allowance = radius - TABLE_CLEARANCE
+    self._collision_checker = cp_lib.CollisionPrevention(
+        self._robot.description, base_pose=self._kinematics.base_pose,
+        tool_capsule=self._tool_capsule(),
+        tool_table_allowance=self.tool_table_allowance)
+    self._target = np.zeros(3)
+    self._object_side = 1.0
+    self._reset_progress()
+
+  def _tool_capsule(self):
+    description = self._robot.description
+    p1, p2, radius = self._gripper.enclosing_capsule()
+    rotation, translation = (description.flange_rotation,
+                             description.flange_translation)
+    return (translation + rotation @ p1, translation + rotation @ p2, radius)
+
+  def _reset_progress(self):
+    self._success = False
+    self._gripped = False
+    self._distance = math.inf
+
+  # ---------------------------------------------------------------- props
+
+  @property
+  def cube(self):
+    return self._cube
+
+  @property
+  def target_position(self):
+    """World position of the target point (a resting cube's centre)."""
+    return self._target.copy()
+
+  def object_position(self, physics):
+    return physics.bind(self._cube.body).xpos.copy()
+
+  def _reachable(self, centre):
+    """True if the TCP reaches above `centre` and down to grasp it, gripper
+    down, collision free."""
+    q_home = self._robot.description.q_home
+    above = self._ik.solve(centre + (0.0, 0.0, HOVER_HEIGHT), q_home,
+                           actions.GRIPPER_YAW)
+    if not above.success:
+      return False
+    grasp = self._ik.solve(centre + (0.0, 0.0, GRASP_TCP_ABOVE_CENTRE),
+                           above.q, actions.GRIPPER_YAW)
+    checker = self._collision_checker
+    return bool(grasp.success and not checker.in_collision(above.q)
+                and not checker.in_collision(grasp.q))
+
+  def _sample_point(self, side, random_state):
+    base_pose = self._kinematics.base_pose
+    height = layout.TABLE_TOP_Z + self._cube.size / 2
+    for _ in range(SAMPLE_ATTEMPTS):
+      local = np.array([random_state.uniform(*REGION_X),
+                        side * random_state.uniform(*REGION_ABS_Y), 0.0])
+      point = base_pose[:3, :3] @ local + base_pose[:3, 3]
+      point[2] = height
+      if self._reachable(point):
+        return point
+    raise RuntimeError(
+        f'PickPlace: no reachable point on side {side:+.0f} in '
+        f'{SAMPLE_ATTEMPTS} samples for {self._robot.description.name}')
+
+  def _initialize_task(self, physics, random_state):
+    self._object_side = 1.0 if random_state.uniform() < 0.5 else -1.0
+    start = self._sample_point(self._object_side, random_state)
+    self._target = self._sample_point(-self._object_side, random_state)
+    self._cube.set_pose(physics, position=start,
+                        quaternion=np.array([1.0, 0.0, 0.0, 0.0]))
+    self._cube.set_velocity(physics, velocity=np.zeros(3),
+                            angular_velocity=np.zeros(3))
+    physics.bind(self._target_body).mocap_pos = self._target
+    physics.forward()
+    self._reset_progress()
+    self._distance = float(np.linalg.norm(start - self._target))
+
+  # ------------------------------------------------------------- progress
+
+  def _update_task(self, physics):
+    gripped = self._gripper.is_grasping(physics, self._cube.body)
+    grasped_now = gripped and not self._gripped
+    self._gripped = gripped
+    self._distance = float(np.linalg.norm(
+        physics.bind(self._cube.body).xpos - self._target))
+    self._success = self._distance <= SUCCESS_DISTANCE
+    return {'success': float(self._success),
+            'object_distance': self._distance,
+            'grasps': int(grasped_now), 'gripped_steps': int(gripped),
+            'object_at_target_steps': int(self._success)}
+
+  def _task_reward(self, physics):
+    del physics
+    if self._success:
+      return REWARD_SUCCESS
+    return REWARD_GRIPPED if self._gripped else REWARD_OTHERWISE
+
+  def _task_reward_range(self):
+    return (REWARD_OTHERWISE, REWARD_SUCCESS)
+
+  def _task_state(self):
+    return {'target': self._target.copy(), 'side': self._object_side,
+            'success': self._success, 'gripped': self._gripped,
+            'distance': self._distance}
+
+  def _set_task_state(self, state):
+    self._target = np.array(state['target'], dtype=float)
+    self._object_side = float(state['side'])
+    self._success = bool(state['success'])
+    self._gripped = bool(state['gripped'])
+    self._distance = float(state['distance'])
+
+  # ---------------------------------------------------------- observables
+
+  def _task_observables(self):
+    cube, tcp = self._cube.body, self._robot.tcp_site
+
+    def eef_to_object(physics):
+      return physics.bind(cube).xpos - physics.bind(tcp).xpos
+
+    def eef_to_target(physics):
+      return self._target - physics.bind(tcp).xpos
+
+    def in_eef(physics, vector):
+      return vector @ physics.bind(tcp).xmat.reshape(3, 3)
+
+    return {
+        'object_gripped': observable.Generic(
+            lambda physics: np.array([float(self._gripper.is_grasping(
+                physics, cube))])),
+        'eef_to_object': observable.Generic(eef_to_object),
+        'eef_to_target': observable.Generic(eef_to_target),
+        'object_position': observable.MJCFFeature('xpos', cube),
+        'object_quaternion': observable.MJCFFeature('xquat', cube),
+        'object_in_eef_frame': observable.Generic(
+            lambda physics: in_eef(physics, eef_to_object(physics))),
+        'object_distance': observable.Generic(
+            lambda physics: np.array([np.linalg.norm(eef_to_object(
+                physics))])),
+        'target_position': observable.Generic(
+            lambda physics: self._target.copy()),
+        'target_in_eef_frame': observable.Generic(
+            lambda physics: in_eef(physics, eef_to_target(physics))),
+        'target_distance': observable.Generic(
+            lambda physics: np.array([np.linalg.norm(eef_to_target(
+                physics))])),
+        'object_at_target': observable.Generic(
+            lambda physics: np.array([float(np.linalg.norm(
+                physics.bind(cube).xpos - self._target)
+                                            <= SUCCESS_DISTANCE)])),
+    }
+
+
+class PickPlaceClose(PickPlace):
+  """Pick and place with the person CLOSE_STATION_SHIFT closer."""
+
+  HUMAN_STATION = (layout.HUMAN_STATION_BESIDE[0],
+                   layout.HUMAN_STATION_BESIDE[1] - CLOSE_STATION_SHIFT,
+                   layout.HUMAN_STATION_BESIDE[2])
+
+
+@suite.register('pick_place', 'default',
+                tags=('coexistence', 'sparse', 'ssm'))
+def default(**task_kwargs):
+  """Pick and place with the person beside the workspace."""
+  return PickPlace(**task_kwargs)
+
+
+@suite.register('pick_place', 'close', tags=('coexistence', 'sparse', 'ssm'))
+def close(**task_kwargs):
+  """Pick and place with the person working closer to the robot."""
+  return PickPlaceClose(**task_kwargs)
