@@ -509,18 +509,13 @@ class Shield:
     return 0.5 * (p1 + p2), grow
 
 
-def _balls_capsules_distance(centre, radius, capsules):
-  """Lower bound of the distance between balls (B,) and capsules (K, L):
-  each capsule is bounded by the ball around its midpoint; the round-off
-  is far below _BROAD_PHASE_SLACK, which is subtracted (compiled:
-  kernels.balls_capsules_distance)."""
-  return float(kernels.balls_capsules_distance(centre, radius, *capsules)
-               - _BROAD_PHASE_SLACK)
-
-
 def balls_capsules_distance_reference(centre, radius, capsules):
-  """NumPy reference of _balls_capsules_distance: centre distances from
-  one matrix product (|a|^2 + |b|^2 - 2 a.b)."""
+  """Lower bound of the distance between balls (B,) and capsules (K, L):
+  each capsule is bounded by the ball around its midpoint. NumPy reference
+  of the second broad phase (the shield runs
+  kernels.balls_capsules_distance): centre distances from one matrix
+  product (|a|^2 + |b|^2 - 2 a.b); the round-off of either form is far
+  below _BROAD_PHASE_SLACK, which is subtracted."""
   c1, c2, r = capsules
   middle = (0.5 * (c1 + c2)).reshape(-1, 3)
   half = (c2 - c1).reshape(-1, 3)

@@ -1,0 +1,211 @@
+"""The compiled kernels against their NumPy references (random inputs)."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import robot_description
+from hrc_suite.safety import geometry
+from hrc_suite.safety import human_reach
+from hrc_suite.safety import kernels
+from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety import robot_reach
+from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety import verification
+
+TOOL = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.12), 0.06)
+
+
+def _special_segments(rng):
+  """Segment pairs (a0, a1, b0, b1) in the cases with explicit branches:
+  parallel (overlapping, disjoint, anti-parallel), collinear, nearly
+  parallel, point segments, identical segments."""
+  out = []
+  for _ in range(40):
+    a0 = rng.uniform(-1, 1, 3)
+    d = rng.normal(size=3)
+    offset = rng.normal(size=3) * rng.choice([0.0, 1e-9, 0.3])
+    shift = rng.uniform(-2, 2)
+    b0 = a0 + shift * d + offset
+    out.append((a0, a0 + d, b0, b0 + rng.uniform(-2, 2) * d))   # Parallel.
+    out.append((a0, a0 + d, b0, b0 + d + 1e-8 * rng.normal(size=3)))
+    out.append((a0, a0, b0, b0 + d))                             # Point a.
+    out.append((a0, a0 + d, b0, b0.copy()))                      # Point b.
+    out.append((a0, a0.copy(), b0, b0.copy()))                   # Two points.
+    out.append((a0, a0 + d, a0.copy(), a0 + d))                  # Same.
+  return out
+
+
+def test_segment_distance_matches_geometry_including_b3_cases():
+  rng = np.random.RandomState(0)
+  pairs = _special_segments(rng) + [
+      tuple(rng.uniform(-1, 1, (4, 3))) for _ in range(2000)]
+  a0, a1, b0, b1 = (np.array(x) for x in zip(*pairs))
+  expected = geometry.segment_distance(a0, a1, b0, b1)
+  got = np.array([kernels.segment_distance(*p0, *q0, *(p1 - p0), *(q1 - q0))
+                  for p0, p1, q0, q1 in zip(a0, a1, b0, b1)])
+  np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+  # The overlapping parallel case of defect B3: distance 1, not more.
+  assert kernels.segment_distance(0, 0, 0, 1, 1, 0, 2, 0, 0, 2, 0,
+                                  0) == pytest.approx(1.0, abs=1e-15)
+
+
+def _random_capsules(rng, k, l, m, b, spread):
+  rc1 = rng.uniform(-spread, spread, (k, l, 3))
+  rc2 = rc1 + rng.normal(0, 0.3, (k, l, 3))
+  rr = rng.uniform(0, 0.2, (k, l))
+  hc1 = rng.uniform(-spread, spread, (m, k, b, 3))
+  hc2 = hc1 + rng.normal(0, 0.3, (m, k, b, 3))
+  hr = rng.uniform(0, 0.2, (m, k, b))
+  kind = rng.randint(4)
+  if kind == 1:     # Ball bodies (degenerate segments).
+    hc2 = hc1.copy()
+  elif kind == 2:   # Bodies parallel to a robot capsule.
+    hc2 = hc1 + (rc2 - rc1)[None, :, :1] * rng.uniform(-2, 2)
+  elif kind == 3:   # Robot capsules collapsed to balls.
+    rc2 = rc1.copy()
+  return (rc1, rc2, rr), (hc1, hc2, hr)
+
+
+def test_ssm_verdict_kernels_match_reference():
+  rng = np.random.RandomState(1)
+  verdicts = set()
+  for i in range(400):
+    shape = (rng.randint(1, 9), rng.randint(1, 9), rng.choice([1, 3]),
+             rng.randint(1, 14))
+    robot, human = _random_capsules(rng, *shape, spread=rng.choice([1, 3]))
+    expected = verification.ssm_verdict(robot, human)
+    safe, first, distance = verification.ssm_verdict(robot, human,
+                                                     compiled=True)
+    assert (safe, first) == expected[:2]
+    assert distance == pytest.approx(expected[2], abs=1e-12)
+    assert verification.first_unsafe_interval(robot, human) == expected[1]
+    np.testing.assert_allclose(
+        kernels.ssm_clearances(*robot, *human),
+        verification.clearances(robot, human), rtol=0, atol=1e-12)
+    verdicts.add(safe)
+  assert verdicts == {True, False}   # Both outcomes were exercised.
+
+
+def test_ssm_kernel_on_the_b3_and_touching_cases():
+  # Overlapping parallel capsules intersect (B3); touching ones do not.
+  robot = tuple(np.array(x, dtype=float)[None, None] for x in (
+      (0, 0, 0), (2, 0, 0), 0.5))
+  human = tuple(np.array(x, dtype=float)[None, None, None] for x in (
+      (1, 1, 0), (3, 1, 0), 0.55))
+  assert verification.first_unsafe_interval(robot, human) == 0
+  touching = (human[0], human[1], np.full((1, 1, 1), 0.5))
+  assert verification.first_unsafe_interval(robot, touching) == -1
+  assert verification.ssm_verdict(robot, touching, compiled=True)[2] == 0.0
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+@pytest.mark.parametrize('tool', [None, TOOL])
+def test_robot_reach_and_surface_speeds_match_reference(name, tool):
+  description = robot_description.load(name)
+  robot = robot_reach.RobotReach(description, tool_capsule=tool,
+                                 base_pose=(0.1, -0.2, 0.7, 0.1, 0.2, 0.3))
+  rng = np.random.RandomState(2)
+  for _ in range(20):
+    k = rng.randint(1, 12)
+    q = rng.uniform(description.limits.q_min, description.limits.q_max,
+                    (k + 1, description.dof))
+    s = np.cumsum(rng.uniform(0, 0.05, k + 1))
+    for got, expected in zip(robot.reach_capsules(q, s),
+                             robot.reach_capsules(q, s, compiled=False)):
+      np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+    dq = rng.uniform(-1, 1, (2, k + 1, description.dof))
+    np.testing.assert_allclose(
+        robot.surface_speeds(q, dq),
+        robot.surface_speeds(q, dq, compiled=False), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize('combined', [True, False])
+@pytest.mark.parametrize('kalman', [True, False])
+def test_human_reach_capsules_match_reference(combined, kalman):
+  human = human_reach.HumanReach(use_kalman_filter=kalman,
+                                 use_combined_model=combined)
+  rng = np.random.RandomState(3)
+  points = rng.uniform(-1, 1, (human.num_keypoints, 3))
+  for i in range(30):
+    # Mostly slow motions; every fifth sample a jump faster than v_max.
+    step = 0.3 if i % 5 == 4 else 0.005
+    points = points + rng.normal(0, step, points.shape)
+    human.measure(points, 0.004 * i)
+    t_edges = np.concatenate([[0.0], np.cumsum(rng.uniform(0, 0.03, 11))])
+    got = human.reach_capsules(0.004 * i + 0.002, t_edges)
+    expected = human.reach_capsules(0.004 * i + 0.002, t_edges,
+                                    compiled=False)
+    for x, y in zip(got, expected):
+      assert x.shape == y.shape
+      # Relative: speeds of the jumps reach ~100 m/s (radii of metres).
+      np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-12)
+
+
+def test_shield_broad_phases_match_reference():
+  shield = shield_lib.Shield('panda', tool_capsule=TOOL)
+  rng = np.random.RandomState(4)
+  human = shield.human
+  base = rng.uniform(-1, 1, (human.num_keypoints, 3))
+  for i in range(20):
+    human.measure(base + rng.normal(0, 0.01 * (1 + i % 3), base.shape),
+                  0.004 * i)
+    shield.time = 0.004 * i + 0.001
+    horizon = rng.uniform(0, 0.3)
+    config = human.config
+    age = (shield.time - human.last_measurement_time + config.delay
+           + horizon)
+    centre, radius, gap = kernels.horizon_balls(
+        human.positions, human.velocities, shield._human_v_max,
+        shield._body_ends, shield._half_thickness, age,
+        config.measurement_error_pos, shield._base)
+    ref_centre, ref_radius = shield._human_horizon_balls(horizon)
+    np.testing.assert_allclose(centre, ref_centre, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(radius, ref_radius, rtol=0, atol=1e-12)
+    assert gap == pytest.approx(
+        (np.linalg.norm(ref_centre - shield._base, axis=1)
+         - ref_radius).min(), abs=1e-12)
+    q = rng.uniform(-1, 1, (6, 7))
+    capsules = shield.robot.reach_capsules(q, np.arange(6) * 0.02)
+    # The reference's |a|^2 + |b|^2 - 2 a.b form loses ~1e-15 m.
+    assert kernels.balls_capsules_distance(
+        centre, radius, *capsules) - shield_lib._BROAD_PHASE_SLACK == (
+            pytest.approx(
+            shield_lib.balls_capsules_distance_reference(
+                centre, radius, capsules), abs=1e-12))
+
+
+def test_plan_positions_match_reference():
+  description = robot_description.load('iiwa')
+  plan = ltp.plan_to_goal(description.q_home, np.zeros(7), np.zeros(7),
+                          description.q_home + 0.8, description.limits,
+                          0.004, start_time=0.37)
+  rng = np.random.RandomState(5)
+  # Before the start, inside, and past the end (clamped to the samples).
+  s = np.concatenate([[0.0, 0.37, plan.end_time, plan.end_time + 1.0],
+                      rng.uniform(0.3, plan.end_time + 0.1, 50)])
+  np.testing.assert_allclose(plan.positions(s), plan.positions_reference(s),
+                             rtol=0, atol=1e-12)
+  out = np.full((len(s) + 1, 7), np.nan)
+  plan.positions(s, out=out, first=1)
+  assert np.all(np.isnan(out[0]))
+  np.testing.assert_allclose(out[1:], plan.positions_reference(s), rtol=0,
+                             atol=1e-12)
+
+
+def test_shield_reach_distance_is_the_reference_clearance():
+  shield = shield_lib.Shield('panda', tool_capsule=TOOL)
+  _, p2, _ = shield.robot.capsules(shield.description.q_home)
+  shield.new_goal(shield.description.q_home + 0.3)
+  rng = np.random.RandomState(6)
+  checked = 0
+  for i in range(60):
+    points = np.tile(p2[-1] + (0.35, 0.0, 0.0), (shield.human.num_keypoints,
+                                                 1))
+    shield.step(points + rng.normal(0, 0.01, points.shape), 0.004 * i)
+    if shield._reach_distance is None:   # Decided by the exact check.
+      robot, human = shield.robot_reach_capsules, shield.human_reach_capsules
+      safe, first, distance = verification.ssm_verdict(robot, human)
+      assert shield.first_unsafe_interval == first
+      assert shield.reach_distance == pytest.approx(distance, abs=1e-12)
+      checked += 1
+  assert checked > 0
