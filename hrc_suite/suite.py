@@ -56,9 +56,9 @@ def fixed_kwargs(task_kwargs, **fixed):
 def _load_modules():
   global _LOADED
   if not _LOADED:
-    _LOADED = True
     for module in _TASK_MODULES:
-      importlib.import_module(module)
+      importlib.import_module(module)   # Registers its tasks.
+    _LOADED = True
 
 
 def all_tasks():

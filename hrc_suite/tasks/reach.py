@@ -23,6 +23,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import markers
 from hrc_suite.tasks import base
 
 SUCCESS_DISTANCE = 0.05        # m (reference)
@@ -31,8 +32,6 @@ DENSE_SCALE = 0.1              # reward per m (or rad) of distance (reference)
 GOAL_MIN_HEIGHT = 0.05         # m above the table top
 GOAL_ATTEMPTS = 200            # samples before giving up on a goal
 GOAL_IK_RESTARTS = 5
-GOAL_RADIUS = 0.02             # m, the visual marker
-GOAL_RGBA = (0.1, 0.8, 0.2, 0.5)
 
 
 class Reach(base.HrcTask):
@@ -48,13 +47,12 @@ class Reach(base.HrcTask):
   OBSERVATION_PRESETS = {'paper': ('goal_difference',)}
 
   def _build_task(self):
-    # A visual-only mocap marker (no collisions); its position is physics
-    # state, so snapshots carry the goal.
-    body = self._arena.mjcf_model.worldbody.add('body', name='reach_goal',
-                                                mocap=True)
-    body.add('geom', name='reach_goal', type='sphere', size=(GOAL_RADIUS,),
-             rgba=GOAL_RGBA, contype=0, conaffinity=0, group=1)
-    self._goal_body = body
+    # The visual-only marker hangs on a mocap attachment frame: its position
+    # is physics state, so snapshots carry the goal.
+    self._marker = markers.TargetMarker(name='reach_goal')
+    frame = self._arena.attach(self._marker)
+    frame.mocap = 'true'
+    self._goal_body = frame
     self._goal_position = np.zeros(3)
     self._goal_q = self._robot.description.q_home.copy()
     self._ik = ik_lib.InverseKinematics(self._kinematics)
