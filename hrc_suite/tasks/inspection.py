@@ -1,0 +1,277 @@
+"""Object inspection: the robot picks a cube from the table and holds it in
+front of a person, who inspects it and leaves (reference-benchmark.md).
+
+* Scene: a 4 cm cube on the table, uniform in OBJECT_REGION_X x
+  OBJECT_REGION_Y (robot base frame, where the Schunk's and the iiwa's
+  gripper-down workspaces overlap the others'), kept only if gripper-down
+  IK reaches the grasp and the point HOVER_HEIGHT above it without static
+  or self-collision; the person stands across the table.
+* Collision prevention lets the tool capsule (radius ~6.4 cm around the
+  fingers) into the table by its radius minus TABLE_CLEARANCE, so the
+  fingertips can reach a cube on the table (as pick and place does).
+* Human: the clip approaches and waits (idle phase 'object_presented')
+  until the cube is gripped and within SUCCESS_DISTANCE of the inspection
+  target, then inspects it with the hands and retreats.
+* Inspection target: the clip's 'inspection_point' (in front of the person,
+  0.33-0.53 m above the table); where gripper-down IK cannot reach it (short
+  robots, e.g. the Schunk), the nearest point on the segment from it
+  towards the robot's home TCP that IK reaches. Computed once per clip.
+* Success (delayed by the retreat): the clip ends after the event and the
+  cube stayed within SUCCESS_DISTANCE of the target from the event on. The
+  next clip (if the episode goes on) asks again.
+* Reward (sparse, as pick and place): +1 success, -0.25 while the cube is
+  gripped, -1 otherwise. SSM shield; horizon 1000 RL steps.
+* Observations: 'paper' = object gripped, EEF->object, EEF->target,
+  gripper aperture, distances EEF->head / left hand / right hand.
+"""
+
+from dm_control.composer.observation import observable
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite import suite
+from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import props
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.tasks import base
+
+EVENT = clip_lib.TASK_EVENTS['inspection'][0]   # 'object_presented'
+SUCCESS_DISTANCE = 0.1       # m, object to inspection target (reference)
+GRIPPED_REWARD = -0.25       # reference pick and place
+SUCCESS_REWARD = 1.0
+IDLE_REWARD = -1.0
+OBJECT_ATTEMPTS = 100        # cube placements tried before giving up
+# Cube region in the robot base frame (m); see the module doc.
+OBJECT_REGION_X = (0.30, 0.45)
+OBJECT_REGION_Y = (-0.2, 0.2)
+HOVER_HEIGHT = 0.1           # m above the grasp, checked for IK
+# The TCP (1 cm above the fingertips) this far above the cube's centre in
+# a grasp: the 4 cm pads cover the cube's upper 3 cm.
+GRASP_TCP_ABOVE_CENTRE = 0.005   # m
+TABLE_CLEARANCE = 0.005      # m, fingertips above the table (see doc)
+OBJECT_MAX_YAW = 0.3         # rad, cube heading about the fingers' axes
+# Candidates from the clip's inspection point towards the home TCP.
+TARGET_CANDIDATES = 21
+TARGET_IK_RESTARTS = 3
+TARGET_RADIUS = 0.02         # m, the visual marker
+TARGET_RGBA = (0.2, 0.4, 0.9, 0.4)
+
+
+def clip_index(player):
+  """How many clips the player has started before the current one."""
+  return int(player.get_state()['k'])
+
+
+class Inspection(base.HrcTask):
+  """Hold a cube at the person's inspection point until they leave."""
+
+  MOTIONS = 'inspection'
+  HUMAN_STATION = layout.HUMAN_STATION_ACROSS
+  DEFAULT_SHIELD = 'ssm'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('sparse',)
+  DEFAULT_REWARD_DELAY = 0     # the retreat delays success itself
+  HORIZON = 1000
+  HAS_GRIPPER_ACTION = True
+  OBSERVATION_PRESETS = {'paper': ('gripper_aperture', 'human_distances',
+                                   'object_gripped', 'eef_to_object',
+                                   'eef_to_target')}
+  EXTRA_COUNTERS = ('presentations',)
+
+  def _build_task(self):
+    self._cube = props.Cube()
+    self._arena.add_free_entity(self._cube)
+    self._object_geoms.extend(self._cube.geoms)
+    # Visual-only mocap marker: its position is physics state.
+    body = self._arena.mjcf_model.worldbody.add(
+        'body', name='inspection_target', mocap=True)
+    body.add('site', name='inspection_target', type='sphere',
+             size=(TARGET_RADIUS,), rgba=TARGET_RGBA, group=0)
+    self._target_body = body
+    self._ik = ik_lib.InverseKinematics(self._kinematics)
+    description = self._robot.description
+    p1, p2, radius = self._gripper.enclosing_capsule()
+    rotation, translation = (description.flange_rotation,
+                             description.flange_translation)
+    self._collision_checker = cp_lib.CollisionPrevention(
+        description, base_pose=self._kinematics.base_pose,
+        tool_capsule=(translation + rotation @ p1,
+                      translation + rotation @ p2, radius),
+        tool_table_allowance=radius - TABLE_CLEARANCE)
+    self._target_cache = {}
+    self._target = np.zeros(3)
+    self._reset_progress()
+
+  def _reset_progress(self):
+    self._clip_k = 0
+    self._inspecting = False
+    self._kept = False
+    self._success = False
+    self._gripped = False
+    self._at_target = False
+    self._presented = 0
+
+  # ------------------------------------------------------ objects, goals
+
+  @property
+  def cube(self):
+    return self._cube
+
+  @property
+  def target_position(self):
+    return self._target.copy()
+
+  def _reachable(self, point, q_init, random_state):
+    result = self._ik.solve_with_restarts(point, q_init, random_state,
+                                          restarts=TARGET_IK_RESTARTS)
+    return result.success and not self._collision_checker.in_collision(
+        result.q)
+
+  def _clip_target(self):
+    """The current clip's inspection target, moved into the robot's reach."""
+    clip = self._player.clip
+    if clip.name not in self._target_cache:
+      point = np.asarray(self._player.targets_world['inspection_point'])
+      q_home = self._robot.description.q_home
+      home = self._kinematics.tcp_pose(q_home)[:3, 3]
+      # Seeded by the clip's name: the same clip gives the same target.
+      rs = np.random.RandomState(sum(map(ord, clip.name)))
+      target = home
+      for s in np.linspace(0.0, 1.0, TARGET_CANDIDATES):
+        candidate = point + s * (home - point)
+        if self._reachable(candidate, q_home, rs):
+          target = candidate
+          break
+      self._target_cache[clip.name] = target
+    return self._target_cache[clip.name].copy()
+
+  def _initialize_task(self, physics, random_state):
+    self._reset_progress()
+    self._clip_k = clip_index(self._player)
+    model = self._kinematics
+    base_pose = model.base_pose
+    height = layout.TABLE_TOP_Z + self._cube.size / 2
+    q_home = self._robot.description.q_home
+    low = (OBJECT_REGION_X[0], OBJECT_REGION_Y[0], 0.0)
+    high = (OBJECT_REGION_X[1], OBJECT_REGION_Y[1], 0.0)
+    for _ in range(OBJECT_ATTEMPTS):
+      position = base_pose[:3, :3] @ random_state.uniform(low, high) + (
+          base_pose[:3, 3])
+      position[2] = height
+      yaw = random_state.uniform(-OBJECT_MAX_YAW, OBJECT_MAX_YAW)
+      grasp = position + (0.0, 0.0, GRASP_TCP_ABOVE_CENTRE)
+      if (self._reachable(grasp, q_home, random_state) and self._reachable(
+          grasp + (0.0, 0.0, HOVER_HEIGHT), q_home, random_state)):
+        break
+    else:
+      raise RuntimeError(f'Inspection: no reachable cube position in '
+                         f'{OBJECT_ATTEMPTS} samples for '
+                         f'{self._robot.description.name}')
+    quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+    self._cube.set_pose(physics, position, quat)
+    self._target = self._clip_target()
+    physics.bind(self._target_body).mocap_pos = self._target
+    physics.forward()
+
+  # ------------------------------------------------------------ progress
+
+  def _object_position(self, physics):
+    return physics.bind(self._cube.body).xpos
+
+  def _update_task(self, physics):
+    self._gripped = props.is_gripped(physics, self._gripper, self._cube)
+    distance = float(np.linalg.norm(self._object_position(physics)
+                                    - self._target))
+    self._at_target = distance <= SUCCESS_DISTANCE
+    if self._inspecting and not self._at_target:
+      self._kept = False
+    self._success = False
+    k = clip_index(self._player)
+    if k != self._clip_k:   # The clip (approach, inspection, retreat) ended.
+      self._success = self._inspecting and self._kept
+      self._clip_k, self._inspecting, self._kept = k, False, False
+      self._target = self._clip_target()
+      physics.bind(self._target_body).mocap_pos = self._target
+    # The person waits for the cube: the base triggers the event right
+    # after this (`_human_events`), which ends the wait.
+    self._presented = int(self._gripped and self._at_target
+                          and self._player.waiting_for == EVENT)
+    if self._presented:
+      self._inspecting, self._kept = True, True
+    return {'success': float(self._success), 'target_distance': distance,
+            'object_gripped': float(self._gripped),
+            'object_at_target': float(self._at_target),
+            'presentations': self._presented}
+
+  def _human_events(self, physics):
+    del physics
+    return (EVENT,) if self._presented else ()
+
+  def _task_reward(self, physics):
+    del physics
+    if self._success:
+      return SUCCESS_REWARD
+    return GRIPPED_REWARD if self._gripped else IDLE_REWARD
+
+  def _task_reward_range(self):
+    return (IDLE_REWARD, SUCCESS_REWARD)
+
+  def _task_state(self):
+    return {'target': self._target.copy(), 'clip_k': self._clip_k,
+            'inspecting': self._inspecting, 'kept': self._kept,
+            'success': self._success, 'gripped': self._gripped,
+            'at_target': self._at_target, 'presented': self._presented}
+
+  def _set_task_state(self, state):
+    self._target = np.array(state['target'], dtype=float)
+    self._clip_k = int(state['clip_k'])
+    for name in ('inspecting', 'kept', 'success', 'gripped', 'at_target'):
+      setattr(self, f'_{name}', bool(state[name]))
+    self._presented = int(state['presented'])
+
+  # -------------------------------------------------------- observables
+
+  def _task_observables(self):
+    tcp, body = self._robot.tcp_site, self._cube.body
+
+    def eef_to_object(physics):
+      return physics.bind(body).xpos - physics.bind(tcp).xpos
+
+    def eef_to_target(physics):
+      return self._target - physics.bind(tcp).xpos
+
+    def in_eef(vector):
+      def observe(physics):
+        return vector(physics) @ physics.bind(tcp).xmat.reshape(3, 3)
+      return observe
+
+    def norm(vector):
+      return lambda physics: np.array([np.linalg.norm(vector(physics))])
+
+    return {
+        'object_gripped': observable.Generic(
+            lambda physics: np.array([float(props.is_gripped(
+                physics, self._gripper, self._cube))])),
+        'eef_to_object': observable.Generic(eef_to_object),
+        'eef_to_target': observable.Generic(eef_to_target),
+        'object_position': observable.MJCFFeature('xpos', body),
+        'object_quaternion': observable.MJCFFeature('xquat', body),
+        'object_in_eef_frame': observable.Generic(in_eef(eef_to_object)),
+        'object_distance': observable.Generic(norm(eef_to_object)),
+        'target_position': observable.Generic(
+            lambda physics: self._target.copy()),
+        'target_in_eef_frame': observable.Generic(in_eef(eef_to_target)),
+        'target_distance': observable.Generic(norm(eef_to_target)),
+        'object_at_target': observable.Generic(
+            lambda physics: np.array([float(np.linalg.norm(
+                physics.bind(body).xpos - self._target)
+                <= SUCCESS_DISTANCE)])),
+    }
+
+
+@suite.register('inspection', 'default',
+                tags=('object_handling', 'sparse', 'delayed', 'ssm'))
+def default(**task_kwargs):
+  """Object inspection with the sparse reward (reference values)."""
+  return Inspection(**task_kwargs)
