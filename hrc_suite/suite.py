@@ -16,6 +16,7 @@ from dm_control import composer
 # Modules whose import registers tasks (one per benchmark task).
 _TASK_MODULES = ('hrc_suite.tasks.reach', 'hrc_suite.tasks.pick_place',
                  'hrc_suite.tasks.handover')
+_TASK_MODULES += ('hrc_suite.tasks.hammering',)
 
 TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
         'assembly', 'dense', 'sparse', 'delayed', 'ssm', 'pfl')
