@@ -222,6 +222,7 @@ class HrcTask(composer.Task):
                              description.flange_translation)
     tool_capsule = (translation + rotation @ p1, translation + rotation @ p2,
                     radius)
+    self._tool_capsule = tool_capsule
     self._shield = shield_lib.Shield(
         description, mode=shield, cycle_time=physics_timestep,
         base_pose=base_pose, tool_capsule=tool_capsule, v_safe=v_safe)
@@ -282,6 +283,12 @@ class HrcTask(composer.Task):
   @property
   def kinematics(self):
     return self._kinematics
+
+  @property
+  def tool_capsule(self):
+    """(p1, p2, radius) of the gripper's enclosing capsule in the last
+    link's frame, as the shield and collision prevention use it."""
+    return self._tool_capsule
 
   @property
   def collision_checker(self):
