@@ -32,6 +32,7 @@ import numpy as np
 
 from hrc_suite import layout
 from hrc_suite import suite
+from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
@@ -131,6 +132,7 @@ class Hammering(base.HrcTask):
       self._hold_space = YawedCartesianActionSpace(self._kinematics, HOLD_YAW)
     else:
       self._hold_space = self._action_space
+    self._hold_ik = ik_lib.InverseKinematics(self._kinematics)
     self._board = nail_board_lib.NailBoard()
     self._hammer = props.Hammer()
     for prop in (self._board, self._hammer):
@@ -198,7 +200,7 @@ class Hammering(base.HrcTask):
     half about the TCP axis to point the nail along +x."""
     home = self._robot.description.q_home
     position = self._kinematics.tcp_pose(home)[:3, 3]
-    result = self._hold_space.ik.solve(position, home, HOLD_YAW)
+    result = self._hold_ik.solve(position, home, HOLD_YAW)
     if result.success and not self._collision_checker.in_collision(result.q):
       physics.data.qpos[self._qpos_index] = result.q
       self._q_goal = result.q.copy()

@@ -1,0 +1,186 @@
+"""The hammering task: reset/step, rewards, grasp, snapshots, an oracle."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import suite
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import hammering
+from hrc_suite.tasks import metrics
+
+ROBOTS = ('panda', 'schunk')
+SPACES = ('joint', 'cartesian')
+
+
+def _env(robot='panda', space='cartesian', seed=0, **kwargs):
+  kwargs.setdefault('time_limit', 1.0)
+  return suite.load('hammering', 'default', task_kwargs={
+      'robot': robot, 'action_space': space, **kwargs},
+                    environment_kwargs={'random_state': seed})
+
+
+def _hold_action(env):
+  """Zero arm motion, gripper closed."""
+  action = np.zeros(env.action_spec().shape)
+  action[-1] = 1.0
+  return action
+
+
+def _rollout(env, actions_):
+  return [env.step(a).observation for a in actions_]
+
+
+def _random_actions(env, count, seed=1):
+  rs = np.random.RandomState(seed)
+  return [rs.uniform(-1, 1, env.action_spec().shape) for _ in range(count)]
+
+
+def _assert_same(first, second):
+  assert len(first) == len(second)
+  for a, b in zip(first, second):
+    for key in a:
+      np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+@pytest.mark.parametrize('robot', ROBOTS)
+@pytest.mark.parametrize('space', SPACES)
+def test_reset_and_step(robot, space):
+  env = _env(robot, space, observations='full')
+  timestep = env.reset()
+  assert timestep.observation['object_gripped'].shape == (1,)
+  assert timestep.observation['eef_to_target'].shape == (3,)
+  low, high = env.task.reward_range
+  assert (low, high) == (-1.0 + env.task.collision_reward, 1.0)
+  rs = np.random.RandomState(0)
+  steps = 0
+  while not timestep.last():
+    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
+    steps += 1
+    assert low <= timestep.reward <= high
+    for name, value in timestep.observation.items():
+      assert np.all(np.isfinite(value)), name
+  assert steps <= 10
+
+
+def test_paper_observations_and_defaults():
+  env = _env()
+  observation = env.reset().observation
+  assert sorted(observation) == sorted(
+      hammering.Hammering.OBSERVATION_PRESETS['paper'])
+  assert observation['human_distances'].shape == (3,)
+  task = env.task
+  assert task.shield_mode == 'ssm' and task.horizon == 1000
+  assert task.reward_delay == hammering.REWARD_DELAY
+  assert task.action_space_name == 'cartesian'
+  assert ('hammering', 'default') in suite.tasks_with_tag('manufacturing')
+  assert ('hammering', 'default') in suite.tasks_with_tag('delayed')
+
+
+@pytest.mark.parametrize('robot', ROBOTS)
+def test_board_starts_grasped_and_stays(robot):
+  env = _env(robot, time_limit=2.0)
+  env.reset()
+  task, physics = env.task, env.physics
+  height = task.board.position(physics)[2]
+  for _ in range(5):
+    env.step(_hold_action(env))
+  assert task.step_metrics['object_gripped'] == 1.0
+  assert abs(task.board.position(physics)[2] - height) < 0.01
+  # The human holds the hammer in the clip's holding hand.
+  assert task.human.holding(task.hammer.body) == task.player.clip.holding_hand
+  assert task.board.progress(physics) < 1e-3
+
+
+def test_nail_points_at_the_human_for_the_panda():
+  env = _env('panda')
+  env.reset()
+  task, physics = env.task, env.physics
+  nail = physics.bind(task.board.nail_head_site).xpos
+  tcp = task.robot.tcp_pose(physics)[0]
+  assert nail[0] - tcp[0] == pytest.approx(0.095, abs=0.005)
+
+
+def test_dropping_the_board_fails():
+  env = _env(time_limit=5.0)
+  env.reset()
+  opened = np.zeros(env.action_spec().shape)
+  opened[-1] = -1.0
+  for step in range(30):
+    timestep = env.step(opened)
+    if timestep.last():
+      break
+  assert timestep.last() and timestep.discount == 0.0
+  assert step <= hammering.DROP_STEPS + 5
+  assert env.task.episode_metrics['success'] == 0.0
+
+
+def test_success_and_delayed_reward():
+  env = _env(time_limit=5.0, reward_delay=3)
+  env.reset()
+  task = env.task
+  rewards = [env.step(_hold_action(env)).reward for _ in range(2)]
+  assert rewards == [0.0, 0.0]          # delayed
+  task.board.set_progress(env.physics, 0.97)
+  timestep = env.step(_hold_action(env))
+  assert timestep.last() and task.step_metrics['success'] == 1.0
+  # The owed -1, -1 and the success +1 are paid at the end.
+  assert timestep.reward == pytest.approx(-1.0)
+  assert task.episode_metrics['return'] == pytest.approx(-1.0)
+
+
+@pytest.mark.parametrize('space', SPACES)
+def test_same_seed_same_observations(space):
+  runs = []
+  for _ in range(2):
+    env = _env(seed=3, space=space, observations='full', time_limit=3.0)
+    runs.append([env.reset().observation]
+                + _rollout(env, _random_actions(env, 8)))
+  _assert_same(*runs)
+
+
+@pytest.mark.parametrize('space', SPACES)
+def test_snapshot_restore_is_bit_exact(space):
+  env = _env(seed=5, space=space, observations='full', time_limit=10.0)
+  env.reset()
+  _rollout(env, [_hold_action(env)] * 4)
+  state = env.task.get_state(env.physics)
+  replay = _random_actions(env, 6, seed=3)
+  first = _rollout(env, replay)
+  metrics_first = dict(env.task.episode_metrics)
+  _rollout(env, _random_actions(env, 4, seed=4))
+  env.task.set_state(env.physics, state)
+  _assert_same(first, _rollout(env, replay))
+  assert env.task.episode_metrics == metrics_first
+  # Into a fresh environment (another clip, another weld).
+  fresh = _env(seed=99, space=space, observations='full', time_limit=10.0)
+  fresh.reset()
+  fresh.task.set_state(fresh.physics, state)
+  _assert_same(first, _rollout(fresh, replay))
+
+
+def _oracle(env):
+  """Privileged: move the nail head to its target, gripper closed."""
+  task = env.task
+
+  def policy(timestep):
+    del timestep
+    physics = env.physics
+    delta = task.nail_target - physics.bind(task.board.nail_head_site).xpos
+    return np.append(np.clip(delta / actions.CARTESIAN_STEP, -1, 1), 1.0)
+
+  return policy
+
+
+@pytest.mark.slow
+def test_oracle_drives_the_nail_in():
+  successes = 0
+  for seed in range(3):
+    env = _env('panda', seed=seed, time_limit=100.0)
+    result = metrics.run_episode(env, _oracle(env))
+    assert result['nail_blows'] >= 1
+    assert result['contacts_human_critical'] == 0
+    if result['success']:
+      successes += 1
+      assert env.task.board.progress(env.physics) > 0.95
+      break
+  assert successes >= 1
