@@ -30,7 +30,8 @@ the handover event (object received / placed). The base's extra
 Rewards (sparse): +1 success; robot to human: 0 while the human holds the
 object and the robot does not, -0.25 while the robot grips it, -1
 otherwise; human to robot: 0 with the object at the target, -0.25 while
-gripped, -1 otherwise. Failure: the hammer falls off the table. PFL shield,
+gripped, -1 otherwise. Failure: the hammer falls off the table (below
+DROP_HEIGHT under its top, not held by the human). PFL shield,
 horizon 1000 RL steps, human placement +-(0, 0.2 m, 0.1 rad).
 
 Observations: 'paper' = object gripped, EEF->object, EEF->target (world
@@ -64,8 +65,15 @@ HANDLE_RADIUS = props.HAMMER_HANDLE_HALF_SECTION[0]
 REST_HEIGHT = props.HAMMER_HANDLE_HALF_SECTION[0]
 # Below the table top by this much the hammer has fallen off: failure.
 DROP_HEIGHT = 0.1                        # m
-# Robot-to-human start: hammer yaw about pi (head towards the robot), +-.
-START_YAW_RANGE = 0.3                    # rad
+# Robot-to-human start: the grasp point lies up to this far from the grip
+# site along the handle (uniform +-), m.
+GRASP_SHIFT = 0.01
+# Initial finger positions this much inside the handle's faces, m, so the
+# pads touch it from the first step.
+GRASP_SQUEEZE = 0.0005
+# Rotation of Hammer.grip_site in the hammer's body frame (columns: its x,
+# y, z axes; props.Hammer builds it with xyaxes (1,0,0, 0,0,1)).
+_SITE_IN_BODY = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 # Sampling region (fraction of the robot's table workspace box) for the
 # hammer's centre of mass (robot to human) and the target (human to robot).
 REGION_X = (0.15, 0.75)
@@ -180,8 +188,11 @@ class _Handover(base.HrcTask):
             - self._event_time >= self.success_after - 1e-9)
 
   def _failed(self, physics):
+    """The hammer fell off the table (not while the human holds it: the
+    kinematic hand can drag it into the table)."""
     height = physics.bind(self._hammer.body).xpos[2]
-    return bool(height < layout.TABLE_TOP_Z - DROP_HEIGHT)
+    return bool(self._holder() is None
+                and height < layout.TABLE_TOP_Z - DROP_HEIGHT)
 
   def _task_reward_range(self):
     return (-1.0, 1.0)
@@ -289,9 +300,22 @@ class RobotToHuman(_Handover):
     self._human.release(physics, self._hammer.body)
     self._reset_flags()
     self._holding_hand = self._player.clip.holding_hand or 'right'
-    grip = self._sample_in_region(random_state)
-    yaw = math.pi + random_state.uniform(-START_YAW_RANGE, START_YAW_RANGE)
-    self._place_hammer(physics, grip, yaw)
+    # The hammer starts in the closed gripper at the home pose (grasped at
+    # its grip site, shifted along the handle), head towards the robot.
+    tcp = physics.bind(self._robot.tcp_site)
+    r_tcp = tcp.xmat.reshape(3, 3)
+    flip = -1.0 if r_tcp[0, 0] > 0 else 1.0
+    r_site = r_tcp * np.array([flip, flip, 1.0])
+    site = self._hammer.grip_site
+    shift = random_state.uniform(-GRASP_SHIFT, GRASP_SHIFT)
+    r_body = r_site @ _SITE_IN_BODY.T
+    position = tcp.xpos - r_body @ (np.asarray(site.pos) + [shift, 0, 0])
+    self._hammer.set_pose(physics, position,
+                          human_lib.matrix_to_quaternion(r_body[None])[0])
+    self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
+    physics.bind(self._gripper.finger_joints).qpos = (
+        props.HAMMER_HANDLE_HALF_SECTION[1] - GRASP_SQUEEZE)
+    self._gripper.set_command(physics, 1.0)
     physics.forward()
 
   def palm_touches_handle(self, physics):
@@ -355,6 +379,7 @@ class HumanToRobot(_Handover):
     self._target_body = body
     self._picked = False
     self._pick_grip = None
+    self._turn = 0.0
 
   @staticmethod
   def presenting_grip(hand_half_length):
@@ -373,6 +398,7 @@ class HumanToRobot(_Handover):
     self._holding_hand = self._player.clip.holding_hand or 'right'
     self._picked = False
     self._pick_grip = None
+    self._turn = 0.0
     target = self._sample_in_region(random_state)
     physics.bind(self._target_body).mocap_pos = target
     # The hammer where this clip's hand picks it, head towards the robot,
@@ -409,12 +435,15 @@ class HumanToRobot(_Handover):
         self._human.hold(physics, self._hammer.body, hand)
         self._pick_grip = self._human.relative_pose(
             physics, self._hammer.body, hand)
+        self._turn = 0.0
       self._picked = True
     if self._holder() is not None and self._pick_grip is not None:
       # Turning the hammer in the hand from the picking to the presenting
       # grip between the two keyframes (the capsule hand has no wrist).
+      # Monotone: a backward warp while presenting keeps the presenting grip.
       s = min(max((clip_time - t_pick) / (t_present - t_pick), 0.0), 1.0)
-      s = s * s * (3.0 - 2.0 * s)
+      self._turn = max(self._turn, s * s * (3.0 - 2.0 * s))
+      s = self._turn
       names = [seg[0] for seg in human_lib.SEGMENTS]
       half = physics.bind(self._human.geoms[names.index(
           f'{hand}_hand')]).size[1]
@@ -459,7 +488,7 @@ class HumanToRobot(_Handover):
   def _task_state(self):
     state = super()._task_state()
     state.update(picked=self._picked, pick_grip=self._pick_grip,
-                 at_target=self._at_target)
+                 at_target=self._at_target, turn=self._turn)
     return state
 
   def _set_task_state(self, state):
@@ -467,6 +496,7 @@ class HumanToRobot(_Handover):
     self._picked = bool(state['picked'])
     self._pick_grip = state['pick_grip']
     self._at_target = bool(state['at_target'])
+    self._turn = float(state['turn'])
 
 
 @suite.register('handover', 'robot_to_human',

@@ -1,0 +1,329 @@
+"""The handover tasks: specs, rewards, the human's hold/release events,
+determinism, snapshots, and success reached by privileged scripted oracles."""
+
+import unittest
+
+from dm_env import test_utils
+import numpy as np
+import pytest
+
+from hrc_suite import suite
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import handover
+
+ROBOTS = ('panda', 'schunk')
+SPACES = ('joint', 'cartesian')
+TASKS = ('robot_to_human', 'human_to_robot')
+
+
+def _env(task='robot_to_human', robot='panda', space='cartesian', seed=0,
+         **kwargs):
+  return suite.load('handover', task, task_kwargs={
+      'robot': robot, 'action_space': space, **kwargs},
+                    environment_kwargs={'random_state': seed})
+
+
+def _toward(tcp, target):
+  return np.clip((target - tcp) / actions.CARTESIAN_STEP, -1.0, 1.0)
+
+
+class RobotToHumanOracle:
+  """Brings the end of the handle to the palm of the human's holding hand,
+  lets go once the human holds the hammer, backs off (Cartesian)."""
+
+  def __init__(self, env):
+    self.env, self.released = env, 0
+
+  def __call__(self):
+    task, physics = self.env.task, self.env.physics
+    tcp = physics.bind(task.robot.tcp_site).xpos.copy()
+    if task.human.holding(task.hammer.body) is None and not self.released:
+      end = physics.bind(task.hammer.human_grip_site).xpos
+      return np.append(_toward(tcp, tcp + task.target(physics) - end), 1.0)
+    self.released += 1
+    back = tcp + ((0.0, 0.0, 0.0) if self.released < 5 else (-0.1, 0.0, 0.0))
+    return np.append(_toward(tcp, back), -1.0)
+
+
+class HumanToRobotOracle:
+  """Waits for the presented hammer, grasps it at its grip site, carries it
+  above the target, lets it drop there, backs off (Cartesian)."""
+
+  def __init__(self, env):
+    self.env, self.phase, self.count = env, 0, 0
+
+  def __call__(self):
+    task, physics = self.env.task, self.env.physics
+    tcp = physics.bind(task.robot.tcp_site).xpos.copy()
+    grip = physics.bind(task.hammer.grip_site).xpos.copy()
+    held = task.human.holding(task.hammer.body) is not None
+    above_goal = task.target(physics) + (0.0, 0.0, 0.07)
+    close, target = -1.0, tcp
+    if self.phase == 0 and task.player.waiting_for == 'object_taken':
+      self.phase = 1
+    if self.phase == 1:
+      target = grip + (0.0, 0.0, 0.08)
+      if np.linalg.norm(target - tcp) < 0.015:
+        self.phase = 2
+    if self.phase == 2:
+      target = grip
+      if np.linalg.norm(target - tcp) < 0.008:
+        self.phase, self.count = 3, 0
+    if self.phase == 3:
+      target, close = grip, 1.0
+      self.count += 1
+      if self.count > 3 and not held:
+        self.phase = 4
+    if self.phase == 4:
+      close = 1.0
+      target = tcp + (above_goal + (0.0, 0.0, 0.03) - grip)
+      if np.linalg.norm(above_goal + (0.0, 0.0, 0.03) - grip) < 0.02:
+        self.phase = 5
+    if self.phase == 5:
+      close = 1.0
+      target = tcp + (above_goal - grip)
+      if np.linalg.norm(above_goal - grip) < 0.02:
+        self.phase, self.count = 6, 0
+    if self.phase == 6:
+      self.count += 1
+      if self.count > 4:
+        self.phase = 7
+    if self.phase == 7:
+      target = tcp + (0.0, 0.0, 0.1)
+    return np.append(_toward(tcp, target), close)
+
+
+ORACLES = {'robot_to_human': RobotToHumanOracle,
+           'human_to_robot': HumanToRobotOracle}
+
+
+def _run_oracle(env, until=None, max_steps=1000):
+  """Runs the task's oracle; returns (last timestep, actions taken)."""
+  name = ('robot_to_human' if isinstance(env.task, handover.RobotToHuman)
+          else 'human_to_robot')
+  oracle = ORACLES[name](env)
+  timestep, taken = env.reset(), []
+  while not timestep.last() and len(taken) < max_steps:
+    if until is not None and until(env):
+      break
+    taken.append(oracle())
+    timestep = env.step(taken[-1])
+  return timestep, taken
+
+
+def _rollout(env, action_list):
+  out = []
+  for action in action_list:
+    timestep = env.step(action)
+    out.append((timestep.reward, timestep.discount,
+                {k: v.copy() for k, v in timestep.observation.items()}))
+  return out
+
+
+def _assert_same(first, second):
+  assert len(first) == len(second)
+  for (r1, d1, o1), (r2, d2, o2) in zip(first, second):
+    assert r1 == r2 and d1 == d2
+    for name in o1:
+      np.testing.assert_array_equal(o1[name], o2[name], err_msg=name)
+
+
+# ------------------------------------------------------------------ specs
+
+
+class RobotToHumanSpecTest(test_utils.EnvironmentTestMixin,
+                           unittest.TestCase):
+
+  def make_object_under_test(self):
+    return _env('robot_to_human', 'schunk', observations='full',
+                time_limit=1.0)
+
+
+class HumanToRobotSpecTest(test_utils.EnvironmentTestMixin,
+                           unittest.TestCase):
+
+  def make_object_under_test(self):
+    return _env('human_to_robot', 'panda', 'joint', time_limit=1.0)
+
+
+def test_registered_with_tags_and_defaults():
+  for name in TASKS:
+    assert ('handover', name) in suite.ALL_TASKS
+    for tag in ('handover', 'sparse', 'delayed', 'pfl'):
+      assert ('handover', name) in suite.tasks_with_tag(tag)
+    task = suite.build_task('handover', name)
+    assert task.shield_mode == 'pfl'
+    assert task.horizon == 1000
+    assert task.action_space_name == 'cartesian'
+    assert task.reward_range[1] == 1.0
+    assert task.player._range == handover.PLACEMENT_RANGE
+  assert len(suite.build_task('handover', 'robot_to_human')
+             .player._clips) == 15
+  assert len(suite.build_task('handover', 'human_to_robot')
+             .player._clips) == 11
+
+
+@pytest.mark.parametrize('task', TASKS)
+@pytest.mark.parametrize('robot', ROBOTS)
+@pytest.mark.parametrize('space', SPACES)
+def test_reset_and_step(task, robot, space):
+  env = _env(task, robot, space, observations='full', time_limit=1.5)
+  timestep = env.reset()
+  dof = env.task.robot.dof
+  expected = {'joint_positions': (dof,), 'object_gripped': (1,),
+              'object_difference': (3,), 'target_difference': (3,),
+              'human_distances': (3,), 'object_quaternion': (4,),
+              'object_in_eef_frame': (3,)}
+  for name, shape in expected.items():
+    assert timestep.observation[name].shape == shape, name
+  low, high = env.task.reward_range
+  rs = np.random.RandomState(0)
+  steps = 0
+  while not timestep.last():
+    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
+    steps += 1
+    assert low <= timestep.reward <= high
+    assert timestep.reward in (-1.0, -0.25, 0.0, 1.0) or (
+        timestep.reward <= env.task.collision_reward)
+    for name, value in timestep.observation.items():
+      assert np.all(np.isfinite(value)), name
+  assert steps == 15
+
+
+@pytest.mark.parametrize('task', TASKS)
+def test_paper_observations(task):
+  env = _env(task)
+  observation = env.reset().observation
+  assert sorted(observation) == sorted(
+      handover._Handover.OBSERVATION_PRESETS['paper'])
+  physics, t = env.physics, env.task
+  tcp = physics.bind(t.robot.tcp_site).xpos
+  np.testing.assert_allclose(
+      observation['object_difference'],
+      physics.bind(t.hammer.grip_site).xpos - tcp, atol=1e-12)
+  np.testing.assert_allclose(observation['target_difference'],
+                             t.target(physics) - tcp, atol=1e-12)
+
+
+def test_robot_to_human_starts_with_the_hammer_gripped():
+  for robot in ROBOTS:
+    env = _env('robot_to_human', robot, seed=3)
+    env.reset()
+    task = env.task
+    for _ in range(10):   # Lift and carry it with the gripper closed.
+      timestep = env.step(np.array([0.5, 0.0, 0.5, 1.0]))
+    assert timestep.observation['object_gripped'][0] == 1.0
+    assert timestep.reward == handover.GRIPPED_REWARD
+    tcp = env.physics.bind(task.robot.tcp_site).xpos
+    grip = env.physics.bind(task.hammer.grip_site).xpos
+    assert np.linalg.norm(tcp - grip) < 0.03
+    # The handle's end points away from the robot, to the human.
+    end = env.physics.bind(task.hammer.human_grip_site).xpos
+    assert end[0] > grip[0] + 0.2
+
+
+def test_human_to_robot_hammer_lies_where_the_clip_picks_it():
+  env = _env('human_to_robot', seed=4)
+  env.reset()
+  task, physics = env.task, env.physics
+  pick = task.player.targets_world['object_pick']
+  palm_point = physics.bind(task.hammer.human_grip_site).xpos
+  np.testing.assert_allclose(palm_point[:2], pick[:2], atol=1e-6)
+  assert task.human.holding(task.hammer.body) is None
+  # It lies on the table, within the table's far half.
+  assert abs(palm_point[2] - (pick[2] + handover.REST_HEIGHT)) < 1e-6
+
+
+def test_bad_success_after_is_rejected():
+  for bad in (-1.0, float('nan'), 'soon'):
+    with pytest.raises(ValueError, match='success_after'):
+      suite.build_task('handover', 'robot_to_human',
+                       {'success_after': bad})
+
+
+def test_same_seed_same_episode():
+  runs = []
+  for _ in range(2):
+    env = _env('human_to_robot', 'schunk', seed=11, observations='full')
+    env.reset()
+    runs.append(_rollout(env, np.random.RandomState(1).uniform(
+        -1, 1, (15, 4))))
+  _assert_same(*runs)
+
+
+# ------------------------------------------------------- events, oracles
+
+
+def test_robot_to_human_handover_event_hold_and_release():
+  env = _env('robot_to_human', seed=0, observations='full')
+  task = env.task
+  held = lambda e: e.task.human.holding(e.task.hammer.body) is not None
+  timestep, taken = _run_oracle(env, until=held)
+  assert held(env) and not timestep.last()
+  # The handover happened while the human reached out, at the palm.
+  assert task.episode_metrics['handovers'] == 1
+  assert task.palm_touches_handle(env.physics)
+  assert task.player.waiting_for is None      # 'object_received' fired.
+  # The human holds it; once the robot lets go the reward is 0.
+  for _ in range(5):
+    timestep = env.step(np.array([0.0, 0.0, 0.0, -1.0]))
+  assert timestep.observation['object_held_by_human'][0] == 1.0
+  assert timestep.observation['object_gripped'][0] == 0.0
+  assert timestep.reward == 0.0
+
+
+@pytest.mark.parametrize('task', TASKS)
+def test_snapshot_restore_is_bit_exact_while_the_human_holds(task):
+  env = _env(task, seed=0, observations='full')
+  held = lambda e: e.task.human.holding(e.task.hammer.body) is not None
+  _run_oracle(env, until=held)
+  assert held(env)
+  for _ in range(3):
+    env.step(np.array([0.0, 0.0, 0.0, -1.0 if task == 'robot_to_human'
+                       else 0.0]))
+  state = env.task.get_state(env.physics)
+  replay = np.random.RandomState(3).uniform(-1, 1, (8, 4))
+  first = _rollout(env, replay)
+  metrics = dict(env.task.episode_metrics)
+  _rollout(env, np.random.RandomState(4).uniform(-1, 1, (5, 4)))
+  env.task.set_state(env.physics, state)
+  _assert_same(first, _rollout(env, replay))
+  assert env.task.episode_metrics == metrics
+  # Into a fresh environment whose hammer nobody holds.
+  fresh = _env(task, seed=99, observations='full')
+  fresh.reset()
+  fresh.task.set_state(fresh.physics, state)
+  assert held(fresh)
+  _assert_same(first, _rollout(fresh, replay))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('task', TASKS)
+def test_oracle_completes_the_task(task):
+  successes = 0
+  for seed in range(3):
+    env = _env(task, seed=seed)
+    timestep, _ = _run_oracle(env)
+    metrics = env.task.episode_metrics
+    if metrics['success']:
+      successes += 1
+      assert timestep.last() and timestep.discount == 0.0
+      assert timestep.reward == 1.0
+      assert metrics['handovers'] == 1
+      assert metrics['contacts_human_critical'] == 0
+  assert successes >= 1
+
+
+def test_success_after_counts_from_the_handover_event():
+  env = _env('robot_to_human', seed=0, success_after=0.5)
+  held = lambda e: e.task.human.holding(e.task.hammer.body) is not None
+  timestep, _ = _run_oracle(env, until=held)
+  steps = 0
+  while not timestep.last():
+    timestep = env.step(np.array([0.0, 0.0, 0.0, -1.0]))
+    steps += 1
+  assert env.task.episode_metrics['success'] == 1.0
+  assert timestep.reward == 1.0
+  # The event was triggered at the step that started the hold; success
+  # 0.5 s (5 RL steps) later, long before the clip ends.
+  assert steps <= 6
