@@ -68,7 +68,7 @@ def test_paper_observations_and_defaults():
   assert sorted(observation) == sorted(
       hammering.Hammering.OBSERVATION_PRESETS['paper'])
   assert observation['human_distances'].shape == (3,)
-  task = env.task
+  task = hammering.Hammering()
   assert task.shield_mode == 'ssm' and task.horizon == 1000
   assert task.reward_delay == hammering.REWARD_DELAY
   assert task.action_space_name == 'cartesian'
