@@ -63,6 +63,20 @@ def clip_index(player):
   return int(player.get_state()['k'])
 
 
+def table_tolerant_checker(task):
+  """Collision prevention of `task`'s robot whose tool capsule may enter
+  the table by its radius minus TABLE_CLEARANCE (fingertips on objects)."""
+  description = task.robot.description
+  p1, p2, radius = task.gripper.enclosing_capsule()
+  rotation, translation = (description.flange_rotation,
+                           description.flange_translation)
+  return cp_lib.CollisionPrevention(
+      description, base_pose=task.kinematics.base_pose,
+      tool_capsule=(translation + rotation @ p1, translation + rotation @ p2,
+                    radius),
+      tool_table_allowance=radius - TABLE_CLEARANCE)
+
+
 class Inspection(base.HrcTask):
   """Hold a cube at the person's inspection point until they leave."""
 
@@ -90,15 +104,7 @@ class Inspection(base.HrcTask):
              size=(TARGET_RADIUS,), rgba=TARGET_RGBA, group=0)
     self._target_body = body
     self._ik = ik_lib.InverseKinematics(self._kinematics)
-    description = self._robot.description
-    p1, p2, radius = self._gripper.enclosing_capsule()
-    rotation, translation = (description.flange_rotation,
-                             description.flange_translation)
-    self._collision_checker = cp_lib.CollisionPrevention(
-        description, base_pose=self._kinematics.base_pose,
-        tool_capsule=(translation + rotation @ p1,
-                      translation + rotation @ p2, radius),
-        tool_table_allowance=radius - TABLE_CLEARANCE)
+    self._collision_checker = table_tolerant_checker(self)
     self._target_cache = {}
     self._target = np.zeros(3)
     self._reset_progress()

@@ -1,0 +1,326 @@
+"""Collaborative lifting: the robot and a person lift a board together and
+keep it level while the person moves (reference-benchmark.md).
+
+* Scene: the 1.0 x 0.4 x 0.03 m board (`props.Board`) lies on the table
+  along x, its robot end BOARD_NEAR_END_X from the base (about 2 cm onto
+  the table) and centred between the clip's board grasps in y (plus a
+  small random offset); its handle is HANDLE_INSET from that end, so the
+  grip site is ~0.42 m ahead of the base, where every robot reaches it
+  gripper down. The episode starts with the robot holding the handle: IK to
+  the grip site, fingers closed on it, SETTLE_STEPS physics steps.
+* Human: the 9 lifting clips (no idle phases). At the clip's first
+  keyframe (hands at the board) the person takes the board (`Human.hold`,
+  one hand drawn per episode: a weld keeps the position it has then, its
+  rotation free, HOLD_TORQUE_SCALE); at the
+  last keyframe (board put down) they let go. Contacts between the
+  person's capsules and the board are excluded (the weld is the grasp).
+* Cartesian actions keep the grip's yaw (GRIP_YAW: fingers closing along
+  the board), not the suite's default yaw 0, which would twist the board.
+* Reward (dense): while the robot grips the board, 1 - tilt / MAX_TILT
+  (+1 when level, 0 at the limit); 0 in a step without the grip; -10 and
+  termination when the board normal's z component drops below
+  MIN_NORMAL_Z (~37 deg) or the robot lets go for more than
+  MAX_RELEASED_STEPS RL steps.
+* Success: a clip (the person's whole lift) ends without failure. SSM; no
+  reward delay; horizon 5000 RL steps.
+* Observations: 'paper' = board quaternion, distance EEF->head, vectors
+  EEF->left / right hand (world frame).
+"""
+
+from dm_control.composer.observation import observable
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite import suite
+from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import props
+from hrc_suite.human import keypoints
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import base
+from hrc_suite.tasks import inspection
+
+MIN_NORMAL_Z = 0.8           # reference: board normal z below it fails
+MAX_TILT = float(np.arccos(MIN_NORMAL_Z))   # rad, ~37 deg
+MAX_RELEASED_STEPS = 5       # reference: RL steps without the grip
+FAILURE_REWARD = -10.0       # reference
+BALANCED_REWARD = 1.0        # reference, per step while balanced
+# The board's robot end 2 cm onto the table (layout.TABLE_X: near edge).
+BOARD_NEAR_END_X = layout.TABLE_X[0] + 0.02   # m, world
+# Handle 0.235 m from the robot end: grip site ~0.42 m ahead of the base,
+# inside every robot's gripper-down workspace (the iiwa's starts at ~0.4 m,
+# the Schunk's ends at ~0.5 m).
+HANDLE_INSET = 0.235         # m
+BOARD_OFFSET = 0.02          # m, uniform +- in x and y per episode
+# Gripper yaw of the handle grasp: the site's x axis along world y.
+GRIP_YAW = np.pi / 2
+GRIP_IK_RESTARTS = 20
+SETTLE_STEPS = 50            # physics steps (0.2 s) closing on the handle
+HANDS = ('left', 'right')
+# The hold weld's rotational stiffness relative to its translational one
+# (MuJoCo weld `torquescale`): a full weld would turn the board with the
+# person's hand segment, whose orientation follows the forearm (~25 deg
+# during a lift); two people carrying a board hinge it at their hands.
+HOLD_TORQUE_SCALE = 0.0
+
+
+class GripYawCartesianSpace(actions.CartesianActionSpace):
+  """Cartesian TCP deltas with the gripper down at a fixed yaw."""
+
+  def __init__(self, kinematic_model, yaw):
+    super().__init__(kinematic_model)
+    self.yaw = float(yaw)
+
+  def goal(self, q, arm_action, current_goal):
+    result = self._ik.solve(self.target(q, arm_action), q, self.yaw)
+    if result.success:
+      return result.q, True
+    return current_goal.copy(), False
+
+
+class Lifting(base.HrcTask):
+  """Keep a board level together with a person who lifts and carries it."""
+
+  MOTIONS = 'lifting'
+  HUMAN_STATION = layout.HUMAN_STATION_ACROSS
+  DEFAULT_SHIELD = 'ssm'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('dense',)
+  DEFAULT_REWARD_DELAY = 0
+  HORIZON = 5000
+  HAS_GRIPPER_ACTION = True
+  OBSERVATION_PRESETS = {'paper': ('board_quaternion', 'head_distance',
+                                   'eef_to_hands')}
+  EXTRA_COUNTERS = ('released_steps', 'lifts')
+
+  def _build_task(self):
+    self._board = props.Board(handle_inset=HANDLE_INSET)
+    self._arena.add_free_entity(self._board)
+    self._object_geoms.extend(self._board.geoms)
+    self._welds = self._human.add_holdable(self._board.body)
+    for weld in self._welds.values():
+      weld.torquescale = HOLD_TORQUE_SCALE
+    # The person handles the board through the hold weld only: their
+    # kinematic capsules would shove it out of the robot's fingers.
+    for segment in self._human.segment_bodies:
+      self._arena.mjcf_model.contact.add('exclude', body1=segment,
+                                         body2=self._board.body)
+    if self._action_space.name == 'cartesian':
+      self._action_space = GripYawCartesianSpace(self._kinematics, GRIP_YAW)
+    # The fingers hold a handle 6 cm above the table.
+    self._collision_checker = inspection.table_tolerant_checker(self)
+    self._ik = ik_lib.InverseKinematics(self._kinematics)
+    self._hand = HANDS[1]
+    self._reset_progress()
+
+  def _reset_progress(self):
+    self._clip_k = 0
+    self._released = 0
+    self._gripped = True
+    self._failed_now = False
+    self._success = False
+    self._tilt = 0.0
+    self._lifted = 0
+
+  @property
+  def board(self):
+    return self._board
+
+  @property
+  def holding_hand(self):
+    """The hand the person holds the board with (None: not holding)."""
+    return self._human.holding(self._board.body)
+
+  # --------------------------------------------------------------- episode
+
+  def _initialize_task(self, physics, random_state):
+    self._reset_progress()
+    self._clip_k = inspection.clip_index(self._player)
+    self._hand = HANDS[random_state.randint(2)]
+    self._human.release(physics, self._board.body)
+    targets = self._player.targets_world
+    hands_y = 0.5 * (targets['board_grasp_left'][1]
+                     + targets['board_grasp_right'][1])
+    length, _, thickness = self._board.size
+    offset = random_state.uniform(-BOARD_OFFSET, BOARD_OFFSET, 2)
+    centre = np.array([BOARD_NEAR_END_X + length / 2 + offset[0],
+                       hands_y + offset[1], layout.TABLE_TOP_Z + thickness / 2])
+    self._board.set_pose(physics, centre, np.array([1.0, 0.0, 0.0, 0.0]))
+    physics.forward()
+    grip = physics.bind(self._board.robot_grip_site).xpos.copy()
+    result = self._ik.solve_with_restarts(
+        grip, self._robot.description.q_home, random_state, yaw=GRIP_YAW,
+        restarts=GRIP_IK_RESTARTS)
+    if not result.success:
+      raise RuntimeError(f'Lifting: IK cannot reach the handle at {grip} for '
+                         f'{self._robot.description.name}')
+    q = result.q
+    data = physics.data
+    data.qpos[self._qpos_index] = q
+    data.qvel[self._qvel_index] = 0.0
+    # Each finger opens by half the aperture: closed on the handle.
+    data.qpos[self._finger_qpos_index] = props.HANDLE_HALF_SIZE[0]
+    self._gripper.set_command(physics, 1.0)
+    self._q_goal = q.copy()
+    self._shield.reset(q, 0.0)
+    zeros = np.zeros_like(q)
+    for _ in range(SETTLE_STEPS):
+      self._controller(physics, q, zeros, zeros)
+      physics.step()
+    data.time = 0.0    # The settling is not part of the episode.
+    physics.forward()
+    self._gripped = props.is_gripped(physics, self._gripper, self._board)
+
+  # ------------------------------------------------------------ progress
+
+  def _update_hold(self, physics):
+    """The person takes the board at the clip's first keyframe and lets go
+    at its last one (the board is down again)."""
+    player = self._player
+    clip = player.clip
+    t = player.clip_time
+    grasp, down = (clip.keyframes[0] / clip.fps, clip.keyframes[-1] / clip.fps)
+    holding = self.holding_hand is not None
+    should_hold = not player.in_transition and grasp <= t < down
+    if should_hold and not holding:
+      self._human.hold(physics, self._board.body, self._hand)
+      self._anchor_at_hands(physics)
+      self._lifted = 1
+    elif holding and not should_hold:
+      self._human.release(physics, self._board.body)
+
+  def _anchor_at_hands(self, physics):
+    """Both hands hold the board at the points under them, rotation free.
+
+    Human.hold welds one hand; the other hand's weld (made by
+    add_holdable, released with the first) is switched on here. Each
+    weld's anchor is the board point at its hand, so the two hands act as
+    hinges on the board's end (a full weld would turn the board with the
+    hand segments, one point alone would let it roll).
+    """
+    board = physics.bind(self._board.body)
+    board_rot = board.xmat.reshape(3, 3)
+    positions = self._human.keypoint_positions(physics)
+    for hand in HANDS:
+      eq_id = physics.bind(self._welds[hand]).element_id
+      point = positions[keypoints.index((f'{hand}_hand',))[0]]
+      hand_body = physics.model.eq_obj1id[eq_id]
+      hand_rot = physics.data.xmat[hand_body].reshape(3, 3)
+      data = physics.model.eq_data[eq_id]
+      data[0:3] = board_rot.T @ (point - board.xpos)
+      data[3:6] = hand_rot.T @ (point - physics.data.xpos[hand_body])
+      physics.data.eq_active[eq_id] = 1
+
+  def _update_task(self, physics):
+    self._gripped = props.is_gripped(physics, self._gripper, self._board)
+    self._released = 0 if self._gripped else self._released + 1
+    normal_z = float(self._board.normal(physics)[2])
+    self._tilt = self._board.tilt(physics)
+    self._failed_now = (normal_z < MIN_NORMAL_Z
+                        or self._released > MAX_RELEASED_STEPS)
+    self._success = False
+    k = inspection.clip_index(self._player)
+    if k != self._clip_k:   # A whole lift ended.
+      self._success = not self._failed_now
+      self._clip_k = k
+    self._lifted = 0
+    self._update_hold(physics)
+    return {'success': float(self._success), 'board_tilt': self._tilt,
+            'board_normal_z': normal_z,
+            'board_gripped': float(self._gripped),
+            'released_steps': int(not self._gripped),
+            'lifts': self._lifted}
+
+  def _failed(self, physics):
+    del physics
+    return self._failed_now
+
+  def _task_reward(self, physics):
+    del physics
+    if self._failed_now:
+      return FAILURE_REWARD
+    if not self._gripped:
+      return 0.0
+    return BALANCED_REWARD * max(0.0, 1.0 - self._tilt / MAX_TILT)
+
+  def _task_reward_range(self):
+    return (FAILURE_REWARD, BALANCED_REWARD)
+
+  # -------------------------------------------------------------- state
+
+  def _task_state(self):
+    hand = self.holding_hand
+    physics = self._physics_for_state
+    eq_data = {h: physics.model.eq_data[physics.bind(
+        self._welds[h]).element_id].copy() for h in HANDS}
+    return {'clip_k': self._clip_k, 'released': self._released,
+            'gripped': self._gripped, 'failed': self._failed_now,
+            'success': self._success, 'tilt': self._tilt,
+            'lifted': self._lifted, 'hand': self._hand,
+            'holding': hand, 'weld': eq_data}
+
+  def _set_task_state(self, state):
+    self._clip_k = int(state['clip_k'])
+    self._released = int(state['released'])
+    self._gripped = bool(state['gripped'])
+    self._failed_now = bool(state['failed'])
+    self._success = bool(state['success'])
+    self._tilt = float(state['tilt'])
+    self._lifted = int(state['lifted'])
+    self._hand = state['hand']
+
+  def get_state(self, physics):
+    # The weld's relative pose lives in the model, not in the physics
+    # state: the task state carries it.
+    self._physics_for_state = physics
+    return super().get_state(physics)
+
+  def set_state(self, physics, state):
+    super().set_state(physics, state)
+    own = state['task']['own']
+    state_active = {h: int(physics.data.eq_active[physics.bind(
+        self._welds[h]).element_id]) for h in HANDS}
+    self._human.release(physics, self._board.body)
+    if own['holding'] is not None:
+      self._human.hold(physics, self._board.body, own['holding'])
+    for hand in HANDS:   # eq_active came back with the physics state.
+      eq_id = physics.bind(self._welds[hand]).element_id
+      physics.model.eq_data[eq_id] = own['weld'][hand]
+      physics.data.eq_active[eq_id] = state_active[hand]
+    physics.forward()
+
+  # -------------------------------------------------------- observables
+
+  def _task_observables(self):
+    tcp, body = self._robot.tcp_site, self._board.body
+    head = keypoints.index(('head',))[0]
+    hands = np.array(keypoints.index(('left_hand', 'right_hand')))
+
+    def eef_to(indices):
+      def observe(physics):
+        points = self._human.keypoint_positions(physics)[indices]
+        return points - physics.bind(tcp).xpos
+      return observe
+
+    return {
+        'board_quaternion': observable.MJCFFeature('xquat', body),
+        'head_distance': observable.Generic(
+            lambda physics: np.array([np.linalg.norm(eef_to(head)(physics))])),
+        'eef_to_hands': observable.Generic(eef_to(hands)),
+        'board_position': observable.MJCFFeature('xpos', body),
+        'board_normal': observable.Generic(self._board.normal),
+        'handle_position': observable.MJCFFeature(
+            'xpos', self._board.robot_grip_site),
+        'eef_to_handle': observable.Generic(
+            lambda physics: physics.bind(self._board.robot_grip_site).xpos
+            - physics.bind(tcp).xpos),
+        'board_gripped': observable.Generic(
+            lambda physics: np.array([float(props.is_gripped(
+                physics, self._gripper, self._board))])),
+    }
+
+
+@suite.register('lifting', 'default',
+                tags=('object_handling', 'dense', 'ssm'))
+def default(**task_kwargs):
+  """Collaborative lifting with the dense balance reward."""
+  return Lifting(**task_kwargs)
