@@ -178,6 +178,7 @@ class _Handover(base.HrcTask):
   def _update_common(self, physics):
     self._holding_hand = self._player.clip.holding_hand or 'right'
     self._gripped = self._gripper.is_grasping(physics, self._hammer.body)
+    # The episode's first clip has ended once the player is past clip 0.
     if not self._clip_done and self._player.get_state()['k'] > 0:
       self._clip_done = True
 
@@ -271,7 +272,7 @@ class _Handover(base.HrcTask):
             lambda p: self._target(p) - eef(p)),
         'object_position': observable.Generic(obj),
         'object_quaternion': observable.Generic(
-            lambda p: physics_quat(p, self._hammer.body)),
+            lambda p: physics_quaternion(p, self._hammer.body)),
         'object_in_eef_frame': observable.Generic(
             lambda p: in_eef(p, obj(p))),
         'object_distance': observable.Generic(
@@ -286,7 +287,8 @@ class _Handover(base.HrcTask):
     }
 
 
-def physics_quat(physics, body):
+def physics_quaternion(physics, body):
+  """World orientation (w, x, y, z) of an MJCF body."""
   return physics.bind(body).xquat.copy()
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import suite
+from hrc_suite.human import clip as clip_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import handover
 
@@ -156,11 +157,10 @@ def test_registered_with_tags_and_defaults():
     assert task.horizon == 1000
     assert task.action_space_name == 'cartesian'
     assert task.reward_range[1] == 1.0
-    assert task.player._range == handover.PLACEMENT_RANGE
-  assert len(suite.build_task('handover', 'robot_to_human')
-             .player._clips) == 15
-  assert len(suite.build_task('handover', 'human_to_robot')
-             .player._clips) == 11
+    assert task.HUMAN_PLACEMENT_RANGE == (0.0, 0.2, 0.1)
+  # The reference's motion counts.
+  assert len(clip_lib.shipped_library(handover.RobotToHuman.MOTIONS)) == 15
+  assert len(clip_lib.shipped_library(handover.HumanToRobot.MOTIONS)) == 11
 
 
 @pytest.mark.parametrize('task', TASKS)
