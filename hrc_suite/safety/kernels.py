@@ -88,26 +88,39 @@ def _pair_distance(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b):
 
 
 @_jit
-def _lower_bound(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b):
-  """Lower bound of that distance: midpoint distance minus half lengths and
-  radii (verification's broad phase; exact arithmetic would make it a
-  bound, round-off is far below the 1e-9 margin subtracted)."""
-  g0 = 0.5 * (rc1[k, l, 0] + rc2[k, l, 0]) - 0.5 * (hc1[m, k, b, 0]
-                                                    + hc2[m, k, b, 0])
-  g1 = 0.5 * (rc1[k, l, 1] + rc2[k, l, 1]) - 0.5 * (hc1[m, k, b, 1]
-                                                    + hc2[m, k, b, 1])
-  g2 = 0.5 * (rc1[k, l, 2] + rc2[k, l, 2]) - 0.5 * (hc1[m, k, b, 2]
-                                                    + hc2[m, k, b, 2])
-  x0 = rc2[k, l, 0] - rc1[k, l, 0]
-  x1 = rc2[k, l, 1] - rc1[k, l, 1]
-  x2 = rc2[k, l, 2] - rc1[k, l, 2]
-  y0 = hc2[m, k, b, 0] - hc1[m, k, b, 0]
-  y1 = hc2[m, k, b, 1] - hc1[m, k, b, 1]
-  y2 = hc2[m, k, b, 2] - hc1[m, k, b, 2]
-  return (math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-          - 0.5 * math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-          - 0.5 * math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
-          - rr[k, l] - hr[m, k, b] - 1e-9)
+def _bounding_balls(c1, c2, r):
+  """Balls around capsules (..., 3), (...): midpoints (n, 3) and radii (n,)
+  = half length + radius, flattened over the leading axes."""
+  count = r.size
+  start = c1.reshape(count, 3)
+  end = c2.reshape(count, 3)
+  radius = r.reshape(count)
+  middle = np.empty((count, 3))
+  reach = np.empty(count)
+  for i in range(count):
+    x0 = end[i, 0] - start[i, 0]
+    x1 = end[i, 1] - start[i, 1]
+    x2 = end[i, 2] - start[i, 2]
+    for j in range(3):
+      middle[i, j] = 0.5 * (start[i, j] + end[i, j])
+    reach[i] = 0.5 * math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + radius[i]
+  return middle, reach
+
+
+# Subtracted from the broad phase's lower bounds (m): covers their round-off
+# (~1e-16 m), so a pair is only skipped when it surely cannot intersect.
+_BOUND_SLACK = 1e-9
+
+
+@_jit
+def _lower_bound(r_mid, r_reach, i, h_mid, h_reach, j):
+  """Lower bound of the signed distance of capsules i and j from their
+  bounding balls (verification's broad phase), minus _BOUND_SLACK."""
+  g0 = r_mid[i, 0] - h_mid[j, 0]
+  g1 = r_mid[i, 1] - h_mid[j, 1]
+  g2 = r_mid[i, 2] - h_mid[j, 2]
+  return (math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) - r_reach[i] - h_reach[j]
+          - _BOUND_SLACK)
 
 
 @_jit
@@ -117,13 +130,16 @@ def ssm_clearances(rc1, rc2, rr, hc1, hc2, hr):
   distance so far are skipped."""
   count_m, count_k, count_b = hr.shape
   count_l = rr.shape[1]
+  r_mid, r_reach = _bounding_balls(rc1, rc2, rr)
+  h_mid, h_reach = _bounding_balls(hc1, hc2, hr)
   out = np.empty((count_m, count_k))
   for m in range(count_m):
     for k in range(count_k):
       best = np.inf
       for l in range(count_l):
         for b in range(count_b):
-          if _lower_bound(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b) < best:
+          if _lower_bound(r_mid, r_reach, k * count_l + l, h_mid, h_reach,
+                          (m * count_k + k) * count_b + b) < best:
             d = _pair_distance(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b)
             if d < best:
               best = d
@@ -138,13 +154,16 @@ def ssm_first_unsafe(rc1, rc2, rr, hc1, hc2, hr):
   at the first unsafe interval and at the first hit of each model."""
   count_m, count_k, count_b = hr.shape
   count_l = rr.shape[1]
+  r_mid, r_reach = _bounding_balls(rc1, rc2, rr)
+  h_mid, h_reach = _bounding_balls(hc1, hc2, hr)
   for k in range(count_k):
     all_hit = True
     for m in range(count_m):
       hit = False
       for l in range(count_l):
         for b in range(count_b):
-          if _lower_bound(rc1, rc2, rr, k, l, hc1, hc2, hr, m, b) < 0.0:
+          if _lower_bound(r_mid, r_reach, k * count_l + l, h_mid, h_reach,
+                          (m * count_k + k) * count_b + b) < 0.0:
             if _pair_distance(rc1, rc2, rr, k, l, hc1, hc2, hr, m,
                               b) < 0.0:
               hit = True
@@ -160,31 +179,55 @@ def ssm_first_unsafe(rc1, rc2, rr, hc1, hc2, hr):
 
 
 @_jit
-def _frames(q, fixed_rest, fixed_cos, fixed_sin):
+def _frames(q, fixed):
   """Link frames (N, dof, 3, 4) (top rows of the 4x4 transforms) for q
-  (N, dof): A_i Rz(q_i) = rest_i + cos q_i cos_i + sin q_i sin_i, chained."""
+  (N, dof); fixed (dof, 3, 4) are the fixed transforms A_i (base folded
+  into A_0). A_i Rz(q_i) has the columns c F0 + s F1, c F1 - s F0, F2, F3
+  of A_i = [F0 F1 F2 F3] (the reference's rest + c cos + s sin term by
+  term, without its zero terms); frames chain by products of affine 3x4
+  transforms, the running frame kept in scalars."""
   count, dof = q.shape
   out = np.empty((count, dof, 3, 4))
-  local = np.empty((3, 4))
   for n in range(count):
+    p00 = p01 = p02 = p03 = p10 = p11 = p12 = p13 = 0.0
+    p20 = p21 = p22 = p23 = 0.0
     for i in range(dof):
       c = math.cos(q[n, i])
       s = math.sin(q[n, i])
-      for r in range(3):
-        for col in range(4):
-          local[r, col] = (fixed_rest[i, r, col] + c * fixed_cos[i, r, col]
-                           + s * fixed_sin[i, r, col])
+      f = fixed[i]
+      l00 = c * f[0, 0] + s * f[0, 1]
+      l01 = c * f[0, 1] - s * f[0, 0]
+      l10 = c * f[1, 0] + s * f[1, 1]
+      l11 = c * f[1, 1] - s * f[1, 0]
+      l20 = c * f[2, 0] + s * f[2, 1]
+      l21 = c * f[2, 1] - s * f[2, 0]
+      l02, l03 = f[0, 2], f[0, 3]
+      l12, l13 = f[1, 2], f[1, 3]
+      l22, l23 = f[2, 2], f[2, 3]
       if i == 0:
-        out[n, 0] = local
+        p00, p01, p02, p03 = l00, l01, l02, l03
+        p10, p11, p12, p13 = l10, l11, l12, l13
+        p20, p21, p22, p23 = l20, l21, l22, l23
       else:
-        for r in range(3):
-          for col in range(4):
-            x = (out[n, i - 1, r, 0] * local[0, col]
-                 + out[n, i - 1, r, 1] * local[1, col]
-                 + out[n, i - 1, r, 2] * local[2, col])
-            if col == 3:
-              x += out[n, i - 1, r, 3]
-            out[n, i, r, col] = x
+        p00, p01, p02, p03 = (
+            p00 * l00 + p01 * l10 + p02 * l20,
+            p00 * l01 + p01 * l11 + p02 * l21,
+            p00 * l02 + p01 * l12 + p02 * l22,
+            p00 * l03 + p01 * l13 + p02 * l23 + p03)
+        p10, p11, p12, p13 = (
+            p10 * l00 + p11 * l10 + p12 * l20,
+            p10 * l01 + p11 * l11 + p12 * l21,
+            p10 * l02 + p11 * l12 + p12 * l22,
+            p10 * l03 + p11 * l13 + p12 * l23 + p13)
+        p20, p21, p22, p23 = (
+            p20 * l00 + p21 * l10 + p22 * l20,
+            p20 * l01 + p21 * l11 + p22 * l21,
+            p20 * l02 + p21 * l12 + p22 * l22,
+            p20 * l03 + p21 * l13 + p22 * l23 + p23)
+      o = out[n, i]
+      o[0, 0], o[0, 1], o[0, 2], o[0, 3] = p00, p01, p02, p03
+      o[1, 0], o[1, 1], o[1, 2], o[1, 3] = p10, p11, p12, p13
+      o[2, 0], o[2, 1], o[2, 2], o[2, 3] = p20, p21, p22, p23
   return out
 
 
@@ -207,12 +250,11 @@ def _endpoints(frames, points, frame_index):
 
 
 @_jit
-def robot_reach(q_edges, s_edges, fixed_rest, fixed_cos, fixed_sin, points,
-                frame_index, alpha, static_radius):
+def robot_reach(q_edges, s_edges, fixed, points, frame_index, alpha,
+                static_radius):
   """Reach capsules c1, c2 (K, L, 3), r (K, L) over the K intervals between
   configurations q_edges (K+1, dof) at path positions s_edges (K+1,)."""
-  ends = _endpoints(_frames(q_edges, fixed_rest, fixed_cos, fixed_sin),
-                    points, frame_index)
+  ends = _endpoints(_frames(q_edges, fixed), points, frame_index)
   count_k = q_edges.shape[0] - 1
   count_l = points.shape[0]
   c1 = np.empty((count_k, count_l, 3))
@@ -242,11 +284,10 @@ def robot_reach(q_edges, s_edges, fixed_rest, fixed_cos, fixed_sin, points,
 
 
 @_jit
-def surface_speeds(q, dq, fixed_rest, fixed_cos, fixed_sin, points,
-                   frame_index, radii):
+def surface_speeds(q, dq, fixed, points, frame_index, radii):
   """Upper bounds (N, L) of the capsules' surface speeds at (q, dq) (N,
   dof): |w x p - U| at both ends (maximum) plus |w| r."""
-  frames = _frames(q, fixed_rest, fixed_cos, fixed_sin)
+  frames = _frames(q, fixed)
   ends = _endpoints(frames, points, frame_index)
   count, dof = q.shape
   count_l = points.shape[0]
@@ -445,3 +486,25 @@ def plan_positions(coefficients, start_time, inverse_cycle, cycle_time, s,
                            + t2 * coefficients[k, 2, d]
                            + t3 * coefficients[k, 3, d])
   return out
+
+
+@_jit
+def speed_tables(speeds, width):
+  """PFL tables of a plan from its capsules' surface speeds (N, L): the
+  largest speed over samples i..i+width (clamped to the plan), and from
+  sample i to the end (both (N,))."""
+  count = speeds.shape[0]
+  top = np.empty(count)
+  for i in range(count):
+    top[i] = speeds[i].max()
+  window = np.empty(count)
+  suffix = np.empty(count)
+  best = -np.inf
+  for i in range(count - 1, -1, -1):
+    best = max(best, top[i])
+    suffix[i] = best
+    largest = top[i]
+    for j in range(i + 1, min(i + width + 1, count)):
+      largest = max(largest, top[j])
+    window[i] = largest
+  return window, suffix

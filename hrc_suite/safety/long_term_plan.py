@@ -142,6 +142,11 @@ class LongTermPlan:
                  * self._inverse_cycle)
     return np.clip(k, 0, self._last).astype(int)
 
+  def sample_index(self, s):
+    """index(s) for one plan time s (Python float arithmetic)."""
+    k = int((s - self.start_time) * self._inverse_cycle // 1.0)
+    return 0 if k < 0 else (self._last if k > self._last else k)
+
   def nominal(self, s):
     """Joint state at nominal speed at plan times s (K,).
 

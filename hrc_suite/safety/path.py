@@ -179,17 +179,19 @@ class Path:
     out.append((start, path.s, v_end, 0.0, 0.0))
     return out
 
-  def max_s_dot(self, after=0.0, before=None):
+  def max_s_dot(self, after=0.0, before=None, pieces=None):
     """Largest s_dot between `after` and `before` seconds from now (None:
     for ever; s_dot is constant after the schedule).
 
     Checks piece boundaries and interior maxima (s_ddot crossing zero from
-    above inside a piece of negative jerk).
+    above inside a piece of negative jerk). `pieces`: this path's
+    segments(), if already computed.
     """
-    pieces = self.segments()
-    _, (best,), _, _ = self.sample((after,))
+    if pieces is None:
+      pieces = self.segments()
+    _, (best,), _, _ = self.sample((after,), pieces)
     if before is not None:
-      best = max(best, self.sample((before,))[1][0])
+      best = max(best, self.sample((before,), pieces)[1][0])
     for i, (start, _, v, a, jerk) in enumerate(pieces):
       end = pieces[i + 1][0] if i + 1 < len(pieces) else math.inf
       if end <= after or (before is not None and start >= before):
@@ -204,9 +206,11 @@ class Path:
                      (t_peak - start) ** 2)
     return best
 
-  def sample(self, times):
-    """States at times from now: lists (s, s_dot, s_ddot, jerk)."""
-    pieces = self.segments()
+  def sample(self, times, pieces=None):
+    """States at times from now: lists (s, s_dot, s_ddot, jerk). `pieces`:
+    this path's segments(), if already computed."""
+    if pieces is None:
+      pieces = self.segments()
     last = len(pieces) - 1
     s_out, v_out, a_out, j_out = [], [], [], []
     for t in times:

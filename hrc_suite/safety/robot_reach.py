@@ -117,9 +117,8 @@ class RobotReach:
     self.alpha = alpha
     self._static_radius = self.radii + self.secure_radius   # (L,)
     # Contiguous float64 / int64 arguments of the compiled kernels.
-    self._kernel_model = tuple(np.ascontiguousarray(x) for x in (
-        self._fixed_rest[:, :3], self._fixed_cos[:, :3],
-        self._fixed_sin[:, :3], self._points))
+    self._kernel_model = (np.ascontiguousarray(fixed[:, :3]),
+                          np.ascontiguousarray(self._points))
     self._kernel_frames = np.ascontiguousarray(self.frame_index,
                                                dtype=np.int64)
     self._kernel_alpha = np.ascontiguousarray(self.alpha, dtype=float)

@@ -115,6 +115,7 @@ class Shield:
     self._q_max = _joint_list(limits.q_max)
     # Clip bounds of the (dq, ddq, dddq) rows of a state (spec 2.2).
     self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
+    self._clip_low = -self._clip
     self._pfl_speeds = {}
     # Every robot point stays within this ball around the base (rotations
     # keep lengths: sum of the fixed translations up to the link, plus the
@@ -355,7 +356,9 @@ class Shield:
         self.intervened = not (
             np.abs(wanted[0] - state[0]).max() <= _SAME_COMMAND and
             np.abs(wanted[1] - state[1]).max() <= _SAME_COMMAND)
-    np.clip(state[1:4], -self._clip, self._clip, out=state[1:4])
+    rates = state[1:4]   # np.clip's max-then-min, without its overhead.
+    np.minimum(np.maximum(rates, self._clip_low, out=rates), self._clip,
+               out=rates)
     self._state = state
     return state[0], state[1], state[2]
 
@@ -401,12 +404,8 @@ class Shield:
     end (both (N,), m/s)."""
     cached = self._pfl_speeds.get(id(plan))
     if cached is None or cached[0] is not plan:
-      speeds = self.robot.surface_speeds(plan.q, plan.dq).max(axis=1)
-      padded = np.concatenate([speeds, np.full(PFL_WINDOW, speeds[-1])])
-      window = np.lib.stride_tricks.sliding_window_view(
-          padded, PFL_WINDOW + 1).max(axis=1)[:len(speeds)]
-      suffix = np.maximum.accumulate(speeds[::-1])[::-1]
-      cached = (plan, window, suffix)
+      cached = (plan,) + pfl_speed_tables(
+          self.robot.surface_speeds(plan.q, plan.dq))
       self._pfl_speeds = {id(plan): cached}
     return cached[1], cached[2]
 
@@ -418,24 +417,26 @@ class Shield:
     """
     if self.mode != 'pfl':
       return None
-    remaining = self._plan_speeds(plan)[1][int(plan.index(s))]
+    remaining = self._plan_speeds(plan)[1][plan.sample_index(s)]
     allowed = PFL_SPEED_MARGIN * self.v_safe
     return 1.0 if remaining <= allowed else allowed / remaining
 
-  def _slow_enough(self, plan, current, failsafe, times, s_edges, first):
+  def _slow_enough(self, plan, current, failsafe, times, s_edges, first,
+                   pieces):
     """PFL: the robot's surface speed stays below v_safe from slice `first`
-    on (and after the failsafe, coasting at its final path velocity)."""
+    on (and after the failsafe, coasting at its final path velocity).
+    pieces: failsafe.segments()."""
     window, suffix = self._plan_speeds(plan)
     allowed = PFL_SPEED_MARGIN * self.v_safe * (1.0 + _S_DOT_TOLERANCE)
-    k = plan.index(s_edges)
     for i in range(first, len(times)):
       if i == 0:
         s_dot = max(current.s_dot, failsafe.s_dot)
       else:
-        s_dot = failsafe.max_s_dot(times[i - 1], times[i])
-      if window[k[i]] * s_dot > allowed:
+        s_dot = failsafe.max_s_dot(times[i - 1], times[i], pieces)
+      if window[plan.sample_index(s_edges[i])] * s_dot > allowed:
         return False
-    return suffix[k[-1]] * failsafe.final()[1] <= allowed
+    return (suffix[plan.sample_index(s_edges[-1])] * failsafe.final()[1]
+            <= allowed)
 
   def _verify(self, plan, current, failsafe, s_dot_limit):
     """Checks the slice current -> intended step, then the failsafe."""
@@ -443,7 +444,8 @@ class Shield:
     end = failsafe.end_time()
     count = max(math.ceil(end / self.interval - 1e-9), 1)
     times = [i * self.interval for i in range(count)] + [end]
-    s = failsafe.sample(times)[0]
+    pieces = failsafe.segments()
+    s = failsafe.sample(times, pieces)[0]
     s_edges = [current.s] + s
     t_edges = [0.0] + [x + dt for x in times]
     q_edges = np.empty((count + 2, self.dof))
@@ -486,7 +488,8 @@ class Shield:
       return first < 0
     # PFL: contact is possible from slice `first` on; from then on the
     # robot must be slower than v_safe.
-    return self._slow_enough(plan, current, failsafe, times, s_edges, first)
+    return self._slow_enough(plan, current, failsafe, times, s_edges, first,
+                             pieces)
 
   def _human_horizon_balls(self, horizon):
     """NumPy reference of the first broad phase's balls (the shield runs
@@ -507,6 +510,22 @@ class Shield:
             + config.measurement_error_pos)
     grow += 0.5 * np.sqrt(np.einsum('bi,bi->b', half, half))
     return 0.5 * (p1 + p2), grow
+
+
+def pfl_speed_tables(speeds, compiled=True):
+  """PFL tables from a plan's capsule surface speeds (N, L) at nominal
+  path speed: the largest over the next PFL_WINDOW samples (the last held
+  past the end), and from each sample to the end (both (N,)).
+  compiled=False runs the NumPy reference."""
+  if compiled:
+    return kernels.speed_tables(np.ascontiguousarray(speeds, dtype=float),
+                                PFL_WINDOW)
+  speeds = speeds.max(axis=1)
+  padded = np.concatenate([speeds, np.full(PFL_WINDOW, speeds[-1])])
+  window = np.lib.stride_tricks.sliding_window_view(
+      padded, PFL_WINDOW + 1).max(axis=1)[:len(speeds)]
+  suffix = np.maximum.accumulate(speeds[::-1])[::-1]
+  return window, suffix
 
 
 def balls_capsules_distance_reference(centre, radius, capsules):

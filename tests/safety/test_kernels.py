@@ -209,3 +209,13 @@ def test_shield_reach_distance_is_the_reference_clearance():
       assert shield.reach_distance == pytest.approx(distance, abs=1e-12)
       checked += 1
   assert checked > 0
+
+
+def test_pfl_speed_tables_match_reference():
+  rng = np.random.RandomState(7)
+  for count in (1, 2, 6, 7, 8, 50, 300):
+    speeds = rng.uniform(0, 2, (count, 8))
+    for got, expected in zip(shield_lib.pfl_speed_tables(speeds),
+                             shield_lib.pfl_speed_tables(speeds,
+                                                         compiled=False)):
+      np.testing.assert_array_equal(got, expected)
