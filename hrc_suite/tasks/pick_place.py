@@ -27,9 +27,9 @@ beside the robot (reference-benchmark.md, paper Table I).
 
 The base's collision prevention forbids any tool contact with the table,
 but the tool capsule (radius ~6.4 cm around the fingers) reaches 7.4 cm
-below the TCP; this task allows the tool capsule TOOL_TABLE_ALLOWANCE of
-table penetration so the fingertips can go down to a cube's centre (they
-stay TABLE_CLEARANCE above the table).
+below the TCP; this task allows the tool capsule `tool_table_allowance` of
+table penetration so the fingers can go down around the cube (fingertips
+at least TABLE_CLEARANCE above the table).
 """
 
 import math
@@ -58,12 +58,17 @@ REGION_X = (0.30, 0.45)
 REGION_ABS_Y = (0.10, 0.25)
 HOVER_HEIGHT = 0.2           # m above the cube centre (reference expert)
 # A grasp puts the TCP (1 cm above the fingertips) this far above the cube
-# centre: pads 4 cm long cover the cube's upper 3 cm.
-GRASP_TCP_ABOVE_CENTRE = 0.005   # m
+# centre, at the Cartesian workspace's floor (actions.WORKSPACE_LOW, 3 cm
+# above the table): the 4 cm pads cover the cube's upper 2 cm.
+GRASP_TCP_ABOVE_CENTRE = 0.01    # m
 SAMPLE_ATTEMPTS = 200
 # Fingertips' minimum clearance above the table allowed by collision
-# prevention (see module doc).
-TABLE_CLEARANCE = 0.005      # m
+# prevention (see module doc): goals may put the TCP down to 2.8 cm above
+# the table, 2 mm below the Cartesian workspace floor (so IK's 1 mm
+# tolerance never flags a goal there). The shield's jerk-limited motion can
+# overshoot a goal by ~2 cm when it reverses a fast descent; this margin
+# keeps the fingertips off the table then.
+TABLE_CLEARANCE = 0.018      # m
 TARGET_RGBA = (0.1, 0.8, 0.2, 0.35)
 TARGET_HALF_THICKNESS = 0.0005   # m, the drawn disc
 # `close`: the beside station moved towards the robot's centre line (-y),
@@ -111,18 +116,11 @@ class PickPlace(base.HrcTask):
     self.tool_table_allowance = radius - TABLE_CLEARANCE
     self._collision_checker = cp_lib.CollisionPrevention(
         self._robot.description, base_pose=self._kinematics.base_pose,
-        tool_capsule=self._tool_capsule(),
+        tool_capsule=self.tool_capsule,
         tool_table_allowance=self.tool_table_allowance)
     self._target = np.zeros(3)
     self._object_side = 1.0
     self._reset_progress()
-
-  def _tool_capsule(self):
-    description = self._robot.description
-    p1, p2, radius = self._gripper.enclosing_capsule()
-    rotation, translation = (description.flange_rotation,
-                             description.flange_translation)
-    return (translation + rotation @ p1, translation + rotation @ p2, radius)
 
   def _reset_progress(self):
     self._success = False

@@ -179,7 +179,8 @@ def test_cube_and_target_on_either_side_within_reach(robot):
               <= pick_place.REGION_ABS_Y[1])
       above = solver.solve(point + (0, 0, pick_place.HOVER_HEIGHT), q_home,
                            actions.GRIPPER_YAW)
-      grasp = solver.solve(point + (0, 0, 0.005), above.q,
+      grasp = solver.solve(point + (0, 0, pick_place.GRASP_TCP_ABOVE_CENTRE),
+                           above.q,
                            actions.GRIPPER_YAW)
       assert above.success and grasp.success
       assert not task.collision_checker.in_collision(grasp.q)
@@ -196,13 +197,18 @@ def test_collision_prevention_lets_fingertips_reach_the_cube_not_the_table():
   solver = ik_lib.InverseKinematics(task.kinematics)
   q_home = task.robot.description.q_home
   point = np.array([0.4, 0.0, layout.TABLE_TOP_Z])
-  # TCP 1 cm above the fingertips: at the cube's centre the tips are 1 cm
-  # above the table; at 1 cm above the table they touch it.
-  ok = solver.solve(point + (0, 0, 0.02), q_home, actions.GRIPPER_YAW)
-  touching = solver.solve(point + (0, 0, 0.01), ok.q, actions.GRIPPER_YAW)
-  assert ok.success and touching.success
+  # The TCP is 1 cm above the fingertips. At the grasp height (the
+  # Cartesian workspace floor) the goal is allowed; fingertips closer to
+  # the table than TABLE_CLEARANCE are not.
+  grasp = point + (0, 0, 0.02 + pick_place.GRASP_TCP_ABOVE_CENTRE)
+  low = point + (0, 0, 0.01 + pick_place.TABLE_CLEARANCE - 0.003)
+  ok = solver.solve(grasp, q_home, actions.GRIPPER_YAW)
+  too_low = solver.solve(low, ok.q, actions.GRIPPER_YAW)
+  assert ok.success and too_low.success
   assert not task.collision_checker.in_collision(ok.q)
-  assert task.collision_checker.in_collision(touching.q)
+  assert task.collision_checker.in_collision(too_low.q)
+  # The base's default (no tool-table contact) would forbid the grasp.
+  assert task.tool_table_allowance > 0.04
 
 
 def test_close_variant_moves_the_person_towards_the_robot():
