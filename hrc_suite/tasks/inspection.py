@@ -14,8 +14,9 @@ front of a person, who inspects it and leaves (reference-benchmark.md).
   target, then inspects it with the hands and retreats.
 * Inspection target: the clip's 'inspection_point' (in front of the person,
   0.33-0.53 m above the table); where gripper-down IK cannot reach it (short
-  robots, e.g. the Schunk), the nearest point on the segment from it
-  towards the robot's home TCP that IK reaches. Computed once per clip.
+  robots, e.g. the Schunk) or it lies outside the Cartesian action box, the
+  nearest point on the segment from it towards the robot's home TCP that
+  is inside the box and reached by IK. Computed once per clip.
 * Success (delayed by the retreat): the clip ends after the event and the
   cube stayed within SUCCESS_DISTANCE of the target from the event on. The
   next clip (if the episode goes on) asks again.
@@ -34,6 +35,7 @@ from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
 
 EVENT = clip_lib.TASK_EVENTS['inspection'][0]   # 'object_presented'
@@ -144,9 +146,11 @@ class Inspection(base.HrcTask):
       # Seeded by the clip's name: the same clip gives the same target.
       rs = np.random.RandomState(sum(map(ord, clip.name)))
       target = home
+      low, high = actions.workspace_box(self._kinematics)
       for s in np.linspace(0.0, 1.0, TARGET_CANDIDATES):
         candidate = point + s * (home - point)
-        if self._reachable(candidate, q_home, rs):
+        inside = np.all((candidate >= low) & (candidate <= high))
+        if inside and self._reachable(candidate, q_home, rs):
           target = candidate
           break
       self._target_cache[clip.name] = target

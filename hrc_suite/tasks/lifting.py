@@ -9,10 +9,11 @@ keep it level while the person moves (reference-benchmark.md).
   gripper down. The episode starts with the robot holding the handle: IK to
   the grip site, fingers closed on it, SETTLE_STEPS physics steps.
 * Human: the 9 lifting clips (no idle phases). At the clip's first
-  keyframe (hands at the board) the person takes the board (`Human.hold`,
-  one hand drawn per episode: a weld keeps the position it has then, its
-  rotation free, HOLD_TORQUE_SCALE); at the
-  last keyframe (board put down) they let go. Contacts between the
+  keyframe (hands at the board) the person takes the board with both hands
+  (`Human.hold` plus the other hand's weld, each anchored at the board
+  point under its hand, rotation free: HOLD_TORQUE_SCALE, compliant:
+  HOLD_SOLREF); at the last
+  keyframe (board put down) they let go. Contacts between the
   person's capsules and the board are excluded (the weld is the grasp).
 * Cartesian actions keep the grip's yaw (GRIP_YAW: fingers closing along
   the board), not the suite's default yaw 0, which would twist the board.
@@ -61,6 +62,12 @@ HANDS = ('left', 'right')
 # person's hand segment, whose orientation follows the forearm (~25 deg
 # during a lift); two people carrying a board hinge it at their hands.
 HOLD_TORQUE_SCALE = 0.0
+# The hold welds' time constant and damping ratio (MuJoCo solref): arms are
+# compliant. With the add_holdable default (0.01 s) any centimetre of
+# mismatch between the hands' path and the robot's grip becomes a force
+# that pries the gripper's fingers open (the fingers close along the board;
+# 40 N grip force); 0.3 s lets the oracle keep its grasp through a lift.
+HOLD_SOLREF = (0.3, 1.0)
 
 
 class GripYawCartesianSpace(actions.CartesianActionSpace):
@@ -99,6 +106,7 @@ class Lifting(base.HrcTask):
     self._welds = self._human.add_holdable(self._board.body)
     for weld in self._welds.values():
       weld.torquescale = HOLD_TORQUE_SCALE
+      weld.solref = HOLD_SOLREF
     # The person handles the board through the hold weld only: their
     # kinematic capsules would shove it out of the robot's fingers.
     for segment in self._human.segment_bodies:

@@ -1,0 +1,209 @@
+"""The lifting task: spec conformance, the starting grasp, reset/step in
+both action spaces, rewards, failure, determinism and snapshots."""
+
+import unittest
+
+from dm_env import test_utils
+import numpy as np
+import pytest
+
+from hrc_suite import suite
+from hrc_suite.human import keypoints
+from hrc_suite.tasks import lifting
+from hrc_suite.tasks import metrics
+
+import oracles   # tests/tasks/oracles.py
+
+ROBOTS = ('panda', 'schunk')
+SPACES = ('cartesian', 'joint')
+
+
+def _env(robot='panda', space='cartesian', seed=0, **kwargs):
+  kwargs.setdefault('time_limit', 2.0)
+  return suite.load('lifting', 'default', task_kwargs={
+      'robot': robot, 'action_space': space, **kwargs},
+                    environment_kwargs={'random_state': seed})
+
+
+def _hold_still(env):
+  """Arm still, gripper closed."""
+  action = np.zeros(env.action_spec().shape)
+  action[-1] = 1.0
+  return action
+
+
+class LiftingSpecTest(test_utils.EnvironmentTestMixin, unittest.TestCase):
+
+  def make_object_under_test(self):
+    return _env('schunk', 'cartesian', observations='full', time_limit=1.0)
+
+
+@pytest.mark.parametrize('robot', ROBOTS)
+@pytest.mark.parametrize('space', SPACES)
+def test_starts_grasped_and_steps(robot, space):
+  env = _env(robot, space)
+  timestep = env.reset()
+  assert list(timestep.observation) == ['board_quaternion', 'head_distance',
+                                        'eef_to_hands']
+  assert timestep.observation['eef_to_hands'].shape == (2, 3)
+  task, physics = env.task, env.physics
+  assert task.step_metrics == {} and env.physics.time() == 0.0
+  assert task._gripped
+  tcp = task.robot.tcp_pose(physics)[0]
+  grip = physics.bind(task.board.robot_grip_site).xpos
+  assert np.linalg.norm(tcp - grip) < 0.01
+  assert task.board.tilt(physics) < 0.01
+  low, high = task.reward_range
+  steps = 0
+  while not timestep.last():
+    timestep = env.step(_hold_still(env))
+    steps += 1
+    assert low <= timestep.reward <= high
+  # Before the person comes to the board: gripped and level, reward ~ +1.
+  assert steps == 20
+  assert task.episode_metrics['return'] > 19.0
+
+
+def test_cartesian_actions_keep_the_grip_yaw():
+  env = _env('panda', 'cartesian')
+  env.reset()
+  action = np.array([0.0, 0.0, 0.3, 1.0])
+  for _ in range(3):
+    env.step(action)
+  rotation = env.physics.bind(env.task.robot.tcp_site).xmat.reshape(3, 3)
+  assert abs(abs(rotation[1, 0]) - 1.0) < 0.05   # x along world +-y.
+  assert env.task.step_metrics['board_gripped'] == 1.0
+
+
+def test_letting_go_fails_with_minus_ten():
+  env = _env('panda', 'joint', time_limit=5.0)
+  env.reset()
+  action = np.zeros(env.action_spec().shape)
+  action[-1] = -1.0   # Open.
+  rewards = []
+  timestep = env.step(action)
+  rewards.append(timestep.reward)
+  while not timestep.last():
+    timestep = env.step(action)
+    rewards.append(timestep.reward)
+  assert timestep.discount == 0.0
+  assert rewards[-1] == lifting.FAILURE_REWARD
+  assert len(rewards) <= lifting.MAX_RELEASED_STEPS + 3
+  assert env.task.episode_metrics['success'] == 0.0
+
+
+def test_person_takes_the_board_with_both_hands():
+  env = _env('panda', 'joint', time_limit=4.0)
+  timestep = env.reset()
+  task = env.task
+  held = False
+  while not timestep.last():
+    timestep = env.step(_hold_still(env))
+    held |= task.holding_hand is not None
+  assert held
+  active = [env.physics.data.eq_active[env.physics.bind(w).element_id]
+            for w in task._welds.values()]
+  assert all(active) or task.holding_hand is None
+
+
+def _rollout(env, count, seed=1):
+  rs = np.random.RandomState(seed)
+  out = []
+  for _ in range(count):
+    action = rs.uniform(-0.3, 0.3, env.action_spec().shape)
+    action[-1] = 1.0
+    timestep = env.step(action)
+    out.append((timestep.reward, {k: v.copy() for k, v in
+                                  timestep.observation.items()}))
+    if timestep.last():
+      break
+  return out
+
+
+def _assert_same(first, second):
+  assert len(first) == len(second)
+  for (r1, o1), (r2, o2) in zip(first, second):
+    assert r1 == r2
+    for name in o1:
+      np.testing.assert_array_equal(o1[name], o2[name])
+
+
+@pytest.mark.parametrize('space', SPACES)
+def test_same_seed_same_episode(space):
+  runs = []
+  for _ in range(2):
+    env = _env('panda', space, seed=4, observations='full')
+    env.reset()
+    runs.append(_rollout(env, 8))
+  _assert_same(*runs)
+
+
+def test_snapshot_restore_is_bit_exact_while_holding():
+  env = _env('panda', 'joint', observations='full', time_limit=6.0)
+  env.reset()
+  task = env.task
+  for _ in range(22):   # The person holds the board by then.
+    env.step(_hold_still(env))
+  assert task.holding_hand is not None
+  state = task.get_state(env.physics)
+  first = _rollout(env, 6, seed=3)
+  env.reset()
+  assert task.holding_hand is None
+  task.set_state(env.physics, state)
+  assert task.holding_hand is not None
+  second = _rollout(env, 6, seed=3)
+  _assert_same(first, second)
+
+
+def test_registered_with_tags():
+  assert ('lifting', 'default') in suite.ALL_TASKS
+  assert ('lifting', 'default') in suite.tasks_with_tag('dense')
+  assert ('lifting', 'default') not in suite.tasks_with_tag('delayed')
+
+
+def _oracle(env):
+  """Privileged follower: while the person holds the board, the TCP keeps
+  the offset it had from the midpoint of their hands when they took it
+  (plus LOOKAHEAD s of the hands' velocity), gripper closed."""
+  task = env.task
+  driver = oracles.WaypointDriver(env, yaw=lifting.GRIP_YAW)
+  hands = np.array(keypoints.index(('left_hand', 'right_hand')))
+  lookahead = 0.15   # s, about the robot's lag behind its goal
+  state = {}
+
+  def policy(timestep):
+    physics = env.physics
+    if timestep.first():
+      state.clear()
+    if task.holding_hand is None:
+      state.pop('offset', None)
+      return _hold_still(env)
+    middle = task.human.keypoint_positions(physics)[hands].mean(axis=0)
+    if 'offset' not in state:
+      state['offset'] = task.robot.tcp_pose(physics)[0] - middle
+    velocity = task.player.velocities[hands].mean(axis=0)
+    return driver.action(middle + lookahead * velocity + state['offset'], 1.0)
+
+  return policy
+
+
+def test_oracle_completes_a_lift():
+  env = _env('panda', 'joint', seed=1, time_limit=30.0)
+  result = metrics.run_episode(env, _oracle(env))
+  assert result['success'] == 1.0 and result['lifts'] == 1
+  assert result['contacts_human_critical'] == 0
+  # Level enough all along: every step paid more than half the +1.
+  assert result['return'] > 0.5 * result['steps']
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('robot,space', [('panda', 'cartesian'),
+                                         ('schunk', 'joint')])
+def test_oracle_succeeds_in_a_few_seeds(robot, space):
+  successes = 0
+  for seed in range(3):
+    env = _env(robot, space, seed=seed, time_limit=30.0)
+    result = metrics.run_episode(env, _oracle(env))
+    assert result['contacts_human_critical'] == 0
+    successes += int(result['success'])
+  assert successes >= 1
