@@ -22,6 +22,14 @@ from hrc_suite.human import keypoints
 _LEG_PARTS = ('thigh', 'shin')
 
 
+def _as_slice(ids):
+  """A slice if the ids are consecutive (a cheaper index), else the ids."""
+  ids = np.asarray(ids, dtype=np.intp)
+  if ids.size and np.array_equal(ids, np.arange(ids[0], ids[0] + ids.size)):
+    return slice(int(ids[0]), int(ids[0]) + ids.size)
+  return ids.copy()
+
+
 class HumanPlayback:
   """Batches a Player's keypoints over an RL step onto a Human."""
 
@@ -60,9 +68,10 @@ class HumanPlayback:
     model = physics.model
     bodies = [model.name2id(frame.full_identifier, 'body')
               for frame in self._human.segment_bodies]
-    self._segment_mocap = model.body_mocapid[bodies].copy()
+    self._segment_mocap = _as_slice(model.body_mocapid[bodies])
     sites = physics.bind(list(self._human.keypoint_sites)).element_id
-    self._keypoint_mocap = model.body_mocapid[model.site_bodyid[sites]].copy()
+    self._keypoint_mocap = _as_slice(
+        model.body_mocapid[model.site_bodyid[sites]])
     self._mocap_pos = physics.data.ptr.mocap_pos
     self._mocap_quat = physics.data.ptr.mocap_quat
     self._physics_ptr = physics.data.ptr
