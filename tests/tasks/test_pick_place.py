@@ -41,6 +41,7 @@ class Oracle:
     self.env, self.task = env, env.task
     self.ik = ik_lib.InverseKinematics(self.task.kinematics)
     self.phase, self.closing = 'hover', 0
+    self.highest_cube = -np.inf   # m, the cube's highest centre seen.
 
   def _tcp(self):
     return self.task.robot.tcp_pose(self.env.physics)[0]
@@ -65,6 +66,7 @@ class Oracle:
     del timestep
     task, physics = self.task, self.env.physics
     cube, target = task.object_position(physics), task.target_position
+    self.highest_cube = max(self.highest_cube, cube[2])
     tcp = self._tcp()
     hover = pick_place.HOVER_HEIGHT
     grasp = cube + (0.0, 0.0, pick_place.GRASP_TCP_ABOVE_CENTRE)
@@ -119,6 +121,8 @@ def test_registered_with_tags():
     assert ('pick_place', 'close') in suite.tasks_with_tag(tag)
   with pytest.raises(ValueError, match="Unknown reward 'dense'"):
     _env(reward='dense')
+  with pytest.raises(ValueError, match='expected one of close, default'):
+    _env(variant='far')
 
 
 @pytest.mark.parametrize('robot', ROBOTS)
@@ -353,4 +357,7 @@ def test_oracle_picks_and_places(robot, space, variant):
       # cube was carried (gripped) on the way.
       assert env.task.step_metrics['reward'] == pick_place.REWARD_SUCCESS
       assert env.task.step_metrics['gripped_steps'] == 1
+      # Carried through physics: lifted well off the table.
+      assert oracle.highest_cube > CUBE_REST_Z + 0.1
+      break   # Reachable; further seeds would only cost time.
   assert successes >= 1
