@@ -65,9 +65,10 @@ SAMPLE_ATTEMPTS = 200
 # Fingertips' minimum clearance above the table allowed by collision
 # prevention (see module doc): goals may put the TCP down to 2.8 cm above
 # the table, 2 mm below the Cartesian workspace floor (so IK's 1 mm
-# tolerance never flags a goal there). The shield's jerk-limited motion can
-# overshoot a goal by ~2 cm when it reverses a fast descent; this margin
-# keeps the fingertips off the table then.
+# tolerance never flags a goal there). The margin absorbs small overshoots
+# of the shield's commanded motion past a goal (it reverses a descent only
+# after ~0.1-0.4 s: 2 cm and more were seen with random actions); larger
+# overshoots reach the table (a static contact).
 TABLE_CLEARANCE = 0.018      # m
 TARGET_RGBA = (0.1, 0.8, 0.2, 0.35)
 TARGET_HALF_THICKNESS = 0.0005   # m, the drawn disc
