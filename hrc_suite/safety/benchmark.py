@@ -3,7 +3,7 @@
 `python -m hrc_suite.safety.benchmark` prints the median and 95th
 percentile (microseconds) of `Shield.step` for every robot in two scenes,
 with a new random goal every 12 cycles (the reference's 20 Hz policy at a
-4 ms cycle; replanning is included):
+4 ms cycle; replanning is included), in SSM or PFL mode (--mode):
 * close: a person across the table reaching back and forth at the robot's
   gripper, so verification needs the full human reachable sets and the
   shield intervenes;
@@ -104,16 +104,16 @@ def main(argv=None):
                       default=list(robot_description.ROBOT_NAMES))
   parser.add_argument('--mode', choices=('ssm', 'pfl'), default='ssm')
   args = parser.parse_args(argv)
-  print(f'Shield ({args.mode}) cycle time (us), {args.cycles} cycles per row, new goal '
-        f'every {GOAL_EVERY} cycles; wall clock and thread CPU time (the '
-        'latter is immune to preemption by other processes)')
+  print(f'Shield ({args.mode}) cycle time (us), {args.cycles} cycles per '
+        f'row, new goal every {GOAL_EVERY} cycles; wall clock and thread CPU '
+        'time (the latter is immune to preemption by other processes)')
   print(f'{"robot":10s} {"scene":6s} {"median":>8s} {"p95":>8s} '
         f'{"cpu med":>8s} {"cpu p95":>8s} {"interventions":>14s}')
   rows = []
   for name in args.robots:
     for scene in SCENES:
-      times, cpu_times, interventions = time_cycles(name, scene, args.cycles,
-                                                 mode=args.mode)
+      times, cpu_times, interventions = time_cycles(
+          name, scene, args.cycles, mode=args.mode)
       skip = GOAL_EVERY * 4   # The first plans (warm-up).
       times, cpu_times = times[skip:] * 1e6, cpu_times[skip:] * 1e6
       row = (name, scene, float(np.median(times)),

@@ -383,9 +383,9 @@ class HumanReach:
     ends = self._ends
     if compiled and self.has_velocity:
       if self._error_vel[0] != self._last_period:
-        self._error_vel = (self._last_period, np.ascontiguousarray(
+        self._error_vel = (self._last_period, np.array(
             np.broadcast_to(self._velocity_error(), (self.num_keypoints,)),
-            dtype=float))
+            dtype=float))   # A writeable copy: one kernel signature.
       error_vel = self._error_vel[1]
       c1, c2, r = kernels.human_velocity_capsules(
           self.positions, self.velocities, self._kernel_v_max,
@@ -407,7 +407,7 @@ class HumanReach:
       pass   # The velocity model's capsules come from the kernel above.
     elif centre is None:  # No velocity yet: the velocity model is VEL too.
       kp_centre, kp_r = vel_ends, vel_r
-    else:
+    else:   # The NumPy reference of the kernel.
       c, r = geometry.enclosing_ball(centre[:-1], radius[:-1], centre[1:],
                                      radius[1:])                  # (K, N)
       kp_centre = c[:, ends]

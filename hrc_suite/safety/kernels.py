@@ -508,3 +508,41 @@ def speed_tables(speeds, width):
       largest = max(largest, top[j])
     window[i] = largest
   return window, suffix
+
+
+_warm = False
+
+
+def warm_up():
+  """Compiles (or loads from the cache) every kernel for the argument types
+  the shield passes, once per process, so no cycle pays for it."""
+  global _warm
+  if _warm:
+    return
+  dof, count_l, count_b, count_n = 2, 2, 1, 2
+  q = np.zeros((2, dof))
+  fixed = np.zeros((dof, 3, 4))
+  points = np.zeros((count_l, 2, 4))
+  frame_index = np.zeros(count_l, dtype=np.int64)
+  ones = np.ones(count_l)
+  c1, c2, r = robot_reach(q, np.arange(2.0), fixed, points, frame_index,
+                          ones, ones)
+  speed_tables(surface_speeds(q, q, fixed, points, frame_index, ones), 6)
+  positions = np.zeros((count_n, 3))
+  ends = np.zeros(2 * count_b, dtype=np.int64)
+  rates = np.ones(count_n)
+  h1, h2, hr = human_velocity_capsules(
+      positions, positions, rates, rates, np.arange(2.0), 0.0,
+      np.zeros(count_n), ends, np.ones(count_b), True)
+  human = (h1[None], h2[None], hr[None])
+  ssm_first_unsafe(c1, c2, r, *human)
+  ssm_clearances(c1, c2, r, *human)
+  centre, radius, _ = horizon_balls(positions, positions, rates,
+                                    ends.reshape(2, count_b),
+                                    np.ones(count_b), 0.0, 0.0, np.zeros(3))
+  balls_capsules_distance(centre, radius, c1, c2, r)
+  coefficients = np.zeros((1, 4, dof))
+  plan_positions(coefficients, 0.0, 1.0, 1.0, np.zeros(1), q, 1)
+  coefficients.flags.writeable = False   # Plans made from given samples.
+  plan_positions(coefficients, 0.0, 1.0, 1.0, np.zeros(1), q, 1)
+  _warm = True

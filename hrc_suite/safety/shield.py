@@ -27,6 +27,12 @@ Differences to the original (shield spec section 9), on purpose:
   horizon (one ball per body) is tried against the robot's workspace ball
   and reach capsules: a cheap model that, if collision-free, settles the
   cycle under SSM's "some model is collision-free" rule.
+
+Speed: the per-cycle geometry runs in compiled kernels (`kernels`, numba),
+each tested against its readable NumPy reference (kept in `robot_reach`,
+`human_reach`, `verification`, `long_term_plan` and here); the verdict
+stops at the first unsafe slice and `reach_distance` is computed when
+asked.
 """
 
 import math
@@ -78,6 +84,7 @@ class Shield:
                secure_radius=None, alpha=None, q_init=None):
     if isinstance(robot_description, str):
       robot_description = robot_description_lib.load(robot_description)
+    kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
     if mode not in MODES:
       raise ValueError(f'mode: expected one of {MODES}, got {mode!r}')
     if not cycle_time > 0:
@@ -493,8 +500,9 @@ class Shield:
 
   def _human_horizon_balls(self, horizon):
     """NumPy reference of the first broad phase's balls (the shield runs
-    kernels.horizon_balls): one ball per human body containing its maximal-velocity (VEL)
-    reachable set over the whole horizon (s after this cycle's time):
+    kernels.horizon_balls): one ball per human body containing its
+    maximal-velocity (VEL) reachable set over the whole horizon (s after
+    this cycle's time):
     the measured body capsule grown by max(v_max, measured speed) of its
     faster end times the measurement's age plus horizon and delay, plus the
     position error. Returns centres (B, 3) and radii (B,)."""
