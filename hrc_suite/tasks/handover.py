@@ -15,8 +15,8 @@ Human to robot (`HumanToRobot`): the hammer lies where the clip picks it up
 the presentation keyframe, turns it in the hand to the presenting grip
 (handle along the hand, head forward, lying on its side so a gripper-down
 grasp at `Hammer.grip_site` works). While the human waits for 'object_taken'
-a robot grasp (both fingers touch it) makes the human let go and fires the
-event; the robot places it within SUCCESS_DISTANCE of a target on the table
+a robot grasp (both fingers touch it, gripper commanded closed) makes the
+human let go and fires the event; the robot places it within SUCCESS_DISTANCE of a target on the table
 ('object_placed' fires once it lies there released) and the human retreats.
 
 Success (both): the object is where it belongs (held by the human / at the
@@ -455,7 +455,10 @@ class HumanToRobot(_Handover):
                            _slerp(self._pick_grip[1], end_quat, s))
       if s >= 1.0:
         self._pick_grip = None
-    if self._holder() is not None and self._gripped and (
+    # The person lets go of a grasp, not of fingers that merely touch both
+    # sides of the hammer while the gripper is commanded open.
+    closing = float(physics.bind(self._gripper.actuator).ctrl) > 0.0
+    if self._holder() is not None and self._gripped and closing and (
         self._player.waiting_for == 'object_taken'):
       self._human.release(physics, self._hammer.body)
       self._pick_grip = None
