@@ -24,6 +24,11 @@ front of a person, who inspects it and leaves (reference-benchmark.md).
   gripped, -1 otherwise. SSM shield; horizon 1000 RL steps.
 * Observations: 'paper' = object gripped, EEF->object, EEF->target,
   gripper aperture, distances EEF->head / left hand / right hand.
+  'full' adds the shared observables and the cube's and target's world
+  positions, positions in the TCP frame, distances, the cube's quaternion
+  and whether it is at the target.
+* Counters: presentations (RL steps at which the waiting person got the
+  cube). The clip's end is detected by the player's clip count.
 """
 
 from dm_control.composer.observation import observable

@@ -26,6 +26,12 @@ keep it level while the person moves (reference-benchmark.md).
   reward delay; horizon 5000 RL steps.
 * Observations: 'paper' = board quaternion, distance EEF->head, vectors
   EEF->left / right hand (world frame).
+  'full' adds the shared observables, the board's position and normal,
+  the handle's position, EEF->handle and whether the board is gripped.
+* Counters: released_steps (RL steps without the grip), lifts (times the
+  person took the board).
+* Snapshots: the hold welds' anchors live in the model, so the task state
+  carries them and `set_state` writes them back.
 """
 
 from dm_control.composer.observation import observable
