@@ -219,3 +219,24 @@ def test_pfl_speed_tables_match_reference():
                              shield_lib.pfl_speed_tables(speeds,
                                                          compiled=False)):
       np.testing.assert_array_equal(got, expected)
+
+
+def test_warm_up_compiles_every_signature_the_shield_uses():
+  kernels.warm_up()
+  dispatchers = {name: getattr(kernels, name) for name in dir(kernels)
+                 if hasattr(getattr(kernels, name), 'signatures')}
+  before = {name: len(f.signatures) for name, f in dispatchers.items()}
+  _, p2, _ = shield_lib.Shield('ur5e').robot.capsules(
+      robot_description.load('ur5e').q_home)
+  for mode, kalman in (('ssm', False), ('pfl', True)):
+    shield = shield_lib.Shield('ur5e', mode=mode, tool_capsule=TOOL,
+                               use_kalman_filter=kalman)
+    shield.new_goal(shield.description.q_home + 0.4)
+    points = np.tile(p2[-1] + (0.3, 0.0, 0.0),
+                     (shield.human.num_keypoints, 1))
+    for i in range(40):
+      shield.step(points + 0.001 * i, 0.004 * i)
+      assert np.isfinite(shield.max_cartesian_speed)
+      shield.reach_distance, shield.min_distance
+  assert {name: len(f.signatures)
+          for name, f in dispatchers.items()} == before
