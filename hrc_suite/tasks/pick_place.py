@@ -233,9 +233,9 @@ class PickPlace(base.HrcTask):
       return vector @ physics.bind(tcp).xmat.reshape(3, 3)
 
     return {
+        # The flag the reward used this step (updated in _update_task).
         'object_gripped': observable.Generic(
-            lambda physics: np.array([float(self._gripper.is_grasping(
-                physics, cube))])),
+            lambda physics: np.array([float(self._gripped)])),
         'eef_to_object': observable.Generic(eef_to_object),
         'eef_to_target': observable.Generic(eef_to_target),
         'object_position': observable.MJCFFeature('xpos', cube),

@@ -318,8 +318,10 @@ def test_snapshot_with_the_cube_in_the_gripper_replays_bit_exactly():
   oracle = Oracle(env)
   while oracle.phase != 'lift':
     timestep = env.step(oracle(timestep))
-  env.step(oracle(timestep))
+  timestep = env.step(oracle(timestep))
   assert env.task.step_metrics['gripped_steps'] == 1
+  assert timestep.observation['object_gripped'][0] == 1.0
+  assert timestep.reward == pick_place.REWARD_GRIPPED
   state = env.task.get_state(env.physics)
   replay = _random_actions(env, 8, seed=3)
   first = _rollout(env, replay)
