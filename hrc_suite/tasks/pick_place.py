@@ -5,7 +5,7 @@ beside the robot (reference-benchmark.md, paper Table I).
   one on each side of the robot's centre line (the side is drawn per
   episode). Both are drawn uniformly in REGION_X x REGION_ABS_Y (robot base
   frame) and kept only if gripper-down IK reaches the point above them
-  (HOVER_HEIGHT) and the grasp height from there without static or self
+  (APPROACH_HEIGHT) and the grasp height from there without static or self
   collision, so every robot (the Schunk included) can do the task.
 * The person (the 12 'pick_place' clips, station `layout.HUMAN_STATION_
   BESIDE`) picks and places their own things beside the workspace; the
@@ -56,7 +56,10 @@ REWARD_OTHERWISE = -1.0
 # for the others.
 REGION_X = (0.30, 0.45)
 REGION_ABS_Y = (0.10, 0.25)
-HOVER_HEIGHT = 0.2           # m above the cube centre (reference expert)
+# Sampled points are kept if the TCP reaches this far above them and, from
+# there, down to the grasp (the Sawyer's capsule model self-collides 0.2 m
+# above points on its +y side, where the reference expert hovers).
+APPROACH_HEIGHT = 0.1        # m above the cube centre
 # A grasp puts the TCP (1 cm above the fingertips) this far above the cube
 # centre, at the Cartesian workspace's floor (actions.WORKSPACE_LOW, 3 cm
 # above the table): the 4 cm pads cover the cube's upper 2 cm.
@@ -146,7 +149,7 @@ class PickPlace(base.HrcTask):
     """True if the TCP reaches above `centre` and down to grasp it, gripper
     down, collision free."""
     q_home = self._robot.description.q_home
-    above = self._ik.solve(centre + (0.0, 0.0, HOVER_HEIGHT), q_home,
+    above = self._ik.solve(centre + (0.0, 0.0, APPROACH_HEIGHT), q_home,
                            actions.GRIPPER_YAW)
     if not above.success:
       return False

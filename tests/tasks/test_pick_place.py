@@ -10,6 +10,7 @@ import pytest
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import robot as robot_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import metrics
 from hrc_suite.tasks import pick_place
@@ -17,6 +18,7 @@ from hrc_suite.tasks import pick_place
 ROBOTS = ('panda', 'schunk')
 SPACES = ('cartesian', 'joint')
 CUBE_REST_Z = layout.TABLE_TOP_Z + 0.02
+ORACLE_HOVER = 0.2   # m above the cube (the reference expert's hover)
 
 
 def _env(robot='panda', space='cartesian', variant='default', seed=0,
@@ -37,8 +39,8 @@ class Oracle:
   """Privileged state machine (reads the cube and target positions): hover
   above the cube, descend, close, lift, carry above the target, descend."""
 
-  def __init__(self, env):
-    self.env, self.task = env, env.task
+  def __init__(self, env, hover=ORACLE_HOVER):
+    self.env, self.task, self.hover = env, env.task, hover
     self.ik = ik_lib.InverseKinematics(self.task.kinematics)
     self.phase, self.closing = 'hover', 0
     self.highest_cube = -np.inf   # m, the cube's highest centre seen.
@@ -68,7 +70,7 @@ class Oracle:
     cube, target = task.object_position(physics), task.target_position
     self.highest_cube = max(self.highest_cube, cube[2])
     tcp = self._tcp()
-    hover = pick_place.HOVER_HEIGHT
+    hover = self.hover
     grasp = cube + (0.0, 0.0, pick_place.GRASP_TCP_ABOVE_CENTRE)
     if self.phase == 'hover':
       goal = cube + (0.0, 0.0, hover)
@@ -161,7 +163,7 @@ def test_horizon_and_defaults():
 # ------------------------------------------------------------------- scene
 
 
-@pytest.mark.parametrize('robot', ('schunk', 'iiwa', 'panda'))
+@pytest.mark.parametrize('robot', robot_lib.ROBOTS)
 def test_cube_and_target_on_either_side_within_reach(robot):
   env = _env(robot, seed=4)
   task = env.task
@@ -181,7 +183,7 @@ def test_cube_and_target_on_either_side_within_reach(robot):
       assert pick_place.REGION_X[0] <= local[0] <= pick_place.REGION_X[1]
       assert (pick_place.REGION_ABS_Y[0] <= abs(local[1])
               <= pick_place.REGION_ABS_Y[1])
-      above = solver.solve(point + (0, 0, pick_place.HOVER_HEIGHT), q_home,
+      above = solver.solve(point + (0, 0, pick_place.APPROACH_HEIGHT), q_home,
                            actions.GRIPPER_YAW)
       grasp = solver.solve(point + (0, 0, pick_place.GRASP_TCP_ABOVE_CENTRE),
                            above.q,
