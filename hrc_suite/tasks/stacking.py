@@ -1,0 +1,369 @@
+"""Collaborative stacking: four cubes stacked in turns, human 1, robot 2,
+human 3, robot 4 (reference-benchmark.md, paper Table I).
+
+* Scene: four 5 cm cubes (`props.make_stacking_cubes`). Cubes 1 and 3 start
+  at the clip's 'cube_1_pick' / 'cube_3_pick' targets; the human holds each
+  (`Human.hold`, a weld to the nearer hand) once that hand reaches it and
+  releases it on the clip's 'cube_i_place' target. Cubes 2 and 4 start on
+  the robot's side of the table (x ROBOT_CUBE_X, |y| in ROBOT_CUBE_Y, on
+  opposite sides), where every robot reaches them gripper-down.
+* Slots: cube 1's is the clip's 'stack_base' + half a cube, moved sideways
+  to where the human let it go (the clips' hands land 2-4 cm from their
+  place targets, short of full reach); cube i's is one cube size above
+  cube i-1 once that one is in its slot. A cube is in place within
+  STACK_TOLERANCE of its slot and stacked once in place and nobody holds
+  it. The human waits for 'second_cube_placed' and
+  'fourth_cube_placed' (clip.TASK_EVENTS): the robot's cube in its slot,
+  released, the TCP WITHDRAWN_DISTANCE away from it.
+* Station: across the table, STATION_SHIFT closer than the shared station
+  (the clips' stack, 0.55-0.65 m ahead of the person, is otherwise beyond
+  most robots' gripper-down reach), placement +-(0.02 m, 0.1 m, 0.1 rad).
+  With it the stack is 0.58-0.76 m in front of the robot: within reach of
+  the Panda, iiwa, Sawyer, UR5e and Kinova Gen3 but not of the Schunk
+  (gripper-down reach < 0.5 m at the stack's height).
+* Success: all four cubes stacked. Rewards (sparse): +2 success, -10 and
+  termination if a stacked cube (not held) moves by more than
+  TOPPLE_DISTANCE from where it was stacked (the stack toppled), +1 with the fourth cube in its slot
+  (still held), +0.75 while the robot grips a cube, -1 otherwise; paid
+  REWARD_DELAY RL steps late by default (the clips go on ~5 s after the
+  last event).
+* Observations: 'paper' = object gripped, TCP->each cube, gripper aperture,
+  distances to the human's head and hands; 'full' adds cube positions,
+  quaternions, slots and stacked flags.
+"""
+
+from dm_control.composer.observation import observable
+import mujoco
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite import suite
+from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import props
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
+from hrc_suite.human import task_motions
+from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.tasks import base
+
+STACK_TOLERANCE = 0.025        # m (reference)
+TOPPLE_DISTANCE = 2 * STACK_TOLERANCE   # m a stacked cube moved: fallen
+REWARD_SUCCESS = 2.0           # reference values
+REWARD_TOPPLED = -10.0
+REWARD_FOURTH_PLACED = 1.0
+REWARD_GRIPPING = 0.75
+REWARD_OTHERWISE = -1.0
+REWARD_DELAY = 50              # RL steps: ~5 s of the clips after the event
+# The person stands this much closer to the table than the shared station
+# (layout.HUMAN_STATION_ACROSS): the front of the body at the table edge.
+STATION_SHIFT = 0.12           # m
+# Robot cubes: in front of the robot, either side of its centre line.
+ROBOT_CUBE_X = (0.40, 0.48)    # m ahead of the robot base
+ROBOT_CUBE_Y = (0.15, 0.28)    # m to either side
+# The human's palm within this of a cube's grip point grabs it; within this
+# of the place point (palm above the slot) lets it go.
+HAND_TOLERANCE = 0.02          # m
+# The human lets a cube go once it is down on its place: centre within
+# RELEASE_HEIGHT of the place's height and RELEASE_REACH of it sideways
+# (the clips' hands land 2-4 cm from their targets).
+RELEASE_HEIGHT = 0.01          # m
+RELEASE_REACH = 0.06           # m
+# ... or, where the hand stops short of the place (full reach), as soon as
+# it starts to rise with the cube at most this high above its place.
+RELEASE_DROP = 0.03            # m
+# The human goes on once the robot's cube is in its slot and the TCP is
+# this far from it (the robot has let go and withdrawn).
+WITHDRAWN_DISTANCE = 0.15      # m
+# Fingertips' clearance above the table that collision prevention keeps
+# (pick_place's value: the TCP may go down to 2.8 cm above the table).
+TABLE_CLEARANCE = 0.018        # m
+HUMAN_CUBES = (0, 2)           # cubes 1 and 3
+ROBOT_CUBES = (1, 3)           # cubes 2 and 4
+EVENTS = clip_lib.TASK_EVENTS['stacking']
+_GRIP = np.array([0.0, 0.0, task_motions.GRIP_ABOVE_CENTRE])
+_HAND_KEYPOINTS = np.array(keypoints.index(
+    [f'{hand}_hand' for hand in human_lib.HANDS]))
+_SEGMENT_NAMES = [s[0] for s in human_lib.SEGMENTS]
+_ARM_SEGMENTS = tuple(f'{hand}_{part}' for hand in human_lib.HANDS
+                      for part in ('hand', 'forearm'))
+# Cube states of the human's cubes.
+ON_TABLE, HELD, RELEASED = 0, 1, 2
+
+
+class Stacking(base.HrcTask):
+  """Stack cubes 2 and 4 on the human's cubes 1 and 3."""
+
+  MOTIONS = 'stacking'
+  HUMAN_STATION = (layout.HUMAN_STATION_ACROSS[0] - STATION_SHIFT,
+                   *layout.HUMAN_STATION_ACROSS[1:])
+  HUMAN_PLACEMENT_RANGE = (0.02, 0.1, 0.1)   # reference
+  DEFAULT_SHIELD = 'ssm'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('sparse',)
+  DEFAULT_REWARD_DELAY = REWARD_DELAY
+  HORIZON = 3000
+  HAS_GRIPPER_ACTION = True
+  OBSERVATION_PRESETS = {'paper': (
+      'object_gripped', 'eef_to_cubes', 'gripper_aperture',
+      'human_distances')}
+  EXTRA_COUNTERS = ('cubes_placed',)
+
+  def _build_task(self):
+    self._cubes = props.make_stacking_cubes()
+    self._size = self._cubes[0].size
+    self._welds = {}
+    for i, cube in enumerate(self._cubes):
+      self._arena.add_free_entity(cube)
+      self._object_geoms.extend(cube.geoms)
+      if i in HUMAN_CUBES:
+        self._welds[i] = self._human.add_holdable(cube.body)
+        # The hand capsule encloses the top of a cube it holds, and the
+        # kinematic forearms (which cannot give way) sweep over the cubes
+        # the person handles: no contacts between those and these cubes.
+        for segment in _ARM_SEGMENTS:
+          self._arena.mjcf_model.contact.add(
+              'exclude', name=f'{segment}_{cube.mjcf_model.model}',
+              body1=self._human.segment_bodies[_SEGMENT_NAMES.index(
+                  segment)], body2=cube.body)
+    # The clips may put cube 3's pick within a cube size of cube 1's (same
+    # hand, same side): the two never touch in a stack (cube 2 is between),
+    # so they do not collide, and neither overlaps nor bumps the other.
+    first, third = (self._cubes[i] for i in HUMAN_CUBES)
+    self._arena.mjcf_model.contact.add(
+        'exclude', name='human_cubes', body1=first.body, body2=third.body)
+    # Collision prevention that lets the fingers go down around a cube on
+    # the table (as pick_place): the tool capsule may enter the table by
+    # its radius less TABLE_CLEARANCE.
+    _, _, radius = self._gripper.enclosing_capsule()
+    self.tool_table_allowance = radius - TABLE_CLEARANCE
+    self._collision_checker = cp_lib.CollisionPrevention(
+        self._robot.description, base_pose=self._kinematics.base_pose,
+        tool_capsule=self.tool_capsule,
+        tool_table_allowance=self.tool_table_allowance)
+    self._slots = np.zeros((4, 3))
+    self._picks = np.zeros((4, 3))
+    self._places = np.zeros((4, 3))
+    self._reset_progress()
+
+  def _reset_progress(self):
+    self._human_state = [ON_TABLE] * 4
+    self._holding_hand = [None] * 4
+    self._held_height = np.full(4, np.inf)
+    self._stacked = np.zeros(4, dtype=bool)
+    self._stacked_at = np.zeros((4, 3))
+    self._in_slot = np.zeros(4, dtype=bool)
+    self._gripped = np.zeros(4, dtype=bool)
+    self._success = False
+    self._toppled = False
+
+  @property
+  def cubes(self):
+    return self._cubes
+
+  @property
+  def slots(self):
+    """(4, 3) world positions of the cubes' places in the stack."""
+    return self._slots.copy()
+
+  @property
+  def stacked(self):
+    return self._stacked.copy()
+
+  # ------------------------------------------------------------- episode
+
+  def _initialize_task(self, physics, random_state):
+    self._reset_progress()
+    targets = self._player.targets_world
+    base_point = np.asarray(targets['stack_base'], float)
+    for i in range(4):
+      self._slots[i] = base_point + [0.0, 0.0, self._size * (i + 0.5)]
+    self._places = self._slots.copy()
+    for i in HUMAN_CUBES:
+      self._picks[i] = targets[f'cube_{i + 1}_pick']
+      self._places[i] = targets[f'cube_{i + 1}_place']
+    side = random_state.choice([-1.0, 1.0])
+    robot_base = np.asarray(layout.ROBOT_BASE_POS, float)
+    for k, i in enumerate(ROBOT_CUBES):
+      sign = side if k == 0 else -side
+      self._picks[i] = robot_base + [random_state.uniform(*ROBOT_CUBE_X),
+                                     sign * random_state.uniform(
+                                         *ROBOT_CUBE_Y), self._size / 2]
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+    for i, cube in enumerate(self._cubes):
+      cube.set_pose(physics, self._picks[i], identity)
+      cube.set_velocity(physics, np.zeros(3), np.zeros(3))
+
+  # ------------------------------------------------------------ progress
+
+  def _move_human_cubes(self, physics):
+    """The human grabs a cube the hand reaches and lets go on its place."""
+    hands = self._human.keypoint_positions(physics)[_HAND_KEYPOINTS]
+    for i in HUMAN_CUBES:
+      state = self._human_state[i]
+      if state == ON_TABLE:
+        grip = physics.bind(self._cubes[i].body).xpos + _GRIP
+        distances = np.linalg.norm(hands - grip, axis=1)
+        hand = int(np.argmin(distances))
+        if distances[hand] < HAND_TOLERANCE:
+          self._grab(physics, i, hand, hands[hand])
+      elif state == HELD:
+        centre = physics.bind(self._cubes[i].body).xpos
+        offset = centre - self._places[i]
+        rising = centre[2] > self._held_height[i]
+        self._held_height[i] = centre[2]
+        if (np.linalg.norm(offset[:2]) < RELEASE_REACH
+            and (abs(offset[2]) < RELEASE_HEIGHT
+                 or (rising and abs(offset[2]) < RELEASE_DROP))):
+          self._human.release(physics, self._cubes[i].body)
+          self._human_state[i], self._holding_hand[i] = RELEASED, None
+          if i == 0:   # The stack stands where the base cube was put.
+            self._slots[0] = centre[0], centre[1], self._slots[0, 2]
+
+  def _grab(self, physics, i, hand, palm):
+    """Welds cube i to `hand` with its centre GRIP_ABOVE_CENTRE under the
+    palm (where the clip puts it), whatever the palm's residual offset."""
+    cube = self._cubes[i]
+    self._human.hold(physics, cube.body, human_lib.HANDS[hand])
+    weld = physics.bind(self._welds[i][human_lib.HANDS[hand]])
+    eq_id = weld.element_id
+    hand_body = physics.model.eq_obj1id[eq_id]
+    rotation = physics.data.xmat[hand_body].reshape(3, 3)
+    centre = palm - _GRIP
+    physics.model.eq_data[eq_id, 3:6] = rotation.T @ (
+        centre - physics.data.xpos[hand_body])
+    self._human_state[i], self._holding_hand[i] = HELD, hand
+
+  def _update_task(self, physics):
+    self._move_human_cubes(physics)
+    positions = np.array([physics.bind(c.body).xpos for c in self._cubes])
+    self._gripped[:] = [self._gripper.is_grasping(physics, c.body)
+                        for c in self._cubes]
+    free = ~(np.array([s == HELD for s in self._human_state])
+             | self._gripped)
+    # The stack grows from where the human put cube 1: each slot is one
+    # cube size above the cube below, once that one is in its own slot.
+    below = True
+    for i in range(4):
+      if i > 0 and below:
+        self._slots[i] = positions[i - 1] + [0.0, 0.0, self._size]
+      below = below and (np.linalg.norm(positions[i] - self._slots[i])
+                         < STACK_TOLERANCE)
+      self._in_slot[i] = below
+    newly = self._in_slot & free & ~self._stacked
+    self._stacked |= newly
+    self._stacked_at[newly] = positions[newly]
+    moved = np.linalg.norm(positions - self._stacked_at, axis=1)
+    self._toppled = bool(np.any(self._stacked & free
+                                & (moved > TOPPLE_DISTANCE)))
+    self._success = bool(np.all(self._in_slot & free)) and not self._toppled
+    return {'success': float(self._success),
+            'cubes_placed': int(newly.sum()),
+            'stack_height': int(np.sum(self._in_slot & free)),
+            'object_gripped': float(self._gripped.any())}
+
+  def _human_events(self, physics):
+    # The robot has put its cube down and withdrawn its gripper.
+    tcp = physics.bind(self._robot.tcp_site).xpos
+    clear = np.linalg.norm(self._slots - tcp, axis=1) > WITHDRAWN_DISTANCE
+    free = self._in_slot & ~self._gripped & clear
+    events = []
+    if self._in_slot[0] and free[1]:
+      events.append(EVENTS[0])
+    if self._in_slot[:3].all() and free[3]:
+      events.append(EVENTS[1])
+    return events
+
+  def _failed(self, physics):
+    del physics
+    return self._toppled
+
+  def _task_reward(self, physics):
+    del physics
+    if self._toppled:
+      return REWARD_TOPPLED
+    if self._success:
+      return REWARD_SUCCESS
+    if self._in_slot[3]:
+      return REWARD_FOURTH_PLACED
+    if self._gripped.any():
+      return REWARD_GRIPPING
+    return REWARD_OTHERWISE
+
+  def _task_reward_range(self):
+    return (REWARD_TOPPLED, REWARD_SUCCESS)
+
+  # ----------------------------------------------------------- snapshots
+
+  def _task_state(self):
+    return {'slots': self._slots.copy(), 'picks': self._picks.copy(),
+            'places': self._places.copy(),
+            'human_state': list(self._human_state),
+            'holding_hand': list(self._holding_hand),
+            'held_height': self._held_height.copy(),
+            'stacked': self._stacked.copy(),
+            'stacked_at': self._stacked_at.copy(), 'in_slot': self._in_slot.copy(),
+            'gripped': self._gripped.copy(), 'success': self._success,
+            'toppled': self._toppled}
+
+  def _set_task_state(self, state):
+    self._slots = np.array(state['slots'], dtype=float)
+    self._picks = np.array(state['picks'], dtype=float)
+    self._places = np.array(state['places'], dtype=float)
+    self._human_state = list(state['human_state'])
+    self._holding_hand = list(state['holding_hand'])
+    self._held_height = np.array(state['held_height'], dtype=float)
+    self._stacked = np.array(state['stacked'], dtype=bool)
+    self._stacked_at = np.array(state['stacked_at'], dtype=float)
+    self._in_slot = np.array(state['in_slot'], dtype=bool)
+    self._gripped = np.array(state['gripped'], dtype=bool)
+    self._success = bool(state['success'])
+    self._toppled = bool(state['toppled'])
+
+  def _weld_ids(self, physics):
+    return [physics.bind(w).element_id for i in HUMAN_CUBES
+            for w in self._welds[i].values()]
+
+  def get_state(self, physics):
+    # The welds' relative poses live in the model (eq_data), not in the
+    # physics state: keep them with the snapshot.
+    state = base.HrcTask.get_state(self, physics)
+    state['task']['own']['weld_data'] = physics.model.eq_data[
+        self._weld_ids(physics)].copy()
+    return state
+
+  def set_state(self, physics, state):
+    base.HrcTask.set_state(self, physics, state)
+    physics.model.eq_data[self._weld_ids(physics)] = (
+        state['task']['own']['weld_data'])
+    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
+
+  # -------------------------------------------------------- observables
+
+  def _cube_positions(self, physics):
+    return np.array([physics.bind(c.body).xpos for c in self._cubes])
+
+  def _task_observables(self):
+    tcp = self._robot.tcp_site
+    return {
+        'object_gripped': observable.Generic(
+            lambda physics: np.array([float(any(
+                self._gripper.is_grasping(physics, c.body)
+                for c in self._cubes))])),
+        'eef_to_cubes': observable.Generic(
+            lambda physics: self._cube_positions(physics)
+            - physics.bind(tcp).xpos),
+        'cube_positions': observable.Generic(self._cube_positions),
+        'cube_quaternions': observable.Generic(
+            lambda physics: np.array([physics.bind(c.body).xquat
+                                      for c in self._cubes])),
+        'stack_slots': observable.Generic(lambda physics: self._slots.copy()),
+        'cubes_stacked': observable.Generic(
+            lambda physics: self._stacked.astype(np.float64)),
+    }
+
+
+@suite.register('stacking', 'default',
+                tags=('assembly', 'sparse', 'delayed', 'ssm'))
+def default(**task_kwargs):
+  """Stack cubes 2 and 4 on the human's 1 and 3; sparse, delayed."""
+  return Stacking(**task_kwargs)
