@@ -11,12 +11,17 @@ reference, tested against it on random inputs to 1e-12):
 * `surface_speeds`: robot_reach.RobotReach.surface_speeds;
 * `human_velocity_capsules`: the velocity model (COMBINED or ACCEL) of
   human_reach.HumanReach.reach_capsules;
-* `balls_capsules_distance`: the shield's second broad phase.
+* `horizon_balls`, `balls_capsules_distance`: the shield's two broad
+  phases (shield.Shield._human_horizon_balls,
+  shield.balls_capsules_distance_reference);
+* `plan_positions`: long_term_plan.LongTermPlan.positions_reference;
+* `speed_tables`: shield.pfl_speed_tables(compiled=False).
 
 Compiled with cache=True (the machine code is stored in __pycache__ and
 reloaded by later processes) and fastmath=False (IEEE arithmetic, no
 reassociation: the results match the NumPy reference). Callers pass
-C-contiguous float64 arrays so every kernel has one signature.
+C-contiguous float64 arrays so every kernel has one signature, which
+`warm_up` compiles once per process.
 """
 
 import math
