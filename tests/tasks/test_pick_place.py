@@ -183,11 +183,11 @@ def test_cube_and_target_on_either_side_within_reach(robot):
       assert pick_place.REGION_X[0] <= local[0] <= pick_place.REGION_X[1]
       assert (pick_place.REGION_ABS_Y[0] <= abs(local[1])
               <= pick_place.REGION_ABS_Y[1])
-      above = solver.solve(point + (0, 0, pick_place.APPROACH_HEIGHT), q_home,
-                           actions.GRIPPER_YAW)
+      yaw = actions.GRIPPER_YAW
+      above = solver.solve(point + (0, 0, pick_place.APPROACH_HEIGHT),
+                           q_home, yaw)
       grasp = solver.solve(point + (0, 0, pick_place.GRASP_TCP_ABOVE_CENTRE),
-                           above.q,
-                           actions.GRIPPER_YAW)
+                           above.q, yaw)
       assert above.success and grasp.success
       assert not task.collision_checker.in_collision(grasp.q)
     assert np.linalg.norm(cube - target) > pick_place.SUCCESS_DISTANCE
