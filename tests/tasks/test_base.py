@@ -379,10 +379,11 @@ def _clips_moved_towards_robot(task, distance):
 
 def test_random_actions_near_a_moving_human():
   """The human works 0.45 m closer than usual: unshielded random motion hits
-  them at speed; shielded, the same seeds make no critical contact."""
+  them at speed; shielded (SSM or PFL), the same seeds make no critical
+  contact."""
   clips = _clips_moved_towards_robot(reach.Reach, 0.45)
   totals = {}
-  for shield in ('off', 'ssm'):
+  for shield in ('off', 'ssm', 'pfl'):
     for seed in range(3):
       env = _env(seed=seed, shield=shield, motions=clips, time_limit=6.0,
                  done_at_success=False)
@@ -394,6 +395,7 @@ def test_random_actions_near_a_moving_human():
         totals[shield, name] = totals.get((shield, name), 0) + result[name]
   assert totals['off', 'contacts_human_critical'] > 0
   assert totals['ssm', 'contacts_human_critical'] == 0
+  assert totals['pfl', 'contacts_human_critical'] == 0
   assert totals['ssm', 'shield_interventions'] > 0
   assert totals['ssm', 'contacts_static'] == 0
   assert totals['ssm', 'self_collisions'] == 0
