@@ -298,17 +298,20 @@ class Hammering(base.HrcTask):
     self._hand = str(state['hand'])
 
   def get_state(self, physics):
-    # The weld's relative pose lives in the model (eq_data), not in the
-    # physics state: keep it with the snapshot.
+    # Human.hold changes the model (weld pose, collision bits), which the
+    # physics state does not hold: keep the grip with the snapshot.
     state = base.HrcTask.get_state(self, physics)
-    ids = [physics.bind(w).element_id for w in self._hammer_welds.values()]
-    state['task']['own']['weld_data'] = physics.model.eq_data[ids].copy()
+    body = self._hammer.body
+    state['task']['own']['grip'] = (self._human.holding(body),
+                                    self._human.grip(physics, body))
     return state
 
   def set_state(self, physics, state):
     base.HrcTask.set_state(self, physics, state)
-    ids = [physics.bind(w).element_id for w in self._hammer_welds.values()]
-    physics.model.eq_data[ids] = state['task']['own']['weld_data']
+    hand, grip = state['task']['own']['grip']
+    self._human.release(physics, self._hammer.body)
+    if hand is not None:
+      self._human.hold(physics, self._hammer.body, hand, grip)
     mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
 
   # -------------------------------------------------------- observables

@@ -196,7 +196,9 @@ class Stacking(base.HrcTask):
   # ------------------------------------------------------------ progress
 
   def _move_human_cubes(self, physics):
-    """The human grabs a cube the hand reaches and lets go on its place."""
+    """The human grabs a cube the hand reaches and lets go on its place.
+    Returns whether anything was grabbed or let go."""
+    changed = False
     hands = self._human.keypoint_positions(physics)[_HAND_KEYPOINTS]
     for i in HUMAN_CUBES:
       state = self._human_state[i]
@@ -206,6 +208,7 @@ class Stacking(base.HrcTask):
         hand = int(np.argmin(distances))
         if distances[hand] < HAND_TOLERANCE:
           self._grab(physics, i, hand, hands[hand])
+          changed = True
       elif state == HELD:
         centre = physics.bind(self._cubes[i].body).xpos
         offset = centre - self._places[i]
@@ -216,25 +219,29 @@ class Stacking(base.HrcTask):
                  or (rising and abs(offset[2]) < RELEASE_DROP))):
           self._human.release(physics, self._cubes[i].body)
           self._human_state[i], self._holding_hand[i] = RELEASED, None
+          changed = True
           if i == 0:   # The stack stands where the base cube was put.
             self._slots[0] = centre[0], centre[1], self._slots[0, 2]
+    return changed
 
   def _grab(self, physics, i, hand, palm):
     """Welds cube i to `hand` with its centre GRIP_ABOVE_CENTRE under the
     palm (where the clip puts it), whatever the palm's residual offset."""
-    cube = self._cubes[i]
-    self._human.hold(physics, cube.body, human_lib.HANDS[hand])
-    weld = physics.bind(self._welds[i][human_lib.HANDS[hand]])
-    eq_id = weld.element_id
-    hand_body = physics.model.eq_obj1id[eq_id]
-    rotation = physics.data.xmat[hand_body].reshape(3, 3)
-    centre = palm - _GRIP
-    physics.model.eq_data[eq_id, 3:6] = rotation.T @ (
-        centre - physics.data.xpos[hand_body])
+    body = self._cubes[i].body
+    hand_name = human_lib.HANDS[hand]
+    position, quaternion = self._human.relative_pose(physics, body, hand_name)
+    hand_body = physics.bind(self._human.segment_bodies[
+        _SEGMENT_NAMES.index(f'{hand_name}_hand')])
+    shift = (palm - _GRIP) - physics.bind(body).xpos
+    position = position + hand_body.xmat.reshape(3, 3).T @ shift
+    self._human.hold(physics, body, hand_name, (position, quaternion))
     self._human_state[i], self._holding_hand[i] = HELD, hand
 
   def _update_task(self, physics):
-    self._move_human_cubes(physics)
+    if self._move_human_cubes(physics):
+      # A grab or release changes the model: recompute what the next step
+      # starts from (as restoring a snapshot does), so snapshots are exact.
+      physics.forward()
     positions = np.array([physics.bind(c.body).xpos for c in self._cubes])
     self._gripped[:] = [self._gripper.is_grasping(physics, c.body)
                         for c in self._cubes]
@@ -319,22 +326,22 @@ class Stacking(base.HrcTask):
     self._success = bool(state['success'])
     self._toppled = bool(state['toppled'])
 
-  def _weld_ids(self, physics):
-    return [physics.bind(w).element_id for i in HUMAN_CUBES
-            for w in self._welds[i].values()]
-
   def get_state(self, physics):
-    # The welds' relative poses live in the model (eq_data), not in the
-    # physics state: keep them with the snapshot.
+    # Human.hold changes the model (weld pose, collision bits), which the
+    # physics state does not hold: keep the grips with the snapshot.
     state = base.HrcTask.get_state(self, physics)
-    state['task']['own']['weld_data'] = physics.model.eq_data[
-        self._weld_ids(physics)].copy()
+    state['task']['own']['grips'] = [
+        (self._human.holding(self._cubes[i].body),
+         self._human.grip(physics, self._cubes[i].body)) for i in HUMAN_CUBES]
     return state
 
   def set_state(self, physics, state):
     base.HrcTask.set_state(self, physics, state)
-    physics.model.eq_data[self._weld_ids(physics)] = (
-        state['task']['own']['weld_data'])
+    for i, (hand, grip) in zip(HUMAN_CUBES, state['task']['own']['grips']):
+      body = self._cubes[i].body
+      self._human.release(physics, body)
+      if hand is not None:
+        self._human.hold(physics, body, hand, grip)
     mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
 
   # -------------------------------------------------------- observables
