@@ -16,15 +16,18 @@ human 3, robot 4 (reference-benchmark.md, paper Table I).
   'fourth_cube_placed' (clip.TASK_EVENTS): the robot's cube in its slot,
   released, the TCP WITHDRAWN_DISTANCE away from it.
 * Station: across the table, STATION_SHIFT closer than the shared station
-  (the clips' stack, 0.55-0.65 m ahead of the person, is otherwise beyond
-  most robots' gripper-down reach), placement +-(0.02 m, 0.1 m, 0.1 rad).
-  With it the stack is 0.58-0.76 m in front of the robot: within reach of
-  the Panda, iiwa, Sawyer, UR5e and Kinova Gen3 but not of the Schunk
-  (gripper-down reach < 0.5 m at the stack's height).
+  (pelvis 0.18 m from the table edge), placement +-(0.02 m, 0.1 m,
+  0.1 rad). The clips' stack, 0.55-0.65 m ahead of the person, is then
+  0.68-0.79 m in front of the robot (0.80-0.91 m unshifted: beyond the
+  Cartesian action box, x <= 0.8 m, and most robots' gripper-down reach).
+  Gripper-down reach of the top cube's place (0.19 m above the table):
+  Sawyer and UR5e everywhere, Panda and iiwa up to ~0.76 m, Kinova Gen3
+  and Jaco up to ~0.70 m, the Schunk nowhere (< 0.5 m). Closer still, the
+  resting person's hands keep an SSM-shielded robot from the stack.
 * Success: all four cubes stacked. Rewards (sparse): +2 success, -10 and
   termination if a stacked cube (not held) moves by more than
-  TOPPLE_DISTANCE from where it was stacked (the stack toppled), +1 with the fourth cube in its slot
-  (still held), +0.75 while the robot grips a cube, -1 otherwise; paid
+  TOPPLE_DISTANCE from where it was stacked (the stack toppled), +1 with
+  the fourth cube in its slot (still held), +0.75 while the robot grips a cube, -1 otherwise; paid
   REWARD_DELAY RL steps late by default (the clips go on ~5 s after the
   last event).
 * Observations: 'paper' = object gripped, TCP->each cube, gripper aperture,
@@ -55,13 +58,12 @@ REWARD_GRIPPING = 0.75
 REWARD_OTHERWISE = -1.0
 REWARD_DELAY = 50              # RL steps: ~5 s of the clips after the event
 # The person stands this much closer to the table than the shared station
-# (layout.HUMAN_STATION_ACROSS): the front of the body at the table edge.
+# (layout.HUMAN_STATION_ACROSS), the pelvis 0.18 m from the table edge.
 STATION_SHIFT = 0.12           # m
 # Robot cubes: in front of the robot, either side of its centre line.
 ROBOT_CUBE_X = (0.40, 0.48)    # m ahead of the robot base
 ROBOT_CUBE_Y = (0.15, 0.28)    # m to either side
-# The human's palm within this of a cube's grip point grabs it; within this
-# of the place point (palm above the slot) lets it go.
+# The human's palm within this of a cube's grip point grabs it.
 HAND_TOLERANCE = 0.02          # m
 # The human lets a cube go once it is down on its place: centre within
 # RELEASE_HEIGHT of the place's height and RELEASE_REACH of it sideways
