@@ -63,8 +63,9 @@ STATION_SHIFT = 0.12           # m
 # Robot cubes: in front of the robot, either side of its centre line.
 ROBOT_CUBE_X = (0.40, 0.48)    # m ahead of the robot base
 ROBOT_CUBE_Y = (0.15, 0.28)    # m to either side
-# The human's palm within this of a cube's grip point grabs it.
-HAND_TOLERANCE = 0.02          # m
+# The human's palm within this of a cube's grip point grabs it (the clips'
+# hands stop up to ~2.5 cm short of a pick at full reach).
+HAND_TOLERANCE = 0.035         # m
 # The human lets a cube go once it is down on its place: centre within
 # RELEASE_HEIGHT of the place's height and RELEASE_REACH of it sideways
 # (the clips' hands land 2-4 cm from their targets).
