@@ -1,10 +1,12 @@
-"""Speed benchmarks: `python -m hrc_suite.benchmark [--section=physics,shield]`.
+"""Speed benchmarks: `python -m hrc_suite.benchmark [--section=physics,shield,tasks]`.
 
 Prints, per robot, the median wall time of one 4 ms physics step of the
 workcell with robot, gripper and tracking controller, next to a bare
 `mujoco.mj_step` of the same model, so the overhead is a ratio; and the
-shield's cycle time with the human close, across the table and far. Numbers
-are recorded in docs/benchmarks.md.
+shield's cycle time with the human close, across the table and far; and the
+RL-step throughput of every task (random actions, shield on, human moving,
+L = 25) next to the same number of bare physics steps. Numbers are recorded
+in docs/benchmarks.md.
 """
 
 import platform
@@ -17,11 +19,16 @@ import numpy as np
 
 from hrc_suite import robot_description
 
+SECTIONS = ('physics', 'shield', 'tasks')
 _SECTIONS = flags.DEFINE_list(
-    'section', ['physics', 'shield'], 'Which benchmarks to run.')
+    'section', list(SECTIONS), 'Which benchmarks to run: ' + ', '.join(SECTIONS))
 _ROBOTS = flags.DEFINE_list('robots', list(robot_description.ROBOT_NAMES),
                             'Robots to benchmark.')
 _STEPS = flags.DEFINE_integer('steps', 2000, 'Physics steps per measurement.')
+_TASK_ROBOTS = flags.DEFINE_list('task_robots', ['schunk', 'panda'],
+                                 'Robots of the RL-step throughput section.')
+_RL_STEPS = flags.DEFINE_integer('rl_steps', 300,
+                                 'RL steps per task throughput measurement.')
 
 
 def machine_summary() -> str:
@@ -107,15 +114,59 @@ def run_shield(robots):
   shield_benchmark.main(['--robots', *robots])
 
 
+def rl_step_throughput(domain, task, robot, rl_steps, seed=0):
+  """(RL steps/s, s per RL step, s per same number of bare mj_steps).
+
+  Random actions, the task's default shield on, the human moving, L = 25.
+  Resets (at episode ends) are excluded from the time.
+  """
+  from hrc_suite import suite
+  env = suite.load(domain, task, task_kwargs=dict(robot=robot, seed=seed))
+  spec = env.action_spec()
+  rng = np.random.RandomState(seed)
+  timestep = env.reset()
+  elapsed, done = 0.0, 0
+  while done < rl_steps:
+    if timestep.last():
+      timestep = env.reset()
+    action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
+    start = time.perf_counter()
+    timestep = env.step(action)
+    elapsed += time.perf_counter() - start
+    done += 1
+  substeps = env.task.shield_substeps
+  model, data = env.physics.model.ptr, env.physics.data.ptr
+  start = time.perf_counter()
+  for _ in range(rl_steps * substeps):
+    mujoco.mj_step(model, data)
+  bare = time.perf_counter() - start
+  env.close()
+  return rl_steps / elapsed, elapsed / rl_steps, bare / rl_steps
+
+
+def run_tasks(robots, rl_steps):
+  from hrc_suite import suite
+  print('\n## RL step throughput (random actions, shield on, human moving, '
+        'L = 25)\n')
+  print('| task | robot | RL steps/s | ms per RL step | ms of 25 bare '
+        'mj_step | ratio |')
+  print('|---|---|---|---|---|---|')
+  for domain, task in suite.ALL_TASKS:
+    for robot in robots:
+      rate, per_step, bare = rl_step_throughput(domain, task, robot, rl_steps)
+      print(f'| {domain}/{task} | {robot} | {rate:.0f} | {1e3 * per_step:.2f} '
+            f'| {1e3 * bare:.2f} | {per_step / bare:.1f} |', flush=True)
+
+
 def main(argv):
   del argv
   print(f'# hrc_suite benchmark, {time.strftime("%Y-%m-%d")}')
   print(f'machine: {machine_summary()}')
   sections = set(_SECTIONS.value)
-  unknown = sections - {'physics', 'shield'}
+  unknown = sections - set(SECTIONS)
   if unknown:
     raise app.UsageError(f'Unknown sections {sorted(unknown)}: expected '
-                         'physics, shield')
+                         f'{", ".join(SECTIONS)}')
   for name in _ROBOTS.value:
     if name not in robot_description.ROBOT_NAMES:
       raise app.UsageError(f'Unknown robot {name!r}: expected one of '
@@ -124,6 +175,8 @@ def main(argv):
     run_physics(_ROBOTS.value, _STEPS.value)
   if 'shield' in sections:
     run_shield(_ROBOTS.value)
+  if 'tasks' in sections:
+    run_tasks(_TASK_ROBOTS.value, _RL_STEPS.value)
 
 
 if __name__ == '__main__':
