@@ -14,10 +14,9 @@ import importlib
 from dm_control import composer
 
 # Modules whose import registers tasks (one per benchmark task).
-_TASK_MODULES = ('hrc_suite.tasks.reach', 'hrc_suite.tasks.pick_place',
-                 'hrc_suite.tasks.handover')
-_TASK_MODULES += ('hrc_suite.tasks.inspection', 'hrc_suite.tasks.lifting')
-_TASK_MODULES += ('hrc_suite.tasks.hammering', 'hrc_suite.tasks.stacking')
+_TASK_MODULES = tuple(f'hrc_suite.tasks.{name}' for name in (
+    'reach', 'pick_place', 'handover', 'inspection', 'lifting', 'hammering',
+    'stacking'))
 
 TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
         'assembly', 'dense', 'sparse', 'delayed', 'ssm', 'pfl')
