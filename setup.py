@@ -34,7 +34,9 @@ setuptools.setup(
     extras_require={
         'train': ['jax>=0.4.30', 'flax', 'optax', 'distrax', 'tensorboardX',
                   'matplotlib'],
-        'dev': ['pytest>=7', 'pytest-xdist'],
+        # Tests also check the gymnasium wrapper (tests/test_gym.py).
+        'dev': ['pytest>=7', 'pytest-xdist', 'shimmy[dm-control]',
+                'gymnasium'],
         'gym': ['shimmy[dm-control]', 'gymnasium'],
     },
     classifiers=[
