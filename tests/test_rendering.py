@@ -52,3 +52,24 @@ def test_video_round_trip(tmp_path, suffix):
 def test_rejects_unknown_format(tmp_path):
   with pytest.raises(ValueError, match="'.avi'"):
     rendering.write_video(tmp_path / 'x.avi', [np.zeros((8, 8, 3))])
+
+
+def test_render_command_writes_video_and_metrics(tmp_path):
+  from hrc_suite import render
+  import json
+  path, metrics = render.run('reach', 'dense', robot='schunk',
+                             policy='random', out=tmp_path / 'reach.mp4',
+                             seed=1, max_steps=4, width=96, height=64)
+  video = rendering.read_video(path)
+  assert len(video) == 5 and not rendering.is_blank(video[-1])
+  saved = json.loads(path.with_suffix('.json').read_text())
+  assert saved['metrics'] == metrics
+  assert metrics['steps'] == 4
+  assert {'success', 'return', 'shield_interventions',
+          'contacts_human_critical'} <= set(metrics)
+
+
+def test_render_rejects_unknown_policy():
+  from hrc_suite import render
+  with pytest.raises(ValueError, match="'expert'.*random"):
+    render.make_policy('expert', None, 0)
