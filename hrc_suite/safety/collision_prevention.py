@@ -34,6 +34,7 @@ import numpy as np
 
 from hrc_suite import layout
 from hrc_suite.safety import geometry
+from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
 
 POLICIES = ('zero', 'resample', 'closest')
@@ -46,6 +47,9 @@ DEFAULT_MAX_STEP = 0.01
 # sample and levels (inflation 5 mm -> 1.25 -> 0.31 -> 0.08 mm).
 REFINE = 4
 REFINE_LEVELS = 3
+# Escape rule: a penetration may grow this much (m) from sample to sample
+# (round-off of sliding along a surface) and still count as not increasing.
+_ESCAPE_SLACK = 1e-9
 # A pair overlapping in this fraction of random configurations (and at
 # q_home) overlaps by construction.
 _ALWAYS_FRACTION = 1.0
@@ -161,10 +165,12 @@ class CollisionPrevention:
 
   # -- Checks ---------------------------------------------------------------
 
-  def _colliding(self, q, capsule_margin=None, pair_margin=None):
+  def _colliding(self, q, capsule_margin=None, pair_margin=None,
+                 ignore_boxes=None, ignore_pairs=None):
     """Collision flags (N,) of configurations q (N, dof). Capsules are
     inflated by capsule_margin (N, L) against boxes, and pairs need a
-    clearance of pair_margin (N, P) (both default 0)."""
+    clearance of pair_margin (N, P) (both default 0). ignore_boxes (N, Bx,
+    L) and ignore_pairs (N, P) leave elements out (escape, `paths_free`)."""
     p1, p2, r = self.reach.capsules(q)                             # (N, L, 3)
     radius = (np.broadcast_to(r, q.shape[:1] + r.shape) if capsule_margin is
               None else r + capsule_margin)
@@ -174,6 +180,8 @@ class CollisionPrevention:
     overlap = np.all((lo[:, None] <= self.box_max[None, :, None]) &
                      (hi[:, None] >= self.box_min[None, :, None]), axis=-1)
     overlap &= self._box_checked[None]                             # (N, Bx, L)
+    if ignore_boxes is not None:
+      overlap &= ~ignore_boxes
     hit = np.zeros(q.shape[0], dtype=bool)
     if overlap.any():
       n, b, l = np.nonzero(overlap)
@@ -185,9 +193,40 @@ class CollisionPrevention:
       i, j = self.pairs[:, 0], self.pairs[:, 1]
       dist = geometry.capsule_distance(p1[:, i], p2[:, i], r[i],
                                        p1[:, j], p2[:, j], r[j])   # (N, P)
-      hit |= np.any(dist < (0.0 if pair_margin is None else pair_margin),
-                    axis=-1)
+      pair_hit = dist < (0.0 if pair_margin is None else pair_margin)
+      if ignore_pairs is not None:
+        pair_hit &= ~ignore_pairs
+      hit |= np.any(pair_hit, axis=-1)
     return hit
+
+  def penetrations(self, q):
+    """Penetration depths (m) of configurations q (N, dof): boxes (N, Bx, L)
+    and pairs (N, P); > 0 is a collision, <= 0 clearance (unchecked
+    capsule-box combinations: -inf).
+
+    A capsule in a box: its radius minus its axis' distance to the box,
+    plus how deep the deeper axis end lies inside the box (so a deeper
+    capsule keeps counting deeper once its axis enters), minus the allowed
+    penetration. A pair: minus its capsule distance."""
+    q = np.asarray(q, dtype=float).reshape(-1, self.dof)
+    p1, p2, r = self.reach.capsules(q)
+    n = q.shape[0]
+    a0 = np.broadcast_to(p1[:, None], (n, len(self.box_names)) + p1.shape[1:])
+    a1 = np.broadcast_to(p2[:, None], a0.shape)
+    lo = self.box_min[None, :, None]
+    hi = self.box_max[None, :, None]
+    axis = geometry.segment_box_distance(a0, a1, lo, hi)          # (N, Bx, L)
+    inside = np.maximum(
+        np.minimum(a0 - lo, hi - a0).min(axis=-1),
+        np.minimum(a1 - lo, hi - a1).min(axis=-1))
+    boxes = r - axis + np.maximum(inside, 0.0) - self._box_allowance[None]
+    boxes = np.where(self._box_checked[None], boxes, -np.inf)
+    pairs = np.zeros((n, 0))
+    if len(self.pairs):
+      i, j = self.pairs[:, 0], self.pairs[:, 1]
+      pairs = -geometry.capsule_distance(p1[:, i], p2[:, i], r[i],
+                                         p1[:, j], p2[:, j], r[j])
+    return boxes, pairs
 
   def in_collision(self, q):
     """Exact collision flags of configurations q (..., dof)."""
@@ -202,6 +241,18 @@ class CollisionPrevention:
     travel = (np.abs(np.subtract(q_goal, q_start)) @ self.levers).max()
     return max(1, int(np.ceil(travel / self.max_step)))
 
+  def _check_start(self, q_start):
+    q_start = np.asarray(q_start, dtype=float)
+    if q_start.shape != (self.dof,):
+      raise ValueError(f'q_start: expected shape ({self.dof},), got '
+                       f'{q_start.shape}')
+    return q_start
+
+  def _within(self, q_goals):
+    limits = self.description.limits
+    return np.all((q_goals >= limits.q_min) & (q_goals <= limits.q_max),
+                  axis=-1)
+
   def paths_free(self, q_start, q_goals):
     """Flags (G,): goals (G, dof) within the joint limits whose straight
     paths from q_start are collision-free.
@@ -212,54 +263,189 @@ class CollisionPrevention:
     Samples flagged that way are refined (REFINE sub-samples with REFINE
     times smaller margins, up to REFINE_LEVELS times) before a collision is
     declared, so near-touching capsules are not rejected by the margins
-    alone; a sample colliding without margins ends its path at once. The
-    start counts only if it is itself collision-free (a robot already
-    touching something can move away).
+    alone; a sample colliding without margins ends its path at once.
+
+    A start already in collision does not trap the robot (escape rule): a
+    path is accepted if every capsule-box or capsule pair in collision at
+    the start has a penetration that never increases from sample to sample
+    (exact, 1e-9 m slack) until it is free, and is checked like the others
+    (margins and refinement) from the sample after that on; all other
+    elements are checked along the whole path. Between the start and that
+    sample only the samples are checked for these elements.
     """
-    q_start = np.asarray(q_start, dtype=float)
+    q_start = self._check_start(q_start)
     q_goals = np.asarray(q_goals, dtype=float).reshape(-1, self.dof)
-    if q_start.shape != (self.dof,):
-      raise ValueError(f'q_start: expected shape ({self.dof},), got '
-                       f'{q_start.shape}')
-    limits = self.description.limits
-    within = np.all((q_goals >= limits.q_min) & (q_goals <= limits.q_max),
-                    axis=-1)
     delta = q_goals - q_start
     motion = np.abs(delta) @ self.levers                           # (G, L)
     pair_motion = np.abs(delta) @ self._pair_levers                # (G, P)
     steps = np.maximum(1, np.ceil(motion.max(axis=-1) / self.max_step))
     steps = steps.astype(int)
-    first = 0 if not self._colliding(q_start[None])[0] else 1
-    counts = steps + 1 - first
+
+    def evaluate(owner, fraction, half):
+      q = q_start + fraction[:, None] * delta[owner]
+      return (q, motion[owner] * half[:, None],
+              pair_motion[owner] * half[:, None])
+
+    counts = steps + 1
     owner = np.repeat(np.arange(len(q_goals)), counts)
-    index = (np.arange(owner.size) - np.repeat(np.cumsum(counts) - counts,
-                                               counts) + first)
+    index = np.arange(owner.size) - np.repeat(np.cumsum(counts) - counts,
+                                              counts)
     fraction = index / steps[owner]
     half = 0.5 / steps[owner]                   # Half a step, in path units.
+    collided = self._sweep(q_start, len(q_goals), owner, fraction, half,
+                           evaluate)
+    self.num_checks += len(q_goals)
+    return self._within(q_goals) & ~collided
+
+  def _sweep(self, q_start, num_paths, owner, param, half, evaluate):
+    """Collision flags (num_paths,) of paths given by base samples (owner,
+    path parameter `param` increasing along each path, half-width `half`);
+    evaluate(owner, param, half) -> (q, capsule margins, pair margins)
+    covering the path within `half` of each sample. The start q_start is
+    not a sample: paths starting in collision follow the escape rule."""
+    escaping = bool(self._colliding(q_start[None])[0])
+    collided = np.zeros(num_paths, dtype=bool)
+    free_box = free_pair = None
+    if escaping:
+      boxes, pairs = self.penetrations(q_start[None])
+      start_boxes, start_pairs = boxes[0] > 0.0, pairs[0] > 0.0
+      collided, free_box, free_pair = self._escape(
+          num_paths, owner, param, half, evaluate, boxes[0], pairs[0],
+          start_boxes, start_pairs)
     offsets = (2.0 * np.arange(REFINE) + 1.0) / REFINE - 1.0   # In (-1, 1).
-    collided = np.zeros(len(q_goals), dtype=bool)
     for level in range(REFINE_LEVELS + 1):
       keep = ~collided[owner]
-      owner, fraction, half = owner[keep], fraction[keep], half[keep]
+      owner, param, half = owner[keep], param[keep], half[keep]
       if not owner.size:
         break
-      q = q_start + fraction[:, None] * delta[owner]
-      hit = self._colliding(q, motion[owner] * half[:, None],
-                            pair_motion[owner] * half[:, None])
+      ignore_boxes = ignore_pairs = None
+      if escaping:   # Elements in collision at the start, until free.
+        ignore_boxes = (param[:, None, None] - half[:, None, None]
+                        <= free_box[owner])
+        ignore_pairs = (param[:, None] - half[:, None] <= free_pair[owner])
+      q, capsule_margin, pair_margin = evaluate(owner, param, half)
+      hit = self._colliding(q, capsule_margin, pair_margin, ignore_boxes,
+                            ignore_pairs)
       if not hit.any():
         break
       if level == REFINE_LEVELS:
         collided[owner[hit]] = True
         break
-      exact = self._colliding(q[hit])
+      exact = self._colliding(
+          q[hit], None, None,
+          None if ignore_boxes is None else ignore_boxes[hit],
+          None if ignore_pairs is None else ignore_pairs[hit])
       collided[owner[hit][exact]] = True
-      owner, centre, half = owner[hit], fraction[hit], half[hit]
-      fraction = np.clip(centre[:, None] + offsets * half[:, None], 0.0,
-                         1.0).ravel()
+      owner, centre, half = owner[hit], param[hit], half[hit]
+      param = (centre[:, None] + offsets * half[:, None]).ravel()
       owner = np.repeat(owner, REFINE)
       half = np.repeat(half / REFINE, REFINE)
+    return collided
+
+  def _escape(self, num_paths, owner, param, half, evaluate, start_box,
+              start_pair, colliding_box, colliding_pair):
+    """Escape rule of `paths_free`: (collided (G,), free_box (G, Bx, L),
+    free_pair (G, P)), the free_* being the path parameter of the sample
+    at which each element in collision at the start is free (-inf for the
+    others; inf if never: then the path is collided)."""
+    q = evaluate(owner, param, half)[0]
+    boxes, pairs = self.penetrations(q)
+    depth = np.concatenate([boxes[:, colliding_box], pairs[:, colliding_pair]],
+                           axis=1)                                 # (S, E0)
+    start = np.concatenate([start_box[colliding_box],
+                            start_pair[colliding_pair]])
+    collided = np.zeros(num_paths, dtype=bool)
+    free_at = np.full((num_paths, depth.shape[1]), np.inf)
+    bounds = np.flatnonzero(np.diff(owner)) + 1
+    for g, rows in zip(np.unique(owner), np.split(np.arange(owner.size),
+                                                  bounds)):
+      path = np.vstack([start[None], depth[rows]])     # (1 + S_g, E0)
+      free = path <= 0.0
+      first = np.where(free.any(axis=0), free.argmax(axis=0), path.shape[0])
+      rising = np.diff(path, axis=0) > _ESCAPE_SLACK  # Sample k -> k + 1.
+      before = np.arange(1, path.shape[0])[:, None] <= first[None]
+      if np.any(rising & before) or np.any(first == path.shape[0]):
+        collided[g] = True
+        continue
+      free_at[g] = param[rows][first - 1]
+    free_box = np.full((num_paths,) + start_box.shape, -np.inf)
+    free_pair = np.full((num_paths,) + start_pair.shape, -np.inf)
+    count = int(colliding_box.sum())
+    free_box[:, colliding_box] = free_at[:, :count]
+    free_pair[:, colliding_pair] = free_at[:, count:]
+    return collided, free_box, free_pair
+
+  def planned_paths_free(self, q_goals, plan_from):
+    """Flags (G,): goals whose long-term plans from the shield's current
+    command are collision-free (what the robot really does: a moving robot
+    overshoots before it turns to the goal).
+
+    plan_from: the `Shield` (or anything with q, dq, ddq, s, limits and
+    cycle_time): the plan is `long_term_plan.plan_to_goal` from its command
+    with its limits, exactly the shield's next candidate. Each plan cycle is
+    covered by samples of the shield's own Taylor polynomial (at most
+    max_step of capsule motion apart, margins from the polynomial's
+    derivatives over half a sample spacing), refined like `paths_free`; the
+    escape rule applies. A plan that cannot be made (it would leave the
+    joint limits) is not free. If the command cannot start a plan now
+    (braking harder than the planning limits; the shield then keeps braking
+    on its verified path and plans later), the straight path from the
+    command is checked instead.
+    """
+    q_goals = np.asarray(q_goals, dtype=float).reshape(-1, self.dof)
+    q0, dq0, ddq0 = (np.asarray(x, dtype=float) for x in (
+        plan_from.q, plan_from.dq, plan_from.ddq))
+    q0 = self._check_start(q0)
+    limits, cycle = plan_from.limits, float(plan_from.cycle_time)
+    start_time = float(plan_from.s)
+    try:
+      ltp.check_start_state(q0, dq0, ddq0, limits)
+    except ltp.PlanningError:
+      return self.paths_free(q0, q_goals)
+    plans, feasible = [], np.zeros(len(q_goals), dtype=bool)
+    for g, goal in enumerate(q_goals):
+      try:
+        plans.append(ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, cycle,
+                                      start_time))
+        feasible[g] = True
+      except ltp.PlanningError:
+        plans.append(None)
+    owners, params, halves = [], [], []
+    for g, plan in enumerate(plans):
+      if plan is None:
+        continue
+      # Cycles needing more than one sample: the polynomial's motion over
+      # a whole cycle, per capsule, against max_step.
+      c = np.abs(plan.nominal(plan.start_time + cycle * np.arange(
+          plan.num_samples))[1:])          # v, a, j at the samples.
+      travel = c[0] * cycle + c[1] * cycle ** 2 / 2 + c[2] * cycle ** 3 / 6
+      pieces = np.maximum(1, np.ceil((travel @ self.levers).max(axis=-1)
+                                     / self.max_step)).astype(int)
+      cycle_index = np.repeat(np.arange(plan.num_samples), pieces)
+      within = (np.arange(cycle_index.size)
+                - np.repeat(np.cumsum(pieces) - pieces, pieces))
+      width = cycle / pieces[cycle_index]
+      params.append(plan.start_time + cycle_index * cycle
+                    + (within + 0.5) * width)
+      halves.append(0.5 * width)
+      owners.append(np.full(cycle_index.size, g))
+    collided = np.zeros(len(q_goals), dtype=bool)
+    if owners:
+      def evaluate(owner, param, half):
+        q = np.empty((owner.size, self.dof))
+        reach = np.empty((owner.size, self.dof))
+        for g in np.unique(owner):
+          rows = owner == g
+          q[rows], v, a, j = plans[g].nominal(param[rows])
+          h = half[rows][:, None]
+          reach[rows] = h * (np.abs(v) + h * (np.abs(a) / 2
+                                              + h * np.abs(j) / 6))
+        return q, reach @ self.levers, reach @ self._pair_levers
+      collided = self._sweep(q0, len(q_goals), np.concatenate(owners),
+                             np.concatenate(params), np.concatenate(halves),
+                             evaluate)
     self.num_checks += len(q_goals)
-    return within & ~collided
+    return self._within(q_goals) & feasible & ~collided
 
   def is_safe(self, q_start, q_goal):
     """True iff q_goal is within the joint limits and the straight path to
@@ -270,9 +456,14 @@ class CollisionPrevention:
 
   def filter_action(self, action, q_current, action_to_goal, policy='zero',
                     num_samples=DEFAULT_NUM_SAMPLES, action_low=-1.0,
-                    action_high=1.0, random_state=None, zero_action=None):
+                    action_high=1.0, random_state=None, zero_action=None,
+                    plan_from=None):
     """(action, q_goal, replaced): the action if its goal is safe, else a
     replacement chosen by `policy`.
+
+    plan_from: the `Shield` that will execute the goal; if given, goals are
+    checked along its long-term plan from its command
+    (`planned_paths_free`), else along the straight path from q_current.
 
     action_to_goal(action) -> q_goal (dof,) or None (e.g. IK failed: unsafe).
     'zero': the zero action and q_current (stay); 'resample': the first safe
@@ -285,8 +476,12 @@ class CollisionPrevention:
       raise ValueError(f'policy: expected one of {POLICIES}, got {policy!r}')
     action = np.asarray(action, dtype=float)
     q_current = np.asarray(q_current, dtype=float)
+    if plan_from is None:
+      check = lambda goals: self.paths_free(q_current, goals)
+    else:
+      check = lambda goals: self.planned_paths_free(goals, plan_from)
     goal = action_to_goal(action)
-    if goal is not None and self.is_safe(q_current, goal):
+    if goal is not None and check(np.asarray(goal, dtype=float)[None])[0]:
       return action, np.asarray(goal, dtype=float), False
     self.num_replacements += 1
     zero = (np.zeros_like(action) if zero_action is None
@@ -305,8 +500,7 @@ class CollisionPrevention:
     valid = [i for i, g in enumerate(goals) if g is not None]
     safe = np.zeros(len(samples), dtype=bool)
     if valid:
-      safe[valid] = self.paths_free(q_current, np.array([goals[i]
-                                                         for i in valid]))
+      safe[valid] = check(np.array([goals[i] for i in valid], dtype=float))
     if not safe.any():
       return zero, q_current.copy(), True
     if policy == 'resample':

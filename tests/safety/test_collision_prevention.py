@@ -238,3 +238,121 @@ def test_path_sampling_bounds_the_motion_between_samples():
                        np.linalg.norm(p2[20:] - p2[:-20], axis=-1))
     assert moved.max() <= collision_prevention.DEFAULT_MAX_STEP + 1e-9
   assert layout.TABLE_TOP_Z == prevention.box_max[0, 2]
+
+
+# -- Escape from a start in collision, and planned paths (Panda) -----------
+
+_LOWER = np.eye(7)[1]   # Panda shoulder: lowers the gripper onto the table.
+
+
+def _panda_near_table(depth):
+  """(description, prevention, q) with the tool `depth` m into the table top
+  (negative: above it) by lowering the shoulder from q_home."""
+  description, prevention = _prevention('panda')
+  home = description.q_home
+
+  def table_depth(t):
+    boxes, _ = prevention.penetrations((home + t * _LOWER)[None])
+    return boxes[0, prevention.box_names.index('table')].max()
+
+  low, high = 0.0, 0.6
+  for _ in range(60):   # Bisection: the depth grows along this direction.
+    middle = 0.5 * (low + high)
+    low, high = (middle, high) if table_depth(middle) < depth else (low,
+                                                                    middle)
+  return description, prevention, home + high * _LOWER
+
+
+def test_start_in_table_escapes_but_may_not_go_deeper():
+  description, prevention, q = _panda_near_table(0.003)
+  assert prevention.in_collision(q)
+  home = description.q_home
+  up, deeper = home, q + 0.1 * _LOWER
+  sideways = q + 0.3 * np.eye(7)[0]     # Base rotation: stays in contact.
+  free = prevention.paths_free(q, np.stack([up, deeper, sideways]))
+  assert free.tolist()[:2] == [True, False]
+  # Independent check of the sideways verdict: it is accepted only if the
+  # table penetration at dense samples never increases until it is free.
+  s = np.linspace(0.0, 1.0, 400)
+  boxes, _ = prevention.penetrations(q + s[:, None] * (sideways - q))
+  depth = boxes[:, prevention.box_names.index('table')].max(-1)
+  free_from = np.argmax(depth <= 0) if np.any(depth <= 0) else len(depth)
+  monotone = np.all(np.diff(depth[:free_from + 1]) <= 1e-6)
+  after = not prevention.in_collision(q + s[free_from:, None]
+                                      * (sideways - q)).any()
+  assert free[2] == (monotone and after and free_from < len(depth))
+
+
+def test_random_actions_get_the_robot_out_of_the_table():
+  """The deadlock of pick-and-place: from slightly inside the table, random
+  joint-delta actions with 'zero' replacement reach a free configuration
+  (before the escape rule every action was replaced for ever)."""
+  description, prevention, q = _panda_near_table(0.004)
+  rs = np.random.RandomState(1)
+  depths = []
+  for _ in range(40):
+    boxes, _ = prevention.penetrations(q[None])
+    depths.append(max(boxes.max(), 0.0))
+    if not prevention.in_collision(q):
+      break
+    action = rs.uniform(-1.0, 1.0, 7)
+    _, q, _ = prevention.filter_action(action, q, lambda a: q + 0.05 * a)
+  assert not prevention.in_collision(q)
+  assert np.all(np.diff(depths) <= 1e-9)    # Never pushed deeper.
+  assert prevention.num_replacements < 40
+
+
+def _moving(q, dq, description):
+  """A shield-like command for planned_paths_free."""
+  import types
+  return types.SimpleNamespace(q=q, dq=dq, ddq=np.zeros_like(q), s=0.0,
+                               limits=description.limits, cycle_time=0.004)
+
+
+def test_moving_robot_overshoot_into_the_table_is_rejected():
+  description, prevention, q = _panda_near_table(-0.0175)   # 1.75 cm above.
+  home = description.q_home
+  moving = _moving(q, 0.5 * _LOWER, description)   # Shoulder going down.
+  # The straight path up is free, the plan up first overshoots downwards.
+  assert prevention.paths_free(q, home[None])[0]
+  plan = collision_prevention.ltp.plan_to_goal(
+      q, moving.dq, moving.ddq, home, description.limits, 0.004)
+  dense = plan.nominal(np.linspace(0.0, plan.end_time, 3000))[0]
+  assert prevention.in_collision(dense).any()
+  assert not prevention.planned_paths_free(home[None], moving)[0]
+  # At rest the same goal's plan is the straight path: accepted.
+  assert prevention.planned_paths_free(home[None],
+                                       _moving(q, 0.0 * _LOWER, description))[0]
+  # filter_action with plan_from replaces the action; without, it does not.
+  to_goal = lambda a: home
+  assert prevention.filter_action(np.ones(1), q, to_goal,
+                                  plan_from=moving)[2]
+  assert not prevention.filter_action(np.ones(1), q, to_goal)[2]
+
+
+@pytest.mark.parametrize('name', ['panda', 'ur5e', 'kinova3'])
+def test_planned_check_agrees_with_dense_plan_samples(name):
+  """Random moving starts and goals: a plan accepted by planned_paths_free
+  has no collision at 10 samples per plan cycle."""
+  description, prevention = _prevention(name)
+  limits = description.limits
+  rs = np.random.RandomState(3)
+  accepted = 0
+  for _ in range(12):
+    q = np.clip(description.q_home + rs.uniform(-0.4, 0.4, description.dof),
+                limits.q_min + 0.1, limits.q_max - 0.1)
+    if prevention.in_collision(q):
+      continue
+    moving = _moving(q, rs.uniform(-0.4, 0.4) * limits.v_max, description)
+    goals = np.clip(q + rs.uniform(-0.6, 0.6, (4, description.dof)),
+                    limits.q_min + 0.02, limits.q_max - 0.02)
+    free = prevention.planned_paths_free(goals, moving)
+    for goal, ok in zip(goals, free):
+      if not ok:
+        continue
+      accepted += 1
+      plan = collision_prevention.ltp.plan_to_goal(
+          q, moving.dq, moving.ddq, goal, limits, 0.004)
+      s = np.linspace(0.0, plan.end_time, 10 * plan.num_samples)
+      assert not prevention.in_collision(plan.nominal(s)[0]).any()
+  assert accepted > 5
