@@ -461,7 +461,7 @@ class HrcTask(composer.Task):
     else:
       _, goal, replaced = self._collision_checker.filter_action(
           arm, q, to_goal, self.collision_prevention_policy,
-          random_state=self._cp_random)
+          random_state=self._cp_random, plan_from=self._shield)
     self._q_goal = np.asarray(goal, dtype=float).copy()
     self._shield.new_goal(self._q_goal)
     if self.HAS_GRIPPER_ACTION:
