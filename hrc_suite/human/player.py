@@ -312,6 +312,12 @@ class Player:
     return self._current.clip
 
   @property
+  def clip_index(self):
+    """How many clips of the episode started before the current one (0
+    during the first; it grows by one each time a clip ends)."""
+    return self._k
+
+  @property
   def clip_time(self):
     """Seconds into the current clip (0 during a blend into it)."""
     if self._transition is not None:

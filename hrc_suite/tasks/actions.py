@@ -27,7 +27,8 @@ CARTESIAN_STEP = 0.1   # m
 # 0.6 m above it. Scaled down with the robot's reach (see `workspace_box`).
 WORKSPACE_LOW = (0.2, -0.55, 0.03)
 WORKSPACE_HIGH = (0.8, 0.55, 0.6)
-# TCP yaw of every Cartesian goal (gripper down, fingers closing along y).
+# Default TCP yaw of Cartesian goals (gripper down, fingers closing along
+# y); tasks choose theirs with HrcTask.CARTESIAN_YAW.
 GRIPPER_YAW = 0.0
 
 
@@ -78,14 +79,18 @@ class JointActionSpace:
 
 
 class CartesianActionSpace:
-  """TCP position deltas turned into joint goals by gripper-down IK."""
+  """TCP position deltas turned into joint goals by gripper-down IK at a
+  fixed yaw (`yaw`, rad about world z; a task may change it between
+  episodes)."""
 
   name = 'cartesian'
 
-  def __init__(self, kinematic_model, step=CARTESIAN_STEP, box=None):
+  def __init__(self, kinematic_model, step=CARTESIAN_STEP, box=None,
+               yaw=GRIPPER_YAW):
     self._model = kinematic_model
     self._ik = ik_lib.InverseKinematics(kinematic_model)
     self.step = float(step)
+    self.yaw = float(yaw)
     self.num_arm = 3
     self.low, self.high = box if box is not None else workspace_box(
         kinematic_model)
@@ -101,17 +106,18 @@ class CartesianActionSpace:
 
   def goal(self, q, arm_action, current_goal):
     """(joint goal, IK succeeded): on IK failure the current goal."""
-    result = self._ik.solve(self.target(q, arm_action), q, GRIPPER_YAW)
+    result = self._ik.solve(self.target(q, arm_action), q, self.yaw)
     if result.success:
       return result.q, True
     return current_goal.copy(), False
 
 
-def make_action_space(name, kinematic_model):
+def make_action_space(name, kinematic_model, yaw=GRIPPER_YAW):
+  """The named action space; `yaw` is the Cartesian space's gripper yaw."""
   if name == 'joint':
     return JointActionSpace(kinematic_model)
   if name == 'cartesian':
-    return CartesianActionSpace(kinematic_model)
+    return CartesianActionSpace(kinematic_model, yaw=yaw)
   raise ValueError(f'Unknown action_space {name!r}: expected one of '
                    f'{", ".join(ACTION_SPACES)}')
 

@@ -25,7 +25,19 @@ step is exactly L shield cycles.
 Subclasses set the class constants below and override `_build_task`,
 `_initialize_task`, `_update_task`, `_task_reward`, and optionally
 `_human_events`, `_failed`, `_task_state`/`_set_task_state` and
-`_task_observables`.
+`_task_observables`. Hooks they use:
+
+* `_add_holdable(body)` makes an object holdable by the human; `_hold` /
+  `_release` grab and let go of it. Grips change the model (weld pose,
+  collision bits), so get_state/set_state save and restore every grip and
+  weld, and after_step calls physics.forward() when a grip changed (a
+  restored snapshot starts from the same derived quantities). A task that
+  writes weld data itself calls `_model_changed()`.
+* `clip_ended` (the human's clip ended in the RL step just done; the
+  player's sequence is endless) and `clips_completed` express "success
+  once the human's motion is over" (e.g. after the retreat).
+* FINGERTIP_TABLE_CLEARANCE lets the tool capsule into the table (to grasp
+  objects lying on it), CARTESIAN_YAW sets the Cartesian gripper yaw.
 """
 
 import collections
@@ -111,6 +123,11 @@ class HrcTask(composer.Task):
   HAS_GRIPPER_ACTION = True
   OBSERVATION_PRESETS = {}                   # name -> observable names
   EXTRA_COUNTERS = ()
+  # Collision prevention keeps the tool capsule out of the table (None) or
+  # lets it dip in by its radius minus this clearance (m): the fingertips
+  # stay this far above the table, low enough to grasp objects lying on it.
+  FINGERTIP_TABLE_CLEARANCE = None
+  CARTESIAN_YAW = actions.GRIPPER_YAW        # rad, gripper yaw of IK goals
 
   def __init__(self, robot='panda', action_space=None, shield=None,
                shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
@@ -226,10 +243,16 @@ class HrcTask(composer.Task):
     self._shield = shield_lib.Shield(
         description, mode=shield, cycle_time=physics_timestep,
         base_pose=base_pose, tool_capsule=tool_capsule, v_safe=v_safe)
+    self.tool_table_allowance = 0.0
+    if self.FINGERTIP_TABLE_CLEARANCE is not None:
+      # The capsule's lowest point is `radius` below the fingertips (its
+      # end point, gripper.enclosing_capsule).
+      self.tool_table_allowance = radius - self.FINGERTIP_TABLE_CLEARANCE
     self._collision_checker = cp_lib.CollisionPrevention(
-        description, base_pose=base_pose, tool_capsule=tool_capsule)
-    self._action_space = actions.make_action_space(action_space,
-                                                   self._kinematics)
+        description, base_pose=base_pose, tool_capsule=tool_capsule,
+        tool_table_allowance=self.tool_table_allowance)
+    self._action_space = actions.make_action_space(
+        action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     self._player = player_lib.Player(
         load_motions(motions, self.MOTIONS), station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
@@ -237,6 +260,8 @@ class HrcTask(composer.Task):
         self._human, self._player, shield_substeps)
 
     self._object_geoms = []
+    self._holdables = []        # (object body, {hand: weld element})
+    self._grips_changed = False
     self._build_task()
     self.set_timesteps(control_timestep, physics_timestep)
     self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
@@ -342,11 +367,15 @@ class HrcTask(composer.Task):
     """True if the episode ends in failure now (e.g. a dropped board)."""
     return False
 
-  def _task_state(self):
+  def _task_state(self, physics):
+    """The task's own episode state (deep-copied by get_state); grips and
+    welds of holdable objects are saved by the base."""
+    del physics
     return {}
 
-  def _set_task_state(self, state):
-    del state
+  def _set_task_state(self, physics, state):
+    """Restores `_task_state`; physics is already restored."""
+    del physics, state
 
   def _task_observables(self):
     """Task-specific observables: name -> observable."""
@@ -360,6 +389,62 @@ class HrcTask(composer.Task):
 
   def _task_reward_range(self):
     return (0.0, 0.0)
+
+  # --------------------------------------------------- human grips, clips
+
+  def _add_holdable(self, body):
+    """Makes `body` holdable by the human (before compiling); returns its
+    welds {hand: weld element}."""
+    welds = self._human.add_holdable(body)
+    self._holdables.append((body, welds))
+    return welds
+
+  def _hold(self, physics, body, hand, relative_pose=None):
+    """The human's `hand` grabs `body` (`Human.hold`)."""
+    self._human.hold(physics, body, hand, relative_pose)
+    self._grips_changed = True
+
+  def _release(self, physics, body):
+    """The human lets go of `body` (nothing if not held)."""
+    if self._human.holding(body) is not None:
+      self._grips_changed = True
+    self._human.release(physics, body)
+
+  def _model_changed(self):
+    """The task changed the model (e.g. weld data): forward after the step."""
+    self._grips_changed = True
+
+  def _grip_state(self, physics):
+    """Per holdable: (holding hand or None, {hand: weld eq_data row})."""
+    eq_data = physics.model.eq_data
+    return [(self._human.holding(body),
+             {hand: eq_data[physics.bind(weld).element_id].copy()
+              for hand, weld in welds.items()})
+            for body, welds in self._holdables]
+
+  def _set_grip_state(self, physics, grips):
+    if len(grips) != len(self._holdables):
+      raise ValueError(f'snapshot has grips of {len(grips)} objects, this '
+                       f'task has {len(self._holdables)} holdable objects')
+    for body, _ in self._holdables:
+      self._human.release(physics, body)
+    eq_data = physics.model.eq_data
+    for (body, welds), (hand, rows) in zip(self._holdables, grips):
+      if hand is not None:
+        row = np.asarray(rows[hand], dtype=float)
+        self._human.hold(physics, body, hand, (row[3:6], row[6:10]))
+      for weld_hand, weld in welds.items():
+        eq_data[physics.bind(weld).element_id] = rows[weld_hand]
+
+  @property
+  def clip_ended(self):
+    """True if the human's clip ended during the last RL step."""
+    return self._clip_ended
+
+  @property
+  def clips_completed(self):
+    """Clips the human has completed this episode."""
+    return self._clip_index
 
   # ------------------------------------------------------------ observables
 
@@ -397,6 +482,9 @@ class HrcTask(composer.Task):
     self._command_dq[:] = 0.0
     self._cp_random = np.random.RandomState(0)
     self._step_info = {}
+    self._clip_index = 0
+    self._clip_ended = False
+    self._grips_changed = False
 
   def after_compile(self, physics, random_state):
     del random_state
@@ -432,7 +520,10 @@ class HrcTask(composer.Task):
     data.qpos[self._finger_qpos_index] = gripper_lib.MAX_APERTURE / 2
     self._gripper.set_command(physics, -1.0)
     self._cp_random = np.random.RandomState(random_state.randint(_SEED_RANGE))
+    for body, _ in self._holdables:
+      self._human.release(physics, body)
     self._player.reset(random_state)
+    self._clip_index = self._player.clip_index
     self._playback.show_current(physics)
     self._shield.reset(q_home, 0.0)
     self._metrics.reset()
@@ -507,9 +598,17 @@ class HrcTask(composer.Task):
     self._steps += 1
     q = physics.data.qpos[self._qpos_index]
     self_collision = self._self_colliding(q)
+    clip_index = self._player.clip_index
+    self._clip_ended = clip_index != self._clip_index
+    self._clip_index = clip_index
+    self._grips_changed = False
     step = dict(self._update_task(physics))
     for event in self._human_events(physics):
       self._player.trigger(event)
+    if self._grips_changed:
+      # The model changed: what the next step starts from is recomputed,
+      # as restoring a snapshot does, so snapshots are exact.
+      physics.forward()
     illegal = self_collision or self._step_flags[0] or self._step_flags[2]
     task_reward = float(self._task_reward(physics))
     success = bool(step.get('success', 0.0))
@@ -574,8 +673,11 @@ class HrcTask(composer.Task):
             'command_dq': self._command_dq.copy(),
             'cp_random': self._cp_random.get_state(),
             'metrics': copy.deepcopy(self._metrics.state()),
-            'own': copy.deepcopy(self._task_state()),
+            'clip_index': self._clip_index, 'clip_ended': self._clip_ended,
+            'own': copy.deepcopy(self._task_state(physics)),
         },
+        # Human.hold changes the model, which the physics state lacks.
+        'grips': self._grip_state(physics),
     }
 
   def set_state(self, physics, state):
@@ -587,6 +689,9 @@ class HrcTask(composer.Task):
                        f'model, got shape {physics_state.shape}')
     if physics.data.ptr is not self._physics_ptr:
       self._bind(physics)
+    # Grips first: hold/release switch welds on and off, the physics state
+    # then restores which are active.
+    self._set_grip_state(physics, state['grips'])
     mujoco.mj_setState(physics.model.ptr, physics.data.ptr, physics_state,
                        _STATE_SPEC)
     self._player.set_state(state['player'])
@@ -604,5 +709,7 @@ class HrcTask(composer.Task):
     self._command_dq[:] = task['command_dq']
     self._cp_random.set_state(task['cp_random'])
     self._metrics.set_state(copy.deepcopy(task['metrics']))
-    self._set_task_state(copy.deepcopy(task['own']))
+    self._clip_index = int(task['clip_index'])
+    self._clip_ended = bool(task['clip_ended'])
     mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
+    self._set_task_state(physics, copy.deepcopy(task['own']))

@@ -78,20 +78,6 @@ def matrix_to_quat(matrix):
   return quat
 
 
-class YawedCartesianActionSpace(actions.CartesianActionSpace):
-  """Cartesian actions with the gripper down at `yaw` (or yaw + pi)."""
-
-  def __init__(self, kinematic_model, yaw):
-    super().__init__(kinematic_model)
-    self.yaw = float(yaw)
-
-  def goal(self, q, arm_action, current_goal):
-    result = self.ik.solve(self.target(q, arm_action), q, self.yaw)
-    if result.success:
-      return result.q, True
-    return current_goal.copy(), False
-
-
 _HALF_TURN = np.diag([-1.0, -1.0, 1.0])   # about the TCP's z axis
 
 
@@ -125,20 +111,16 @@ class Hammering(base.HrcTask):
       'object_gripped', 'eef_to_object', 'eef_to_target', 'gripper_aperture',
       'human_distances')}
   EXTRA_COUNTERS = ('nail_blows',)
+  CARTESIAN_YAW = HOLD_YAW   # home yaw for robots that cannot turn so
 
   def _build_task(self):
-    self._default_space = self._action_space
-    if self._action_space.name == 'cartesian':
-      self._hold_space = YawedCartesianActionSpace(self._kinematics, HOLD_YAW)
-    else:
-      self._hold_space = self._action_space
     self._hold_ik = ik_lib.InverseKinematics(self._kinematics)
     self._board = nail_board_lib.NailBoard()
     self._hammer = props.Hammer()
     for prop in (self._board, self._hammer):
       self._arena.add_free_entity(prop)
       self._object_geoms.extend(prop.geoms)
-    self._hammer_welds = self._human.add_holdable(self._hammer.body)
+    self._hammer_welds = self._add_holdable(self._hammer.body)
     # The hand capsule encloses the handle it holds (docs/props.md).
     for hand, index in _HAND_SEGMENTS.items():
       self._arena.mjcf_model.contact.add(
@@ -201,14 +183,15 @@ class Hammering(base.HrcTask):
     home = self._robot.description.q_home
     position = self._kinematics.tcp_pose(home)[:3, 3]
     result = self._hold_ik.solve(position, home, HOLD_YAW)
-    if result.success and not self._collision_checker.in_collision(result.q):
+    turn = bool(result.success
+                and not self._collision_checker.in_collision(result.q))
+    if turn:
       physics.data.qpos[self._qpos_index] = result.q
       self._q_goal = result.q.copy()
       self._shield.reset(result.q, 0.0)
-      self._action_space = self._hold_space
       physics.forward()
-    else:
-      self._action_space = self._default_space
+    if self._action_space.name == 'cartesian':
+      self._action_space.yaw = HOLD_YAW if turn else actions.GRIPPER_YAW
     nail_axis = physics.bind(self._robot.tcp_site).xmat.reshape(3, 3)[:, 1]
     return bool(nail_axis[0] < 0.0)
 
@@ -234,7 +217,7 @@ class Hammering(base.HrcTask):
         [np.cos(heading), np.sin(heading), 0.0])
     self._hammer.set_pose(physics, origin, quat)
     physics.forward()
-    self._human.hold(physics, self._hammer.body, self._hand)
+    self._hold(physics, self._hammer.body, self._hand)
     self._playback.show_current(physics)
     physics.forward()
     self._follow_weld(physics)
@@ -282,13 +265,15 @@ class Hammering(base.HrcTask):
 
   # ----------------------------------------------------------- snapshots
 
-  def _task_state(self):
+  def _task_state(self, physics):
+    del physics
     return {'nail_target': self._nail_target.copy(),
             'success': self._success, 'gripped': self._gripped,
             'free_steps': self._free_steps, 'progress': self._progress,
             'blow': self._blow, 'hand': self._hand}
 
-  def _set_task_state(self, state):
+  def _set_task_state(self, physics, state):
+    del physics
     self._nail_target = np.array(state['nail_target'], dtype=float)
     self._success = bool(state['success'])
     self._gripped = bool(state['gripped'])
@@ -296,23 +281,6 @@ class Hammering(base.HrcTask):
     self._progress = float(state['progress'])
     self._blow = bool(state['blow'])
     self._hand = str(state['hand'])
-
-  def get_state(self, physics):
-    # Human.hold changes the model (weld pose, collision bits), which the
-    # physics state does not hold: keep the grip with the snapshot.
-    state = base.HrcTask.get_state(self, physics)
-    body = self._hammer.body
-    state['task']['own']['grip'] = (self._human.holding(body),
-                                    self._human.grip(physics, body))
-    return state
-
-  def set_state(self, physics, state):
-    base.HrcTask.set_state(self, physics, state)
-    hand, grip = state['task']['own']['grip']
-    self._human.release(physics, self._hammer.body)
-    if hand is not None:
-      self._human.hold(physics, self._hammer.body, hand, grip)
-    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
 
   # -------------------------------------------------------- observables
 

@@ -21,7 +21,7 @@ human let go and fires the event; the robot places it within SUCCESS_DISTANCE of
 
 Success (both): the object is where it belongs (held by the human / at the
 target) and the human's motion has completed: by default the end of the
-episode's first clip, so the success reward arrives after the human's
+episode's first clip (the base's `clips_completed`), so the success reward arrives after the human's
 retreat, 1.5-4 s after the event for the shipped clips (the task's
 reward delay). `success_after=s` instead counts success s seconds after
 the handover event (object received / placed). The base's extra
@@ -134,7 +134,7 @@ class _Handover(base.HrcTask):
   def _build_task(self):
     self._hammer = props.Hammer()
     self._arena.add_free_entity(self._hammer)
-    self._human.add_holdable(self._hammer.body)
+    self._add_holdable(self._hammer.body)
     self._object_geoms.extend(self._hammer.geoms)
     low, high = ik_lib.table_workspace_box(self._kinematics)
     base_pos = self._kinematics.base_pose[:3, 3]
@@ -151,9 +151,7 @@ class _Handover(base.HrcTask):
     self._success = False
     self._gripped = False
     self._event_time = None     # player episode time of the handover event
-    self._clip_done = False
     self._at_target = False
-    self._grip_pose = None
 
   @property
   def hammer(self):
@@ -175,12 +173,14 @@ class _Handover(base.HrcTask):
   def _object_position(self, physics):
     return physics.bind(self._hammer.grip_site).xpos.copy()
 
+  @property
+  def _clip_done(self):
+    """The episode's first clip has ended."""
+    return self.clips_completed > 0
+
   def _update_common(self, physics):
     self._holding_hand = self._player.clip.holding_hand or 'right'
     self._gripped = self._gripper.is_grasping(physics, self._hammer.body)
-    # The episode's first clip has ended once the player is past clip 0.
-    if not self._clip_done and self._player.get_state()['k'] > 0:
-      self._clip_done = True
 
   def _completed(self):
     if self.success_after is None:
@@ -212,37 +212,18 @@ class _Handover(base.HrcTask):
 
   # ---------------------------------------------------------- snapshots
 
-  def _task_state(self):
+  def _task_state(self, physics):
+    del physics
     return {'success': self._success, 'gripped': self._gripped,
-            'event_time': self._event_time, 'clip_done': self._clip_done,
-            'holder': self._holder(), 'grip': self._grip_pose,
+            'event_time': self._event_time,
             'holding_hand': self._holding_hand}
 
-  def _set_task_state(self, state):
+  def _set_task_state(self, physics, state):
+    del physics
     self._success = bool(state['success'])
     self._gripped = bool(state['gripped'])
     self._event_time = state['event_time']
-    self._clip_done = bool(state['clip_done'])
-    self._pending_hold = (state['holder'], state['grip'])
     self._holding_hand = state['holding_hand']
-
-  def get_state(self, physics):
-    body = self._hammer.body
-    hand = self._holder()
-    self._grip_pose = None
-    if hand is not None:
-      self._grip_pose = self._human.grip(physics, body)
-    return super().get_state(physics)
-
-  def set_state(self, physics, state):
-    """Restores a snapshot, including the human's grip (model data)."""
-    super().set_state(physics, state)
-    hand, grip = self._pending_hold
-    body = self._hammer.body
-    self._human.release(physics, body)
-    if hand is not None:
-      self._human.hold(physics, body, hand, relative_pose=grip)
-    physics.forward()
 
   # -------------------------------------------------------- observables
 
@@ -299,7 +280,6 @@ class RobotToHuman(_Handover):
   EVENT = 'object_received'
 
   def _initialize_task(self, physics, random_state):
-    self._human.release(physics, self._hammer.body)
     self._reset_flags()
     self._holding_hand = self._player.clip.holding_hand or 'right'
     # The hammer starts in the closed gripper at the home pose (grasped at
@@ -340,7 +320,7 @@ class RobotToHuman(_Handover):
     if (self._holder() is None and self._event_time is None
         and self._player.waiting_for == self.EVENT
         and self.palm_touches_handle(physics)):
-      self._human.hold(physics, self._hammer.body, self._hand())
+      self._hold(physics, self._hammer.body, self._hand())
       self._event_time = self._player.episode_time
       handovers = 1
     self._success = self._holder() is not None and self._completed()
@@ -395,7 +375,6 @@ class HumanToRobot(_Handover):
     return position, human_lib.matrix_to_quaternion(rotation[None])[0]
 
   def _initialize_task(self, physics, random_state):
-    self._human.release(physics, self._hammer.body)
     self._reset_flags()
     self._holding_hand = self._player.clip.holding_hand or 'right'
     self._picked = False
@@ -434,7 +413,7 @@ class HumanToRobot(_Handover):
         and not self._player.in_transition and clip_time >= t_pick):
       grip = physics.bind(self._hammer.human_grip_site).xpos
       if np.linalg.norm(grip - self._palm_position(physics)) < PICK_DISTANCE:
-        self._human.hold(physics, self._hammer.body, hand)
+        self._hold(physics, self._hammer.body, hand)
         self._pick_grip = self._human.relative_pose(
             physics, self._hammer.body, hand)
         self._turn = 0.0
@@ -453,6 +432,7 @@ class HumanToRobot(_Handover):
       position = (1 - s) * self._pick_grip[0] + s * end_pos
       self._human.set_grip(physics, self._hammer.body, position,
                            _slerp(self._pick_grip[1], end_quat, s))
+      self._model_changed()
       if s >= 1.0:
         self._pick_grip = None
     # The person lets go of a grasp, not of fingers that merely touch both
@@ -460,7 +440,7 @@ class HumanToRobot(_Handover):
     closing = float(physics.bind(self._gripper.actuator).ctrl) > 0.0
     if self._holder() is not None and self._gripped and closing and (
         self._player.waiting_for == 'object_taken'):
-      self._human.release(physics, self._hammer.body)
+      self._release(physics, self._hammer.body)
       self._pick_grip = None
       handovers = 1
     self._at_target = self._object_at_target(physics)
@@ -490,14 +470,14 @@ class HumanToRobot(_Handover):
       return GRIPPED_REWARD
     return -1.0
 
-  def _task_state(self):
-    state = super()._task_state()
+  def _task_state(self, physics):
+    state = super()._task_state(physics)
     state.update(picked=self._picked, pick_grip=self._pick_grip,
                  at_target=self._at_target, turn=self._turn)
     return state
 
-  def _set_task_state(self, state):
-    super()._set_task_state(state)
+  def _set_task_state(self, physics, state):
+    super()._set_task_state(physics, state)
     self._picked = bool(state['picked'])
     self._pick_grip = state['pick_grip']
     self._at_target = bool(state['at_target'])

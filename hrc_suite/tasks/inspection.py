@@ -8,7 +8,7 @@ front of a person, who inspects it and leaves (reference-benchmark.md).
   or self-collision; the person stands across the table.
 * Collision prevention lets the tool capsule (radius ~6.4 cm around the
   fingers) into the table by its radius minus TABLE_CLEARANCE, so the
-  fingertips can reach a cube on the table (as pick and place does).
+  fingertips can reach a cube on the table (FINGERTIP_TABLE_CLEARANCE).
 * Human: the clip approaches and waits (idle phase 'object_presented')
   until the cube is gripped and within SUCCESS_DISTANCE of the inspection
   target, then inspects it with the hands and retreats.
@@ -28,7 +28,7 @@ front of a person, who inspects it and leaves (reference-benchmark.md).
   positions, positions in the TCP frame, distances, the cube's quaternion
   and whether it is at the target.
 * Counters: presentations (RL steps at which the waiting person got the
-  cube). The clip's end is detected by the player's clip count.
+  cube). The clip's end is the base's `clip_ended`.
 """
 
 from dm_control.composer.observation import observable
@@ -39,7 +39,6 @@ from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
 
@@ -65,25 +64,6 @@ TARGET_RADIUS = 0.02         # m, the visual marker
 TARGET_RGBA = (0.2, 0.4, 0.9, 0.4)
 
 
-def clip_index(player):
-  """How many clips the player has started before the current one."""
-  return int(player.get_state()['k'])
-
-
-def table_tolerant_checker(task):
-  """Collision prevention of `task`'s robot whose tool capsule may enter
-  the table by its radius minus TABLE_CLEARANCE (fingertips on objects)."""
-  description = task.robot.description
-  p1, p2, radius = task.gripper.enclosing_capsule()
-  rotation, translation = (description.flange_rotation,
-                           description.flange_translation)
-  return cp_lib.CollisionPrevention(
-      description, base_pose=task.kinematics.base_pose,
-      tool_capsule=(translation + rotation @ p1, translation + rotation @ p2,
-                    radius),
-      tool_table_allowance=radius - TABLE_CLEARANCE)
-
-
 class Inspection(base.HrcTask):
   """Hold a cube at the person's inspection point until they leave."""
 
@@ -99,6 +79,7 @@ class Inspection(base.HrcTask):
                                    'object_gripped', 'eef_to_object',
                                    'eef_to_target')}
   EXTRA_COUNTERS = ('presentations',)
+  FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
 
   def _build_task(self):
     self._cube = props.Cube()
@@ -111,13 +92,11 @@ class Inspection(base.HrcTask):
              size=(TARGET_RADIUS,), rgba=TARGET_RGBA, group=0)
     self._target_body = body
     self._ik = ik_lib.InverseKinematics(self._kinematics)
-    self._collision_checker = table_tolerant_checker(self)
     self._target_cache = {}
     self._target = np.zeros(3)
     self._reset_progress()
 
   def _reset_progress(self):
-    self._clip_k = 0
     self._inspecting = False
     self._kept = False
     self._success = False
@@ -163,7 +142,6 @@ class Inspection(base.HrcTask):
 
   def _initialize_task(self, physics, random_state):
     self._reset_progress()
-    self._clip_k = clip_index(self._player)
     model = self._kinematics
     base_pose = model.base_pose
     height = layout.TABLE_TOP_Z + self._cube.size / 2
@@ -202,10 +180,9 @@ class Inspection(base.HrcTask):
     if self._inspecting and not self._at_target:
       self._kept = False
     self._success = False
-    k = clip_index(self._player)
-    if k != self._clip_k:   # The clip (approach, inspection, retreat) ended.
+    if self.clip_ended:   # The clip (approach, inspection, retreat) ended.
       self._success = self._inspecting and self._kept
-      self._clip_k, self._inspecting, self._kept = k, False, False
+      self._inspecting, self._kept = False, False
       self._target = self._clip_target()
       physics.bind(self._target_body).mocap_pos = self._target
     # The person waits for the cube: the base triggers the event right
@@ -232,15 +209,16 @@ class Inspection(base.HrcTask):
   def _task_reward_range(self):
     return (IDLE_REWARD, SUCCESS_REWARD)
 
-  def _task_state(self):
-    return {'target': self._target.copy(), 'clip_k': self._clip_k,
+  def _task_state(self, physics):
+    del physics
+    return {'target': self._target.copy(),
             'inspecting': self._inspecting, 'kept': self._kept,
             'success': self._success, 'gripped': self._gripped,
             'at_target': self._at_target, 'presented': self._presented}
 
-  def _set_task_state(self, state):
+  def _set_task_state(self, physics, state):
+    del physics
     self._target = np.array(state['target'], dtype=float)
-    self._clip_k = int(state['clip_k'])
     for name in ('inspecting', 'kept', 'success', 'gripped', 'at_target'):
       setattr(self, f'_{name}', bool(state[name]))
     self._presented = int(state['presented'])

@@ -15,23 +15,25 @@ keep it level while the person moves (reference-benchmark.md).
   HOLD_SOLREF); at the last
   keyframe (board put down) they let go. Contacts between the
   person's capsules and the board are excluded (the weld is the grasp).
-* Cartesian actions keep the grip's yaw (GRIP_YAW: fingers closing along
-  the board), not the suite's default yaw 0, which would twist the board.
+* Cartesian actions keep the grip's yaw (CARTESIAN_YAW = GRIP_YAW: fingers
+  closing along the board), not the suite's default yaw 0, which would
+  twist the board. The fingers hold a handle 6 cm above the table, so
+  collision prevention lets the tool capsule into the table
+  (FINGERTIP_TABLE_CLEARANCE).
 * Reward (dense): while the robot grips the board, 1 - tilt / MAX_TILT
   (+1 when level, 0 at the limit); 0 in a step without the grip; -10 and
   termination when the board normal's z component drops below
   MIN_NORMAL_Z (~37 deg) or the robot lets go for more than
   MAX_RELEASED_STEPS RL steps.
-* Success: a clip (the person's whole lift) ends without failure. SSM; no
-  reward delay; horizon 5000 RL steps.
+* Success: a clip (the person's whole lift) ends without failure (the
+  base's `clip_ended`). SSM; no reward delay; horizon 5000 RL steps.
 * Observations: 'paper' = board quaternion, distance EEF->head, vectors
   EEF->left / right hand (world frame).
   'full' adds the shared observables, the board's position and normal,
   the handle's position, EEF->handle and whether the board is gripped.
 * Counters: released_steps (RL steps without the grip), lifts (times the
   person took the board).
-* Snapshots: the hold welds' anchors live in the model, so the task state
-  carries them and `set_state` writes them back.
+* Snapshots: the base saves and restores the hold welds (model data).
 """
 
 from dm_control.composer.observation import observable
@@ -42,9 +44,7 @@ from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import props
 from hrc_suite.human import keypoints
-from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
-from hrc_suite.tasks import inspection
 
 MIN_NORMAL_Z = 0.8           # reference: board normal z below it fails
 MAX_TILT = float(np.arccos(MIN_NORMAL_Z))   # rad, ~37 deg
@@ -60,6 +60,9 @@ HANDLE_INSET = 0.235         # m
 BOARD_OFFSET = 0.02          # m, uniform +- in x and y per episode
 # Gripper yaw of the handle grasp: the site's x axis along world y.
 GRIP_YAW = np.pi / 2
+# Fingertips' clearance above the table kept by collision prevention (the
+# inspection task's value: low enough for the handle 6 cm up).
+TABLE_CLEARANCE = 0.005      # m
 GRIP_IK_RESTARTS = 20
 SETTLE_STEPS = 50            # physics steps (0.2 s) closing on the handle
 HANDS = ('left', 'right')
@@ -76,20 +79,6 @@ HOLD_TORQUE_SCALE = 0.0
 HOLD_SOLREF = (0.3, 1.0)
 
 
-class GripYawCartesianSpace(actions.CartesianActionSpace):
-  """Cartesian TCP deltas with the gripper down at a fixed yaw."""
-
-  def __init__(self, kinematic_model, yaw):
-    super().__init__(kinematic_model)
-    self.yaw = float(yaw)
-
-  def goal(self, q, arm_action, current_goal):
-    result = self._ik.solve(self.target(q, arm_action), q, self.yaw)
-    if result.success:
-      return result.q, True
-    return current_goal.copy(), False
-
-
 class Lifting(base.HrcTask):
   """Keep a board level together with a person who lifts and carries it."""
 
@@ -104,12 +93,14 @@ class Lifting(base.HrcTask):
   OBSERVATION_PRESETS = {'paper': ('board_quaternion', 'head_distance',
                                    'eef_to_hands')}
   EXTRA_COUNTERS = ('released_steps', 'lifts')
+  FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
+  CARTESIAN_YAW = GRIP_YAW
 
   def _build_task(self):
     self._board = props.Board(handle_inset=HANDLE_INSET)
     self._arena.add_free_entity(self._board)
     self._object_geoms.extend(self._board.geoms)
-    self._welds = self._human.add_holdable(self._board.body)
+    self._welds = self._add_holdable(self._board.body)
     for weld in self._welds.values():
       weld.torquescale = HOLD_TORQUE_SCALE
       weld.solref = HOLD_SOLREF
@@ -118,16 +109,11 @@ class Lifting(base.HrcTask):
     for segment in self._human.segment_bodies:
       self._arena.mjcf_model.contact.add('exclude', body1=segment,
                                          body2=self._board.body)
-    if self._action_space.name == 'cartesian':
-      self._action_space = GripYawCartesianSpace(self._kinematics, GRIP_YAW)
-    # The fingers hold a handle 6 cm above the table.
-    self._collision_checker = inspection.table_tolerant_checker(self)
     self._ik = ik_lib.InverseKinematics(self._kinematics)
     self._hand = HANDS[1]
     self._reset_progress()
 
   def _reset_progress(self):
-    self._clip_k = 0
     self._released = 0
     self._gripped = True
     self._failed_now = False
@@ -148,9 +134,7 @@ class Lifting(base.HrcTask):
 
   def _initialize_task(self, physics, random_state):
     self._reset_progress()
-    self._clip_k = inspection.clip_index(self._player)
     self._hand = HANDS[random_state.randint(2)]
-    self._human.release(physics, self._board.body)
     targets = self._player.targets_world
     hands_y = 0.5 * (targets['board_grasp_left'][1]
                      + targets['board_grasp_right'][1])
@@ -196,11 +180,11 @@ class Lifting(base.HrcTask):
     holding = self.holding_hand is not None
     should_hold = not player.in_transition and grasp <= t < down
     if should_hold and not holding:
-      self._human.hold(physics, self._board.body, self._hand)
+      self._hold(physics, self._board.body, self._hand)
       self._anchor_at_hands(physics)
       self._lifted = 1
     elif holding and not should_hold:
-      self._human.release(physics, self._board.body)
+      self._release(physics, self._board.body)
 
   def _anchor_at_hands(self, physics):
     """Both hands hold the board at the points under them, rotation free.
@@ -223,6 +207,7 @@ class Lifting(base.HrcTask):
       data[0:3] = board_rot.T @ (point - board.xpos)
       data[3:6] = hand_rot.T @ (point - physics.data.xpos[hand_body])
       physics.data.eq_active[eq_id] = 1
+    self._model_changed()
 
   def _update_task(self, physics):
     self._gripped = props.is_gripped(physics, self._gripper, self._board)
@@ -232,10 +217,8 @@ class Lifting(base.HrcTask):
     self._failed_now = (normal_z < MIN_NORMAL_Z
                         or self._released > MAX_RELEASED_STEPS)
     self._success = False
-    k = inspection.clip_index(self._player)
-    if k != self._clip_k:   # A whole lift ended.
+    if self.clip_ended:   # A whole lift ended.
       self._success = not self._failed_now
-      self._clip_k = k
     self._lifted = 0
     self._update_hold(physics)
     return {'success': float(self._success), 'board_tilt': self._tilt,
@@ -261,19 +244,14 @@ class Lifting(base.HrcTask):
 
   # -------------------------------------------------------------- state
 
-  def _task_state(self):
-    hand = self.holding_hand
-    physics = self._physics_for_state
-    eq_data = {h: physics.model.eq_data[physics.bind(
-        self._welds[h]).element_id].copy() for h in HANDS}
-    return {'clip_k': self._clip_k, 'released': self._released,
-            'gripped': self._gripped, 'failed': self._failed_now,
-            'success': self._success, 'tilt': self._tilt,
-            'lifted': self._lifted, 'hand': self._hand,
-            'holding': hand, 'weld': eq_data}
+  def _task_state(self, physics):
+    del physics
+    return {'released': self._released, 'gripped': self._gripped,
+            'failed': self._failed_now, 'success': self._success,
+            'tilt': self._tilt, 'lifted': self._lifted, 'hand': self._hand}
 
-  def _set_task_state(self, state):
-    self._clip_k = int(state['clip_k'])
+  def _set_task_state(self, physics, state):
+    del physics
     self._released = int(state['released'])
     self._gripped = bool(state['gripped'])
     self._failed_now = bool(state['failed'])
@@ -281,26 +259,6 @@ class Lifting(base.HrcTask):
     self._tilt = float(state['tilt'])
     self._lifted = int(state['lifted'])
     self._hand = state['hand']
-
-  def get_state(self, physics):
-    # The weld's relative pose lives in the model, not in the physics
-    # state: the task state carries it.
-    self._physics_for_state = physics
-    return super().get_state(physics)
-
-  def set_state(self, physics, state):
-    super().set_state(physics, state)
-    own = state['task']['own']
-    state_active = {h: int(physics.data.eq_active[physics.bind(
-        self._welds[h]).element_id]) for h in HANDS}
-    self._human.release(physics, self._board.body)
-    if own['holding'] is not None:
-      self._human.hold(physics, self._board.body, own['holding'])
-    for hand in HANDS:   # eq_active came back with the physics state.
-      eq_id = physics.bind(self._welds[hand]).element_id
-      physics.model.eq_data[eq_id] = own['weld'][hand]
-      physics.data.eq_active[eq_id] = state_active[hand]
-    physics.forward()
 
   # -------------------------------------------------------- observables
 

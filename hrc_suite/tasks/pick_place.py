@@ -25,11 +25,10 @@ beside the robot (reference-benchmark.md, paper Table I).
 * Counters: grasps (RL steps at which the cube became gripped),
   gripped_steps, object_at_target_steps.
 
-The base's collision prevention forbids any tool contact with the table,
-but the tool capsule (radius ~6.4 cm around the fingers) reaches 7.4 cm
-below the TCP; this task allows the tool capsule `tool_table_allowance` of
-table penetration so the fingers can go down around the cube (fingertips
-at least TABLE_CLEARANCE above the table).
+The tool capsule (radius ~6.4 cm around the fingers) reaches 7.4 cm below
+the TCP; collision prevention lets it into the table (the base's
+FINGERTIP_TABLE_CLEARANCE) so the fingers can go down around the cube
+(fingertips at least TABLE_CLEARANCE above the table).
 """
 
 import math
@@ -41,7 +40,6 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import props
-from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
 
@@ -98,6 +96,7 @@ class PickPlace(base.HrcTask):
                                    'eef_to_target', 'gripper_aperture',
                                    'human_distances')}
   EXTRA_COUNTERS = ('grasps', 'gripped_steps', 'object_at_target_steps')
+  FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
 
   def _build_task(self):
     self._cube = props.Cube()
@@ -113,15 +112,6 @@ class PickPlace(base.HrcTask):
              rgba=TARGET_RGBA, group=0)
     self._target_body = body
     self._ik = ik_lib.InverseKinematics(self._kinematics)
-    # Collision prevention that lets the fingertips reach a cube's centre.
-    _, _, radius = self._gripper.enclosing_capsule()
-    # The capsule's lowest point is `radius` below the fingertips (its end
-    # point, gripper.enclosing_capsule).
-    self.tool_table_allowance = radius - TABLE_CLEARANCE
-    self._collision_checker = cp_lib.CollisionPrevention(
-        self._robot.description, base_pose=self._kinematics.base_pose,
-        tool_capsule=self.tool_capsule,
-        tool_table_allowance=self.tool_table_allowance)
     self._target = np.zeros(3)
     self._object_side = 1.0
     self._reset_progress()
@@ -209,12 +199,14 @@ class PickPlace(base.HrcTask):
   def _task_reward_range(self):
     return (REWARD_OTHERWISE, REWARD_SUCCESS)
 
-  def _task_state(self):
+  def _task_state(self, physics):
+    del physics
     return {'target': self._target.copy(), 'side': self._object_side,
             'success': self._success, 'gripped': self._gripped,
             'distance': self._distance}
 
-  def _set_task_state(self, state):
+  def _set_task_state(self, physics, state):
+    del physics
     self._target = np.array(state['target'], dtype=float)
     self._object_side = float(state['side'])
     self._success = bool(state['success'])

@@ -135,12 +135,14 @@ class Reach(base.HrcTask):
       largest = float(2 * reach)
     return (-DENSE_SCALE * largest, 0.0)
 
-  def _task_state(self):
+  def _task_state(self, physics):
+    del physics
     return {'goal_q': self._goal_q.copy(),
             'goal_position': self._goal_position.copy(),
             'success': self._success}
 
-  def _set_task_state(self, state):
+  def _set_task_state(self, physics, state):
+    del physics
     self._goal_q = np.array(state['goal_q'], dtype=float)
     self._goal_position = np.array(state['goal_position'], dtype=float)
     self._success = bool(state['success'])

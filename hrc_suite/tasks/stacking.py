@@ -36,7 +36,6 @@ human 3, robot 4 (reference-benchmark.md, paper Table I).
 """
 
 from dm_control.composer.observation import observable
-import mujoco
 import numpy as np
 
 from hrc_suite import layout
@@ -46,7 +45,6 @@ from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import task_motions
-from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.tasks import base
 
 STACK_TOLERANCE = 0.025        # m (reference)
@@ -110,6 +108,8 @@ class Stacking(base.HrcTask):
       'object_gripped', 'eef_to_cubes', 'gripper_aperture',
       'human_distances')}
   EXTRA_COUNTERS = ('cubes_placed',)
+  # The fingers go down around a cube on the table (as pick and place).
+  FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
 
   def _build_task(self):
     self._cubes = props.make_stacking_cubes()
@@ -119,7 +119,7 @@ class Stacking(base.HrcTask):
       self._arena.add_free_entity(cube)
       self._object_geoms.extend(cube.geoms)
       if i in HUMAN_CUBES:
-        self._welds[i] = self._human.add_holdable(cube.body)
+        self._welds[i] = self._add_holdable(cube.body)
         # The hand capsule encloses the top of a cube it holds, and the
         # kinematic forearms (which cannot give way) sweep over the cubes
         # the person handles: no contacts between those and these cubes.
@@ -134,15 +134,6 @@ class Stacking(base.HrcTask):
     first, third = (self._cubes[i] for i in HUMAN_CUBES)
     self._arena.mjcf_model.contact.add(
         'exclude', name='human_cubes', body1=first.body, body2=third.body)
-    # Collision prevention that lets the fingers go down around a cube on
-    # the table (as pick_place): the tool capsule may enter the table by
-    # its radius less TABLE_CLEARANCE.
-    _, _, radius = self._gripper.enclosing_capsule()
-    self.tool_table_allowance = radius - TABLE_CLEARANCE
-    self._collision_checker = cp_lib.CollisionPrevention(
-        self._robot.description, base_pose=self._kinematics.base_pose,
-        tool_capsule=self.tool_capsule,
-        tool_table_allowance=self.tool_table_allowance)
     self._slots = np.zeros((4, 3))
     self._picks = np.zeros((4, 3))
     self._places = np.zeros((4, 3))
@@ -220,7 +211,7 @@ class Stacking(base.HrcTask):
         if (np.linalg.norm(offset[:2]) < RELEASE_REACH
             and (abs(offset[2]) < RELEASE_HEIGHT
                  or (rising and abs(offset[2]) < RELEASE_DROP))):
-          self._human.release(physics, self._cubes[i].body)
+          self._release(physics, self._cubes[i].body)
           self._human_state[i], self._holding_hand[i] = RELEASED, None
           changed = True
           if i == 0:   # The stack stands where the base cube was put.
@@ -237,14 +228,13 @@ class Stacking(base.HrcTask):
         _SEGMENT_NAMES.index(f'{hand_name}_hand')])
     shift = (palm - _GRIP) - physics.bind(body).xpos
     position = position + hand_body.xmat.reshape(3, 3).T @ shift
-    self._human.hold(physics, body, hand_name, (position, quaternion))
+    self._hold(physics, body, hand_name, (position, quaternion))
     self._human_state[i], self._holding_hand[i] = HELD, hand
 
   def _update_task(self, physics):
-    if self._move_human_cubes(physics):
-      # A grab or release changes the model: recompute what the next step
-      # starts from (as restoring a snapshot does), so snapshots are exact.
-      physics.forward()
+    # A grab or release changes the model: the base then calls
+    # physics.forward() after the step (as restoring a snapshot does).
+    self._move_human_cubes(physics)
     positions = np.array([physics.bind(c.body).xpos for c in self._cubes])
     self._gripped[:] = [self._gripper.is_grasping(physics, c.body)
                         for c in self._cubes]
@@ -304,7 +294,8 @@ class Stacking(base.HrcTask):
 
   # ----------------------------------------------------------- snapshots
 
-  def _task_state(self):
+  def _task_state(self, physics):
+    del physics
     return {'slots': self._slots.copy(), 'picks': self._picks.copy(),
             'places': self._places.copy(),
             'human_state': list(self._human_state),
@@ -315,7 +306,8 @@ class Stacking(base.HrcTask):
             'gripped': self._gripped.copy(), 'success': self._success,
             'toppled': self._toppled}
 
-  def _set_task_state(self, state):
+  def _set_task_state(self, physics, state):
+    del physics
     self._slots = np.array(state['slots'], dtype=float)
     self._picks = np.array(state['picks'], dtype=float)
     self._places = np.array(state['places'], dtype=float)
@@ -328,24 +320,6 @@ class Stacking(base.HrcTask):
     self._gripped = np.array(state['gripped'], dtype=bool)
     self._success = bool(state['success'])
     self._toppled = bool(state['toppled'])
-
-  def get_state(self, physics):
-    # Human.hold changes the model (weld pose, collision bits), which the
-    # physics state does not hold: keep the grips with the snapshot.
-    state = base.HrcTask.get_state(self, physics)
-    state['task']['own']['grips'] = [
-        (self._human.holding(self._cubes[i].body),
-         self._human.grip(physics, self._cubes[i].body)) for i in HUMAN_CUBES]
-    return state
-
-  def set_state(self, physics, state):
-    base.HrcTask.set_state(self, physics, state)
-    for i, (hand, grip) in zip(HUMAN_CUBES, state['task']['own']['grips']):
-      body = self._cubes[i].body
-      self._human.release(physics, body)
-      if hand is not None:
-        self._human.hold(physics, body, hand, grip)
-    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
 
   # -------------------------------------------------------- observables
 
