@@ -252,6 +252,49 @@ class HumanReach:
     self._length_positions = None   # Positions awaiting a length update.
     self._error_vel = (None, None)    # (sample period, velocity errors).
 
+  def get_state(self):
+    """The measurement state as arrays and scalars (for .npz / JSON):
+    `set_state` restores it exactly."""
+    none = np.zeros((self.num_keypoints, 3))
+    lengths_pending = self._length_positions is not None
+    return {
+        'has_positions': self.positions is not None,
+        'positions': none if self.positions is None else self.positions.copy(),
+        'velocities': self.velocities.copy(),
+        'last_measurement_time': (0.0 if self.last_measurement_time is None
+                                  else self.last_measurement_time),
+        'num_measurements': self.num_measurements,
+        'last_period': self._last_period,
+        'covariance': self._covariance.copy(),
+        'extremity_lengths': self._extremity_lengths.copy(),
+        'lengths_pending': lengths_pending,
+        'length_positions': (self._length_positions.copy() if lengths_pending
+                             else none),
+    }
+
+  def set_state(self, state):
+    """Restores a `get_state` (arrays may be lists, as after JSON)."""
+    def array(name, shape):
+      value = np.array(state[name], dtype=float)
+      if value.shape != shape:
+        raise ValueError(f'human state {name!r}: expected shape {shape}, '
+                         f'got {value.shape}')
+      return value
+    points = (self.num_keypoints, 3)
+    has_positions = bool(state['has_positions'])
+    self.positions = array('positions', points) if has_positions else None
+    self.velocities = array('velocities', points)
+    self.last_measurement_time = (float(state['last_measurement_time'])
+                                  if has_positions else None)
+    self.num_measurements = int(state['num_measurements'])
+    self._last_period = float(state['last_period'])
+    self._covariance = array('covariance', (2, 2))
+    self._extremity_lengths = array('extremity_lengths',
+                                    self._ext_length.shape)
+    self._length_positions = (array('length_positions', points)
+                              if bool(state['lengths_pending']) else None)
+    self._error_vel = (None, None)
+
   @property
   def has_velocity(self):
     return self.num_measurements >= 2

@@ -64,6 +64,7 @@ class LongTermPlan:
     self.start_time = float(start_time)
     self._inverse_cycle = 1.0 / self.cycle_time
     self._last = coefficients.shape[0] - 1
+    self._inputs = None   # plan_to_goal's (q0, dq0, ddq0, goal), (4, dof).
 
   @classmethod
   def _lazy(cls, num_samples, dof, sampler, cycle_time, start_time):
@@ -109,6 +110,43 @@ class LongTermPlan:
     view = self._all()[:, 3]
     view.flags.writeable = False
     return view
+
+  def get_state(self):
+    """What defines the plan, as arrays and scalars (no callables): a
+    `plan_to_goal` plan's inputs (q0, dq0, ddq0, goal) (4, dof), or the
+    samples (N, 4, dof) of a plan made from samples. `from_state` rebuilds
+    it bit for bit (Ruckig is deterministic)."""
+    dof = self._coefficients.shape[2]
+    ruckig_plan = self._inputs is not None
+    return {
+        'kind': 'ruckig' if ruckig_plan else 'samples',
+        'inputs': (self._inputs.copy() if ruckig_plan
+                   else np.zeros((4, dof))),
+        'samples': (np.zeros((0, 4, dof)) if ruckig_plan
+                    else np.array(self._coefficients)),
+        'cycle_time': self.cycle_time,
+        'start_time': self.start_time,
+    }
+
+  @classmethod
+  def from_state(cls, state, limits):
+    """The plan of `get_state` (arrays may be lists, as after JSON);
+    limits: the `JointLimits` a Ruckig plan was made with."""
+    kind = str(np.asarray(state['kind']))
+    cycle_time = float(state['cycle_time'])
+    start_time = float(state['start_time'])
+    if kind == 'ruckig':
+      q0, dq0, ddq0, goal = np.asarray(state['inputs'], dtype=float)
+      return plan_to_goal(q0, dq0, ddq0, goal, limits, cycle_time, start_time)
+    if kind == 'samples':
+      samples = np.asarray(state['samples'], dtype=float)
+      if samples.ndim != 3 or samples.shape[1] != 4:
+        raise ValueError('plan samples: expected shape (N, 4, dof), got '
+                         f'{samples.shape}')
+      return cls(samples[:, 0], samples[:, 1], samples[:, 2], samples[:, 3],
+                 cycle_time, start_time)
+    raise ValueError(f"plan kind: expected 'ruckig' or 'samples', got "
+                     f'{kind!r}')
 
   @classmethod
   def at_rest(cls, q, cycle_time, start_time=0.0):
@@ -412,4 +450,5 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
 
   plan = LongTermPlan._lazy(num, dof, sampler, cycle_time, start_time)
   plan._goal = goal
+  plan._inputs = np.stack([q0, dq0, ddq0, goal])
   return plan

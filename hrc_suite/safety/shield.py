@@ -172,11 +172,12 @@ class Shield:
     self._candidate = None       # (plan, start state key) awaiting approval.
     self._pfl_speeds = {}
     self.time = float(t)
-    self.is_safe = self.mode == 'off'
+    self._is_safe = self.mode == 'off'
     self.intervened = False
-    self.first_unsafe_interval = -1
+    self._first_unsafe_interval = -1
     self._reach_distance = np.inf
     self._reach_arguments = None
+    self._pending_check = None   # Mode 'off': the cycle's check, if asked.
     self._previous_q = self._state[0]
     self._lazy = {}
 
@@ -229,10 +230,30 @@ class Shield:
   def s_dot(self):
     return self._verified.s_dot
 
+  def _check_now(self):
+    """Mode 'off': runs this cycle's check when a read-out needs it."""
+    if self._pending_check is not None:
+      arguments, self._pending_check = self._pending_check, None
+      self._is_safe = self._verify(*arguments)
+
+  @property
+  def is_safe(self):
+    """The last cycle's monitored path verified (mode 'off': computed when
+    first asked; True before the first step)."""
+    self._check_now()
+    return self._is_safe
+
+  @property
+  def first_unsafe_interval(self):
+    """First slice of the last check that was not verified (-1: none)."""
+    self._check_now()
+    return self._first_unsafe_interval
+
   @property
   def robot_reach_capsules(self):
     """Robot reach capsules of the last check: c1, c2 (K, L, 3), r (K, L);
     slice 0 is the current step, then the failsafe (None before a check)."""
+    self._check_now()
     if 'robot_reach' not in self._lazy:
       if self._reach_arguments is None:
         return None
@@ -245,6 +266,7 @@ class Shield:
   def human_reach_capsules(self):
     """Human reach capsules of the last check: c1, c2 (M, K, B, 3), r (M, K,
     B) (None without a measurement or check)."""
+    self._check_now()
     if 'human_reach' not in self._lazy:
       if self._reach_arguments is None or self.human.positions is None:
         return None
@@ -258,6 +280,7 @@ class Shield:
     min_distance (inf when nothing was near; a broad phase's lower bound
     when one settled the cycle; -inf when no path could be checked).
     Computed when first asked (the verdict itself stops early)."""
+    self._check_now()
     if self._reach_distance is None:
       self._reach_distance = verification.ssm_verdict(
           self.robot_reach_capsules, self.human_reach_capsules,
@@ -288,6 +311,90 @@ class Shield:
             hr[None]).min())
     return self._lazy['distance']
 
+  # -------------------------------------------------------------- snapshots
+
+  def get_state(self):
+    """The shield's state as a flat dict of arrays, strings, numbers and
+    booleans (no callables), for np.savez / JSON (after .tolist()).
+    `set_state` restores it so that continuing gives identical commands.
+
+    Plans are stored by what defines them (`LongTermPlan.get_state`: a
+    Ruckig plan's inputs) and rebuilt; caches (the pending candidate plan,
+    PFL speed tables, lazy read-outs) are recomputed from the same inputs.
+    In mode 'off' the cycle's check runs first (the read-outs are saved).
+    """
+    self._check_now()
+    plan = self._plan.get_state()
+    human = self.human.get_state()
+    arguments = self._reach_arguments
+    state = {
+        'robot': self.description.name, 'mode': self.mode,
+        'cycle_time': self.cycle_time, 'time': self.time,
+        'command': np.array(self._state), 'previous_q': np.array(
+            self._previous_q),
+        'verified': _path_array(self._verified),
+        'has_intended': self._intended is not None,
+        'intended': _path_array(self._intended or path_lib.Path()),
+        'has_goal': self._goal is not None,
+        'goal': (np.zeros(self.dof) if self._goal is None
+                 else np.array(self._goal)),
+        'goal_pending': self._goal_pending,
+        'is_safe': bool(self._is_safe), 'intervened': bool(self.intervened),
+        'first_unsafe_interval': int(self._first_unsafe_interval),
+        'reach_distance': float(self.reach_distance),
+        'has_reach': arguments is not None,
+        's_edges': np.array([] if arguments is None else arguments[1]),
+        't_edges': np.array([] if arguments is None else arguments[2]),
+        'q_edges': (np.zeros((0, self.dof)) if arguments is None
+                    else np.array(arguments[3])),
+    }
+    state.update({f'plan_{k}': v for k, v in plan.items()})
+    state.update({f'human_{k}': v for k, v in human.items()})
+    return state
+
+  def set_state(self, state):
+    """Restores a `get_state` of a shield of the same robot, mode and cycle
+    (arrays may be lists, as after JSON; 0-d arrays as after np.load)."""
+    def scalar(name):
+      return np.asarray(state[name]).item()
+    for name, mine in (('robot', self.description.name), ('mode', self.mode),
+                       ('cycle_time', self.cycle_time)):
+      if scalar(name) != mine:
+        raise ValueError(f'shield state {name}: expected {mine!r}, got '
+                         f'{scalar(name)!r}')
+    command = np.array(state['command'], dtype=float)
+    if command.shape != (5, self.dof):
+      raise ValueError(f'shield state command: expected shape (5, '
+                       f'{self.dof}), got {command.shape}')
+    self._plan = ltp.LongTermPlan.from_state(
+        {k[5:]: v for k, v in state.items() if k.startswith('plan_')},
+        self.limits)
+    self.human.set_state(
+        {k[6:]: v for k, v in state.items() if k.startswith('human_')})
+    self.time = float(scalar('time'))
+    self._state = command
+    self._previous_q = np.array(state['previous_q'], dtype=float)
+    self._verified = _path_from_array(state['verified'])
+    self._intended = (_path_from_array(state['intended'])
+                      if scalar('has_intended') else None)
+    self._goal = (np.array(state['goal'], dtype=float)
+                  if scalar('has_goal') else None)
+    self._goal_pending = bool(scalar('goal_pending'))
+    self._candidate = None
+    self._pfl_speeds = {}
+    self._is_safe = bool(scalar('is_safe'))
+    self.intervened = bool(scalar('intervened'))
+    self._first_unsafe_interval = int(scalar('first_unsafe_interval'))
+    self._reach_distance = float(scalar('reach_distance'))
+    self._reach_arguments = None
+    if scalar('has_reach'):
+      self._reach_arguments = (
+          self._plan, np.asarray(state['s_edges'], dtype=float).tolist(),
+          np.asarray(state['t_edges'], dtype=float).tolist(),
+          np.array(state['q_edges'], dtype=float).reshape(-1, self.dof))
+    self._pending_check = None
+    self._lazy = {}
+
   # ------------------------------------------------------------------ step
 
   def step(self, human_keypoints, t):
@@ -304,6 +411,7 @@ class Shield:
       self.human.measure(human_keypoints, t)
     self.time = t
     self._lazy = {}
+    self._pending_check = None
     self._previous_q = self._state[0]
     dt = self.cycle_time
 
@@ -335,10 +443,16 @@ class Shield:
     if failsafe is None or intended.s < current.s:
       safe = False   # No monitored path: keep braking on the verified one.
       self._reach_arguments = None
-      self.first_unsafe_interval, self._reach_distance = 0, -np.inf
+      self._first_unsafe_interval, self._reach_distance = 0, -np.inf
+    elif self.mode == 'off':
+      # Unshielded: the check only feeds read-outs; run it when one is
+      # read (its inputs do not change until the next step).
+      safe = None
+      self._reach_arguments = None
+      self._pending_check = (plan, current, failsafe, s_dot_limit)
     else:
       safe = self._verify(plan, current, failsafe, s_dot_limit)
-    self.is_safe = safe
+    self._is_safe = safe
 
     follow = failsafe is not None and (safe or self.mode == 'off')
     if follow:
@@ -462,11 +576,11 @@ class Shield:
     end_q = q_edges[-1].tolist()
     if not all(low <= q <= high for low, q, high in zip(
         self._q_min, end_q, self._q_max)):
-      self.first_unsafe_interval, self._reach_distance = count, -np.inf
+      self._first_unsafe_interval, self._reach_distance = count, -np.inf
       return False
     human = self.human
     if human.positions is None:
-      self.first_unsafe_interval, self._reach_distance = -1, np.inf
+      self._first_unsafe_interval, self._reach_distance = -1, np.inf
       return True
     # Broad phase 1: the human's horizon balls against the robot's whole
     # workspace ball (no kinematics needed).
@@ -478,19 +592,19 @@ class Shield:
         self._base)
     bound = gap - self._workspace_radius
     if bound > 0.0:
-      self.first_unsafe_interval, self._reach_distance = -1, bound
+      self._first_unsafe_interval, self._reach_distance = -1, bound
       return True
     robot = self.robot_reach_capsules
     # Broad phase 2: the same balls against every robot reach capsule.
     bound = kernels.balls_capsules_distance(centre, radius,
                                             *robot) - _BROAD_PHASE_SLACK
     if bound > 0.0:
-      self.first_unsafe_interval, self._reach_distance = -1, bound
+      self._first_unsafe_interval, self._reach_distance = -1, bound
       return True
     human = self.human_reach_capsules
     first = kernels.ssm_first_unsafe(
         *robot, *(np.ascontiguousarray(x) for x in human))
-    self.first_unsafe_interval, self._reach_distance = first, None
+    self._first_unsafe_interval, self._reach_distance = first, None
     if first < 0 or s_dot_limit is None:
       return first < 0
     # PFL: contact is possible from slice `first` on; from then on the
@@ -518,6 +632,25 @@ class Shield:
             + config.measurement_error_pos)
     grow += 0.5 * np.sqrt(np.einsum('bi,bi->b', half, half))
     return 0.5 * (p1 + p2), grow
+
+
+def _path_array(path):
+  """A `path.Path` as 10 floats: s, s_dot, s_ddot, jerk, phase ends and
+  phase jerks."""
+  return np.array([path.s, path.s_dot, path.s_ddot, path.jerk]
+                  + list(path.phase_ends) + list(path.phase_jerks))
+
+
+def _path_from_array(values):
+  """The `path.Path` of `_path_array` (attributes set as stored)."""
+  values = [float(x) for x in np.asarray(values, dtype=float).ravel()]
+  if len(values) != 10:
+    raise ValueError(f'path state: expected 10 numbers, got {len(values)}')
+  path = path_lib.Path.__new__(path_lib.Path)
+  path.s, path.s_dot, path.s_ddot, path.jerk = values[:4]
+  path.phase_ends = values[4:7]
+  path.phase_jerks = values[7:]
+  return path
 
 
 def pfl_speed_tables(speeds, compiled=True):
