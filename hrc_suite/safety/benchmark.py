@@ -3,7 +3,7 @@
 `python -m hrc_suite.safety.benchmark` prints the median and 95th
 percentile (microseconds) of `Shield.step` for every robot in two scenes,
 with a new random goal every 12 cycles (the reference's 20 Hz policy at a
-4 ms cycle; replanning is included), in SSM or PFL mode (--mode):
+4 ms cycle; replanning is included), in SSM, PFL or off mode (--mode):
 * close: a person across the table reaching back and forth at the robot's
   gripper, so verification needs the full human reachable sets and the
   shield intervenes;
@@ -102,7 +102,7 @@ def main(argv=None):
   parser.add_argument('--cycles', type=int, default=1500)
   parser.add_argument('--robots', nargs='*',
                       default=list(robot_description.ROBOT_NAMES))
-  parser.add_argument('--mode', choices=('ssm', 'pfl'), default='ssm')
+  parser.add_argument('--mode', choices=shield_lib.MODES, default='ssm')
   args = parser.parse_args(argv)
   print(f'Shield ({args.mode}) cycle time (us), {args.cycles} cycles per '
         f'row, new goal every {GOAL_EVERY} cycles; wall clock and thread CPU '

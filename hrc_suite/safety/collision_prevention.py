@@ -28,6 +28,15 @@ point more than `max_step` (1 cm); every configuration between two samples
 is within half a step of a sample, so capsules are inflated by the motion
 of half a step at the samples: a collision anywhere on the path is detected
 (flagged samples are refined, see `paths_free`).
+
+Planned paths (`planned_paths_free`, `filter_action(plan_from=shield)`):
+the robot does not move on the straight path but along the shield's
+long-term plan from its current command, which overshoots when the robot
+is moving; the plan is made exactly as the shield will make it and sampled
+on the shield's own per-cycle polynomial, with margins from its
+derivatives. Escape rule (both kinds): a start already in collision does
+not reject every path; an element in collision at the start may not
+penetrate deeper until it is free (see `paths_free`).
 """
 
 import numpy as np
