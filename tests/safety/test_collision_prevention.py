@@ -283,10 +283,12 @@ def test_start_in_table_escapes_but_may_not_go_deeper():
   assert free[2] == (monotone and after and free_from < len(depth))
 
 
-def test_random_actions_get_the_robot_out_of_the_table():
+@pytest.mark.parametrize('planned', [False, True])
+def test_random_actions_get_the_robot_out_of_the_table(planned):
   """The deadlock of pick-and-place: from slightly inside the table, random
   joint-delta actions with 'zero' replacement reach a free configuration
-  (before the escape rule every action was replaced for ever)."""
+  (before the escape rule every action was replaced for ever). planned:
+  checked along the plan of a shield at rest at q."""
   description, prevention, q = _panda_near_table(0.004)
   rs = np.random.RandomState(1)
   depths = []
@@ -296,7 +298,9 @@ def test_random_actions_get_the_robot_out_of_the_table():
     if not prevention.in_collision(q):
       break
     action = rs.uniform(-1.0, 1.0, 7)
-    _, q, _ = prevention.filter_action(action, q, lambda a: q + 0.05 * a)
+    plan_from = _moving(q, np.zeros(7), description) if planned else None
+    _, q, _ = prevention.filter_action(action, q, lambda a: q + 0.05 * a,
+                                       plan_from=plan_from)
   assert not prevention.in_collision(q)
   assert np.all(np.diff(depths) <= 1e-9)    # Never pushed deeper.
   assert prevention.num_replacements < 40
