@@ -128,6 +128,8 @@ class HrcTask(composer.Task):
   # stay this far above the table, low enough to grasp objects lying on it.
   FINGERTIP_TABLE_CLEARANCE = None
   CARTESIAN_YAW = actions.GRIPPER_YAW        # rad, gripper yaw of IK goals
+  # Attribute names that hold the task's own episode state (snapshots).
+  TASK_STATE = ()
 
   def __init__(self, robot='panda', action_space=None, shield=None,
                shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
@@ -368,14 +370,16 @@ class HrcTask(composer.Task):
     return False
 
   def _task_state(self, physics):
-    """The task's own episode state (deep-copied by get_state); grips and
-    welds of holdable objects are saved by the base."""
+    """The task's own episode state: the TASK_STATE attributes
+    (deep-copied by get_state); grips and welds are saved by the base."""
     del physics
-    return {}
+    return {name: getattr(self, name) for name in self.TASK_STATE}
 
   def _set_task_state(self, physics, state):
-    """Restores `_task_state`; physics is already restored."""
-    del physics, state
+    """Restores `_task_state` (a deep copy); physics is already restored."""
+    del physics
+    for name in self.TASK_STATE:
+      setattr(self, name, state[name])
 
   def _task_observables(self):
     """Task-specific observables: name -> observable."""

@@ -112,6 +112,8 @@ class Hammering(base.HrcTask):
       'human_distances')}
   EXTRA_COUNTERS = ('nail_blows',)
   CARTESIAN_YAW = HOLD_YAW   # home yaw for robots that cannot turn so
+  TASK_STATE = ('_nail_target', '_success', '_gripped', '_free_steps',
+                '_progress', '_blow', '_hand')
 
   def _build_task(self):
     self._hold_ik = ik_lib.InverseKinematics(self._kinematics)
@@ -262,25 +264,6 @@ class Hammering(base.HrcTask):
 
   def _task_reward_range(self):
     return (-1.0, 1.0)
-
-  # ----------------------------------------------------------- snapshots
-
-  def _task_state(self, physics):
-    del physics
-    return {'nail_target': self._nail_target.copy(),
-            'success': self._success, 'gripped': self._gripped,
-            'free_steps': self._free_steps, 'progress': self._progress,
-            'blow': self._blow, 'hand': self._hand}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._nail_target = np.array(state['nail_target'], dtype=float)
-    self._success = bool(state['success'])
-    self._gripped = bool(state['gripped'])
-    self._free_steps = int(state['free_steps'])
-    self._progress = float(state['progress'])
-    self._blow = bool(state['blow'])
-    self._hand = str(state['hand'])
 
   # -------------------------------------------------------- observables
 

@@ -52,6 +52,7 @@ from hrc_suite.entities import props
 from hrc_suite.human import keypoints
 from hrc_suite.safety import geometry
 from hrc_suite.tasks import base
+from hrc_suite.tasks import common
 
 # Reference: human placement randomisation for the handovers.
 PLACEMENT_RANGE = (0.0, 0.2, 0.1)        # m, m, rad
@@ -116,8 +117,9 @@ class _Handover(base.HrcTask):
   HAS_GRIPPER_ACTION = True
   EXTRA_COUNTERS = ('handovers',)
   OBSERVATION_PRESETS = {'paper': (
-      'object_gripped', 'object_difference', 'target_difference',
+      'object_gripped', 'eef_to_object', 'eef_to_target',
       'gripper_aperture', 'human_distances')}
+  TASK_STATE = ('_success', '_gripped', '_event_time', '_holding_hand')
   EVENT = None   # the event after which success_after counts
 
   def __init__(self, success_after=None, **kwargs):
@@ -210,21 +212,6 @@ class _Handover(base.HrcTask):
     self._hammer.set_pose(physics, grip_point - site_x * offset, quat)
     self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
 
-  # ---------------------------------------------------------- snapshots
-
-  def _task_state(self, physics):
-    del physics
-    return {'success': self._success, 'gripped': self._gripped,
-            'event_time': self._event_time,
-            'holding_hand': self._holding_hand}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._success = bool(state['success'])
-    self._gripped = bool(state['gripped'])
-    self._event_time = state['event_time']
-    self._holding_hand = state['holding_hand']
-
   # -------------------------------------------------------- observables
 
   def target(self, physics):
@@ -236,41 +223,19 @@ class _Handover(base.HrcTask):
 
   def _task_observables(self):
     tcp = self._robot.tcp_site
-
-    def eef(physics):
-      return physics.bind(tcp).xpos
-
-    def in_eef(physics, point):
-      site = physics.bind(tcp)
-      return (point - site.xpos) @ site.xmat.reshape(3, 3)
-
-    obj = self._object_position
-    return {
+    observables = {
         'object_gripped': observable.Generic(
-            lambda p: np.array([float(self._gripped)])),
-        'object_difference': observable.Generic(lambda p: obj(p) - eef(p)),
-        'target_difference': observable.Generic(
-            lambda p: self._target(p) - eef(p)),
-        'object_position': observable.Generic(obj),
-        'object_quaternion': observable.Generic(
-            lambda p: physics_quaternion(p, self._hammer.body)),
-        'object_in_eef_frame': observable.Generic(
-            lambda p: in_eef(p, obj(p))),
-        'object_distance': observable.Generic(
-            lambda p: np.array([np.linalg.norm(obj(p) - eef(p))])),
-        'target_position': observable.Generic(self._target),
-        'target_in_eef_frame': observable.Generic(
-            lambda p: in_eef(p, self._target(p))),
-        'target_distance': observable.Generic(
-            lambda p: np.array([np.linalg.norm(self._target(p) - eef(p))])),
+            lambda physics: np.array([float(self._gripped)])),
+        'object_quaternion': observable.MJCFFeature(
+            'xquat', self._hammer.body),
         'object_held_by_human': observable.Generic(
-            lambda p: np.array([float(self._holder() is not None)])),
+            lambda physics: np.array([float(self._holder() is not None)])),
     }
-
-
-def physics_quaternion(physics, body):
-  """World orientation (w, x, y, z) of an MJCF body."""
-  return physics.bind(body).xquat.copy()
+    observables.update(common.point_observables(tcp, 'object',
+                                                self._object_position))
+    observables.update(common.point_observables(tcp, 'target',
+                                                self._target))
+    return observables
 
 
 class RobotToHuman(_Handover):
@@ -351,6 +316,8 @@ class HumanToRobot(_Handover):
 
   MOTIONS = 'handover_human_to_robot'
   EVENT = 'object_placed'
+  TASK_STATE = _Handover.TASK_STATE + ('_picked', '_pick_grip',
+                                       '_at_target', '_turn')
 
   def _build_task(self):
     super()._build_task()
@@ -470,18 +437,6 @@ class HumanToRobot(_Handover):
       return GRIPPED_REWARD
     return -1.0
 
-  def _task_state(self, physics):
-    state = super()._task_state(physics)
-    state.update(picked=self._picked, pick_grip=self._pick_grip,
-                 at_target=self._at_target, turn=self._turn)
-    return state
-
-  def _set_task_state(self, physics, state):
-    super()._set_task_state(physics, state)
-    self._picked = bool(state['picked'])
-    self._pick_grip = state['pick_grip']
-    self._at_target = bool(state['at_target'])
-    self._turn = float(state['turn'])
 
 
 @suite.register('handover', 'robot_to_human',

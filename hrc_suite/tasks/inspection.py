@@ -31,7 +31,6 @@ front of a person, who inspects it and leaves (reference-benchmark.md).
   cube). The clip's end is the base's `clip_ended`.
 """
 
-from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite import layout
@@ -41,6 +40,7 @@ from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
+from hrc_suite.tasks import common
 
 EVENT = clip_lib.TASK_EVENTS['inspection'][0]   # 'object_presented'
 SUCCESS_DISTANCE = 0.1       # m, object to inspection target (reference)
@@ -80,6 +80,8 @@ class Inspection(base.HrcTask):
                                    'eef_to_target')}
   EXTRA_COUNTERS = ('presentations',)
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
+  TASK_STATE = ('_target', '_inspecting', '_kept', '_success', '_gripped',
+                '_at_target', '_presented')
 
   def _build_task(self):
     self._cube = props.Cube()
@@ -142,25 +144,16 @@ class Inspection(base.HrcTask):
 
   def _initialize_task(self, physics, random_state):
     self._reset_progress()
-    model = self._kinematics
-    base_pose = model.base_pose
-    height = layout.TABLE_TOP_Z + self._cube.size / 2
     q_home = self._robot.description.q_home
-    low = (OBJECT_REGION_X[0], OBJECT_REGION_Y[0], 0.0)
-    high = (OBJECT_REGION_X[1], OBJECT_REGION_Y[1], 0.0)
-    for _ in range(OBJECT_ATTEMPTS):
-      position = base_pose[:3, :3] @ random_state.uniform(low, high) + (
-          base_pose[:3, 3])
-      position[2] = height
-      yaw = random_state.uniform(-OBJECT_MAX_YAW, OBJECT_MAX_YAW)
-      grasp = position + (0.0, 0.0, GRASP_TCP_ABOVE_CENTRE)
-      if (self._reachable(grasp, q_home, random_state) and self._reachable(
-          grasp + (0.0, 0.0, HOVER_HEIGHT), q_home, random_state)):
-        break
-    else:
-      raise RuntimeError(f'Inspection: no reachable cube position in '
-                         f'{OBJECT_ATTEMPTS} samples for '
-                         f'{self._robot.description.name}')
+    position = common.sample_table_point(
+        random_state, self._kinematics.base_pose, OBJECT_REGION_X,
+        OBJECT_REGION_Y, layout.TABLE_TOP_Z + self._cube.size / 2,
+        lambda point: common.top_grasp_reachable(
+            self._ik, self._collision_checker, point, q_home,
+            GRASP_TCP_ABOVE_CENTRE, HOVER_HEIGHT, actions.GRIPPER_YAW),
+        OBJECT_ATTEMPTS,
+        f'Inspection cube position for {self._robot.description.name}')
+    yaw = random_state.uniform(-OBJECT_MAX_YAW, OBJECT_MAX_YAW)
     quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
     self._cube.set_pose(physics, position, quat)
     self._target = self._clip_target()
@@ -209,58 +202,13 @@ class Inspection(base.HrcTask):
   def _task_reward_range(self):
     return (IDLE_REWARD, SUCCESS_REWARD)
 
-  def _task_state(self, physics):
-    del physics
-    return {'target': self._target.copy(),
-            'inspecting': self._inspecting, 'kept': self._kept,
-            'success': self._success, 'gripped': self._gripped,
-            'at_target': self._at_target, 'presented': self._presented}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._target = np.array(state['target'], dtype=float)
-    for name in ('inspecting', 'kept', 'success', 'gripped', 'at_target'):
-      setattr(self, f'_{name}', bool(state[name]))
-    self._presented = int(state['presented'])
-
   # -------------------------------------------------------- observables
 
   def _task_observables(self):
-    tcp, body = self._robot.tcp_site, self._cube.body
-
-    def eef_to_object(physics):
-      return physics.bind(body).xpos - physics.bind(tcp).xpos
-
-    def eef_to_target(physics):
-      return self._target - physics.bind(tcp).xpos
-
-    def in_eef(vector):
-      def observe(physics):
-        return vector(physics) @ physics.bind(tcp).xmat.reshape(3, 3)
-      return observe
-
-    def norm(vector):
-      return lambda physics: np.array([np.linalg.norm(vector(physics))])
-
-    return {
-        'object_gripped': observable.Generic(
-            lambda physics: np.array([float(props.is_gripped(
-                physics, self._gripper, self._cube))])),
-        'eef_to_object': observable.Generic(eef_to_object),
-        'eef_to_target': observable.Generic(eef_to_target),
-        'object_position': observable.MJCFFeature('xpos', body),
-        'object_quaternion': observable.MJCFFeature('xquat', body),
-        'object_in_eef_frame': observable.Generic(in_eef(eef_to_object)),
-        'object_distance': observable.Generic(norm(eef_to_object)),
-        'target_position': observable.Generic(
-            lambda physics: self._target.copy()),
-        'target_in_eef_frame': observable.Generic(in_eef(eef_to_target)),
-        'target_distance': observable.Generic(norm(eef_to_target)),
-        'object_at_target': observable.Generic(
-            lambda physics: np.array([float(np.linalg.norm(
-                physics.bind(body).xpos - self._target)
-                <= SUCCESS_DISTANCE)])),
-    }
+    return common.object_target_observables(
+        self._robot.tcp_site, self._cube.body,
+        lambda physics: self._target, lambda: self._gripped,
+        SUCCESS_DISTANCE)
 
 
 @suite.register('inspection', 'default',

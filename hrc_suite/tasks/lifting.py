@@ -95,6 +95,8 @@ class Lifting(base.HrcTask):
   EXTRA_COUNTERS = ('released_steps', 'lifts')
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
   CARTESIAN_YAW = GRIP_YAW
+  TASK_STATE = ('_released', '_gripped', '_failed_now', '_success', '_tilt',
+                '_lifted', '_hand')
 
   def _build_task(self):
     self._board = props.Board(handle_inset=HANDLE_INSET)
@@ -241,24 +243,6 @@ class Lifting(base.HrcTask):
 
   def _task_reward_range(self):
     return (FAILURE_REWARD, BALANCED_REWARD)
-
-  # -------------------------------------------------------------- state
-
-  def _task_state(self, physics):
-    del physics
-    return {'released': self._released, 'gripped': self._gripped,
-            'failed': self._failed_now, 'success': self._success,
-            'tilt': self._tilt, 'lifted': self._lifted, 'hand': self._hand}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._released = int(state['released'])
-    self._gripped = bool(state['gripped'])
-    self._failed_now = bool(state['failed'])
-    self._success = bool(state['success'])
-    self._tilt = float(state['tilt'])
-    self._lifted = int(state['lifted'])
-    self._hand = state['hand']
 
   # -------------------------------------------------------- observables
 

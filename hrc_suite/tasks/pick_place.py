@@ -33,7 +33,6 @@ FINGERTIP_TABLE_CLEARANCE) so the fingers can go down around the cube
 
 import math
 
-from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite import layout
@@ -42,6 +41,7 @@ from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import props
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
+from hrc_suite.tasks import common
 
 SUCCESS_DISTANCE = 0.1       # m, cube to target (reference)
 REWARD_SUCCESS = 1.0         # reference sparse reward
@@ -97,6 +97,8 @@ class PickPlace(base.HrcTask):
                                    'human_distances')}
   EXTRA_COUNTERS = ('grasps', 'gripped_steps', 'object_at_target_steps')
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
+  TASK_STATE = ('_target', '_object_side', '_success', '_gripped',
+                '_distance')
 
   def _build_task(self):
     self._cube = props.Cube()
@@ -138,30 +140,18 @@ class PickPlace(base.HrcTask):
   def _reachable(self, centre):
     """True if the TCP reaches above `centre` and down to grasp it, gripper
     down, collision free."""
-    q_home = self._robot.description.q_home
-    above = self._ik.solve(centre + (0.0, 0.0, APPROACH_HEIGHT), q_home,
-                           actions.GRIPPER_YAW)
-    if not above.success:
-      return False
-    grasp = self._ik.solve(centre + (0.0, 0.0, GRASP_TCP_ABOVE_CENTRE),
-                           above.q, actions.GRIPPER_YAW)
-    checker = self._collision_checker
-    return bool(grasp.success and not checker.in_collision(above.q)
-                and not checker.in_collision(grasp.q))
+    return common.top_grasp_reachable(
+        self._ik, self._collision_checker, centre,
+        self._robot.description.q_home, GRASP_TCP_ABOVE_CENTRE,
+        APPROACH_HEIGHT - GRASP_TCP_ABOVE_CENTRE, actions.GRIPPER_YAW)
 
   def _sample_point(self, side, random_state):
-    base_pose = self._kinematics.base_pose
-    height = layout.TABLE_TOP_Z + self._cube.size / 2
-    for _ in range(SAMPLE_ATTEMPTS):
-      local = np.array([random_state.uniform(*REGION_X),
-                        side * random_state.uniform(*REGION_ABS_Y), 0.0])
-      point = base_pose[:3, :3] @ local + base_pose[:3, 3]
-      point[2] = height
-      if self._reachable(point):
-        return point
-    raise RuntimeError(
-        f'PickPlace: no reachable point on side {side:+.0f} in '
-        f'{SAMPLE_ATTEMPTS} samples for {self._robot.description.name}')
+    region_y = (side * REGION_ABS_Y[0], side * REGION_ABS_Y[1])
+    return common.sample_table_point(
+        random_state, self._kinematics.base_pose, REGION_X, region_y,
+        layout.TABLE_TOP_Z + self._cube.size / 2, self._reachable,
+        SAMPLE_ATTEMPTS, f'PickPlace point on side {side:+.0f} for '
+        f'{self._robot.description.name}')
 
   def _initialize_task(self, physics, random_state):
     self._object_side = 1.0 if random_state.uniform() < 0.5 else -1.0
@@ -199,59 +189,13 @@ class PickPlace(base.HrcTask):
   def _task_reward_range(self):
     return (REWARD_OTHERWISE, REWARD_SUCCESS)
 
-  def _task_state(self, physics):
-    del physics
-    return {'target': self._target.copy(), 'side': self._object_side,
-            'success': self._success, 'gripped': self._gripped,
-            'distance': self._distance}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._target = np.array(state['target'], dtype=float)
-    self._object_side = float(state['side'])
-    self._success = bool(state['success'])
-    self._gripped = bool(state['gripped'])
-    self._distance = float(state['distance'])
-
   # ---------------------------------------------------------- observables
 
   def _task_observables(self):
-    cube, tcp = self._cube.body, self._robot.tcp_site
-
-    def eef_to_object(physics):
-      return physics.bind(cube).xpos - physics.bind(tcp).xpos
-
-    def eef_to_target(physics):
-      return self._target - physics.bind(tcp).xpos
-
-    def in_eef(physics, vector):
-      return vector @ physics.bind(tcp).xmat.reshape(3, 3)
-
-    return {
-        # The flag the reward used this step (updated in _update_task).
-        'object_gripped': observable.Generic(
-            lambda physics: np.array([float(self._gripped)])),
-        'eef_to_object': observable.Generic(eef_to_object),
-        'eef_to_target': observable.Generic(eef_to_target),
-        'object_position': observable.MJCFFeature('xpos', cube),
-        'object_quaternion': observable.MJCFFeature('xquat', cube),
-        'object_in_eef_frame': observable.Generic(
-            lambda physics: in_eef(physics, eef_to_object(physics))),
-        'object_distance': observable.Generic(
-            lambda physics: np.array([np.linalg.norm(eef_to_object(
-                physics))])),
-        'target_position': observable.Generic(
-            lambda physics: self._target.copy()),
-        'target_in_eef_frame': observable.Generic(
-            lambda physics: in_eef(physics, eef_to_target(physics))),
-        'target_distance': observable.Generic(
-            lambda physics: np.array([np.linalg.norm(eef_to_target(
-                physics))])),
-        'object_at_target': observable.Generic(
-            lambda physics: np.array([float(np.linalg.norm(
-                physics.bind(cube).xpos - self._target)
-                                            <= SUCCESS_DISTANCE)])),
-    }
+    return common.object_target_observables(
+        self._robot.tcp_site, self._cube.body,
+        lambda physics: self._target, lambda: self._gripped,
+        SUCCESS_DISTANCE)
 
 
 class PickPlaceClose(PickPlace):

@@ -45,6 +45,7 @@ class Reach(base.HrcTask):
   HORIZON = 100
   HAS_GRIPPER_ACTION = False
   OBSERVATION_PRESETS = {'paper': ('goal_difference',)}
+  TASK_STATE = ('_goal_q', '_goal_position', '_success')
 
   def _build_task(self):
     # The visual-only marker hangs on a mocap attachment frame: its position
@@ -134,18 +135,6 @@ class Reach(base.HrcTask):
       reach += model.tcp_offset
       largest = float(2 * reach)
     return (-DENSE_SCALE * largest, 0.0)
-
-  def _task_state(self, physics):
-    del physics
-    return {'goal_q': self._goal_q.copy(),
-            'goal_position': self._goal_position.copy(),
-            'success': self._success}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._goal_q = np.array(state['goal_q'], dtype=float)
-    self._goal_position = np.array(state['goal_position'], dtype=float)
-    self._success = bool(state['success'])
 
   # -------------------------------------------------------- observables
 

@@ -110,6 +110,9 @@ class Stacking(base.HrcTask):
   EXTRA_COUNTERS = ('cubes_placed',)
   # The fingers go down around a cube on the table (as pick and place).
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
+  TASK_STATE = ('_slots', '_picks', '_places', '_human_state',
+                '_holding_hand', '_held_height', '_stacked', '_stacked_at',
+                '_in_slot', '_gripped', '_success', '_toppled')
 
   def _build_task(self):
     self._cubes = props.make_stacking_cubes()
@@ -291,35 +294,6 @@ class Stacking(base.HrcTask):
 
   def _task_reward_range(self):
     return (REWARD_TOPPLED, REWARD_SUCCESS)
-
-  # ----------------------------------------------------------- snapshots
-
-  def _task_state(self, physics):
-    del physics
-    return {'slots': self._slots.copy(), 'picks': self._picks.copy(),
-            'places': self._places.copy(),
-            'human_state': list(self._human_state),
-            'holding_hand': list(self._holding_hand),
-            'held_height': self._held_height.copy(),
-            'stacked': self._stacked.copy(),
-            'stacked_at': self._stacked_at.copy(), 'in_slot': self._in_slot.copy(),
-            'gripped': self._gripped.copy(), 'success': self._success,
-            'toppled': self._toppled}
-
-  def _set_task_state(self, physics, state):
-    del physics
-    self._slots = np.array(state['slots'], dtype=float)
-    self._picks = np.array(state['picks'], dtype=float)
-    self._places = np.array(state['places'], dtype=float)
-    self._human_state = list(state['human_state'])
-    self._holding_hand = list(state['holding_hand'])
-    self._held_height = np.array(state['held_height'], dtype=float)
-    self._stacked = np.array(state['stacked'], dtype=bool)
-    self._stacked_at = np.array(state['stacked_at'], dtype=float)
-    self._in_slot = np.array(state['in_slot'], dtype=bool)
-    self._gripped = np.array(state['gripped'], dtype=bool)
-    self._success = bool(state['success'])
-    self._toppled = bool(state['toppled'])
 
   # -------------------------------------------------------- observables
 

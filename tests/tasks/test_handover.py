@@ -207,7 +207,7 @@ def test_reset_and_step(task, robot, space):
   timestep = env.reset()
   dof = env.task.robot.dof
   expected = {'joint_positions': (dof,), 'object_gripped': (1,),
-              'object_difference': (3,), 'target_difference': (3,),
+              'eef_to_object': (3,), 'eef_to_target': (3,),
               'human_distances': (3,), 'object_quaternion': (4,),
               'object_in_eef_frame': (3,)}
   for name, shape in expected.items():
@@ -235,9 +235,9 @@ def test_paper_observations(task):
   physics, t = env.physics, env.task
   tcp = physics.bind(t.robot.tcp_site).xpos
   np.testing.assert_allclose(
-      observation['object_difference'],
+      observation['eef_to_object'],
       physics.bind(t.hammer.grip_site).xpos - tcp, atol=1e-12)
-  np.testing.assert_allclose(observation['target_difference'],
+  np.testing.assert_allclose(observation['eef_to_target'],
                              t.target(physics) - tcp, atol=1e-12)
 
 
