@@ -8,6 +8,8 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import hammering
 from hrc_suite.tasks import metrics
 
+import checks   # tests/tasks/checks.py
+
 ROBOTS = ('panda', 'schunk')
 SPACES = ('joint', 'cartesian')
 
@@ -26,22 +28,6 @@ def _hold_action(env):
   return action
 
 
-def _rollout(env, actions_):
-  return [env.step(a).observation for a in actions_]
-
-
-def _random_actions(env, count, seed=1):
-  rs = np.random.RandomState(seed)
-  return [rs.uniform(-1, 1, env.action_spec().shape) for _ in range(count)]
-
-
-def _assert_same(first, second):
-  assert len(first) == len(second)
-  for a, b in zip(first, second):
-    for key in a:
-      np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-
-
 @pytest.mark.parametrize('robot', ROBOTS)
 @pytest.mark.parametrize('space', SPACES)
 def test_reset_and_step(robot, space):
@@ -49,17 +35,8 @@ def test_reset_and_step(robot, space):
   timestep = env.reset()
   assert timestep.observation['object_gripped'].shape == (1,)
   assert timestep.observation['eef_to_target'].shape == (3,)
-  low, high = env.task.reward_range
-  assert (low, high) == (-1.0 + env.task.collision_reward, 1.0)
-  rs = np.random.RandomState(0)
-  steps = 0
-  while not timestep.last():
-    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
-    steps += 1
-    assert low <= timestep.reward <= high
-    for name, value in timestep.observation.items():
-      assert np.all(np.isfinite(value)), name
-  assert steps <= 10
+  assert env.task.reward_range == (-1.0 + env.task.collision_reward, 1.0)
+  assert len(checks.run_random_episode(env, timestep)) <= 10
 
 
 def test_paper_observations_and_defaults():
@@ -130,32 +107,19 @@ def test_success_and_delayed_reward():
 
 @pytest.mark.parametrize('space', SPACES)
 def test_same_seed_same_observations(space):
-  runs = []
-  for _ in range(2):
-    env = _env(seed=3, space=space, observations='full', time_limit=3.0)
-    runs.append([env.reset().observation]
-                + _rollout(env, _random_actions(env, 8)))
-  _assert_same(*runs)
+  checks.assert_same_seed_same_episode(
+      lambda: _env(seed=3, space=space, observations='full', time_limit=3.0))
 
 
 @pytest.mark.parametrize('space', SPACES)
 def test_snapshot_restore_is_bit_exact(space):
   env = _env(seed=5, space=space, observations='full', time_limit=10.0)
   env.reset()
-  _rollout(env, [_hold_action(env)] * 4)
-  state = env.task.get_state(env.physics)
-  replay = _random_actions(env, 6, seed=3)
-  first = _rollout(env, replay)
-  metrics_first = dict(env.task.episode_metrics)
-  _rollout(env, _random_actions(env, 4, seed=4))
-  env.task.set_state(env.physics, state)
-  _assert_same(first, _rollout(env, replay))
-  assert env.task.episode_metrics == metrics_first
-  # Into a fresh environment (another clip, another weld).
-  fresh = _env(seed=99, space=space, observations='full', time_limit=10.0)
-  fresh.reset()
-  fresh.task.set_state(fresh.physics, state)
-  _assert_same(first, _rollout(fresh, replay))
+  checks.rollout(env, [_hold_action(env)] * 4)
+  # Into a fresh environment too (another clip, another weld).
+  checks.assert_snapshot_restores(
+      env, lambda: _env(seed=99, space=space, observations='full',
+                        time_limit=10.0))
 
 
 def _oracle(env):

@@ -12,6 +12,8 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import handover
 
+import checks   # tests/tasks/checks.py
+
 ROBOTS = ('panda', 'schunk')
 SPACES = ('joint', 'cartesian')
 TASKS = ('robot_to_human', 'human_to_robot')
@@ -148,23 +150,6 @@ def _run_oracle(env, until=None, max_steps=1000, oracle_class=None):
   return timestep, taken
 
 
-def _rollout(env, action_list):
-  out = []
-  for action in action_list:
-    timestep = env.step(action)
-    out.append((timestep.reward, timestep.discount,
-                {k: v.copy() for k, v in timestep.observation.items()}))
-  return out
-
-
-def _assert_same(first, second):
-  assert len(first) == len(second)
-  for (r1, d1, o1), (r2, d2, o2) in zip(first, second):
-    assert r1 == r2 and d1 == d2
-    for name in o1:
-      np.testing.assert_array_equal(o1[name], o2[name], err_msg=name)
-
-
 # ------------------------------------------------------------------ specs
 
 
@@ -212,18 +197,11 @@ def test_reset_and_step(task, robot, space):
               'object_in_eef_frame': (3,)}
   for name, shape in expected.items():
     assert timestep.observation[name].shape == shape, name
-  low, high = env.task.reward_range
-  rs = np.random.RandomState(0)
-  steps = 0
-  while not timestep.last():
-    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
-    steps += 1
-    assert low <= timestep.reward <= high
-    assert timestep.reward in (-1.0, -0.25, 0.0, 1.0) or (
-        timestep.reward <= env.task.collision_reward)
-    for name, value in timestep.observation.items():
-      assert np.all(np.isfinite(value)), name
-  assert steps == 15
+  rewards = checks.run_random_episode(env, timestep)
+  assert len(rewards) == 15
+  for reward in rewards:
+    assert reward in (-1.0, -0.25, 0.0, 1.0) or (
+        reward <= env.task.collision_reward)
 
 
 @pytest.mark.parametrize('task', TASKS)
@@ -278,13 +256,9 @@ def test_bad_success_after_is_rejected():
 
 
 def test_same_seed_same_episode():
-  runs = []
-  for _ in range(2):
-    env = _env('human_to_robot', 'schunk', seed=11, observations='full')
-    env.reset()
-    runs.append(_rollout(env, np.random.RandomState(1).uniform(
-        -1, 1, (15, 4))))
-  _assert_same(*runs)
+  checks.assert_same_seed_same_episode(
+      lambda: _env('human_to_robot', 'schunk', seed=11, observations='full'),
+      steps=15)
 
 
 # ------------------------------------------------------- events, oracles
@@ -317,20 +291,17 @@ def test_snapshot_restore_is_bit_exact_while_the_human_holds(task):
   for _ in range(3):
     env.step(np.array([0.0, 0.0, 0.0, -1.0 if task == 'robot_to_human'
                        else 0.0]))
-  state = env.task.get_state(env.physics)
-  replay = np.random.RandomState(3).uniform(-1, 1, (8, 4))
-  first = _rollout(env, replay)
-  metrics = dict(env.task.episode_metrics)
-  _rollout(env, np.random.RandomState(4).uniform(-1, 1, (5, 4)))
-  env.task.set_state(env.physics, state)
-  _assert_same(first, _rollout(env, replay))
-  assert env.task.episode_metrics == metrics
-  # Into a fresh environment whose hammer nobody holds.
-  fresh = _env(task, seed=99, observations='full')
-  fresh.reset()
-  fresh.task.set_state(fresh.physics, state)
-  assert held(fresh)
-  _assert_same(first, _rollout(fresh, replay))
+  # Into a fresh environment whose hammer nobody holds, too.
+  fresh = []
+
+  def make_fresh():
+    fresh.append(_env(task, seed=99, observations='full'))
+    return fresh[-1]
+
+  state = checks.assert_snapshot_restores(env, make_fresh, replay=8,
+                                          diverge=5)
+  fresh[0].task.set_state(fresh[0].physics, state)
+  assert held(fresh[0])
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import inspection
 from hrc_suite.tasks import metrics
 
+import checks    # tests/tasks/checks.py
 import oracles   # tests/tasks/oracles.py
 
 ROBOTS = ('panda', 'schunk')
@@ -81,44 +82,19 @@ def test_target_is_the_clip_point_when_reachable():
   assert np.linalg.norm(cross) < 1e-9
 
 
-def _rollout(env, count, seed=1):
-  rs = np.random.RandomState(seed)
-  out = []
-  for _ in range(count):
-    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
-    out.append((timestep.reward, {k: v.copy() for k, v in
-                                  timestep.observation.items()}))
-  return out
-
-
-def _assert_same(first, second):
-  assert len(first) == len(second)
-  for (r1, o1), (r2, o2) in zip(first, second):
-    assert r1 == r2
-    for name in o1:
-      np.testing.assert_array_equal(o1[name], o2[name])
-
-
 @pytest.mark.parametrize('space', SPACES)
 def test_same_seed_same_episode(space):
-  runs = []
-  for _ in range(2):
-    env = _env('panda', space, seed=4, observations='full')
-    env.reset()
-    runs.append(_rollout(env, 8))
-  _assert_same(*runs)
+  checks.assert_same_seed_same_episode(
+      lambda: _env('panda', space, seed=4, observations='full'))
 
 
 def test_snapshot_restore_is_bit_exact():
   env = _env('panda', 'cartesian', observations='full', time_limit=5.0)
   env.reset()
-  _rollout(env, 5, seed=2)
-  state = env.task.get_state(env.physics)
-  first = _rollout(env, 8, seed=3)
-  env.reset()
-  env.task.set_state(env.physics, state)
-  second = _rollout(env, 8, seed=3)
-  _assert_same(first, second)
+  checks.rollout(env, checks.random_actions(env, 5, seed=2))
+  checks.assert_snapshot_restores(
+      env, lambda: _env('panda', 'cartesian', seed=7, observations='full',
+                        time_limit=5.0), replay=8)
 
 
 def _oracle(env):

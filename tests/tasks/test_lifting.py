@@ -12,6 +12,7 @@ from hrc_suite.human import keypoints
 from hrc_suite.tasks import lifting
 from hrc_suite.tasks import metrics
 
+import checks    # tests/tasks/checks.py
 import oracles   # tests/tasks/oracles.py
 
 ROBOTS = ('panda', 'schunk')
@@ -106,36 +107,14 @@ def test_person_takes_the_board_with_both_hands():
   assert all(active) or task.holding_hand is None
 
 
-def _rollout(env, count, seed=1):
-  rs = np.random.RandomState(seed)
-  out = []
-  for _ in range(count):
-    action = rs.uniform(-0.3, 0.3, env.action_spec().shape)
-    action[-1] = 1.0
-    timestep = env.step(action)
-    out.append((timestep.reward, {k: v.copy() for k, v in
-                                  timestep.observation.items()}))
-    if timestep.last():
-      break
-  return out
-
-
-def _assert_same(first, second):
-  assert len(first) == len(second)
-  for (r1, o1), (r2, o2) in zip(first, second):
-    assert r1 == r2
-    for name in o1:
-      np.testing.assert_array_equal(o1[name], o2[name])
+# Small arm motions with the gripper closed keep the board held.
+_GENTLE = dict(scale=0.3, gripper=1.0)
 
 
 @pytest.mark.parametrize('space', SPACES)
 def test_same_seed_same_episode(space):
-  runs = []
-  for _ in range(2):
-    env = _env('panda', space, seed=4, observations='full')
-    env.reset()
-    runs.append(_rollout(env, 8))
-  _assert_same(*runs)
+  checks.assert_same_seed_same_episode(
+      lambda: _env('panda', space, seed=4, observations='full'), **_GENTLE)
 
 
 def test_snapshot_restore_is_bit_exact_while_holding():
@@ -145,14 +124,10 @@ def test_snapshot_restore_is_bit_exact_while_holding():
   for _ in range(22):   # The person holds the board by then.
     env.step(_hold_still(env))
   assert task.holding_hand is not None
-  state = task.get_state(env.physics)
-  first = _rollout(env, 6, seed=3)
-  env.reset()
-  assert task.holding_hand is None
-  task.set_state(env.physics, state)
+  checks.assert_snapshot_restores(
+      env, lambda: _env('panda', 'joint', seed=5, observations='full',
+                        time_limit=6.0), replay=6, diverge=3, **_GENTLE)
   assert task.holding_hand is not None
-  second = _rollout(env, 6, seed=3)
-  _assert_same(first, second)
 
 
 def test_registered_with_tags():

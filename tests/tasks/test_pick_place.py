@@ -15,6 +15,8 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import metrics
 from hrc_suite.tasks import pick_place
 
+import checks   # tests/tasks/checks.py
+
 ROBOTS = ('panda', 'schunk')
 SPACES = ('cartesian', 'joint')
 CUBE_REST_Z = layout.TABLE_TOP_Z + 0.02
@@ -27,12 +29,6 @@ def _env(robot='panda', space='cartesian', variant='default', seed=0,
   return suite.load('pick_place', variant, task_kwargs={
       'robot': robot, 'action_space': space, **kwargs},
                     environment_kwargs={'random_state': seed})
-
-
-def _random_actions(env, count, seed=1):
-  rs = np.random.RandomState(seed)
-  return [rs.uniform(-1.0, 1.0, env.action_spec().shape)
-          for _ in range(count)]
 
 
 class Oracle:
@@ -141,16 +137,8 @@ def test_reset_and_step(robot, space):
     assert timestep.observation[name].shape == shape, name
   assert env.action_spec().shape == ((4,) if space == 'cartesian'
                                      else (dof + 1,))
-  low, high = env.task.reward_range
-  assert (low, high) == (-1.0 + env.task.collision_reward, 1.0)
-  steps = 0
-  for action in _random_actions(env, 20):
-    timestep = env.step(action)
-    steps += 1
-    assert low <= timestep.reward <= high
-    for name, value in timestep.observation.items():
-      assert np.all(np.isfinite(value)), name
-  assert timestep.last() and steps == 20   # time_limit 2 s at 10 Hz.
+  assert env.task.reward_range == (-1.0 + env.task.collision_reward, 1.0)
+  assert len(checks.run_random_episode(env, timestep)) == 20   # time_limit 2 s at 10 Hz.
 
 
 def test_horizon_and_defaults():
@@ -284,33 +272,18 @@ def test_sparse_rewards_and_success_threshold():
 # --------------------------------------------------- determinism, snapshots
 
 
-def _rollout(env, actions_list):
-  out = []
-  for action in actions_list:
-    timestep = env.step(action)
-    out.append((timestep.reward, {k: v.copy() for k, v in
-                                  timestep.observation.items()}))
-  return out
-
-
-def _assert_same(first, second):
-  assert len(first) == len(second)
-  for (r1, o1), (r2, o2) in zip(first, second):
-    assert r1 == r2
-    for name in o1:
-      np.testing.assert_array_equal(o1[name], o2[name], err_msg=name)
-
-
 @pytest.mark.parametrize('space', SPACES)
 def test_same_seed_same_episode(space):
-  runs = []
-  for _ in range(2):
+  targets = []
+
+  def make_env():
     env = _env('schunk', space, seed=7, observations='full')
-    first = env.reset().observation
-    runs.append(([(0.0, first)] + _rollout(env, _random_actions(env, 8)),
-                 env.task.target_position))
-  _assert_same(runs[0][0], runs[1][0])
-  np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    targets.append(env.task)
+    return env
+
+  checks.assert_same_seed_same_episode(make_env)
+  np.testing.assert_array_equal(targets[0].target_position,
+                                targets[1].target_position)
 
 
 def test_snapshot_with_the_cube_in_the_gripper_replays_bit_exactly():
@@ -324,21 +297,9 @@ def test_snapshot_with_the_cube_in_the_gripper_replays_bit_exactly():
   assert env.task.step_metrics['gripped_steps'] == 1
   assert timestep.observation['object_gripped'][0] == 1.0
   assert timestep.reward == pick_place.REWARD_GRIPPED
-  state = env.task.get_state(env.physics)
-  replay = _random_actions(env, 8, seed=3)
-  first = _rollout(env, replay)
-  metrics_first = dict(env.task.episode_metrics)
-  _rollout(env, _random_actions(env, 4, seed=4))
-  env.task.set_state(env.physics, state)
-  _assert_same(first, _rollout(env, replay))
-  assert env.task.episode_metrics == metrics_first
-  fresh = _env('panda', seed=99, observations='full', time_limit=20.0,
-               done_at_success=False)
-  fresh.reset()
-  fresh.task.set_state(fresh.physics, state)
-  np.testing.assert_array_equal(fresh.task.target_position,
-                                env.task.target_position)
-  _assert_same(first, _rollout(fresh, replay))
+  checks.assert_snapshot_restores(
+      env, lambda: _env('panda', seed=99, observations='full',
+                        time_limit=20.0, done_at_success=False), replay=8)
 
 
 # ------------------------------------------------------------------ oracle

@@ -12,6 +12,8 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import metrics
 from hrc_suite.tasks import stacking
 
+import checks   # tests/tasks/checks.py
+
 ROBOTS = ('panda', 'schunk')
 SPACES = ('joint', 'cartesian')
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
@@ -31,22 +33,6 @@ def _still(env):
   return action
 
 
-def _rollout(env, actions_):
-  return [env.step(a).observation for a in actions_]
-
-
-def _random_actions(env, count, seed=1):
-  rs = np.random.RandomState(seed)
-  return [rs.uniform(-1, 1, env.action_spec().shape) for _ in range(count)]
-
-
-def _assert_same(first, second):
-  assert len(first) == len(second)
-  for a, b in zip(first, second):
-    for key in a:
-      np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-
-
 @pytest.mark.parametrize('robot', ROBOTS)
 @pytest.mark.parametrize('space', SPACES)
 def test_reset_and_step(robot, space):
@@ -54,18 +40,10 @@ def test_reset_and_step(robot, space):
   timestep = env.reset()
   assert timestep.observation['eef_to_cubes'].shape == (4, 3)
   assert timestep.observation['cube_quaternions'].shape == (4, 4)
-  low, high = env.task.reward_range
-  assert (low, high) == (stacking.REWARD_TOPPLED + env.task.collision_reward,
-                         stacking.REWARD_SUCCESS)
-  rs = np.random.RandomState(0)
-  steps = 0
-  while not timestep.last():
-    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
-    steps += 1
-    assert low <= timestep.reward <= high
-    for name, value in timestep.observation.items():
-      assert np.all(np.isfinite(value)), name
-  assert steps == 10
+  assert env.task.reward_range == (
+      stacking.REWARD_TOPPLED + env.task.collision_reward,
+      stacking.REWARD_SUCCESS)
+  assert len(checks.run_random_episode(env, timestep)) == 10
 
 
 def test_paper_observations_and_defaults():
@@ -197,33 +175,19 @@ def test_fourth_cube_held_in_place_pays_one():
 
 @pytest.mark.parametrize('space', SPACES)
 def test_same_seed_same_observations(space):
-  runs = []
-  for _ in range(2):
-    env = _env(seed=3, space=space, observations='full', time_limit=3.0)
-    runs.append([env.reset().observation]
-                + _rollout(env, _random_actions(env, 8)))
-  _assert_same(*runs)
+  checks.assert_same_seed_same_episode(
+      lambda: _env(seed=3, space=space, observations='full', time_limit=3.0))
 
 
 @pytest.mark.parametrize('space', SPACES)
 def test_snapshot_while_the_human_holds_a_cube(space):
   env = _env(seed=2, space=space, observations='full', time_limit=20.0)
   env.reset()
-  task = env.task
-  while task._human_state[0] != stacking.HELD:
+  while env.task._human_state[0] != stacking.HELD:
     env.step(_still(env))
-  state = task.get_state(env.physics)
-  replay = _random_actions(env, 8, seed=3)
-  first = _rollout(env, replay)
-  metrics_first = dict(task.episode_metrics)
-  _rollout(env, _random_actions(env, 4, seed=4))
-  task.set_state(env.physics, state)
-  _assert_same(first, _rollout(env, replay))
-  assert task.episode_metrics == metrics_first
-  fresh = _env(seed=99, space=space, observations='full', time_limit=20.0)
-  fresh.reset()
-  fresh.task.set_state(fresh.physics, state)
-  _assert_same(first, _rollout(fresh, replay))
+  checks.assert_snapshot_restores(
+      env, lambda: _env(seed=99, space=space, observations='full',
+                        time_limit=20.0), replay=8)
 
 
 class StackingOracle:

@@ -1,0 +1,99 @@
+"""Checks every task's tests share: random rollouts, rewards in range,
+same seed same episode, snapshot/restore bit-exactness."""
+
+import numpy as np
+
+
+def random_actions(env, count, seed=1, scale=1.0, gripper=None):
+  """`count` uniform actions in [-scale, scale] from their own seed; the
+  last entry fixed to `gripper` if given."""
+  rs = np.random.RandomState(seed)
+  shape = env.action_spec().shape
+  out = [scale * rs.uniform(-1.0, 1.0, shape) for _ in range(count)]
+  if gripper is not None:
+    for action in out:
+      action[-1] = gripper
+  return out
+
+
+def rollout(env, actions):
+  """(reward, discount, observation copy) of each step of `actions`."""
+  out = []
+  for action in actions:
+    timestep = env.step(action)
+    out.append((timestep.reward, timestep.discount,
+                {name: np.array(value, copy=True)
+                 for name, value in timestep.observation.items()}))
+  return out
+
+
+def assert_same(first, second):
+  """Two rollouts have the same rewards, discounts and observations, bit
+  for bit."""
+  assert len(first) == len(second)
+  for k, ((r1, d1, o1), (r2, d2, o2)) in enumerate(zip(first, second)):
+    assert r1 == r2, f'step {k}: reward {r1} != {r2}'
+    assert d1 == d2, f'step {k}: discount {d1} != {d2}'
+    assert sorted(o1) == sorted(o2)
+    for name in o1:
+      np.testing.assert_array_equal(o1[name], o2[name],
+                                    err_msg=f'step {k}: {name}')
+
+
+def run_random_episode(env, timestep=None, seed=0, max_steps=None):
+  """Steps random actions from `timestep` (None: a reset) to the episode's
+  end, checking each reward against task.reward_range and every
+  observation for finiteness. Returns the rewards, one per step."""
+  if timestep is None:
+    timestep = env.reset()
+  low, high = env.task.reward_range
+  for name, value in timestep.observation.items():
+    assert np.all(np.isfinite(value)), name
+  rs = np.random.RandomState(seed)
+  shape = env.action_spec().shape
+  rewards = []
+  while not timestep.last():
+    timestep = env.step(rs.uniform(-1.0, 1.0, shape))
+    rewards.append(timestep.reward)
+    assert low <= timestep.reward <= high, (timestep.reward, low, high)
+    for name, value in timestep.observation.items():
+      assert np.all(np.isfinite(value)), name
+    if max_steps is not None:
+      assert len(rewards) <= max_steps
+  return rewards
+
+
+def assert_same_seed_same_episode(make_env, steps=8, **action_kwargs):
+  """Two environments from `make_env()` (same seed) give the same episode
+  under the same random actions (`random_actions` kwargs)."""
+  runs = []
+  for _ in range(2):
+    env = make_env()
+    first = env.reset().observation
+    runs.append([(None, None, {k: np.array(v, copy=True) for k, v in
+                               first.items()})]
+                + rollout(env, random_actions(env, steps, **action_kwargs)))
+  assert_same(*runs)
+
+
+def assert_snapshot_restores(env, make_fresh=None, replay=6, diverge=4,
+                             **action_kwargs):
+  """Snapshot `env` where it is, replay `replay` random actions, diverge,
+  restore: the replay repeats bit for bit, metrics included; likewise in
+  `make_fresh()`'s environment (reset first, e.g. with another seed: other
+  clip, other objects) when given. `action_kwargs` go to random_actions.
+  Returns the snapshot."""
+  state = env.task.get_state(env.physics)
+  actions = random_actions(env, replay, seed=3, **action_kwargs)
+  first = rollout(env, actions)
+  metrics = dict(env.task.episode_metrics)
+  rollout(env, random_actions(env, diverge, seed=4, **action_kwargs))
+  env.task.set_state(env.physics, state)
+  assert_same(first, rollout(env, actions))
+  assert env.task.episode_metrics == metrics
+  if make_fresh is not None:
+    fresh = make_fresh()
+    fresh.reset()
+    fresh.task.set_state(fresh.physics, state)
+    assert_same(first, rollout(fresh, actions))
+  return state
