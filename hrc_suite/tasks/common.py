@@ -4,6 +4,19 @@ TCP, and sampling of graspable points on the table."""
 from dm_control.composer.observation import observable
 import numpy as np
 
+# Sparse rewards of pick and place, also object inspection's
+# (reference-benchmark.md): success, object gripped, otherwise.
+SUCCESS_REWARD = 1.0
+GRIPPED_REWARD = -0.25
+IDLE_REWARD = -1.0
+
+
+def object_reward(success, gripped):
+  """The pick-and-place family's sparse reward of one RL step."""
+  if success:
+    return SUCCESS_REWARD
+  return GRIPPED_REWARD if gripped else IDLE_REWARD
+
 
 def point_observables(tcp_site, name, position, eef_name=None):
   """Observables of a world point given by `position(physics)`.

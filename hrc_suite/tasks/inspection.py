@@ -44,9 +44,9 @@ from hrc_suite.tasks import common
 
 EVENT = clip_lib.TASK_EVENTS['inspection'][0]   # 'object_presented'
 SUCCESS_DISTANCE = 0.1       # m, object to inspection target (reference)
-GRIPPED_REWARD = -0.25       # reference pick and place
-SUCCESS_REWARD = 1.0
-IDLE_REWARD = -1.0
+GRIPPED_REWARD = common.GRIPPED_REWARD   # reference: as pick and place
+SUCCESS_REWARD = common.SUCCESS_REWARD
+IDLE_REWARD = common.IDLE_REWARD
 OBJECT_ATTEMPTS = 100        # cube placements tried before giving up
 # Cube region in the robot base frame (m); see the module doc.
 OBJECT_REGION_X = (0.30, 0.45)
@@ -195,9 +195,7 @@ class Inspection(base.HrcTask):
 
   def _task_reward(self, physics):
     del physics
-    if self._success:
-      return SUCCESS_REWARD
-    return GRIPPED_REWARD if self._gripped else IDLE_REWARD
+    return common.object_reward(self._success, self._gripped)
 
   def _task_reward_range(self):
     return (IDLE_REWARD, SUCCESS_REWARD)

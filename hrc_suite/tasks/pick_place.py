@@ -44,9 +44,9 @@ from hrc_suite.tasks import base
 from hrc_suite.tasks import common
 
 SUCCESS_DISTANCE = 0.1       # m, cube to target (reference)
-REWARD_SUCCESS = 1.0         # reference sparse reward
-REWARD_GRIPPED = -0.25
-REWARD_OTHERWISE = -1.0
+REWARD_SUCCESS = common.SUCCESS_REWARD     # reference sparse reward
+REWARD_GRIPPED = common.GRIPPED_REWARD
+REWARD_OTHERWISE = common.IDLE_REWARD
 # Object and target regions in the robot base frame (m): x ahead of the
 # base, |y| to either side. Chosen where gripper-down IK of the Schunk (low,
 # close workspace) and the KUKA iiwa (reaches from x ~0.35 m) overlap with
@@ -182,9 +182,7 @@ class PickPlace(base.HrcTask):
 
   def _task_reward(self, physics):
     del physics
-    if self._success:
-      return REWARD_SUCCESS
-    return REWARD_GRIPPED if self._gripped else REWARD_OTHERWISE
+    return common.object_reward(self._success, self._gripped)
 
   def _task_reward_range(self):
     return (REWARD_OTHERWISE, REWARD_SUCCESS)
