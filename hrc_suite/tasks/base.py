@@ -43,7 +43,6 @@ Subclasses set the class constants below and override `_build_task`,
 import collections
 import copy
 import math
-import pathlib
 
 from dm_control import composer
 import mujoco
@@ -56,7 +55,6 @@ from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
-from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import geometry
@@ -65,6 +63,7 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
+from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
@@ -93,19 +92,6 @@ def _positive(name, value):
           and value > 0):
     raise ValueError(f'{name} must be a positive number, got {value!r}')
   return float(value)
-
-
-def load_motions(motions, task):
-  """Clips from None (the task's shipped library), a folder or a list."""
-  if motions is None:
-    return clip_lib.shipped_library(task)
-  if isinstance(motions, (str, pathlib.Path)):
-    return clip_lib.load_folder(motions)
-  clips = list(motions)
-  if not clips or not all(isinstance(c, clip_lib.Clip) for c in clips):
-    raise ValueError('motions must be None (shipped library), a folder path '
-                     f'or a non-empty list of Clips, got {motions!r}')
-  return clips
 
 
 class HrcTask(composer.Task):
@@ -150,8 +136,10 @@ class HrcTask(composer.Task):
       shield_substeps: L, physics steps (= shield cycles) per RL step.
       physics_timestep: s, also the shield's cycle time.
       control_timestep: s, must equal shield_substeps x physics_timestep.
-      motions: None (the task's shipped clips), a folder of clips, or a list
-        of `clip.Clip`s (e.g. one side of a train/test split).
+      motions: None (the task's shipped clips), a folder of clips, a list
+        of `clip.Clip`s, or one side of a train/test split
+        (`motions.MotionSplit` or {'split': 'train'|'test', 'test_clips':
+        n, 'split_seed': k}).
       reward: one of the task's REWARDS (None: its first).
       reward_delay: RL steps by which task rewards are paid late (None: the
         task's default); what is still owed is paid at the episode's end.
@@ -256,7 +244,8 @@ class HrcTask(composer.Task):
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     self._player = player_lib.Player(
-        load_motions(motions, self.MOTIONS), station=self.HUMAN_STATION,
+        motions_lib.load_motions(motions, self.MOTIONS),
+        station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
     self._playback = human_playback.HumanPlayback(
         self._human, self._player, shield_substeps)
