@@ -24,15 +24,17 @@ step is exactly L shield cycles.
 
 Subclasses set the class constants below and override `_build_task`,
 `_initialize_task`, `_update_task`, `_task_reward`, and optionally
-`_human_events`, `_failed`, `_task_state`/`_set_task_state` and
-`_task_observables`. Hooks they use:
+`_human_events`, `_failed` and `_task_observables`. Hooks they use:
 
+* TASK_STATE names the attributes that hold the task's episode state;
+  snapshots copy them (or override `_task_state(physics)` /
+  `_set_task_state(physics, state)`).
 * `_add_holdable(body)` makes an object holdable by the human; `_hold` /
   `_release` grab and let go of it. Grips change the model (weld pose,
   collision bits), so get_state/set_state save and restore every grip and
-  weld, and after_step calls physics.forward() when a grip changed (a
-  restored snapshot starts from the same derived quantities). A task that
-  writes weld data itself calls `_model_changed()`.
+  weld (`grips`), and after_step calls physics.forward() when a grip
+  changed (a restored snapshot starts from the same derived quantities).
+  A task that writes weld data itself calls `_model_changed()`.
 * `clip_ended` (the human's clip ended in the RL step just done; the
   player's sequence is endless) and `clips_completed` express "success
   once the human's motion is over" (e.g. after the retreat).
@@ -61,6 +63,7 @@ from hrc_suite.safety import geometry
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
@@ -251,8 +254,7 @@ class HrcTask(composer.Task):
         self._human, self._player, shield_substeps)
 
     self._object_geoms = []
-    self._holdables = []        # (object body, {hand: weld element})
-    self._grips_changed = False
+    self._grips = grips_lib.HumanGrips(self._human)
     self._build_task()
     self.set_timesteps(control_timestep, physics_timestep)
     self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
@@ -388,46 +390,19 @@ class HrcTask(composer.Task):
   def _add_holdable(self, body):
     """Makes `body` holdable by the human (before compiling); returns its
     welds {hand: weld element}."""
-    welds = self._human.add_holdable(body)
-    self._holdables.append((body, welds))
-    return welds
+    return self._grips.add(body)
 
   def _hold(self, physics, body, hand, relative_pose=None):
     """The human's `hand` grabs `body` (`Human.hold`)."""
-    self._human.hold(physics, body, hand, relative_pose)
-    self._grips_changed = True
+    self._grips.hold(physics, body, hand, relative_pose)
 
   def _release(self, physics, body):
     """The human lets go of `body` (nothing if not held)."""
-    if self._human.holding(body) is not None:
-      self._grips_changed = True
-    self._human.release(physics, body)
+    self._grips.release(physics, body)
 
   def _model_changed(self):
     """The task changed the model (e.g. weld data): forward after the step."""
-    self._grips_changed = True
-
-  def _grip_state(self, physics):
-    """Per holdable: (holding hand or None, {hand: weld eq_data row})."""
-    eq_data = physics.model.eq_data
-    return [(self._human.holding(body),
-             {hand: eq_data[physics.bind(weld).element_id].copy()
-              for hand, weld in welds.items()})
-            for body, welds in self._holdables]
-
-  def _set_grip_state(self, physics, grips):
-    if len(grips) != len(self._holdables):
-      raise ValueError(f'snapshot has grips of {len(grips)} objects, this '
-                       f'task has {len(self._holdables)} holdable objects')
-    for body, _ in self._holdables:
-      self._human.release(physics, body)
-    eq_data = physics.model.eq_data
-    for (body, welds), (hand, rows) in zip(self._holdables, grips):
-      if hand is not None:
-        row = np.asarray(rows[hand], dtype=float)
-        self._human.hold(physics, body, hand, (row[3:6], row[6:10]))
-      for weld_hand, weld in welds.items():
-        eq_data[physics.bind(weld).element_id] = rows[weld_hand]
+    self._grips.mark_changed()
 
   @property
   def clip_ended(self):
@@ -477,7 +452,6 @@ class HrcTask(composer.Task):
     self._step_info = {}
     self._clip_index = 0
     self._clip_ended = False
-    self._grips_changed = False
 
   def after_compile(self, physics, random_state):
     del random_state
@@ -513,8 +487,7 @@ class HrcTask(composer.Task):
     data.qpos[self._finger_qpos_index] = gripper_lib.MAX_APERTURE / 2
     self._gripper.set_command(physics, -1.0)
     self._cp_random = np.random.RandomState(random_state.randint(_SEED_RANGE))
-    for body, _ in self._holdables:
-      self._human.release(physics, body)
+    self._grips.release_all(physics)
     self._player.reset(random_state)
     self._clip_index = self._player.clip_index
     self._playback.show_current(physics)
@@ -594,11 +567,11 @@ class HrcTask(composer.Task):
     clip_index = self._player.clip_index
     self._clip_ended = clip_index != self._clip_index
     self._clip_index = clip_index
-    self._grips_changed = False
+    self._grips.clear()
     step = dict(self._update_task(physics))
     for event in self._human_events(physics):
       self._player.trigger(event)
-    if self._grips_changed:
+    if self._grips.changed:
       # The model changed: what the next step starts from is recomputed,
       # as restoring a snapshot does, so snapshots are exact.
       physics.forward()
@@ -670,7 +643,7 @@ class HrcTask(composer.Task):
             'own': copy.deepcopy(self._task_state(physics)),
         },
         # Human.hold changes the model, which the physics state lacks.
-        'grips': self._grip_state(physics),
+        'grips': self._grips.state(physics),
     }
 
   def set_state(self, physics, state):
@@ -684,7 +657,7 @@ class HrcTask(composer.Task):
       self._bind(physics)
     # Grips first: hold/release switch welds on and off, the physics state
     # then restores which are active.
-    self._set_grip_state(physics, state['grips'])
+    self._grips.restore(physics, state['grips'])
     mujoco.mj_setState(physics.model.ptr, physics.data.ptr, physics_state,
                        _STATE_SPEC)
     self._player.set_state(state['player'])
