@@ -12,9 +12,10 @@ drives its nail in (reference-benchmark.md, paper Table I).
 * Goal: the nail head NAIL_ABOVE_TARGET over the clip's 'nail' target, so
   the blows land on it while the hammer is still moving fast. The human's
   idle phase repeats blows until 'nail_hammered' (clip.TASK_EVENTS).
-* Success: nail progress > SUCCESS_PROGRESS. Reward: sparse +1 at success,
-  -1 otherwise; paid REWARD_DELAY RL steps late by default (the clips go on
-  ~5 s after the event: lowering the hammer and retreating).
+* Success (delayed by the retreat, reference): the nail is in (progress >
+  SUCCESS_PROGRESS, which fires the event) and then the human's clip ends
+  (lowering the hammer and retreating, ~5 s; the base's `clip_ended`).
+  Reward: sparse +1 at success, -1 otherwise; no extra reward delay.
 * Failure: the board out of the gripper for more than DROP_STEPS RL steps.
 * Observations: 'paper' as pick and place with the board as the object:
   object gripped, TCP->board grip, TCP->target (nail target minus nail
@@ -49,7 +50,6 @@ SUCCESS_PROGRESS = 0.95        # nail driven in (reference)
 # arrives at up to ~1.8 m/s (nail depth per blow ~ energy / friction).
 NAIL_ABOVE_TARGET = 0.01       # m
 DROP_STEPS = 5                 # RL steps without the board before failure
-REWARD_DELAY = 50              # RL steps: ~5 s of the clips after the event
 # A step whose nail progress grows by this much counts as a blow (~0.6 mm).
 BLOW_PROGRESS = 0.02
 # Gripper yaw while holding: the fingers close along world x, so the nail
@@ -104,7 +104,7 @@ class Hammering(base.HrcTask):
   DEFAULT_SHIELD = 'ssm'
   DEFAULT_ACTION_SPACE = 'cartesian'
   REWARDS = ('sparse',)
-  DEFAULT_REWARD_DELAY = REWARD_DELAY
+  DEFAULT_REWARD_DELAY = 0     # the retreat delays success itself
   HORIZON = 1000
   HAS_GRIPPER_ACTION = True
   OBSERVATION_PRESETS = {'paper': (
@@ -112,7 +112,8 @@ class Hammering(base.HrcTask):
       'human_distances')}
   EXTRA_COUNTERS = ('nail_blows',)
   CARTESIAN_YAW = HOLD_YAW   # home yaw for robots that cannot turn so
-  TASK_STATE = ('_nail_target', '_success', '_gripped', '_free_steps',
+  TASK_STATE = ('_nail_target', '_success', '_nailed', '_gripped',
+                '_free_steps',
                 '_progress', '_blow', '_hand')
 
   def _build_task(self):
@@ -138,6 +139,7 @@ class Hammering(base.HrcTask):
 
   def _reset_progress(self):
     self._success = False
+    self._nailed = False     # the nail is in (the event's predicate)
     self._gripped = True
     self._free_steps = 0
     self._progress = 0.0
@@ -245,14 +247,16 @@ class Hammering(base.HrcTask):
     self._progress = progress
     self._gripped = self._gripper.is_grasping(physics, self._board.body)
     self._free_steps = 0 if self._gripped else self._free_steps + 1
-    self._success = progress > SUCCESS_PROGRESS
+    # The nail was in when the human's clip (with the retreat) ended.
+    self._success = self._nailed and self.clip_ended
+    self._nailed = progress > SUCCESS_PROGRESS
     return {'success': float(self._success), 'nail_progress': progress,
             'nail_blows': int(self._blow),
             'object_gripped': float(self._gripped)}
 
   def _human_events(self, physics):
     del physics
-    return (EVENT,) if self._success else ()
+    return (EVENT,) if self._nailed else ()
 
   def _failed(self, physics):
     del physics

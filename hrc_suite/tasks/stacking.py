@@ -24,12 +24,13 @@ human 3, robot 4 (reference-benchmark.md, paper Table I).
   Sawyer and UR5e everywhere, Panda and iiwa up to ~0.76 m, Kinova Gen3
   and Jaco up to ~0.70 m, the Schunk nowhere (< 0.5 m). Closer still, the
   resting person's hands keep an SSM-shielded robot from the stack.
-* Success: all four cubes stacked. Rewards (sparse): +2 success, -10 and
-  termination if a stacked cube (not held) moves by more than
-  TOPPLE_DISTANCE from where it was stacked (the stack toppled), +1 with
-  the fourth cube in its slot (still held), +0.75 while the robot grips a cube, -1 otherwise; paid
-  REWARD_DELAY RL steps late by default (the clips go on ~5 s after the
-  last event).
+* Success (delayed by the retreat, reference): all four cubes stacked when
+  the human's clip ends (the clips go on ~5 s after the last event; the
+  base's `clip_ended`). Rewards (sparse): +2 success, -10 and termination
+  if a stacked cube (not held) moves by more than TOPPLE_DISTANCE from
+  where it was stacked (the stack toppled), +1 with the fourth cube in its
+  slot (held or not, before the clip ends), +0.75 while the robot grips a
+  cube, -1 otherwise; no extra reward delay.
 * Observations: 'paper' = object gripped, TCP->each cube, gripper aperture,
   distances to the human's head and hands; 'full' adds cube positions,
   quaternions, slots and stacked flags.
@@ -54,7 +55,6 @@ REWARD_TOPPLED = -10.0
 REWARD_FOURTH_PLACED = 1.0
 REWARD_GRIPPING = 0.75
 REWARD_OTHERWISE = -1.0
-REWARD_DELAY = 50              # RL steps: ~5 s of the clips after the event
 # The person stands this much closer to the table than the shared station
 # (layout.HUMAN_STATION_ACROSS), the pelvis 0.18 m from the table edge.
 STATION_SHIFT = 0.12           # m
@@ -101,7 +101,7 @@ class Stacking(base.HrcTask):
   DEFAULT_SHIELD = 'ssm'
   DEFAULT_ACTION_SPACE = 'cartesian'
   REWARDS = ('sparse',)
-  DEFAULT_REWARD_DELAY = REWARD_DELAY
+  DEFAULT_REWARD_DELAY = 0     # the retreat delays success itself
   HORIZON = 3000
   HAS_GRIPPER_ACTION = True
   OBSERVATION_PRESETS = {'paper': (
@@ -112,7 +112,8 @@ class Stacking(base.HrcTask):
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
   TASK_STATE = ('_slots', '_picks', '_places', '_human_state',
                 '_holding_hand', '_held_height', '_stacked', '_stacked_at',
-                '_in_slot', '_gripped', '_success', '_toppled')
+                '_in_slot', '_gripped', '_complete', '_success',
+                '_toppled')
 
   def _build_task(self):
     self._cubes = props.make_stacking_cubes()
@@ -150,6 +151,7 @@ class Stacking(base.HrcTask):
     self._stacked_at = np.zeros((4, 3))
     self._in_slot = np.zeros(4, dtype=bool)
     self._gripped = np.zeros(4, dtype=bool)
+    self._complete = False   # all four stacked, nobody holds them
     self._success = False
     self._toppled = False
 
@@ -258,7 +260,9 @@ class Stacking(base.HrcTask):
     moved = np.linalg.norm(positions - self._stacked_at, axis=1)
     self._toppled = bool(np.any(self._stacked & free
                                 & (moved > TOPPLE_DISTANCE)))
-    self._success = bool(np.all(self._in_slot & free)) and not self._toppled
+    self._complete = bool(np.all(self._in_slot & free)) and (
+        not self._toppled)
+    self._success = self._complete and self.clip_ended
     return {'success': float(self._success),
             'cubes_placed': int(newly.sum()),
             'stack_height': int(np.sum(self._in_slot & free)),

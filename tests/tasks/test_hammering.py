@@ -47,7 +47,7 @@ def test_paper_observations_and_defaults():
   assert observation['human_distances'].shape == (3,)
   task = hammering.Hammering()
   assert task.shield_mode == 'ssm' and task.horizon == 1000
-  assert task.reward_delay == hammering.REWARD_DELAY
+  assert task.reward_delay == 0   # the human's retreat delays success
   assert task.action_space_name == 'cartesian'
   assert ('hammering', 'default') in suite.tasks_with_tag('manufacturing')
   assert ('hammering', 'default') in suite.tasks_with_tag('delayed')
@@ -91,18 +91,32 @@ def test_dropping_the_board_fails():
   assert env.task.episode_metrics['success'] == 0.0
 
 
-def test_success_and_delayed_reward():
-  env = _env(time_limit=5.0, reward_delay=3)
+def test_success_once_the_human_has_retreated():
+  env = _env(time_limit=60.0)
   env.reset()
   task = env.task
-  rewards = [env.step(_hold_action(env)).reward for _ in range(2)]
-  assert rewards == [0.0, 0.0]          # delayed
+  assert env.step(_hold_action(env)).reward == -1.0
   task.board.set_progress(env.physics, 0.97)
   timestep = env.step(_hold_action(env))
-  assert timestep.last() and task.step_metrics['success'] == 1.0
-  # The owed -1, -1 and the success +1 are paid at the end.
-  assert timestep.reward == pytest.approx(-1.0)
-  assert task.episode_metrics['return'] == pytest.approx(-1.0)
+  # The nail is in: the human stops hammering, success waits for the
+  # end of the clip (lowering the hammer, retreating).
+  assert task.player.waiting_for is None
+  clip = task.player.clip_index
+  steps = 0
+  while not timestep.last():
+    assert task.step_metrics['success'] == 0.0 and timestep.reward == -1.0
+    timestep = env.step(_hold_action(env))
+    steps += 1
+  assert task.step_metrics['success'] == 1.0 and timestep.reward == 1.0
+  assert task.player.clip_index == clip + 1 and task.clips_completed == 1
+  assert steps >= 10    # the retreat takes seconds, not one step
+
+
+def test_reward_delay_still_applies_on_request():
+  env = _env(time_limit=5.0, reward_delay=3)
+  env.reset()
+  rewards = [env.step(_hold_action(env)).reward for _ in range(4)]
+  assert rewards == [0.0, 0.0, 0.0, -1.0]
 
 
 @pytest.mark.parametrize('space', SPACES)
@@ -146,5 +160,6 @@ def test_oracle_drives_the_nail_in():
     if result['success']:
       successes += 1
       assert env.task.board.progress(env.physics) > 0.95
+      assert env.task.clip_ended   # after the human's retreat
       break
   assert successes >= 1

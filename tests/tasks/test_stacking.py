@@ -58,7 +58,7 @@ def test_paper_observations_and_defaults():
       - task.robot.tcp_pose(env.physics)[0], atol=1e-12)
   task = stacking.Stacking()
   assert task.shield_mode == 'ssm' and task.horizon == 3000
-  assert task.reward_delay == stacking.REWARD_DELAY
+  assert task.reward_delay == 0   # the human's retreat delays success
   assert stacking.Stacking.HUMAN_PLACEMENT_RANGE == (0.02, 0.1, 0.1)
   assert ('stacking', 'default') in suite.tasks_with_tag('assembly')
 
@@ -151,12 +151,12 @@ def test_rewards_of_the_reference():
   task = env.task
   assert env.step(_still(env)).reward == stacking.REWARD_OTHERWISE
   _build_stack(env)
-  # The TCP is far from the stack: complete, released, withdrawn.
+  # The TCP is far from the stack: complete, released, withdrawn; success
+  # waits for the end of the human's clip.
   timestep = env.step(_still(env))
-  assert task.step_metrics['success'] == 1.0
-  assert timestep.last() and timestep.reward == stacking.REWARD_SUCCESS
-  assert task.episode_metrics['cubes_placed'] == 4
   assert task.step_metrics['stack_height'] == 4
+  assert timestep.reward == stacking.REWARD_FOURTH_PLACED
+  assert task.step_metrics['success'] == 0.0 and not timestep.last()
 
 
 def test_fourth_cube_held_in_place_pays_one():
@@ -274,5 +274,7 @@ def test_oracle_stacks_the_cubes():
       successes += 1
       assert env.task.stacked.all()
       assert result['cubes_placed'] == 4
+      # Success came with the end of the human's clip (the retreat).
+      assert env.task.clip_ended and env.task.clips_completed >= 1
       break
   assert successes >= 1
