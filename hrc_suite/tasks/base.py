@@ -47,6 +47,7 @@ import copy
 import math
 
 from dm_control import composer
+from dm_control.composer.observation import observable
 import mujoco
 import numpy as np
 
@@ -79,6 +80,7 @@ DEFAULT_V_SAFE = 0.05                 # m/s
 # Reward of an illegal contact (static, self, critical human): the
 # reference's default (its paper runs used 0).
 DEFAULT_COLLISION_REWARD = -10.0
+DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
 _SEED_RANGE = 2**31 - 1
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -127,7 +129,8 @@ class HrcTask(composer.Task):
                reward=None, reward_delay=None, done_at_success=True,
                collision_prevention='zero', time_limit=None,
                observations='paper', observation_noise=None,
-               observation_delay=None, v_safe=DEFAULT_V_SAFE,
+               observation_delay=None, cameras=(),
+               camera_size=DEFAULT_CAMERA_SIZE, v_safe=DEFAULT_V_SAFE,
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD):
     """Builds the scene; every argument is checked, errors list valid values.
@@ -151,6 +154,10 @@ class HrcTask(composer.Task):
       time_limit: s (None: the task's HORIZON RL steps).
       observations: a preset name ('paper', 'full', ...) or a list of
         observable names.
+      cameras: names of workcell cameras ('front', 'side', 'top',
+        'human_view') whose RGB images join the observation as
+        'camera_<name>' (uint8, camera_size).
+      camera_size: (height, width) of camera observations in pixels.
       observation_noise: None or {observable name: bound}: uniform noise in
         [-bound, bound] (drawn from the environment's random_state, so
         snapshots restore the noise-free state, not the noise stream).
@@ -264,6 +271,7 @@ class HrcTask(composer.Task):
     self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
     self._init_episode_state()
     self._setup_observables(observations)
+    self._add_cameras(cameras, camera_size)
     observations_lib.configure_noise_and_delay(
         self._task_obs, observation_noise, observation_delay,
         physics_timestep)
@@ -427,6 +435,25 @@ class HrcTask(composer.Task):
     for entity in self._arena.iter_entities():
       for value in entity.observables.as_dict().values():
         value.enabled = False
+
+  def _add_cameras(self, cameras, camera_size):
+    """Enabled RGB observables of named workcell cameras."""
+    if isinstance(cameras, str):
+      cameras = (cameras,)
+    if (len(camera_size) != 2 or
+        not all(isinstance(v, int) and v > 0 for v in camera_size)):
+      raise ValueError('camera_size must be (height, width) in pixels, got '
+                       f'{camera_size!r}')
+    available = {c.name: c for c in self._arena.mjcf_model.find_all('camera')}
+    for name in cameras:
+      if name not in available:
+        raise ValueError(f'Unknown camera {name!r}: expected some of '
+                         f'{", ".join(sorted(available))}')
+      camera = observable.MJCFCamera(available[name], height=camera_size[0],
+                                     width=camera_size[1])
+      camera.enabled = True
+      self._task_obs[f'camera_{name}'] = camera
+      self.observation_names += (f'camera_{name}',)
 
   @property
   def task_observables(self):

@@ -523,3 +523,20 @@ def test_observation_delay_lags_by_the_given_time():
 def test_bad_observation_options_raise(kwargs, message):
   with pytest.raises(ValueError, match=message):
     reach.Reach(**kwargs)
+
+
+def test_camera_observations_render_the_workcell():
+  env = suite.load('reach', 'dense', task_kwargs=dict(
+      robot='panda', seed=0, cameras=('front', 'top'), camera_size=(48, 64)))
+  spec = env.observation_spec()['camera_front']
+  assert spec.shape == (48, 64, 3) and spec.dtype == np.uint8
+  timestep = env.step(np.zeros(env.action_spec().shape))
+  for name in ('camera_front', 'camera_top'):
+    image = timestep.observation[name]
+    assert image.shape == (48, 64, 3) and image.std() > 5.0
+  assert 'goal_difference' in timestep.observation
+  with pytest.raises(ValueError, match="'nope'.*front"):
+    suite.load('reach', 'dense', task_kwargs=dict(cameras=('nope',)))
+  with pytest.raises(ValueError, match='camera_size'):
+    suite.load('reach', 'dense', task_kwargs=dict(cameras='top',
+                                                  camera_size=(0, 8)))

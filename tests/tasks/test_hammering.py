@@ -1,5 +1,8 @@
 """The hammering task: reset/step, rewards, grasp, snapshots, an oracle."""
 
+import unittest
+
+from dm_env import test_utils
 import numpy as np
 import pytest
 
@@ -163,3 +166,10 @@ def test_oracle_drives_the_nail_in():
       assert env.task.clip_ended   # after the human's retreat
       break
   assert successes >= 1
+
+
+class HammeringSpecTest(test_utils.EnvironmentTestMixin, unittest.TestCase):
+  """dm_env conformance (specs, reset, step, discounts) on the full observation."""
+
+  def make_object_under_test(self):
+    return _env('schunk', 'cartesian', observations='full', time_limit=1.0)

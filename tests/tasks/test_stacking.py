@@ -1,6 +1,9 @@
 """The stacking task: reset/step, the human's cubes, rewards, snapshots and
 an oracle that stacks all four cubes."""
 
+import unittest
+
+from dm_env import test_utils
 import numpy as np
 import pytest
 
@@ -278,3 +281,10 @@ def test_oracle_stacks_the_cubes():
       assert env.task.clip_ended and env.task.clips_completed >= 1
       break
   assert successes >= 1
+
+
+class StackingSpecTest(test_utils.EnvironmentTestMixin, unittest.TestCase):
+  """dm_env conformance (specs, reset, step, discounts) on the full observation."""
+
+  def make_object_under_test(self):
+    return _env('schunk', 'cartesian', observations='full', time_limit=1.0)
