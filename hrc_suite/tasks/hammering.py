@@ -5,8 +5,8 @@ drives its nail in (reference-benchmark.md, paper Table I).
   handle (decision: the task is holding, not picking; the reference's expert
   only moves "to a point 0.1 m before the nail, gripper closed"). The gripper
   is turned to HOLD_YAW (Cartesian actions keep that yaw) so the nail sits
-  0.095 m in front of the TCP towards the human, clear of the wrist; a
-  robot that cannot turn so (the Schunk) keeps its home yaw. The human walks in
+  0.095 m in front of the TCP towards the human, clear of the wrist; where
+  the IK finds no such turn at the home TCP, the robot keeps its home yaw. The human walks in
   holding a claw hammer (`Human.hold`, a weld to the clip's holding hand,
   set so the face lands on the clip's 'nail' target at each strike).
 * Goal: the nail head NAIL_ABOVE_TARGET over the clip's 'nail' target, so
@@ -181,8 +181,8 @@ class Hammering(base.HrcTask):
 
   def _hold_pose(self, physics):
     """Turns the gripper about its axis (yaw HOLD_YAW) at the home TCP so
-    that the nail will point towards the human; robots that cannot (the
-    Schunk) keep their home pose. Returns whether the board must be turned
+    that the nail will point towards the human; where the IK finds no such
+    turn the robot keeps its home pose. Returns whether the board must be turned
     half about the TCP axis to point the nail along +x."""
     home = self._robot.description.q_home
     position = self._kinematics.tcp_pose(home)[:3, 3]

@@ -1,9 +1,9 @@
 """Handovers of a hammer between the robot and a human across the table
 (reference-benchmark.md, paper Table I).
 
-Robot to human (`RobotToHuman`): the hammer lies on the table within the
-robot's reach, head towards the robot. The robot picks it up and brings the
-handle to the human, who reaches out and waits for 'object_received'. The
+Robot to human (`RobotToHuman`): the episode starts with the hammer in the
+closed gripper at the home pose, handle towards the human. The robot brings
+the handle to the human, who reaches out and waits for 'object_received'. The
 handover happens when the handle touches the palm (the hand capsule of the
 clip's holding hand; checked geometrically, within TOUCH_TOLERANCE, because a
 held object's contact with its hand is off) while the human waits: the human
@@ -16,8 +16,9 @@ the presentation keyframe, turns it in the hand to the presenting grip
 (handle along the hand, head forward, lying on its side so a gripper-down
 grasp at `Hammer.grip_site` works). While the human waits for 'object_taken'
 a robot grasp (both fingers touch it, gripper commanded closed) makes the
-human let go and fires the event; the robot places it within SUCCESS_DISTANCE of a target on the table
-('object_placed' fires once it lies there released) and the human retreats.
+human let go and fires the event; the robot places it within
+SUCCESS_DISTANCE of a target on the table ('object_placed' fires once it lies
+there released) and the human retreats.
 
 Success (both): the object is where it belongs (held by the human / at the
 target) and the human's motion has completed: by default the end of the
