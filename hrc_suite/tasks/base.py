@@ -655,8 +655,7 @@ class HrcTask(composer.Task):
     return {
         'physics': physics_state,
         'player': self._player.get_state(),
-        # Shield has no get/set_state: a deep copy of its mutable state.
-        'shield': copy.deepcopy(self._shield.__dict__),
+        'shield': self._shield.get_state(),   # arrays and scalars only
         'task': {
             'q_goal': self._q_goal.copy(), 'time': self._time,
             'steps': self._steps, 'reward': self._reward,
@@ -689,7 +688,7 @@ class HrcTask(composer.Task):
                        _STATE_SPEC)
     self._player.set_state(state['player'])
     self._playback.show_clip(physics)
-    self._shield.__dict__.update(copy.deepcopy(state['shield']))
+    self._shield.set_state(state['shield'])
     task = state['task']
     self._q_goal = np.array(task['q_goal'], dtype=float)
     self._time = float(task['time'])
