@@ -94,7 +94,9 @@ def build_task(domain, task, task_kwargs=None):
     names = sorted(t for d, t in _REGISTRY if d == domain)
     raise ValueError(f'Unknown task {task!r} for domain {domain!r}: '
                      f'expected one of {", ".join(names)}')
-  return _REGISTRY[(domain, task)](**dict(task_kwargs or {}))
+  hrc_task = _REGISTRY[(domain, task)](**dict(task_kwargs or {}))
+  hrc_task.suite_name = (domain, task)   # Experts and datasets key on it.
+  return hrc_task
 
 
 def load(domain, task, task_kwargs=None, environment_kwargs=None):

@@ -1,0 +1,80 @@
+"""The expert interface: a deterministic policy that reads its task through
+the task's own (noise-free) observables.
+
+An expert is called like any policy, `action = expert(timestep)`, on the
+environment it was made for. It does not use `timestep.observation` (whose
+preset, noise and delay the agent chooses): it evaluates the task's
+observables by name, enabled or not, on the current physics (`observe`).
+Fields that are not observables of the task (privileged: e.g. a state
+machine's view of which cube the person placed last) are read from the task
+object and listed in the expert's PRIVILEGED docstring section.
+
+Experts keep as little memory as possible: the phase of a state machine is
+derived from the observed state each step (with hysteresis where needed), so
+that an expert can take over from any state, e.g. an episode started from a
+dataset snapshot (reference-state initialisation) or when it is queried
+online for an agent's action (action-based imitation reward). `reset()` is
+called at every first timestep.
+"""
+
+import numpy as np
+
+
+class Expert:
+  """Base class: subclasses implement `action(observation) -> array`."""
+
+  # Names of the task observables the expert reads (see `observe`).
+  OBSERVED = ()
+  # (domain, task) pairs the expert solves; empty = any.
+  TASKS = ()
+
+  def __init__(self, env):
+    self._env = env
+    self._task = env.task
+    missing = [name for name in self.OBSERVED
+               if name not in self._task.task_observables]
+    if missing:
+      raise ValueError(
+          f'{type(self).__name__} reads observables {missing} that the task '
+          f'{type(self._task).__name__} does not have; it has '
+          f'{sorted(self._task.task_observables)}')
+    spec = env.action_spec()
+    self._action_shape = spec.shape
+    self._callables = None
+
+  @property
+  def env(self):
+    return self._env
+
+  @property
+  def task(self):
+    return self._task
+
+  @property
+  def physics(self):
+    return self._env.physics
+
+  def reset(self):
+    """Forgets the previous episode (called at every first timestep)."""
+
+  def observe(self):
+    """{name: noise-free value now} of the OBSERVED task observables."""
+    if self._callables is None:
+      observables = self._task.task_observables
+      # The raw callables: no corruptor (noise) and no delay buffer.
+      self._callables = {name: observables[name]._callable(self.physics)  # pylint: disable=protected-access
+                         for name in self.OBSERVED}
+    return {name: np.asarray(fn()) for name, fn in self._callables.items()}
+
+  def action(self, observation):
+    raise NotImplementedError
+
+  def __call__(self, timestep):
+    if timestep.first():
+      self._callables = None   # The physics may have been rebuilt.
+      self.reset()
+    action = np.asarray(self.action(self.observe()), dtype=np.float64)
+    if action.shape != self._action_shape:
+      raise ValueError(f'{type(self).__name__} produced an action of shape '
+                       f'{action.shape}, expected {self._action_shape}')
+    return np.clip(action, -1.0, 1.0)
