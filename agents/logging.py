@@ -1,0 +1,156 @@
+"""Loggers of scalar rows: CSV files and TensorBoard (tensorboardX).
+
+Every logger has `write(row, step)` and `close()`. A row is a flat dict of
+numbers (and strings for the CSV). `CSVLogger` fixes its columns at the
+first row (or from an existing file's header) and can truncate a file to the
+rows up to a step, which a resumed training run does so that the rows it
+re-creates are not logged twice. `TensorBoardLogger` purges events after the
+resume step the same way (TensorBoard's purge_step).
+"""
+
+import csv
+import math
+import numbers
+import os
+
+
+def _number(value):
+  if isinstance(value, bool):
+    return int(value)
+  if isinstance(value, numbers.Integral):
+    return int(value)
+  if isinstance(value, numbers.Real):
+    return float(value)
+  return value
+
+
+class CSVLogger:
+  """Appends one row per `write` to a CSV file, flushing each row."""
+
+  def __init__(self, path, step_key='step'):
+    self.path = os.fspath(path)
+    self._step_key = step_key
+    self._columns = None
+    if os.path.exists(self.path) and os.path.getsize(self.path) > 0:
+      with open(self.path, newline='') as f:
+        self._columns = next(csv.reader(f))
+    self._file = None
+
+  @property
+  def columns(self):
+    return None if self._columns is None else list(self._columns)
+
+  def truncate(self, max_step):
+    """Drops the rows whose step is larger than max_step (a resumed run
+    logs them again)."""
+    if self._columns is None:
+      return
+    if self._step_key not in self._columns:
+      raise ValueError(f'{self.path} has no {self._step_key!r} column to '
+                       f'truncate by; columns: {self._columns}')
+    rows = read_csv(self.path)
+    kept = [row for row in rows if float(row[self._step_key]) <= max_step]
+    self.close()
+    temporary = self.path + '.tmp'
+    with open(temporary, 'w', newline='') as f:
+      writer = csv.DictWriter(f, fieldnames=self._columns)
+      writer.writeheader()
+      for row in kept:
+        writer.writerow({k: _format(row[k]) for k in self._columns})
+    os.replace(temporary, self.path)
+
+  def write(self, row, step=None):
+    row = dict(row)
+    if step is not None:
+      row[self._step_key] = step
+    if self._columns is None:
+      self._columns = list(row)
+      if self._step_key in row:   # The step first, as a reader expects.
+        self._columns.remove(self._step_key)
+        self._columns.insert(0, self._step_key)
+    unknown = sorted(set(row) - set(self._columns))
+    if unknown:
+      raise ValueError(f'Row has columns {unknown} that {self.path} does not '
+                       f'have (its columns: {self._columns})')
+    if self._file is None:
+      new = not os.path.exists(self.path) or os.path.getsize(self.path) == 0
+      directory = os.path.dirname(self.path)
+      if directory:
+        os.makedirs(directory, exist_ok=True)
+      self._file = open(self.path, 'a', newline='')
+      self._writer = csv.DictWriter(self._file, fieldnames=self._columns)
+      if new:
+        self._writer.writeheader()
+    self._writer.writerow({k: _format(row.get(k, '')) for k in self._columns})
+    self._file.flush()
+
+  def close(self):
+    if self._file is not None:
+      self._file.close()
+      self._file = None
+
+
+def _format(value):
+  value = _number(value)
+  if isinstance(value, float):
+    return repr(value)   # Shortest exact round trip.
+  return value
+
+
+def read_csv(path):
+  """Rows of a CSV file as dicts of strings."""
+  with open(path, newline='') as f:
+    return list(csv.DictReader(f))
+
+
+def read_csv_columns(path, columns):
+  """{column: list of floats} of a CSV file (empty cells become NaN)."""
+  rows = read_csv(path)
+  if rows:
+    missing = [c for c in columns if c not in rows[0]]
+    if missing:
+      raise ValueError(f'{path} lacks columns {missing}; it has '
+                       f'{list(rows[0])}')
+  return {c: [float(row[c]) if row[c] != '' else math.nan for row in rows]
+          for c in columns}
+
+
+def summary_writer(directory, purge_step=None):
+  """A tensorboardX SummaryWriter; purge_step drops the directory's events
+  at and after that step (a resumed run re-creates them)."""
+  from tensorboardX import SummaryWriter   # pylint: disable=g-import-not-at-top
+  return SummaryWriter(os.fspath(directory), purge_step=purge_step)
+
+
+class TensorBoardLogger:
+  """Scalars tagged '<prefix>/<key>' through a SummaryWriter (shared by
+  several loggers, closed by its owner). Non-numeric values are skipped."""
+
+  def __init__(self, writer, prefix):
+    self._writer = writer
+    self._prefix = prefix
+
+  def write(self, row, step):
+    for key, value in row.items():
+      value = _number(value)
+      if isinstance(value, (int, float)) and math.isfinite(value):
+        self._writer.add_scalar(f'{self._prefix}/{key}', value, step)
+    self._writer.flush()
+
+  def close(self):
+    pass   # The writer's owner closes it.
+
+
+class Dispatcher:
+  """Writes each row to several loggers."""
+
+  def __init__(self, loggers):
+    self._loggers = tuple(loggers)
+
+  def write(self, row, step):
+    for logger in self._loggers:
+      logger.write(row, step)
+
+  def close(self):
+    for logger in self._loggers:
+      logger.close()
