@@ -1,0 +1,201 @@
+r"""Learning curves over seeds from training runs' eval.csv, as PNG and SVG.
+
+  python -m agents.plot --logdirs=runs/reach/seed0,runs/reach/seed1 \
+      --out=curves.png
+
+Runs (log directories of `agents.train`) that differ only in their seed are
+one curve: at every evaluation step all of them reached, the mean over seeds
+with a 95 % percentile-bootstrap confidence interval from 10^4 resamples
+(the reference benchmark's protocol). Two panels: the evaluation success
+rate and the evaluation return normalised between the task's minimal
+episode return (0: reward_range low x horizon, from the run's config.json)
+and the mean expert return (1). The expert return comes from --expert_return
+or the experts file (--experts_json, by default docs/results/experts.json of
+the repository when present); without either the raw return is plotted and
+the axis says so.
+
+Experts file format read: {"<domain>/<task>": E} where E is a number, a
+dict with "return_mean", or a dict {robot: number or {"return_mean": ...}}.
+"""
+
+import collections
+import os
+
+from absl import app
+from absl import flags
+from absl import logging
+import numpy as np
+
+from agents import checkpoints
+from agents import logging as logging_lib
+from agents import statistics
+
+# Parts of a run config that do not distinguish curves.
+_SEED_KEYS = ('seed', 'steps', 'checkpoint_every')
+_DEFAULT_EXPERTS = os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                '..', 'docs', 'results', 'experts.json')
+
+_LOGDIRS = flags.DEFINE_list('logdirs', None, 'Run directories (comma-'
+                             'separated).', required=True)
+_OUT = flags.DEFINE_string('out', 'curves.png', 'Output PNG; an SVG with '
+                           'the same stem is written too.')
+_EXPERT_RETURN = flags.DEFINE_float(
+    'expert_return', None, 'Mean expert episode return (overrides the '
+    'experts file).')
+_EXPERTS_JSON = flags.DEFINE_string('experts_json', _DEFAULT_EXPERTS,
+                                    'Experts file (used when present).')
+_RESAMPLES = flags.DEFINE_integer('resamples', statistics.DEFAULT_RESAMPLES,
+                                  'Bootstrap resamples.')
+_SEED = flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.')
+
+Curve = collections.namedtuple(
+    'Curve', ['label', 'steps', 'seeds', 'success', 'returns', 'normalised'])
+# success / returns: (mean, low, high) arrays over steps; normalised: bool.
+
+
+def load_run(logdir):
+  """(config dict, {column: array}) of one run's evaluations."""
+  config_path = os.path.join(logdir, 'config.json')
+  eval_path = os.path.join(logdir, 'eval.csv')
+  for path in (config_path, eval_path):
+    if not os.path.exists(path):
+      raise ValueError(f'{logdir} is not a training run: {path} is missing')
+  config = checkpoints.read_json(config_path)
+  columns = logging_lib.read_csv_columns(
+      eval_path, ('step', 'success_rate', 'return_mean'))
+  if not columns['step']:
+    raise ValueError(f'{eval_path} has no evaluations yet')
+  return config, {k: np.array(v) for k, v in columns.items()}
+
+
+def expert_return(config, experts_json=None):
+  """The mean expert return of the run's task and robot, or None."""
+  if not experts_json or not os.path.exists(experts_json):
+    return None
+  experts = checkpoints.read_json(experts_json)
+  entry = experts.get(f'{config["domain"]}/{config["task"]}')
+  if isinstance(entry, dict) and config['robot'] in entry:
+    entry = entry[config['robot']]
+  if isinstance(entry, dict):
+    entry = entry.get('return_mean')
+  if entry is None:
+    return None
+  if not isinstance(entry, (int, float)):
+    raise ValueError(f'{experts_json}: expected a number for '
+                     f'{config["domain"]}/{config["task"]}, got {entry!r}')
+  return float(entry)
+
+
+def _group_key(config):
+  return tuple(sorted((k, repr(v)) for k, v in config.items()
+                      if k not in _SEED_KEYS))
+
+
+def _label(config):
+  label = f'{config["agent"]} ({config["config"]})'
+  if config.get('overrides'):
+    label += ' ' + ', '.join(f'{k}={v}' for k, v in
+                             sorted(config['overrides'].items()))
+  return label
+
+
+def learning_curves(logdirs, random_state, expert=None, experts_json=None,
+                    num_resamples=statistics.DEFAULT_RESAMPLES):
+  """One Curve per group of runs that differ only in their seed."""
+  groups = collections.OrderedDict()
+  for logdir in logdirs:
+    config, columns = load_run(logdir)
+    groups.setdefault(_group_key(config), []).append((config, columns))
+  curves = []
+  for runs in groups.values():
+    config = runs[0][0]
+    seeds = [c['seed'] for c, _ in runs]
+    if len(set(seeds)) != len(seeds):
+      raise ValueError(f'Runs of {_label(config)} repeat seeds {seeds}: '
+                       'give each seed once')
+    steps = sorted(set.intersection(*(set(c['step']) for _, c in runs)))
+    if not steps:
+      raise ValueError(f'The runs of {_label(config)} share no evaluation '
+                       'step')
+
+    def table(name):
+      rows = []
+      for _, columns in runs:
+        index = {s: i for i, s in enumerate(columns['step'])}
+        rows.append([columns[name][index[s]] for s in steps])
+      return np.array(rows)   # (seeds, steps)
+
+    success = table('success_rate')
+    returns = table('return_mean')
+    best = expert if expert is not None else expert_return(config,
+                                                           experts_json)
+    normalised = best is not None
+    if normalised:
+      low = config['min_return']
+      if not best > low:
+        raise ValueError(f'Expert return {best} must exceed the minimal '
+                         f'return {low} of {config["domain"]}/'
+                         f'{config["task"]}')
+      returns = (returns - low) / (best - low)
+    curves.append(Curve(
+        label=_label(config), steps=np.array(steps), seeds=seeds,
+        success=statistics.bootstrap_ci(success, random_state,
+                                        num_resamples=num_resamples),
+        returns=statistics.bootstrap_ci(returns, random_state,
+                                        num_resamples=num_resamples),
+        normalised=normalised))
+  return curves
+
+
+def draw(curves, out, title):
+  """Writes the curves as `out` (PNG) and the same stem .svg."""
+  import matplotlib   # pylint: disable=g-import-not-at-top
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
+  figure, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+  for curve in curves:
+    for axis, (mean, low, high) in zip(axes, (curve.success, curve.returns)):
+      label = f'{curve.label}, {len(curve.seeds)} seed(s)'
+      line, = axis.plot(curve.steps, mean, label=label)
+      axis.fill_between(curve.steps, low, high, color=line.get_color(),
+                        alpha=0.25, linewidth=0)
+  axes[0].set_ylabel('evaluation success rate')
+  axes[0].set_ylim(-0.02, 1.02)
+  normalised = all(c.normalised for c in curves)
+  axes[1].set_ylabel('normalised return (0: minimal, 1: expert)'
+                     if normalised else
+                     'return (not normalised: no expert return)')
+  for axis in axes:
+    axis.set_xlabel('environment steps')
+    axis.grid(alpha=0.3)
+  axes[0].legend(loc='best', fontsize='small')
+  figure.suptitle(f'{title}: mean and 95 % bootstrap CI over seeds')
+  stem, _ = os.path.splitext(os.fspath(out))
+  directory = os.path.dirname(stem)
+  if directory:
+    os.makedirs(directory, exist_ok=True)
+  paths = (stem + '.png', stem + '.svg')
+  for path in paths:
+    figure.savefig(path, dpi=120)
+  plt.close(figure)
+  return paths
+
+
+def main(argv):
+  del argv
+  if _EXPERT_RETURN.value is None and not os.path.exists(
+      _EXPERTS_JSON.value):
+    logging.warning('No expert return (%s absent, no --expert_return): '
+                    'plotting the raw return', _EXPERTS_JSON.value)
+  curves = learning_curves(
+      _LOGDIRS.value, np.random.RandomState(_SEED.value),
+      expert=_EXPERT_RETURN.value, experts_json=_EXPERTS_JSON.value,
+      num_resamples=_RESAMPLES.value)
+  config, _ = load_run(_LOGDIRS.value[0])
+  title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
+  for path in draw(curves, _OUT.value, title):
+    print(path)
+
+
+if __name__ == '__main__':
+  app.run(main)

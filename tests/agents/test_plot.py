@@ -1,0 +1,89 @@
+"""Tests of the learning-curve plot on synthetic runs."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from agents import logging as logging_lib
+from agents import plot
+
+
+def _write_run(logdir, seed, success, returns, agent='sac', steps=None):
+  os.makedirs(logdir)
+  config = {'domain': 'reach', 'task': 'dense', 'robot': 'schunk',
+            'action_space': 'cartesian', 'task_kwargs': {}, 'agent': agent,
+            'config': 'default', 'overrides': {}, 'seed': seed,
+            'steps': 1000, 'eval_every': 100, 'eval_episodes': 4,
+            'checkpoint_every': 0, 'min_return': -100.0,
+            'reward_range': [-1.0, 0.0], 'horizon': 100}
+  with open(os.path.join(logdir, 'config.json'), 'w') as f:
+    json.dump(config, f)
+  logger = logging_lib.CSVLogger(os.path.join(logdir, 'eval.csv'))
+  steps = steps if steps is not None else 100 * np.arange(len(success))
+  for step, s, r in zip(steps, success, returns):
+    logger.write({'success_rate': s, 'return_mean': r, 'evaluation': 0},
+                 int(step))
+  logger.close()
+
+
+def test_curves_over_seeds_normalised_by_the_expert(tmp_path):
+  a, b = str(tmp_path / 'a'), str(tmp_path / 'b')
+  _write_run(a, 0, [0.0, 0.5, 1.0], [-100.0, -60.0, -20.0])
+  _write_run(b, 1, [0.0, 1.0, 1.0, 1.0], [-100.0, -40.0, -20.0, -20.0])
+  curves = plot.learning_curves([a, b], np.random.RandomState(0),
+                                expert=-20.0, num_resamples=2000)
+  assert len(curves) == 1
+  curve = curves[0]
+  assert curve.seeds == [0, 1] and curve.normalised
+  np.testing.assert_array_equal(curve.steps, [0, 100, 200])  # Shared only.
+  mean, low, high = curve.success
+  np.testing.assert_allclose(mean, [0.0, 0.75, 1.0])
+  # Two seeds: the resampled means are the two values and their mean.
+  np.testing.assert_allclose(low, [0.0, 0.5, 1.0])
+  np.testing.assert_allclose(high, [0.0, 1.0, 1.0])
+  # (return - min) / (expert - min) with min -100, expert -20.
+  np.testing.assert_allclose(curve.returns[0], [0.0, 0.625, 1.0])
+
+  paths = plot.draw(curves, str(tmp_path / 'out' / 'curves.png'), 'reach')
+  png, svg = paths
+  with open(png, 'rb') as f:
+    assert f.read(8) == b'\x89PNG\r\n\x1a\n'
+  assert os.path.getsize(png) > 10_000
+  with open(svg) as f:
+    text = f.read()
+  assert '<svg' in text and 'path' in text and len(text) > 10_000
+
+
+def test_groups_by_configuration_and_experts_file(tmp_path):
+  _write_run(str(tmp_path / 's0'), 0, [0.0, 1.0], [-80.0, -50.0])
+  _write_run(str(tmp_path / 'air0'), 0, [0.5, 1.0], [-60.0, -30.0],
+             agent='air')
+  experts = tmp_path / 'experts.json'
+  experts.write_text(json.dumps(
+      {'reach/dense': {'schunk': {'return_mean': -50.0}}}))
+  curves = plot.learning_curves(
+      [str(tmp_path / 's0'), str(tmp_path / 'air0')],
+      np.random.RandomState(0), experts_json=str(experts),
+      num_resamples=100)
+  assert [c.label for c in curves] == ['sac (default)', 'air (default)']
+  np.testing.assert_allclose(curves[0].returns[0], [0.4, 1.0])
+  # Without an expert return the raw return is kept.
+  raw = plot.learning_curves([str(tmp_path / 's0')],
+                             np.random.RandomState(0), num_resamples=100)
+  assert not raw[0].normalised
+  np.testing.assert_allclose(raw[0].returns[0], [-80.0, -50.0])
+
+
+def test_bad_runs_raise(tmp_path):
+  with pytest.raises(ValueError, match='not a training run'):
+    plot.learning_curves([str(tmp_path)], np.random.RandomState(0))
+  _write_run(str(tmp_path / 'a'), 0, [0.0], [-1.0])
+  _write_run(str(tmp_path / 'b'), 0, [0.0], [-1.0])
+  with pytest.raises(ValueError, match='repeat seeds'):
+    plot.learning_curves([str(tmp_path / 'a'), str(tmp_path / 'b')],
+                         np.random.RandomState(0))
+  with pytest.raises(ValueError, match='must exceed the minimal'):
+    plot.learning_curves([str(tmp_path / 'a')], np.random.RandomState(0),
+                         expert=-200.0)
