@@ -26,6 +26,9 @@ setuptools.setup(
         'ruckig>=0.12',      # jerk-limited trajectory generation.
         'imageio>=2.30',
         'imageio-ffmpeg>=0.4.9',  # ships its own ffmpeg binary.
+        # Video captions and event markers (hrc_suite/render_overlay.py);
+        # load_default(size=...) needs Pillow >= 10.1.
+        'Pillow>=10.1',
         'tqdm',
         # Compiled kernels of the shield's per-cycle geometry
         # (hrc_suite/safety/kernels.py).

@@ -1,16 +1,27 @@
 """Runs one episode of a task with a policy and writes a video and its metrics.
 
     MUJOCO_GL=egl python -m hrc_suite.render --domain=handover \
-        --task=robot_to_human --policy=random --out=handover.mp4
+        --task=robot_to_human --policy=expert --out=handover.mp4
 
-One frame per RL step (10 Hz, so the video plays in real time), from any
-named camera. The episode's metrics (success, return, shield interventions,
-contacts by type, ...) are printed and written to a JSON file beside the
-video. Policies: `random` (uniform in the action spec, seeded) and `zero`
-(no motion, gripper closed: the shielded robot holding still while the human
-moves).
+One frame per RL step (10 Hz), or one every --substeps_per_frame physics
+steps (4 ms each) for a smooth video; played in real time unless --fps says
+otherwise. Any workcell camera (--camera). The overlay (on unless
+--nooverlay, `render_overlay`) draws the shield's reachable capsules of the
+robot (blue) and the human (orange) into the scene, marks frames of RL steps
+in which the shield intervened (yellow border and badge) or a contact
+occurred (badges: violet static, green safe human, red critical human), and
+writes a caption line: time, reward, return, success. `.mp4` (H.264) or
+`.gif` (--gif_scale shrinks it). The episode's metrics are printed and
+written to a JSON file beside the video.
+
+Policies (--policy): `expert` (the task's hand-crafted expert,
+`hrc_suite.experts`), `noisy_expert` (the expert with Ornstein-Uhlenbeck
+noise, seeded), `random` (uniform in the action spec, seeded) and `zero`
+(no motion, gripper closed). `policy_factory` maps the flag to a factory
+(env, seed) -> policy; trained checkpoints will be added there.
 """
 
+import dataclasses
 import json
 import pathlib
 
@@ -18,71 +29,272 @@ from absl import app
 from absl import flags
 import numpy as np
 
+from hrc_suite import render_overlay
 from hrc_suite import rendering
 from hrc_suite import robot_description
 
-POLICIES = ('random', 'zero')
+POLICIES = ('expert', 'noisy_expert', 'random', 'zero')
+# Scene room for the overlay's capsules beyond dm_control's own estimate
+# (robot: up to ~60 slices x 8 capsules; human: 13 bodies per slice).
+OVERLAY_MAX_GEOMS = 2000
 
 _DOMAIN = flags.DEFINE_string('domain', 'handover', 'Task domain.')
 _TASK = flags.DEFINE_string('task', 'robot_to_human', 'Task name.')
 _ROBOT = flags.DEFINE_enum('robot', 'panda', robot_description.ROBOT_NAMES,
                            'Robot.')
-_POLICY = flags.DEFINE_enum('policy', 'random', POLICIES, 'Policy to run.')
+_POLICY = flags.DEFINE_string('policy', 'random',
+                              f'Policy to run: {", ".join(POLICIES)}.')
+_SHIELD = flags.DEFINE_enum('shield', None, ('ssm', 'pfl', 'off'),
+                            'Shield mode (default: the task\'s).')
 _OUT = flags.DEFINE_string('out', 'episode.mp4', 'Video (.mp4 or .gif).')
 _CAMERA = flags.DEFINE_string(
-    'camera', 'side', 'Camera name (front, side, top, human_view).')
+    'camera', 'side', 'Workcell camera (front, side, top, human_view).')
 _SEED = flags.DEFINE_integer('seed', 0, 'Seed of the episode and policy.')
 _MAX_STEPS = flags.DEFINE_integer('max_steps', 200,
                                   'At most this many RL steps.')
 _WIDTH = flags.DEFINE_integer('width', 640, 'Frame width in pixels.')
 _HEIGHT = flags.DEFINE_integer('height', 480, 'Frame height in pixels.')
+_FPS = flags.DEFINE_float('fps', None,
+                          'Frames per second (default: real time).')
+_OVERLAY = flags.DEFINE_boolean(
+    'overlay', True, 'Shield capsules, event markers and caption.')
+_SUBSTEPS_PER_FRAME = flags.DEFINE_integer(
+    'substeps_per_frame', None,
+    'A frame every this many physics steps (default: one per RL step).')
+_GIF_SCALE = flags.DEFINE_float('gif_scale', 1.0,
+                                'Scale of .gif frames, in (0, 1].')
 
 
-def make_policy(name, action_spec, seed):
-  """A function timestep -> action for a named policy."""
-  if name == 'random':
-    rng = np.random.RandomState(seed)
-    return lambda timestep: rng.uniform(action_spec.minimum,
-                                        action_spec.maximum,
-                                        action_spec.shape)
-  if name == 'zero':
-    action = np.zeros(action_spec.shape)
-    if action.shape[0] in (4,):  # Cartesian: keep the gripper closed.
-      action[-1] = 1.0
-    return lambda timestep: action
-  raise ValueError(f'Unknown policy {name!r}: expected one of '
-                   f'{", ".join(POLICIES)}')
+# -------------------------------------------------------------- policies
+
+
+def _random_policy(env, seed):
+  spec = env.action_spec()
+  rng = np.random.RandomState(seed)
+  return lambda timestep: rng.uniform(spec.minimum, spec.maximum, spec.shape)
+
+
+def _zero_policy(env, seed):
+  del seed
+  action = np.zeros(env.action_spec().shape)
+  if getattr(env.task, 'HAS_GRIPPER_ACTION', False):
+    action[-1] = 1.0   # Keep the gripper closed (hold what it holds).
+  return lambda timestep: action
+
+
+def _expert_policy(env, seed):
+  del seed   # Experts are deterministic.
+  from hrc_suite import experts  # pylint: disable=g-import-not-at-top
+  return experts.make(env)
+
+
+def _noisy_expert_policy(env, seed):
+  from hrc_suite import experts  # pylint: disable=g-import-not-at-top
+  try:
+    from hrc_suite.experts import noise as noise_lib  # pylint: disable=g-import-not-at-top
+  except ModuleNotFoundError as error:
+    if error.name != 'hrc_suite.experts.noise':
+      raise
+    raise ValueError('--policy=noisy_expert needs hrc_suite/experts/noise.py '
+                     '(OrnsteinUhlenbeckNoise, NoisyExpert), which this '
+                     'checkout does not have yet') from error
+  noise = noise_lib.OrnsteinUhlenbeckNoise(env.action_spec().shape[0],
+                                           seed=seed)
+  return experts.make(env, noise=noise)
+
+
+_POLICY_FACTORIES = {
+    'expert': _expert_policy,
+    'noisy_expert': _noisy_expert_policy,
+    'random': _random_policy,
+    'zero': _zero_policy,
+}
+
+
+def policy_factory(name):
+  """The factory (env, seed) -> policy (timestep -> action) of a --policy
+  value. (Trained checkpoints, issue 7: a checkpoint directory will map to
+  its loader here.)"""
+  if name not in _POLICY_FACTORIES:
+    raise ValueError(f'Unknown policy {name!r}: expected one of '
+                     f'{", ".join(POLICIES)}')
+  return _POLICY_FACTORIES[name]
+
+
+def make_policy(name, env, seed):
+  """The policy (timestep -> action) of a --policy value on `env`."""
+  return policy_factory(name)(env, seed)
+
+
+# --------------------------------------------------------------- cameras
+
+
+def camera_names(env):
+  """Names of the workcell's cameras."""
+  return tuple(camera.name for camera in env.task.arena.cameras)
+
+
+def camera_index(env, name):
+  """The compiled model's id of a workcell camera, by name."""
+  cameras = {camera.name: camera for camera in env.task.arena.cameras}
+  if name not in cameras:
+    raise ValueError(f'Unknown camera {name!r}: expected one of '
+                     f'{", ".join(cameras)}')
+  return int(env.physics.bind(cameras[name]).element_id)
+
+
+def _positive_int(name, value):
+  if not isinstance(value, (int, np.integer)) or value < 1:
+    raise ValueError(f'{name}: expected a positive integer, got {value!r}')
+  return int(value)
+
+
+# --------------------------------------------------------------- episode
+
+
+@dataclasses.dataclass
+class RenderedEpisode:
+  frames: list          # (H, W, 3) uint8 frames, annotated if overlay
+  infos: list           # render_overlay.FrameInfo per frame
+  metrics: dict         # the task's episode_metrics
+  frame_period: float   # s of simulated time between frames
+
+
+def render_episode(env, policy, camera='side', width=640, height=480,
+                   overlay=True, substeps_per_frame=None, max_steps=None):
+  """Plays one episode of `env` (an hrc_suite task) with `policy` and
+  renders it: a frame after reset, then one per RL step or one every
+  `substeps_per_frame` physics steps. Frames of an RL step carry that
+  step's markers (the shield's interventions and contacts are counted per
+  RL step). Returns a RenderedEpisode."""
+  from dm_control.mujoco import engine  # pylint: disable=g-import-not-at-top
+  width, height = _positive_int('width', width), _positive_int('height',
+                                                                height)
+  if substeps_per_frame is not None:
+    substeps_per_frame = _positive_int('substeps_per_frame',
+                                       substeps_per_frame)
+  if max_steps is not None:
+    max_steps = _positive_int('max_steps', max_steps)
+  camera_index(env, camera)   # Fails early on a bad name.
+  timestep = env.reset()
+  physics = env.physics
+  callback = (render_overlay.ShieldOverlay(env.task.shield) if overlay
+              else None)
+  from dm_control.mujoco.wrapper import core  # pylint: disable=g-import-not-at-top
+  max_geom = max(1000, core._estimate_max_renderable_geoms(physics.model))  # pylint: disable=protected-access
+  view = engine.Camera(physics, height, width, camera_index(env, camera),
+                       max_geom=max_geom + OVERLAY_MAX_GEOMS,
+                       scene_callback=callback)
+
+  def shot():
+    return view.render().copy(), float(physics.data.time)
+
+  pending = []
+  counter = {'substeps': 0, 'active': substeps_per_frame is not None}
+  if substeps_per_frame is not None:
+    def after_substep(physics, random_state):
+      del physics, random_state
+      if counter['active']:
+        counter['substeps'] += 1
+        if counter['substeps'] % substeps_per_frame == 0:
+          pending.append(shot())
+    env.add_extra_hook('after_substep', after_substep)
+    frame_period = substeps_per_frame * float(physics.model.opt.timestep)
+  else:
+    frame_period = env.control_timestep()
+
+  def finish(image, info):
+    return render_overlay.annotate(image, info, legend=True) if overlay else (
+        image)
+
+  image, time = shot()
+  first = render_overlay.FrameInfo(time=time, reward=None,
+                                   episode_return=0.0, success=False)
+  frames, infos = [finish(image, first)], [first]
+  steps = 0
+  try:
+    while not timestep.last() and (max_steps is None or steps < max_steps):
+      timestep = env.step(policy(timestep))
+      steps += 1
+      if substeps_per_frame is None:
+        pending.append(shot())
+      info = render_overlay.frame_info(env.task.step_metrics,
+                                       env.task.episode_metrics, 0.0)
+      for image, time in pending:
+        info = dataclasses.replace(info, time=time)
+        frames.append(finish(image, info))
+        infos.append(info)
+      pending.clear()
+  finally:
+    counter['active'] = False
+  metrics = {k: float(v) for k, v in env.task.episode_metrics.items()}
+  return RenderedEpisode(frames, infos, metrics, frame_period)
+
+
+def _scaled(frames, scale):
+  """Frames resized by `scale` (Pillow, area-averaging)."""
+  from PIL import Image  # pylint: disable=g-import-not-at-top
+  if scale == 1.0:
+    return frames
+  height, width = frames[0].shape[:2]
+  size = (max(1, round(width * scale)), max(1, round(height * scale)))
+  return [np.asarray(Image.fromarray(f).resize(size, Image.Resampling.BOX))
+          for f in frames]
 
 
 def run(domain, task, robot='panda', policy='random', out='episode.mp4',
-        camera='side', seed=0, max_steps=200, width=640, height=480):
-  """Runs and renders one episode; returns (video path, metrics dict)."""
-  from hrc_suite import suite
-  env = suite.load(domain, task, task_kwargs=dict(robot=robot, seed=seed))
-  act = make_policy(policy, env.action_spec(), seed)
-  timestep = env.reset()
-  frames = [rendering.render_frame(env.physics, camera, width, height)]
-  for _ in range(max_steps):
-    if timestep.last():
-      break
-    timestep = env.step(act(timestep))
-    frames.append(rendering.render_frame(env.physics, camera, width, height))
-  metrics = {k: float(v) for k, v in env.task.episode_metrics.items()}
-  fps = 1.0 / env.control_timestep()
+        camera='side', seed=0, max_steps=200, width=640, height=480,
+        overlay=True, fps=None, substeps_per_frame=None, gif_scale=1.0,
+        task_kwargs=None):
+  """Runs and renders one episode; returns (video path, metrics dict).
+
+  policy: a name (POLICIES) or a factory (env, seed) -> policy.
+  task_kwargs: more task arguments (e.g. {'shield': 'pfl'}).
+  """
+  from hrc_suite import suite  # pylint: disable=g-import-not-at-top
+  factory = policy if callable(policy) else policy_factory(policy)
+  if not 0.0 < gif_scale <= 1.0:
+    raise ValueError(f'gif_scale: expected a number in (0, 1], got '
+                     f'{gif_scale!r}')
+  if fps is not None and not fps > 0:
+    raise ValueError(f'fps: expected > 0, got {fps!r}')
+  suffix = pathlib.Path(out).suffix.lower()
+  if suffix not in ('.mp4', '.gif'):
+    raise ValueError(f'Unsupported video format {suffix!r} for {out}: '
+                     'expected .mp4 or .gif')
+  env = suite.load(domain, task, task_kwargs=dict(
+      task_kwargs or {}, robot=robot, seed=seed))
+  try:
+    episode = render_episode(env, factory(env, seed), camera, width, height,
+                             overlay, substeps_per_frame, max_steps)
+  finally:
+    env.close()
+  frames = episode.frames
+  if suffix == '.gif':
+    frames = _scaled(frames, gif_scale)
+  fps = fps or 1.0 / episode.frame_period
   path = rendering.write_video(out, frames, fps=fps)
+  markers = {m: sum(m in info.markers() for info in episode.infos)
+             for m in render_overlay.MARKERS}
   metrics_path = pathlib.Path(path).with_suffix('.json')
   metrics_path.write_text(json.dumps(dict(
-      domain=domain, task=task, robot=robot, policy=policy, seed=seed,
-      camera=camera, metrics=metrics), indent=1) + '\n')
-  env.close()
-  return path, metrics
+      domain=domain, task=task, robot=robot,
+      policy=policy if isinstance(policy, str) else getattr(
+          policy, '__name__', repr(policy)),
+      seed=seed, camera=camera, overlay=overlay, frames=len(frames), fps=fps,
+      frames_with_markers=markers, task_kwargs=task_kwargs or {},
+      metrics=episode.metrics), indent=1) + '\n')
+  return path, episode.metrics
 
 
 def main(argv):
   del argv
+  task_kwargs = {'shield': _SHIELD.value} if _SHIELD.value else None
   path, metrics = run(_DOMAIN.value, _TASK.value, _ROBOT.value, _POLICY.value,
                       _OUT.value, _CAMERA.value, _SEED.value,
-                      _MAX_STEPS.value, _WIDTH.value, _HEIGHT.value)
+                      _MAX_STEPS.value, _WIDTH.value, _HEIGHT.value,
+                      _OVERLAY.value, _FPS.value, _SUBSTEPS_PER_FRAME.value,
+                      _GIF_SCALE.value, task_kwargs)
   print('episode metrics:')
   for key, value in metrics.items():
     print(f'  {key}: {value:g}')

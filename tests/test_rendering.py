@@ -71,5 +71,5 @@ def test_render_command_writes_video_and_metrics(tmp_path):
 
 def test_render_rejects_unknown_policy():
   from hrc_suite import render
-  with pytest.raises(ValueError, match="'expert'.*random"):
-    render.make_policy('expert', None, 0)
+  with pytest.raises(ValueError, match="'nope'.*random"):
+    render.make_policy('nope', None, 0)
