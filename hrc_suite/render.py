@@ -89,6 +89,8 @@ def _expert_policy(env, seed):
 
 
 def _noisy_expert_policy(env, seed):
+  """The expert plus the reference's Ornstein-Uhlenbeck noise for the
+  task's action space, seeded by `seed`."""
   from hrc_suite import experts  # pylint: disable=g-import-not-at-top
   try:
     from hrc_suite.experts import noise as noise_lib  # pylint: disable=g-import-not-at-top
@@ -97,10 +99,10 @@ def _noisy_expert_policy(env, seed):
       raise
     raise ValueError('--policy=noisy_expert needs hrc_suite/experts/noise.py '
                      '(OrnsteinUhlenbeckNoise, NoisyExpert), which this '
-                     'checkout does not have yet') from error
-  noise = noise_lib.OrnsteinUhlenbeckNoise(env.action_spec().shape[0],
-                                           seed=seed)
-  return experts.make(env, noise=noise)
+                     'checkout does not have') from error
+  noise = noise_lib.OrnsteinUhlenbeckNoise.reference(
+      env.action_spec().shape[0], env.task.action_space_name)
+  return noise_lib.NoisyExpert(experts.make(env), noise, seed=seed)
 
 
 _POLICY_FACTORIES = {

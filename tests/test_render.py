@@ -213,3 +213,21 @@ def test_bad_camera_and_policy_names_are_clear_errors(tmp_path):
     render.run('reach', 'dense', out=tmp_path / 'x.avi')
   with pytest.raises(ValueError, match='gif_scale'):
     render.run('reach', 'dense', out=tmp_path / 'x.gif', gif_scale=2.0)
+
+
+def test_expert_and_noisy_expert_policies():
+  pytest.importorskip('hrc_suite.experts.reach',
+                      reason='the reach expert is not in this checkout')
+  pytest.importorskip('hrc_suite.experts.noise',
+                      reason='the noise module is not in this checkout')
+  env = suite.load('reach', 'dense', task_kwargs={'robot': 'schunk',
+                                                 'seed': 0})
+  timestep = env.reset()
+  expert = render.make_policy('expert', env, 0)(timestep)
+  noisy = [render.make_policy('noisy_expert', env, seed)(timestep)
+           for seed in (0, 0, 1)]
+  assert expert.shape == env.action_spec().shape
+  np.testing.assert_array_equal(noisy[0], noisy[1])
+  assert not np.array_equal(noisy[0], noisy[2])
+  # The noise's share of the action is 2 % (the reference's mixing).
+  assert np.abs(noisy[0] - expert).max() < 0.2
