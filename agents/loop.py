@@ -75,6 +75,8 @@ class EnvironmentLoop:
     self._agent = agent
     self._observers = _check_observers(observers)
     self.counter = counter if counter is not None else Counter()
+    # The metrics returned by the last agent.update() that returned any.
+    self.update_metrics = {}
     self._should_update = should_update
     self._timestep = None       # None: the next step starts an episode.
     self._episode_return = 0.0
@@ -110,7 +112,9 @@ class EnvironmentLoop:
     for observer in self._observers:
       observer.observe(self._env, timestep, action)
     if self._should_update:
-      self._agent.update()
+      metrics = self._agent.update()
+      if metrics:
+        self.update_metrics = metrics
     self.counter.steps += 1
     self._episode_steps += 1
     self._episode_return += float(timestep.reward)

@@ -35,19 +35,6 @@ _SEED_KEYS = ('seed', 'steps', 'checkpoint_every')
 _DEFAULT_EXPERTS = os.path.join(os.path.dirname(os.path.abspath(__file__)),
                                 '..', 'docs', 'results', 'experts.json')
 
-_LOGDIRS = flags.DEFINE_list('logdirs', None, 'Run directories (comma-'
-                             'separated).', required=True)
-_OUT = flags.DEFINE_string('out', 'curves.png', 'Output PNG; an SVG with '
-                           'the same stem is written too.')
-_EXPERT_RETURN = flags.DEFINE_float(
-    'expert_return', None, 'Mean expert episode return (overrides the '
-    'experts file).')
-_EXPERTS_JSON = flags.DEFINE_string('experts_json', _DEFAULT_EXPERTS,
-                                    'Experts file (used when present).')
-_RESAMPLES = flags.DEFINE_integer('resamples', statistics.DEFAULT_RESAMPLES,
-                                  'Bootstrap resamples.')
-_SEED = flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.')
-
 Curve = collections.namedtuple(
     'Curve', ['label', 'steps', 'seeds', 'success', 'returns', 'normalised'])
 # success / returns: (mean, low, high) arrays over steps; normalised: bool.
@@ -181,21 +168,37 @@ def draw(curves, out, title):
   return paths
 
 
+def define_flags():
+  """Defines the binary's flags (only when run as a program)."""
+  flags.DEFINE_list('logdirs', None, 'Run directories (comma-separated).',
+                    required=True)
+  flags.DEFINE_string('out', 'curves.png', 'Output PNG; an SVG with the same '
+                      'stem is written too.')
+  flags.DEFINE_float('expert_return', None, 'Mean expert episode return '
+                     '(overrides the experts file).')
+  flags.DEFINE_string('experts_json', _DEFAULT_EXPERTS,
+                      'Experts file (used when present).')
+  flags.DEFINE_integer('resamples', statistics.DEFAULT_RESAMPLES,
+                       'Bootstrap resamples.')
+  flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.')
+
+
 def main(argv):
   del argv
-  if _EXPERT_RETURN.value is None and not os.path.exists(
-      _EXPERTS_JSON.value):
+  f = flags.FLAGS
+  if f.expert_return is None and not os.path.exists(f.experts_json):
     logging.warning('No expert return (%s absent, no --expert_return): '
-                    'plotting the raw return', _EXPERTS_JSON.value)
-  curves = learning_curves(
-      _LOGDIRS.value, np.random.RandomState(_SEED.value),
-      expert=_EXPERT_RETURN.value, experts_json=_EXPERTS_JSON.value,
-      num_resamples=_RESAMPLES.value)
-  config, _ = load_run(_LOGDIRS.value[0])
+                    'plotting the raw return', f.experts_json)
+  curves = learning_curves(f.logdirs, np.random.RandomState(f.seed),
+                           expert=f.expert_return,
+                           experts_json=f.experts_json,
+                           num_resamples=f.resamples)
+  config, _ = load_run(f.logdirs[0])
   title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
-  for path in draw(curves, _OUT.value, title):
+  for path in draw(curves, f.out, title):
     print(path)
 
 
 if __name__ == '__main__':
+  define_flags()
   app.run(main)

@@ -1,0 +1,146 @@
+"""Training-run checkpoints: layout, atomic writes, lookup and loading.
+
+A run's log directory holds
+
+  config.json                run configuration (task, agent, seeds, ...)
+  train.csv, eval.csv        one row per training episode / evaluation
+  tensorboard/               the same scalars as TensorBoard events
+  checkpoints/latest         name of the newest complete checkpoint
+  checkpoints/step_<steps>/  agent/ (SACAgent.save: parameters, optimiser
+                             states, replay, RNG keys, counters), loop.json
+                             (loop counters, schedules, the environment's
+                             RandomState scalars, the run config) and
+                             env_random_state.npz (its Mersenne-Twister key)
+
+A checkpoint is written into a temporary directory that is renamed into
+place, then `latest` is replaced atomically, so an interrupted write never
+leaves a half checkpoint behind `latest`. The newest KEEP checkpoints are
+kept.
+"""
+
+import json
+import os
+import shutil
+
+import numpy as np
+
+KEEP = 2                     # checkpoints kept per run
+_LATEST = 'latest'
+_PREFIX = 'step_'
+_LOOP_FILE = 'loop.json'
+_RNG_FILE = 'env_random_state.npz'
+AGENT_DIR = 'agent'
+
+
+def checkpoint_root(logdir):
+  return os.path.join(os.fspath(logdir), 'checkpoints')
+
+
+def write_json(path, value):
+  """Writes JSON atomically (temporary file + rename)."""
+  temporary = f'{path}.tmp'
+  with open(temporary, 'w') as f:
+    json.dump(value, f, indent=2, sort_keys=True)
+    f.write('\n')
+  os.replace(temporary, path)
+
+
+def read_json(path):
+  with open(path) as f:
+    return json.load(f)
+
+
+def random_state_to_arrays(random_state):
+  """(key array, JSON-ready scalars) of an np.random.RandomState."""
+  name, key, position, has_gauss, cached = random_state.get_state()
+  return np.asarray(key), {'name': name, 'position': int(position),
+                           'has_gauss': int(has_gauss),
+                           'cached_gaussian': float(cached)}
+
+
+def random_state_from_arrays(key, scalars):
+  """The state tuple for RandomState.set_state."""
+  return (scalars['name'], np.asarray(key, dtype=np.uint32),
+          int(scalars['position']), int(scalars['has_gauss']),
+          float(scalars['cached_gaussian']))
+
+
+def save(logdir, steps, agent, loop_state, env_random_state):
+  """Writes checkpoint step_<steps> of a run and points `latest` to it.
+
+  Args:
+    logdir: the run's log directory.
+    steps: environment steps done (names the checkpoint).
+    agent: has save(directory).
+    loop_state: JSON-ready dict (counters, schedules, run config).
+    env_random_state: the training environment's np.random.RandomState.
+
+  Returns:
+    The checkpoint's directory.
+  """
+  root = checkpoint_root(logdir)
+  os.makedirs(root, exist_ok=True)
+  name = f'{_PREFIX}{steps:010d}'
+  final = os.path.join(root, name)
+  temporary = final + '.tmp'
+  if os.path.exists(temporary):
+    shutil.rmtree(temporary)
+  os.makedirs(temporary)
+  agent.save(os.path.join(temporary, AGENT_DIR))
+  key, scalars = random_state_to_arrays(env_random_state)
+  np.savez(os.path.join(temporary, _RNG_FILE), key=key)
+  write_json(os.path.join(temporary, _LOOP_FILE),
+             dict(loop_state, env_random_state=scalars))
+  if os.path.exists(final):   # Same step saved before (e.g. a rerun).
+    shutil.rmtree(final)
+  os.replace(temporary, final)
+  pointer = os.path.join(root, _LATEST)
+  with open(pointer + '.tmp', 'w') as f:
+    f.write(name + '\n')
+  os.replace(pointer + '.tmp', pointer)
+  for old in sorted(n for n in os.listdir(root)
+                    if n.startswith(_PREFIX) and not n.endswith('.tmp'))[
+                        :-KEEP]:
+    shutil.rmtree(os.path.join(root, old))
+  return final
+
+
+def latest(logdir):
+  """The newest complete checkpoint directory of a run, or None."""
+  pointer = os.path.join(checkpoint_root(logdir), _LATEST)
+  if not os.path.exists(pointer):
+    return None
+  with open(pointer) as f:
+    name = f.read().strip()
+  directory = os.path.join(checkpoint_root(logdir), name)
+  if not os.path.isdir(directory):
+    raise ValueError(f'{pointer} names {name!r}, which does not exist')
+  return directory
+
+
+def resolve(path):
+  """A checkpoint directory from a run's logdir, its checkpoints/ folder
+  or a checkpoint directory itself."""
+  path = os.fspath(path)
+  if os.path.exists(os.path.join(path, _LOOP_FILE)):
+    return path
+  for root in (path, os.path.dirname(path.rstrip(os.sep))):
+    if os.path.basename(root.rstrip(os.sep)) == 'checkpoints':
+      found = latest(os.path.dirname(root.rstrip(os.sep)))
+      if found:
+        return found
+  found = latest(path) if os.path.isdir(path) else None
+  if found is None:
+    raise ValueError(f'No checkpoint at {path!r}: expected a run logdir '
+                     '(with checkpoints/latest), its checkpoints/ folder or '
+                     f'a checkpoint directory holding {_LOOP_FILE}')
+  return found
+
+
+def load_loop_state(directory):
+  """(loop state dict, environment RandomState state tuple)."""
+  state = read_json(os.path.join(directory, _LOOP_FILE))
+  with np.load(os.path.join(directory, _RNG_FILE),
+               allow_pickle=False) as data:
+    key = data['key']
+  return state, random_state_from_arrays(key, state['env_random_state'])

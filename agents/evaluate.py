@@ -1,0 +1,130 @@
+r"""Deterministic evaluation episodes of a training checkpoint, as a table.
+
+  python -m agents.evaluate --checkpoint=runs/reach_dense/seed0 --episodes=20
+
+--checkpoint is a run's log directory (its latest checkpoint), its
+checkpoints/ folder or one checkpoint directory. The environment is the
+run's task and robot, seeded from --seed (by default the run seed, through a
+stream distinct from training and the training run's evaluations). Prints
+the success rate with a 95 % bootstrap confidence interval over episodes,
+the return, the episode length, shield interventions and contacts; --output
+writes the per-episode metrics and the summary as JSON.
+"""
+
+import os
+
+from absl import app
+from absl import flags
+import numpy as np
+
+from agents import checkpoints
+from agents import loop as loop_lib
+from agents import statistics
+from agents import train as train_lib
+
+# Seed purpose of evaluate's environment (train uses 0, 1, 2).
+_EVALUATE_ENV = 3
+
+# Rows of the table: (label, metric, kind); kind 'rate' gets a bootstrap CI.
+_TABLE = (
+    ('success rate', 'success', 'rate'),
+    ('return', 'episode_return', 'mean'),
+    ('episode length', 'episode_length', 'mean'),
+    ('shield interventions', 'shield_interventions', 'mean'),
+    ('action replacements', 'action_replacements', 'mean'),
+    ('static contacts', 'contacts_static', 'mean'),
+    ('allowed human contacts', 'contacts_human_allowed', 'mean'),
+    ('critical human contacts', 'contacts_human_critical', 'mean'),
+    ('self collisions', 'self_collisions', 'mean'),
+    ('min human distance [m]', 'min_human_distance', 'min'),
+)
+
+
+def load_agent(directory, env=None):
+  """(agent, run config, env) restored from a checkpoint; env is built from
+  the run config (seeded by the run's evaluation stream) unless given."""
+  directory = checkpoints.resolve(directory)
+  loop_state, _ = checkpoints.load_loop_state(directory)
+  run_config = loop_state['run_config']
+  if env is None:
+    env = train_lib.make_environment(
+        run_config, train_lib.derived_seed(run_config['seed'],
+                                           _EVALUATE_ENV))
+  agent = train_lib.make_agent(run_config, env)
+  agent.restore(os.path.join(directory, checkpoints.AGENT_DIR))
+  return agent, run_config, env
+
+
+def summary(episodes, random_state):
+  """{metric: {'mean', 'low', 'high'} or {'min'}} over the episodes."""
+  result = {}
+  for _, name, kind in _TABLE:
+    if name not in episodes[0]:
+      continue
+    values = np.array([e[name] for e in episodes], dtype=float)
+    if kind == 'min':
+      result[name] = {'min': float(values.min())}
+    elif kind == 'rate':
+      mean, low, high = statistics.bootstrap_ci(values, random_state)
+      result[name] = {'mean': mean, 'low': low, 'high': high}
+    else:
+      result[name] = {'mean': float(values.mean()),
+                      'std': float(values.std())}
+  return result
+
+
+def format_table(result, episodes):
+  lines = [f'{"metric":<26} {"value":>30}', '-' * 57]
+  for label, name, kind in _TABLE:
+    if name not in result:
+      continue
+    entry = result[name]
+    if kind == 'min':
+      value = f'{entry["min"]:.3f}'
+    elif kind == 'rate':
+      value = (f'{entry["mean"]:.2f} [{entry["low"]:.2f}, '
+               f'{entry["high"]:.2f}] 95% CI')
+    else:
+      value = f'{entry["mean"]:.3f} +- {entry["std"]:.3f}'
+    lines.append(f'{label:<26} {value:>30}')
+  lines.append(f'({episodes} deterministic episodes)')
+  return '\n'.join(lines)
+
+
+def run(checkpoint, episodes, seed=None):
+  """Evaluates a checkpoint; returns (per-episode metrics, summary)."""
+  directory = checkpoints.resolve(checkpoint)
+  loop_state, _ = checkpoints.load_loop_state(directory)
+  run_config = loop_state['run_config']
+  if seed is None:
+    seed = train_lib.derived_seed(run_config['seed'], _EVALUATE_ENV)
+  env = train_lib.make_environment(run_config, seed)
+  agent, _, _ = load_agent(directory, env)
+  results = loop_lib.evaluate(env, agent.policy(deterministic=True),
+                              episodes)
+  return results, summary(results, np.random.RandomState(seed))
+
+
+def define_flags():
+  """Defines the binary's flags (only when run as a program)."""
+  flags.DEFINE_string('checkpoint', None, 'Checkpoint or run directory.',
+                      required=True)
+  flags.DEFINE_integer('episodes', 20, 'Episodes to run.')
+  flags.DEFINE_integer('seed', None, 'Environment seed (default: derived '
+                       'from the run seed).')
+  flags.DEFINE_string('output', None, 'JSON file for the results.')
+
+
+def main(argv):
+  del argv
+  f = flags.FLAGS
+  results, table = run(f.checkpoint, f.episodes, f.seed)
+  print(f'checkpoint: {checkpoints.resolve(f.checkpoint)}')
+  print(format_table(table, len(results)))
+  if f.output:
+    checkpoints.write_json(f.output, {'summary': table, 'episodes': results})
+
+
+if __name__ == '__main__':
+  define_flags()
+  app.run(main)

@@ -1,0 +1,347 @@
+r"""Trains an agent on an hrc_suite task, with evaluation, logs and checkpoints.
+
+  python -m agents.train --domain=reach --task=dense --robot=schunk \
+      --action_space=cartesian --agent=sac --config=default --seed=0 \
+      --steps=200000 --eval_every=10000 --eval_episodes=20 \
+      --logdir=runs/reach_dense/seed0
+
+Writes logdir/config.json, train.csv (one row per training episode),
+eval.csv (one row per evaluation: deterministic episodes in a separate
+environment, seeded from the run seed and the evaluation's index),
+tensorboard/ and checkpoints/ (`agents.checkpoints`).
+
+Resuming (--resume) continues exactly: the resumed run ends with the same
+parameters, replay contents and logs as an uninterrupted run. Checkpoints
+are taken at episode boundaries (the first episode end at or after every
+--checkpoint_every steps, and the end of the run if it ends an episode),
+because a composer environment's observation buffers and step counters are
+not part of a task snapshot; a resumed run replays the steps since the last
+checkpoint, and the CSV/TensorBoard rows after it are dropped first.
+"""
+
+import json
+import os
+import time
+
+from absl import app
+from absl import flags
+from absl import logging
+import numpy as np
+
+from agents import checkpoints
+from agents import config as config_lib
+from agents import logging as logging_lib
+from agents import loop as loop_lib
+from agents import specs as specs_lib
+from hrc_suite import suite
+from hrc_suite.tasks import metrics as metrics_lib
+
+AGENTS = ('sac', 'rsi', 'sir', 'air')
+# Keys of the run config a resumed run may change.
+_RESUMABLE_CHANGES = ('steps',)
+# Purposes of seeds derived from the run seed (np.random.SeedSequence).
+_TRAIN_ENV, _AGENT, _EVAL_ENV = 0, 1, 2
+
+
+
+def derived_seed(seed, *purpose):
+  """A 31-bit seed for one purpose of a run seed (independent streams)."""
+  sequence = np.random.SeedSequence([int(seed)] + [int(p) for p in purpose])
+  return int(sequence.generate_state(1)[0] & 0x7FFFFFFF)
+
+
+def parse_overrides(items):
+  """{'field': value} from ['field=json value', ...]."""
+  overrides = {}
+  for item in items:
+    name, sep, value = item.partition('=')
+    if not sep or not name:
+      raise ValueError(f'Bad override {item!r}: expected field=value')
+    try:
+      overrides[name] = json.loads(value)
+    except json.JSONDecodeError as e:
+      raise ValueError(f'Bad override value in {item!r}: expected JSON '
+                       f'(e.g. 100, 3e-4, [64, 64], null): {e}') from None
+  return overrides
+
+
+def make_run_config(domain, task, robot, action_space, agent='sac',
+                    config='default', overrides=None, task_kwargs=None,
+                    seed=0, steps=1000, eval_every=0, eval_episodes=0,
+                    checkpoint_every=0):
+  """The JSON-ready description of a run (config.json)."""
+  if agent not in AGENTS:
+    raise ValueError(f'Unknown agent {agent!r}: expected one of '
+                     f'{", ".join(AGENTS)}')
+  if agent != 'sac':
+    raise ValueError(
+        f'--agent={agent} is not available yet: the imitation variants '
+        '(RSI/SIR/AIR) are environment wrappers in agents/imitation/, not '
+        'written yet; use --agent=sac')
+  for name, value, low in (('steps', steps, 0), ('eval_every', eval_every, 0),
+                           ('eval_episodes', eval_episodes, 0),
+                           ('checkpoint_every', checkpoint_every, 0)):
+    if int(value) != value or value < low:
+      raise ValueError(f'{name} must be an integer >= {low}, got {value!r}')
+  if eval_every and not eval_episodes:
+    raise ValueError('eval_every > 0 needs eval_episodes >= 1')
+  task_kwargs = dict(task_kwargs or {})
+  for name in ('robot', 'action_space', 'seed'):
+    if name in task_kwargs:
+      raise ValueError(f'task_kwargs must not set {name!r}: it is a flag '
+                       'of its own (the seed is derived from --seed)')
+  overrides = dict(overrides or {})
+  sac_config = config_lib.config_from_name(config, **overrides)
+  return {
+      'domain': domain, 'task': task, 'robot': robot,
+      'action_space': action_space, 'task_kwargs': task_kwargs,
+      'agent': agent, 'config': config, 'overrides': overrides,
+      'sac_config': sac_config.to_dict(), 'seed': int(seed),
+      'steps': int(steps), 'eval_every': int(eval_every),
+      'eval_episodes': int(eval_episodes),
+      'checkpoint_every': int(checkpoint_every),
+  }
+
+
+def make_environment(run_config, seed):
+  """The run's environment, compiled, with its RandomState seeded by seed.
+
+  The throwaway first reset compiles the model, so that a fresh and a
+  resumed run draw the same random numbers from then on.
+  """
+  kwargs = dict(run_config['task_kwargs'], robot=run_config['robot'],
+                action_space=run_config['action_space'])
+  env = suite.load(run_config['domain'], run_config['task'],
+                   task_kwargs=kwargs,
+                   environment_kwargs={'random_state': int(seed)})
+  env.reset()
+  env.random_state.seed(int(seed))
+  return env
+
+
+def make_agent(run_config, env):
+  """The run's agent (SACAgent) for env, seeded from the run seed."""
+  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
+  sac_config = config_lib.SACConfig(**run_config['sac_config'])
+  return agent_lib.SACAgent(specs_lib.make_environment_spec(env), sac_config,
+                            seed=derived_seed(run_config['seed'], _AGENT))
+
+
+def task_facts(env):
+  """Reward range, horizon and the minimal episode return of env's task."""
+  low, high = env.task.reward_range
+  horizon = int(env.task.horizon)
+  return {'reward_range': [float(low), float(high)], 'horizon': horizon,
+          'min_return': float(low) * horizon}
+
+
+def summarize(episodes):
+  """One evaluation row from the episodes' metrics (means and rates)."""
+  row = {'episodes': len(episodes)}
+  returns = np.array([e['episode_return'] for e in episodes])
+  row['success_rate'] = float(np.mean([e.get('success', 0.0)
+                                       for e in episodes]))
+  row['return_mean'] = float(returns.mean())
+  row['return_std'] = float(returns.std())
+  row['length_mean'] = float(np.mean([e['episode_length'] for e in episodes]))
+  skip = {'success', 'return', 'steps', 'episode_return', 'episode_length'}
+  for name in episodes[0]:
+    if name in skip:
+      continue
+    values = np.array([e[name] for e in episodes], dtype=float)
+    if name == 'min_human_distance':
+      row[name] = float(values.min())
+    elif name == 'max_human_contact_speed':
+      row[name] = float(values.max())
+    else:
+      row[f'{name}_mean'] = float(values.mean())
+  return row
+
+
+def evaluate_policy(run_config, env, agent, index):
+  """Evaluation number `index`: deterministic episodes, seeded by it."""
+  env.random_state.seed(derived_seed(run_config['seed'], _EVAL_ENV, index))
+  episodes = loop_lib.evaluate(env, agent.policy(deterministic=True),
+                               run_config['eval_episodes'])
+  return dict(summarize(episodes), evaluation=index)
+
+
+def _check_resumable(stored, run_config):
+  changed = sorted(k for k in set(stored) | set(run_config)
+                   if k not in _RESUMABLE_CHANGES and k in run_config
+                   and stored.get(k) != run_config[k])
+  if changed:
+    details = '; '.join(f'{k}: {stored.get(k)!r} -> {run_config[k]!r}'
+                        for k in changed)
+    raise ValueError(f'Cannot resume with a different configuration '
+                     f'({details}); only {list(_RESUMABLE_CHANGES)} may '
+                     'change')
+
+
+class _Progress:
+  """A tqdm bar (or nothing)."""
+
+  def __init__(self, enabled, total, initial):
+    self._bar = None
+    if enabled:
+      import tqdm   # pylint: disable=g-import-not-at-top
+      self._bar = tqdm.tqdm(total=total, initial=initial, unit='step',
+                            dynamic_ncols=True, smoothing=0.05)
+
+  def update(self, steps=1, **postfix):
+    if self._bar is not None:
+      self._bar.update(steps)
+      if postfix:
+        self._bar.set_postfix(postfix, refresh=False)
+
+  def close(self):
+    if self._bar is not None:
+      self._bar.close()
+
+
+def train(run_config, logdir, resume=False, progress=False):
+  """Runs (or resumes) a training run; returns the agent and loop state."""
+  logdir = os.fspath(logdir)
+  os.makedirs(logdir, exist_ok=True)
+  config_path = os.path.join(logdir, 'config.json')
+  checkpoint = checkpoints.latest(logdir) if resume else None
+  if not resume and (os.path.exists(config_path) or
+                     checkpoints.latest(logdir) is not None):
+    raise ValueError(f'{logdir} already holds a run: pass --resume to '
+                     'continue it, or choose a new --logdir')
+  if checkpoint is not None and os.path.exists(config_path):
+    _check_resumable(checkpoints.read_json(config_path), run_config)
+
+  env = make_environment(run_config, derived_seed(run_config['seed'],
+                                                  _TRAIN_ENV))
+  eval_env = None
+  if run_config['eval_every']:
+    eval_env = make_environment(run_config, derived_seed(run_config['seed'],
+                                                         _EVAL_ENV))
+  agent = make_agent(run_config, env)
+  observer = metrics_lib.EpisodeMetricsObserver()
+  loop = loop_lib.EnvironmentLoop(env, agent, observers=[observer])
+  state = {'evaluations': 0, 'next_eval': 0,
+           'next_checkpoint': run_config['checkpoint_every'] or None,
+           'wall_time': 0.0}
+  if checkpoint is not None:
+    stored, rng_state = checkpoints.load_loop_state(checkpoint)
+    agent.restore(os.path.join(checkpoint, checkpoints.AGENT_DIR))
+    loop.counter.restore(stored['counter'])
+    env.random_state.set_state(rng_state)
+    state.update({k: stored[k] for k in state})
+    logging.info('Resumed %s at step %d', checkpoint, loop.counter.steps)
+  elif resume:
+    logging.info('No checkpoint in %s: starting afresh', logdir)
+  run_config = dict(run_config, **task_facts(env))
+  checkpoints.write_json(config_path, run_config)
+
+  resumed_at = loop.counter.steps
+  train_csv = logging_lib.CSVLogger(os.path.join(logdir, 'train.csv'))
+  eval_csv = logging_lib.CSVLogger(os.path.join(logdir, 'eval.csv'))
+  for logger in (train_csv, eval_csv):
+    logger.truncate(resumed_at)
+  writer = logging_lib.summary_writer(
+      os.path.join(logdir, 'tensorboard'),
+      purge_step=resumed_at + 1 if checkpoint is not None else None)
+  train_log = logging_lib.Dispatcher(
+      [train_csv, logging_lib.TensorBoardLogger(writer, 'train')])
+  learner_log = logging_lib.TensorBoardLogger(writer, 'learner')
+  eval_log = logging_lib.Dispatcher(
+      [eval_csv, logging_lib.TensorBoardLogger(writer, 'eval')])
+  bar = _Progress(progress, run_config['steps'], loop.counter.steps)
+  start = time.perf_counter() - state['wall_time']
+  last_saved = resumed_at if checkpoint is not None else None
+
+  def save():
+    state['wall_time'] = time.perf_counter() - start
+    loop_state = dict(state, counter=loop.counter.state(),
+                      run_config=run_config)
+    checkpoints.save(logdir, loop.counter.steps, agent, loop_state,
+                     env.random_state)
+
+  def evaluate():
+    row = evaluate_policy(run_config, eval_env, agent, state['evaluations'])
+    row['wall_time'] = time.perf_counter() - start
+    eval_log.write(row, loop.counter.steps)
+    state['evaluations'] += 1
+    state['next_eval'] += run_config['eval_every']
+    bar.update(0, eval_success=f'{row["success_rate"]:.2f}')
+
+  pending = False   # A checkpoint is due at the next episode boundary.
+  try:
+    while True:
+      if eval_env is not None and loop.counter.steps >= state['next_eval']:
+        evaluate()   # Before a checkpoint at the same step: it holds it.
+      if pending and not loop.in_episode:
+        save()
+        pending, last_saved = False, loop.counter.steps
+      if loop.counter.steps >= run_config['steps']:
+        break
+      result = loop.step()
+      bar.update(1)
+      if result is not None:
+        result['wall_time'] = time.perf_counter() - start
+        train_log.write(result, loop.counter.steps)
+        if loop.update_metrics:
+          learner_log.write(loop.update_metrics, loop.counter.steps)
+        bar.update(0, ret=f'{result["episode_return"]:.2f}')
+      due = state['next_checkpoint']
+      if due is not None and loop.counter.steps >= due:
+        pending = True
+        state['next_checkpoint'] += run_config['checkpoint_every']
+    if not loop.in_episode and last_saved != loop.counter.steps:
+      save()
+  finally:
+    bar.close()
+    train_log.close()
+    eval_log.close()
+    writer.close()
+  return agent, dict(state, counter=loop.counter.state())
+
+
+def define_flags():
+  """Defines the binary's flags (only when run as a program, so that the
+  module can be imported next to the other binaries)."""
+  flags.DEFINE_string('domain', 'reach', 'Task domain.')
+  flags.DEFINE_string('task', 'dense', 'Task name within the domain.')
+  flags.DEFINE_string('robot', 'schunk', 'Robot name.')
+  flags.DEFINE_enum('action_space', 'cartesian', ['joint', 'cartesian'],
+                    'Action space.')
+  flags.DEFINE_string('task_kwargs', '{}', 'JSON dict of further task '
+                      'kwargs, e.g. \'{"time_limit": 5.0}\'.')
+  flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent variant.')
+  flags.DEFINE_enum('config', 'default', list(config_lib.CONFIGS),
+                    'SAC preset.')
+  flags.DEFINE_multi_string(
+      'override', [], 'SACConfig field=value (value as JSON), repeatable, '
+      'e.g. --override=min_replay_size=100.')
+  flags.DEFINE_integer('seed', 0, 'Run seed.')
+  flags.DEFINE_integer('steps', 200_000, 'Environment steps.')
+  flags.DEFINE_integer('eval_every', 10_000,
+                       'Steps between evaluations (0: none).')
+  flags.DEFINE_integer('eval_episodes', 20, 'Episodes per evaluation.')
+  flags.DEFINE_integer(
+      'checkpoint_every', 50_000, 'Steps between checkpoints (taken at the '
+      'next episode end; 0: only at the end of the run).')
+  flags.DEFINE_string('logdir', None, 'Run directory.', required=True)
+  flags.DEFINE_bool('resume', False, 'Continue from the latest checkpoint in '
+                    '--logdir (a fresh start if there is none).')
+  flags.DEFINE_bool('progress', True, 'Show a progress bar.')
+
+
+def main(argv):
+  del argv
+  f = flags.FLAGS
+  run_config = make_run_config(
+      f.domain, f.task, f.robot, f.action_space, agent=f.agent,
+      config=f.config, overrides=parse_overrides(f.override),
+      task_kwargs=json.loads(f.task_kwargs), seed=f.seed, steps=f.steps,
+      eval_every=f.eval_every, eval_episodes=f.eval_episodes,
+      checkpoint_every=f.checkpoint_every)
+  train(run_config, f.logdir, resume=f.resume, progress=f.progress)
+
+
+if __name__ == '__main__':
+  define_flags()
+  app.run(main)

@@ -1,0 +1,163 @@
+"""End-to-end tests of agents.train, agents.evaluate and agents.plot, and of
+exact resumption from a checkpoint."""
+
+import glob
+import json
+import os
+
+import numpy as np
+import pytest
+
+from agents import checkpoints
+from agents import logging as logging_lib
+from agents import train
+
+# Ten-step episodes of reach/dense and a tiny SAC, so that runs take seconds.
+_TASK_KWARGS = {'time_limit': 1.0}
+_OVERRIDES = {'min_replay_size': 16, 'batch_size': 8, 'hidden_sizes': [16, 16]}
+# Columns of train.csv that depend on timing, not on the run's computation.
+_TIMING = ('steps_per_second', 'wall_time')
+
+
+def _run_config(seed=0, steps=60, eval_every=25, checkpoint_every=20):
+  return train.make_run_config(
+      'reach', 'dense', 'schunk', 'cartesian', overrides=_OVERRIDES,
+      task_kwargs=_TASK_KWARGS, seed=seed, steps=steps,
+      eval_every=eval_every, eval_episodes=2,
+      checkpoint_every=checkpoint_every)
+
+
+def _checkpoint_arrays(directory):
+  """{relative path[/array name]: array or JSON value} of a checkpoint's
+  agent files (parameters, optimiser states, replay, keys, counters)."""
+  found = {}
+  agent_dir = os.path.join(directory, checkpoints.AGENT_DIR)
+  for path in sorted(glob.glob(os.path.join(agent_dir, '**', '*'),
+                               recursive=True)):
+    name = os.path.relpath(path, agent_dir)
+    if path.endswith('.npz'):
+      with np.load(path, allow_pickle=False) as data:
+        for key in data.files:
+          found[f'{name}/{key}'] = data[key]
+    elif path.endswith('.json'):
+      found[name] = checkpoints.read_json(path)
+  return found
+
+
+def _deterministic_rows(path):
+  rows = logging_lib.read_csv(path)
+  return [{k: v for k, v in row.items() if k not in _TIMING} for row in rows]
+
+
+@pytest.fixture(scope='module')
+def two_runs(tmp_path_factory):
+  root = tmp_path_factory.mktemp('runs')
+  logdirs = []
+  for seed in (0, 1):
+    logdir = str(root / f'seed{seed}')
+    train.train(_run_config(seed=seed), logdir)
+    logdirs.append(logdir)
+  return logdirs
+
+
+def test_train_writes_logs_and_checkpoints(two_runs):
+  logdir = two_runs[0]
+  config = checkpoints.read_json(os.path.join(logdir, 'config.json'))
+  assert config['horizon'] == 10 and config['min_return'] < 0
+  assert config['sac_config']['min_replay_size'] == 16
+  rows = logging_lib.read_csv(os.path.join(logdir, 'train.csv'))
+  assert [int(r['step']) for r in rows] == [10, 20, 30, 40, 50, 60]
+  for name in ('episode_return', 'success', 'shield_interventions',
+               'contacts_human_critical'):
+    assert name in rows[0]
+  evaluations = logging_lib.read_csv(os.path.join(logdir, 'eval.csv'))
+  assert [int(r['step']) for r in evaluations] == [0, 25, 50]
+  assert all(0.0 <= float(r['success_rate']) <= 1.0 for r in evaluations)
+  assert all(float(r['length_mean']) == 10.0 for r in evaluations)
+  assert glob.glob(os.path.join(logdir, 'tensorboard', 'events.*'))
+  latest = checkpoints.latest(logdir)
+  assert os.path.basename(latest) == 'step_0000000060'
+  kept = sorted(os.listdir(checkpoints.checkpoint_root(logdir)))
+  assert kept == ['latest', 'step_0000000040', 'step_0000000060']
+  # The learner ran: its parameters differ between the two checkpoints.
+  before = _checkpoint_arrays(os.path.join(
+      checkpoints.checkpoint_root(logdir), 'step_0000000040'))
+  after = _checkpoint_arrays(latest)
+  assert before.keys() == after.keys()
+  assert any(isinstance(v, np.ndarray) and v.dtype.kind == 'f' and
+             v.shape == after[k].shape and not np.array_equal(v, after[k])
+             for k, v in before.items())
+  # A second start into the same logdir without --resume is refused.
+  with pytest.raises(ValueError, match='already holds a run'):
+    train.train(_run_config(), logdir)
+
+
+def test_evaluate_checkpoint(two_runs):
+  from agents import evaluate   # pylint: disable=g-import-not-at-top
+  results, summary = evaluate.run(two_runs[0], episodes=2, seed=7)
+  assert len(results) == 2
+  assert all(r['episode_length'] == 10 for r in results)
+  assert summary['success']['low'] <= summary['success']['mean']
+  assert summary['success']['mean'] <= summary['success']['high']
+  assert summary['episode_length']['mean'] == 10.0
+  again, _ = evaluate.run(two_runs[0], episodes=2, seed=7)
+  assert again == results   # Deterministic policy, same seed.
+  table = evaluate.format_table(summary, len(results))
+  assert 'success rate' in table and 'shield interventions' in table
+  with pytest.raises(ValueError, match='No checkpoint'):
+    evaluate.run(os.path.dirname(two_runs[0]), episodes=1)
+
+
+def test_plot_two_runs(two_runs, tmp_path):
+  from agents import plot   # pylint: disable=g-import-not-at-top
+  curves = plot.learning_curves(two_runs, np.random.RandomState(0),
+                                expert=0.0, num_resamples=1000)
+  assert len(curves) == 1 and curves[0].seeds == [0, 1]
+  np.testing.assert_array_equal(curves[0].steps, [0, 25, 50])
+  png, svg = plot.draw(curves, str(tmp_path / 'curves.png'), 'reach/dense')
+  assert os.path.getsize(png) > 10_000 and os.path.getsize(svg) > 10_000
+
+
+def test_resume_matches_an_uninterrupted_run(two_runs, tmp_path):
+  whole, split = two_runs[0], str(tmp_path / 'split')
+  # Interrupted after 35 steps: the latest checkpoint is at step 20 (the
+  # one due at 40 was never reached); steps 21-35 are replayed.
+  train.train(_run_config(steps=35), split)
+  assert os.path.basename(checkpoints.latest(split)) == 'step_0000000020'
+  assert len(logging_lib.read_csv(os.path.join(split, 'train.csv'))) == 3
+  train.train(_run_config(steps=60), split, resume=True)
+  expected = _checkpoint_arrays(checkpoints.latest(whole))
+  actual = _checkpoint_arrays(checkpoints.latest(split))
+  assert expected.keys() == actual.keys() and expected
+  for key, value in expected.items():
+    if isinstance(value, np.ndarray):
+      np.testing.assert_array_equal(actual[key], value, err_msg=key)
+    else:
+      assert actual[key] == value, key
+  for name in ('train.csv', 'eval.csv'):
+    assert (_deterministic_rows(os.path.join(split, name)) ==
+            _deterministic_rows(os.path.join(whole, name))), name
+  # Only the step budget may change on resume.
+  with pytest.raises(ValueError, match='different configuration'):
+    train.train(_run_config(steps=80, eval_every=20), split, resume=True)
+
+
+def test_bad_run_configs():
+  with pytest.raises(ValueError, match='not available yet'):
+    train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
+                          agent='air')
+  with pytest.raises(ValueError, match='Unknown agent'):
+    train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
+                          agent='ppo')
+  with pytest.raises(ValueError, match='Unknown SACConfig fields'):
+    train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
+                          overrides={'learning_rat': 1e-3})
+  with pytest.raises(ValueError, match='must not set'):
+    train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
+                          task_kwargs={'seed': 3})
+  assert train.parse_overrides(['batch_size=64', 'hidden_sizes=[8, 8]']) == {
+      'batch_size': 64, 'hidden_sizes': [8, 8]}
+  with pytest.raises(ValueError, match='field=value'):
+    train.parse_overrides(['batch_size'])
+  with pytest.raises(ValueError, match='expected JSON'):
+    train.parse_overrides(['learning_rate=fast'])
