@@ -1,0 +1,376 @@
+r"""The expert baseline table: every expert (and noisy expert) per task.
+
+  python -m hrc_suite.experts.evaluate --episodes=50 --robots=schunk,panda \
+      --workers=2
+
+Runs episodes with seeds 0..N-1 of each registered expert's task on each
+robot and policy (shield and action space: the task's defaults unless
+given) and writes docs/results/experts.md (one row per task, robot and
+policy: success rate with a 95 % bootstrap confidence interval, return,
+episode length, shield interventions and contacts by type per episode,
+wall time) and the raw per-episode results as docs/results/experts.json.
+Episode `seed` runs in an environment whose random_state is seeded `seed`;
+the noisy expert uses the noise of episode `seed` of NoisyExpert(seed=0),
+as a dataset collected with --seed=0 does. Experts whose module does not
+import yet are listed as not evaluated.
+"""
+
+import collections
+import datetime
+import json
+import multiprocessing
+import os
+import pathlib
+import platform
+import shlex
+import subprocess
+import sys
+import time
+
+from absl import app
+from absl import flags
+import numpy as np
+
+from agents import statistics
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.experts import noise as noise_lib
+from hrc_suite.tasks import metrics as metrics_lib
+
+POLICIES = ('expert', 'noisy_expert')
+# The bar every expert must reach (issue 6): success in at least 80 % of
+# the episodes of its task, with no critical human contact.
+SUCCESS_BAR = 0.8
+# Seed of every row's bootstrap resampling (rows are reproducible alone).
+BOOTSTRAP_SEED = 0
+# Per-episode metrics reported as means per episode, in table order.
+CONTACT_COLUMNS = (('static', 'contacts_static'), ('self', 'self_collisions'),
+                   ('human safe', 'contacts_human_allowed'),
+                   ('human critical', 'contacts_human_critical'))
+_REPOSITORY = pathlib.Path(__file__).resolve().parents[2]
+
+
+def _parse_task(name):
+  if name.count('/') != 1:
+    raise ValueError(f'Tasks are domain/task, got {name!r}')
+  return tuple(name.split('/'))
+
+
+def available_tasks(tasks=None):
+  """(tasks whose expert imports, {task: error} of those that do not)."""
+  tasks = experts.registered() if tasks is None else tuple(tasks)
+  ok, missing = [], {}
+  for task in tasks:
+    try:
+      experts.expert_class(*task)
+    except ImportError as e:
+      missing[task] = f'{type(e).__name__}: {e}'
+    else:
+      ok.append(task)
+  return tuple(ok), missing
+
+
+# ------------------------------------------------------------- episodes
+
+_ENV_CACHE = {}   # job key -> (env, policy); one per process, the last.
+
+
+def _environment(domain, task, robot, action_space, policy, time_limit):
+  key = (domain, task, robot, action_space, policy, time_limit)
+  if key not in _ENV_CACHE:
+    _ENV_CACHE.clear()
+    task_kwargs = {'robot': robot}
+    if action_space is not None:
+      task_kwargs['action_space'] = action_space
+    if time_limit is not None:
+      task_kwargs['time_limit'] = time_limit
+    env = suite.load(domain, task, task_kwargs=task_kwargs,
+                     environment_kwargs={'random_state': 0})
+    noise = None
+    if policy == 'noisy_expert':
+      noise = noise_lib.OrnsteinUhlenbeckNoise.reference(
+          env.action_spec().shape[0], env.task.action_space_name)
+    _ENV_CACHE[key] = (env, experts.make(env, noise=noise))
+  return _ENV_CACHE[key]
+
+
+def _json_number(value):
+  value = float(value)
+  return value if np.isfinite(value) else None
+
+
+def run_job(job):
+  """One episode: job = (domain, task, robot, action_space, policy,
+  time_limit, seed). Returns its result dict (JSON-able)."""
+  domain, task, robot, action_space, policy_name, time_limit, seed = job
+  env, policy = _environment(domain, task, robot, action_space, policy_name,
+                             time_limit)
+  env.random_state.seed(seed)
+  if hasattr(policy, 'set_episode'):
+    policy.set_episode(seed)
+  start = time.perf_counter()
+  episode = metrics_lib.run_episode(env, policy)
+  wall_time = time.perf_counter() - start
+  return {
+      'domain': domain, 'task': task, 'robot': robot,
+      'action_space': env.task.action_space_name,
+      'shield': env.task.shield_mode, 'policy': policy_name, 'seed': seed,
+      'control_timestep': env.task.control_timestep,
+      'wall_time': wall_time,
+      'metrics': {name: _json_number(value)
+                  for name, value in episode.items()},
+  }
+
+
+def jobs(tasks, robots, policies, episodes, action_spaces=(None,),
+         time_limit=None):
+  """Every episode to run, grouped by environment."""
+  return [(domain, task, robot, space, policy, time_limit, seed)
+          for domain, task in tasks for robot in robots
+          for space in action_spaces for policy in policies
+          for seed in range(episodes)]
+
+
+def run(job_list, workers=1, progress=False):
+  """Results of `job_list`, in its order; workers > 1 runs them in spawned
+  processes."""
+  bar = None
+  if progress:
+    import tqdm   # pylint: disable=g-import-not-at-top
+    bar = tqdm.tqdm(total=len(job_list), unit='episode')
+  results = [None] * len(job_list)
+  try:
+    if workers <= 1:
+      for i, job in enumerate(job_list):
+        results[i] = run_job(job)
+        if bar is not None:
+          bar.update(1)
+    else:
+      context = multiprocessing.get_context('spawn')
+      with context.Pool(workers) as pool:
+        indexed = pool.imap_unordered(_run_indexed, enumerate(job_list))
+        for i, result in indexed:
+          results[i] = result
+          if bar is not None:
+            bar.update(1)
+  finally:
+    if bar is not None:
+      bar.close()
+  return results
+
+
+def _run_indexed(item):
+  index, job = item
+  return index, run_job(job)
+
+
+# ---------------------------------------------------------------- summary
+
+
+def success_ci(successes, seed=BOOTSTRAP_SEED):
+  """(rate, low, high): mean and 95 % percentile-bootstrap CI (10^4
+  resamples, seeded) of 0/1 outcomes."""
+  return statistics.bootstrap_ci(np.asarray(successes, dtype=float),
+                                 np.random.RandomState(seed))
+
+
+def _mean(results, name):
+  values = [r['metrics'].get(name) for r in results]
+  values = [v for v in values if v is not None]
+  return float(np.mean(values)) if values else float('nan')
+
+
+def summarise(results):
+  """One row per (task, robot, action space, policy), in first-seen order."""
+  groups = collections.OrderedDict()
+  for result in results:
+    key = (result['domain'], result['task'], result['robot'],
+           result['action_space'], result['policy'])
+    groups.setdefault(key, []).append(result)
+  rows = []
+  for (domain, task, robot, space, policy), group in groups.items():
+    success = [r['metrics']['success'] for r in group]
+    rate, low, high = success_ci(success)
+    steps = _mean(group, 'steps')
+    row = {
+        'domain': domain, 'task': task, 'robot': robot,
+        'action_space': space, 'policy': policy,
+        'shield': group[0]['shield'], 'episodes': len(group),
+        'success': rate, 'success_low': low, 'success_high': high,
+        'return': _mean(group, 'return'), 'steps': steps,
+        'seconds': steps * group[0]['control_timestep'],
+        'shield_interventions': _mean(group, 'shield_interventions'),
+        'critical_episodes': sum(
+            1 for r in group if r['metrics']['contacts_human_critical']),
+        'wall_time': float(np.mean([r['wall_time'] for r in group])),
+    }
+    for _, name in CONTACT_COLUMNS:
+      row[name] = _mean(group, name)
+    rows.append(row)
+  return rows
+
+
+def below_bar(row):
+  """Reasons a row misses the bar (empty if it passes)."""
+  reasons = []
+  if row['success'] < SUCCESS_BAR:
+    reasons.append(f'success {row["success"]:.2f} < {SUCCESS_BAR:.2f}')
+  if row['critical_episodes']:
+    reasons.append(f'critical human contacts in {row["critical_episodes"]} '
+                   f'of {row["episodes"]} episodes')
+  return reasons
+
+
+def machine():
+  """A short description of the machine."""
+  return {'cpus': os.cpu_count(), 'platform': platform.platform(),
+          'processor': platform.processor() or platform.machine(),
+          'python': platform.python_version()}
+
+
+def _git_commit():
+  try:
+    out = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'],
+                         cwd=_REPOSITORY, capture_output=True, text=True,
+                         timeout=10, check=True)
+  except (OSError, subprocess.SubprocessError):
+    return None
+  return out.stdout.strip() or None
+
+
+HEADER = ('| task | robot | policy | action space | episodes | success '
+          '[95 % CI] | return | length (steps) | length (s) | shield '
+          'interventions | ' + ' | '.join(f'contacts {label}' for label, _ in
+                                          CONTACT_COLUMNS)
+          + ' | wall time / episode (s) |')
+
+
+def markdown(rows, info, not_evaluated=()):
+  """The table and its provenance as Markdown."""
+  lines = [
+      '# Expert baseline', '',
+      'Generated by `python -m hrc_suite.experts.evaluate` '
+      '(hrc_suite/experts/evaluate.py); do not edit by hand.', '',
+      f'* Command: `{info["command"]}`',
+      f'* Date: {info["date"]}',
+      f'* Machine: {info["machine"]["cpus"]} CPUs, '
+      f'{info["machine"]["processor"]}, {info["machine"]["platform"]}, '
+      f'Python {info["machine"]["python"]}; {info["workers"]} worker '
+      f'process(es); total wall time {info["wall_time"]:.0f} s',
+      f'* Code: commit {info["commit"] or "unknown"}',
+      f'* Episodes: seeds 0..N-1 per row; shield and action space: '
+      "the task's defaults unless the row says otherwise; noisy expert: "
+      'reference Ornstein-Uhlenbeck noise (hrc_suite/experts/noise.py).',
+      '* Success: the goal reached at least once; CI: 95 % percentile '
+      f'bootstrap over episodes, 10^4 resamples, seed {BOOTSTRAP_SEED}. '
+      'Shield interventions: RL steps per episode in which the shield '
+      'overrode the motion. Contacts: physics steps per episode with a '
+      'contact of the type (self: RL steps ending self-colliding).',
+      '', HEADER,
+      '|' + '---|' * (HEADER.count('|') - 1),
+  ]
+  for row in rows:
+    contacts = ' | '.join(f'{row[name]:.2f}' for _, name in CONTACT_COLUMNS)
+    lines.append(
+        f'| {row["domain"]}/{row["task"]} | {row["robot"]} | '
+        f'{row["policy"]} | {row["action_space"]} | {row["episodes"]} | '
+        f'{row["success"]:.2f} [{row["success_low"]:.2f}, '
+        f'{row["success_high"]:.2f}] | {row["return"]:.1f} | '
+        f'{row["steps"]:.1f} | {row["seconds"]:.1f} | '
+        f'{row["shield_interventions"]:.1f} | {contacts} | '
+        f'{row["wall_time"]:.1f} |')
+  lines += ['', f'## Rows below the bar (success >= {SUCCESS_BAR:.0%}, no '
+            'critical human contact)', '']
+  failing = [(row, below_bar(row)) for row in rows if below_bar(row)]
+  for row, reasons in failing:
+    lines.append(f'* BELOW THE BAR: {row["domain"]}/{row["task"]} '
+                 f'{row["robot"]} {row["policy"]}: {"; ".join(reasons)}')
+  if not failing:
+    lines.append('* None: every row reaches the bar.')
+  if not_evaluated:
+    lines += ['', '## Not evaluated', '']
+    lines += [f'* {domain}/{task}: {error}'
+              for (domain, task), error in sorted(not_evaluated.items())]
+  return '\n'.join(lines) + '\n'
+
+
+def write(results, out, json_out, info, not_evaluated=()):
+  """Writes the Markdown table and the JSON results; returns the rows."""
+  rows = summarise(results)
+  out, json_out = pathlib.Path(out), pathlib.Path(json_out)
+  for path in (out, json_out):
+    path.parent.mkdir(parents=True, exist_ok=True)
+  out.write_text(markdown(rows, info, not_evaluated))
+  payload = {'info': info, 'rows': rows, 'episodes': results,
+             'not_evaluated': {f'{d}/{t}': error for (d, t), error in
+                               sorted(dict(not_evaluated).items())}}
+  json_out.write_text(json.dumps(payload, indent=1, allow_nan=False) + '\n')
+  return rows
+
+
+# -------------------------------------------------------------------- main
+
+_EPISODES = flags.DEFINE_integer('episodes', 50, 'Episodes (seeds 0..N-1) '
+                                 'per task, robot and policy.', lower_bound=1)
+_ROBOTS = flags.DEFINE_list('robots', ['schunk', 'panda'], 'Robots.')
+_TASKS = flags.DEFINE_list('tasks', [], 'domain/task names (default: every '
+                           'registered expert).')
+_POLICIES = flags.DEFINE_list('policies', list(POLICIES),
+                              'expert and/or noisy_expert.')
+_ACTION_SPACES = flags.DEFINE_list(
+    'action_spaces', [], "cartesian and/or joint (default: each task's "
+    'default).')
+_TIME_LIMIT = flags.DEFINE_float('time_limit', None, 'Episode length in s '
+                                 "(default: each task's horizon).")
+_WORKERS = flags.DEFINE_integer('workers', 1, 'Parallel processes.',
+                                lower_bound=1)
+_OUT = flags.DEFINE_string('out', str(_REPOSITORY / 'docs' / 'results' /
+                                      'experts.md'), 'Markdown table.')
+_JSON_OUT = flags.DEFINE_string('json_out', None, 'Per-episode results '
+                                '(default: --out with .json).')
+_PROGRESS = flags.DEFINE_bool('progress', True, 'Show a progress bar.')
+
+
+def main(argv):
+  if len(argv) > 1:
+    raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
+  unknown = [p for p in _POLICIES.value if p not in POLICIES]
+  if unknown:
+    raise app.UsageError(f'Unknown policies {unknown}: expected some of '
+                         f'{", ".join(POLICIES)}')
+  try:
+    requested = [_parse_task(t) for t in _TASKS.value] or None
+  except ValueError as e:
+    raise app.UsageError(str(e)) from e
+  registered = set(experts.registered())
+  for task in requested or ():
+    if task not in registered:
+      raise app.UsageError(f'No expert for {"/".join(task)}: experts exist '
+                           f'for {", ".join(sorted(map("/".join, registered)))}')
+  tasks, not_evaluated = available_tasks(requested)
+  spaces = tuple(_ACTION_SPACES.value) or (None,)
+  job_list = jobs(tasks, _ROBOTS.value, _POLICIES.value, _EPISODES.value,
+                  spaces, _TIME_LIMIT.value)
+  start = time.perf_counter()
+  results = run(job_list, workers=_WORKERS.value, progress=_PROGRESS.value)
+  info = {
+      'command': ' '.join(shlex.quote(a) for a in
+                          ['python', '-m', 'hrc_suite.experts.evaluate']
+                          + sys.argv[1:]),
+      'date': datetime.datetime.now(datetime.timezone.utc).strftime(
+          '%Y-%m-%d %H:%M UTC'),
+      'machine': machine(), 'workers': _WORKERS.value,
+      'wall_time': time.perf_counter() - start, 'commit': _git_commit(),
+  }
+  json_out = _JSON_OUT.value or str(pathlib.Path(_OUT.value).with_suffix(
+      '.json'))
+  rows = write(results, _OUT.value, json_out, info, not_evaluated)
+  print(f'Wrote {_OUT.value} ({len(rows)} rows) and {json_out}')
+  for row in rows:
+    for reason in below_bar(row):
+      print(f'BELOW THE BAR: {row["domain"]}/{row["task"]} {row["robot"]} '
+            f'{row["policy"]}: {reason}')
+
+
+if __name__ == '__main__':
+  app.run(main)

@@ -1,0 +1,114 @@
+"""The expert evaluation command: bootstrap CI, table, JSON."""
+
+import json
+
+from absl import flags
+from absl.testing import flagsaver
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite.experts import evaluate
+
+
+@pytest.fixture(autouse=True)
+def _parsed_flags():
+  # pytest parses no absl flags: the binary's defaults, overridden per test.
+  if not flags.FLAGS.is_parsed():
+    flags.FLAGS.mark_as_parsed()
+
+def test_success_ci_known_cases():
+  assert evaluate.success_ci([1.0] * 20) == (1.0, 1.0, 1.0)
+  assert evaluate.success_ci([0.0] * 7) == (0.0, 0.0, 0.0)
+  # Half of 400 successes: the bootstrap CI is close to the normal
+  # approximation 0.5 +- 1.96 sqrt(0.25 / 400) = 0.5 +- 0.049.
+  rate, low, high = evaluate.success_ci([0.0, 1.0] * 200)
+  assert rate == 0.5
+  assert low == pytest.approx(0.451, abs=0.006)
+  assert high == pytest.approx(0.549, abs=0.006)
+  # Seeded: the same numbers again; 9 of 10 successes leave the CI below 1.
+  assert evaluate.success_ci([1.0] * 9 + [0.0]) == evaluate.success_ci(
+      [1.0] * 9 + [0.0])
+  rate, low, high = evaluate.success_ci([1.0] * 9 + [0.0])
+  assert rate == 0.9 and 0.6 <= low < 0.9 and high == 1.0
+
+
+def _result(success, critical=0, seed=0, policy='expert'):
+  metrics = {'success': success, 'return': 2.0 * seed, 'steps': 10.0 + seed,
+             'shield_interventions': 1.0, 'contacts_static': 0.0,
+             'self_collisions': 0.0, 'contacts_human_allowed': 3.0,
+             'contacts_human_critical': float(critical)}
+  return {'domain': 'reach', 'task': 'dense', 'robot': 'schunk',
+          'action_space': 'joint', 'shield': 'ssm', 'policy': policy,
+          'seed': seed, 'control_timestep': 0.1, 'wall_time': 1.5,
+          'metrics': metrics}
+
+
+def test_summary_and_bar():
+  results = [_result(1.0, seed=0), _result(1.0, seed=1),
+             _result(0.0, critical=2, seed=2),
+             _result(1.0, seed=0, policy='noisy_expert')]
+  rows = evaluate.summarise(results)
+  assert [row['policy'] for row in rows] == ['expert', 'noisy_expert']
+  row = rows[0]
+  assert row['episodes'] == 3 and row['success'] == pytest.approx(2 / 3)
+  assert row['steps'] == 11.0 and row['seconds'] == pytest.approx(1.1)
+  assert row['contacts_human_critical'] == pytest.approx(2 / 3)
+  assert row['critical_episodes'] == 1
+  assert evaluate.below_bar(row) == [
+      'success 0.67 < 0.80', 'critical human contacts in 1 of 3 episodes']
+  assert evaluate.below_bar(rows[1]) == []
+
+
+def _reach_expert_available():
+  try:
+    experts.expert_class('reach', 'dense')
+  except (ImportError, ValueError):
+    return False
+  return True
+
+
+def _table_rows(text):
+  return [line for line in text.splitlines() if line.startswith('|')]
+
+
+@pytest.mark.skipif(not _reach_expert_available(),
+                    reason='the reach expert is not written yet')
+def test_tiny_run_writes_a_well_formed_table(tmp_path):
+  out, json_out = tmp_path / 'results' / 'experts.md', tmp_path / 'e.json'
+  with flagsaver.flagsaver(
+      episodes=1, tasks=['reach/dense'], robots=['schunk'],
+      time_limit=0.5, out=str(out), json_out=str(json_out), progress=False):
+    evaluate.main(['evaluate'])
+  text = out.read_text()
+  table = _table_rows(text)
+  header, separator, *rows = table
+  columns = header.count('|') - 1
+  assert separator == '|' + '---|' * columns
+  assert len(rows) == 2   # expert and noisy expert
+  for row, policy in zip(rows, ('expert', 'noisy_expert')):
+    cells = [c.strip() for c in row.strip('|').split('|')]
+    assert len(cells) == columns
+    assert cells[:5] == ['reach/dense', 'schunk', policy, 'joint', '1']
+    assert cells[7:9] == ['5.0', '0.5']   # 5 RL steps of 0.1 s
+  assert '* Command: `python -m hrc_suite.experts.evaluate' in text
+  assert f'{evaluate.machine()["cpus"]} CPUs' in text
+  # One line per row below the bar (one episode of 0.5 s does not reach
+  # the goal).
+  below = [line for line in text.splitlines()
+           if line.startswith('* BELOW THE BAR: reach/dense schunk')]
+  assert len(below) == 2 and 'success 0.00 < 0.80' in below[0]
+  payload = json.loads(json_out.read_text())
+  assert [e['seed'] for e in payload['episodes']] == [0, 0]
+  assert payload['episodes'][0]['metrics']['steps'] == 5.0
+  assert len(payload['rows']) == 2
+  assert np.isfinite(payload['info']['wall_time'])
+
+
+def test_unknown_task_or_policy_is_a_usage_error():
+  with flagsaver.flagsaver(tasks=['reach/far'], progress=False):
+    with pytest.raises(Exception, match='No expert for reach/far'):
+      evaluate.main(['evaluate'])
+  with flagsaver.flagsaver(policies=['random'], progress=False):
+    with pytest.raises(Exception, match=r"Unknown policies \['random'\]"):
+      evaluate.main(['evaluate'])
