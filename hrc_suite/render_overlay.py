@@ -21,6 +21,8 @@ Two layers:
 """
 
 import dataclasses
+import functools
+import math
 from typing import Optional, Tuple
 
 import mujoco
@@ -206,6 +208,13 @@ def _font_size(height):
   return max(9, height // 28)
 
 
+@functools.lru_cache(maxsize=8)
+def _font(height):
+  """Pillow's bundled scalable font at the size for frames `height` tall."""
+  from PIL import ImageFont  # pylint: disable=g-import-not-at-top
+  return ImageFont.load_default(size=_font_size(height))
+
+
 def caption_height(height):
   """Pixels of the caption bar at the bottom of a frame `height` tall."""
   return _font_size(height) + 8
@@ -224,7 +233,8 @@ def marker_box(marker, width, height):
                      f'{", ".join(MARKERS)}')
   inset = border_width(height) + 3
   badge_height = _font_size(height) + 6
-  badge_width = min(width - 2 * inset, max(60, width // 3))
+  text = max(_font(height).getlength(label) for label in MARKER_LABELS.values())
+  badge_width = min(width - 2 * inset, int(math.ceil(text)) + 8)
   top = inset + MARKERS.index(marker) * (badge_height + 3)
   return inset, top, inset + badge_width, top + badge_height
 
@@ -234,7 +244,6 @@ def annotate(frame, info, legend=False):
   `info` (a FrameInfo); legend=True names the capsule colours."""
   from PIL import Image  # pylint: disable=g-import-not-at-top
   from PIL import ImageDraw  # pylint: disable=g-import-not-at-top
-  from PIL import ImageFont  # pylint: disable=g-import-not-at-top
   frame = np.asarray(frame)
   if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
     raise ValueError(f'frame: expected (H, W, 3) uint8, got {frame.shape} '
@@ -242,7 +251,7 @@ def annotate(frame, info, legend=False):
   height, width = frame.shape[:2]
   image = Image.fromarray(frame)
   draw = ImageDraw.Draw(image)
-  font = ImageFont.load_default(size=_font_size(height))
+  font = _font(height)
   markers = info.markers()
   if 'intervention' in markers:
     draw.rectangle((0, 0, width - 1, height - 1),
