@@ -264,6 +264,9 @@ def run(domain, task, robot='panda', policy='random', out='episode.mp4',
   if suffix not in ('.mp4', '.gif'):
     raise ValueError(f'Unsupported video format {suffix!r} for {out}: '
                      'expected .mp4 or .gif')
+  if suffix == '.mp4' and (width % 2 or height % 2):
+    raise ValueError(f'.mp4 (H.264, yuv420p) needs an even frame size, got '
+                     f'width={width}, height={height}')
   env = suite.load(domain, task, task_kwargs=dict(
       task_kwargs or {}, robot=robot, seed=seed))
   try:

@@ -87,14 +87,15 @@ def test_render_writes_a_video_with_the_overlay(tmp_path):
 
 
 def test_overlay_changes_pixels(tmp_path):
-  videos = {}
+  videos, metrics = {}, {}
   for overlay in (True, False):
-    path, _ = render.run('reach', 'dense', robot='schunk', policy='zero',
-                         out=tmp_path / f'{overlay}.mp4', seed=1,
-                         max_steps=2, width=WIDTH, height=HEIGHT,
-                         overlay=overlay)
+    path, metrics[overlay] = render.run(
+        'reach', 'dense', robot='schunk', policy='random',
+        out=tmp_path / f'{overlay}.mp4', seed=1, max_steps=3, width=WIDTH,
+        height=HEIGHT, overlay=overlay)
     videos[overlay] = rendering.read_video(path).astype(int)
   assert videos[True].shape == videos[False].shape
+  assert metrics[True] == metrics[False]   # Drawing changes no dynamics.
   assert np.abs(videos[True] - videos[False]).mean() > 3.0
 
 
@@ -211,6 +212,8 @@ def test_bad_camera_and_policy_names_are_clear_errors(tmp_path):
                out=tmp_path / 'x.mp4', max_steps=1)
   with pytest.raises(ValueError, match="'.avi'"):
     render.run('reach', 'dense', out=tmp_path / 'x.avi')
+  with pytest.raises(ValueError, match='even frame size.*width=95'):
+    render.run('reach', 'dense', out=tmp_path / 'x.mp4', width=95)
   with pytest.raises(ValueError, match='gif_scale'):
     render.run('reach', 'dense', out=tmp_path / 'x.gif', gif_scale=2.0)
 
