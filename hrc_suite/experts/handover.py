@@ -1,0 +1,279 @@
+"""Experts of the two hammer handovers (docs/tasks.md).
+
+Robot to human (`RobotToHumanExpert`): keep the gripper closed and bring the
+end of the handle (where a person holds a hammer) to the palm of the
+person's holding hand; when the person holds the hammer, open and, once the
+fingers are clear, go back home. Cartesian: the TCP moves by the palm-to-
+handle-end difference (gripper down). Joint space: damped least squares on
+the handle's end with a soft gripper-down term, so robots whose gripper-down
+reach ends below the person's hands (the Schunk) still present the handle.
+
+Human to robot (`HumanToRobotExpert`): wait at home until the person
+presents the hammer (held, on its side, still, above the table), come down
+on its grip point inside a cone (the reference's pick-and-place approach),
+close; once the person lets go, carry it over the table target, lower it and
+open; then go home. A hammer lying on the table after the person's pick
+(dropped) is picked up again the same way.
+
+Both derive their phase from the observed state every step; the only memory
+is the previous grip point (the hammer's speed, for the presenting test).
+"""
+
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite.entities import props
+from hrc_suite.experts import base
+from hrc_suite.experts import steering
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import handover
+
+# Distance along the handle (body -x) from the robot's grip point to where
+# a person holds it (props.Hammer: grip_site at the centre of mass,
+# human_grip_site HAMMER_HUMAN_GRIP from the head's axis).
+_COM_X = (-props.HAMMER_HANDLE_LENGTH / 2 * props.HAMMER_HANDLE_MASS
+          / (props.HAMMER_HANDLE_MASS + props.HAMMER_HEAD_MASS))
+GRIP_TO_HANDLE_END = props.HAMMER_HUMAN_GRIP + _COM_X      # m, ~0.226
+# The handle is "in the hand": grip point this close to the TCP with the
+# pads this close together (gripper_aperture is normalised by the 0.085 m
+# stroke; the handle, 2 x 0.011 m deep, holds them at ~0.25).
+IN_HAND_DISTANCE = 0.03                  # m
+IN_HAND_APERTURE = 0.4                   # normalised
+# Approach (reference pick and place: hover above, descend in a cone):
+# the TCP may be at most CONE_SLOPE x (horizontal error) above the grip
+# point, and at most HOVER_HEIGHT.
+HOVER_HEIGHT = 0.08                      # m
+CONE_SLOPE = 3.0
+# Close when the TCP is this close to the grip point (horizontal,
+# vertical); keep closing while within KEEP_CLOSING of it.
+GRASP_XY = 0.012                         # m
+GRASP_Z = 0.008                          # m
+KEEP_CLOSING = 0.025                     # m
+# Presented: held by the person, on its side (body y this close to up),
+# grip point this high above the table top and moving this little per RL
+# step (the person waits, the idle motion sways the hand slowly).
+PRESENTED_UPRIGHT = 0.8                  # cosine of body y to world z
+PRESENTED_HEIGHT = 0.12                  # m above the table top
+PRESENTED_SPEED = 0.02                   # m per RL step
+# Carry: the grip point this high above the table target while moving to
+# it, then lowered to RELEASE_HEIGHT above it and let go (the handovers let
+# no tool capsule into the table: with the Panda's 0.064 m capsule radius
+# the TCP stays ~0.08 m above the top; the hammer drops the rest).
+CARRY_HEIGHT = 0.15                      # m
+RELEASE_HEIGHT = 0.08                    # m
+RELEASE_BELOW = 0.1                      # m: open once the grip is lower
+OVER_TARGET = 0.02                       # m, horizontal: lower the hammer
+# Robot to human: the handle's end is not taken lower than this above the
+# table top (a palm swaying low would pull the hammer into the table).
+MIN_HANDLE_END_HEIGHT = 0.05             # m
+# Fingers clear of the handle before moving away: aperture at least.
+RELEASED_APERTURE = 0.6                  # normalised
+# Closing has begun: aperture below this (normalised).
+CLOSING_APERTURE = 0.9
+# Human to robot, waiting for the presentation: ready point this high above
+# the last presented grip point (or, before one was seen, READY_HEIGHT above
+# the table top, at most READY_AHEAD in front of the home TCP towards the
+# hammer and READY_SIDE to its side).
+READY_ABOVE = 0.1                        # m
+READY_HEIGHT = 0.42                      # m
+READY_AHEAD = 0.12                       # m
+READY_SIDE = 0.25                        # m
+# Joint-space presentation: damped least squares on the handle end with a
+# soft gripper-down term (rad of tilt weighted as this many metres).
+DLS_DAMPING = 0.05                       # m
+TILT_WEIGHT = 0.1                        # m / rad
+
+
+def _rotation(quaternion):
+  """3x3 rotation of a unit quaternion (w, x, y, z), MuJoCo's order."""
+  w, x, y, z = np.asarray(quaternion, dtype=float) / np.linalg.norm(
+      quaternion)
+  return np.array([
+      [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+class _HammerExpert(base.Expert):
+  """Steering, home pose and the hammer's geometry shared by both."""
+
+  OBSERVED = ('eef_position', 'joint_positions', 'gripper_aperture',
+              'object_position', 'object_quaternion', 'object_gripped',
+              'object_held_by_human', 'target_position')
+
+  def __init__(self, env):
+    super().__init__(env)
+    self._steer = steering.Steering(self._task)
+    self._kinematics = self._task.kinematics
+    self._q_home = np.asarray(self._kinematics.description.q_home, float)
+    self._home = self._kinematics.tcp_pose(self._q_home)[:3, 3].copy()
+
+  def _in_hand(self, obs):
+    """The robot holds the hammer (grip point at the TCP, pads closed)."""
+    near = np.linalg.norm(obs['object_position'] - obs['eef_position'])
+    return bool(obs['object_gripped'][0] > 0.5 or (
+        near < IN_HAND_DISTANCE
+        and obs['gripper_aperture'][0] < IN_HAND_APERTURE))
+
+  def _go_home(self, obs, gripper):
+    """Up to the home height first, then home (the TCP never dives)."""
+    tcp = obs['eef_position']
+    if self._steer.space == 'joint' and tcp[2] >= self._home[2] - 0.03:
+      return self._steer.joint_goal_action(self._q_home,
+                                           obs['joint_positions'], tcp,
+                                           gripper)
+    aim = self._home.copy()
+    if tcp[2] < self._home[2] - 0.03:
+      aim[:2] = tcp[:2]
+    return self._steer.action(aim, tcp, obs['joint_positions'], gripper)
+
+  def _hold_still(self, obs, gripper):
+    tcp = obs['eef_position']
+    if self._steer.space == 'joint':
+      return self._steer.joint_goal_action(
+          obs['joint_positions'], obs['joint_positions'], tcp, gripper)
+    return self._steer.action(tcp, tcp, obs['joint_positions'], gripper)
+
+  def _grasp(self, obs):
+    """Cone approach to the grip point and close when there."""
+    tcp, grip = obs['eef_position'], obs['object_position']
+    error = grip - tcp
+    horizontal = np.linalg.norm(error[:2])
+    height = min(HOVER_HEIGHT, CONE_SLOPE * max(horizontal - GRASP_XY, 0.0))
+    aim = grip + (0.0, 0.0, height)
+    distance = np.linalg.norm(error)
+    closing = obs['gripper_aperture'][0] < CLOSING_APERTURE
+    close = (horizontal < GRASP_XY and abs(error[2]) < GRASP_Z) or (
+        closing and distance < KEEP_CLOSING)
+    return self._steer.action(aim, tcp, obs['joint_positions'],
+                              1.0 if close else -1.0)
+
+
+class RobotToHumanExpert(_HammerExpert):
+  """Presents the handle's end at the person's palm, lets go when held.
+
+  Observed: target_position is the palm of the clip's holding hand.
+  """
+
+  TASKS = (('handover', 'robot_to_human'),)
+
+  def action(self, obs):
+    tcp = obs['eef_position']
+    held = obs['object_held_by_human'][0] > 0.5
+    if held:
+      if obs['gripper_aperture'][0] < RELEASED_APERTURE:
+        return self._hold_still(obs, -1.0)
+      return self._go_home(obs, -1.0)
+    if not self._in_hand(obs):
+      # Dropped: the tool may not reach into the table to pick it up.
+      return self._go_home(obs, -1.0)
+    rotation = _rotation(obs['object_quaternion'])
+    end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
+    palm = obs['target_position'].copy()
+    palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
+    if self._steer.space == 'cartesian':
+      return self._steer.action(tcp + palm - end, tcp,
+                                obs['joint_positions'], 1.0)
+    return self._present_joint(obs['joint_positions'], tcp, end, palm)
+
+  def _present_joint(self, q, tcp, end, palm):
+    """Joint step moving the handle end towards the palm (orientation free
+    but for a soft gripper-down term)."""
+    pose, jacobian = self._kinematics.tcp_pose_and_jacobian(q)
+    lever = end - tcp
+    skew = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]],
+                     [-lever[1], lever[0], 0.0]])
+    end_jacobian = jacobian[:3] - skew @ jacobian[3:]
+    error = palm - end
+    norm = np.linalg.norm(error)
+    if norm > actions.CARTESIAN_STEP:
+      error *= actions.CARTESIAN_STEP / norm
+    # Tilt of the gripper axis from straight down, as a rotation vector.
+    tilt = np.cross(pose[:3, 2], (0.0, 0.0, -1.0))
+    rows = np.vstack([end_jacobian, TILT_WEIGHT * jacobian[3:]])
+    errors = np.concatenate([error, TILT_WEIGHT * tilt])
+    step = rows.T @ np.linalg.solve(
+        rows @ rows.T + DLS_DAMPING ** 2 * np.eye(6), errors)
+    return self._steer.joint_goal_action(q + step, q, tcp, 1.0)
+
+
+class HumanToRobotExpert(_HammerExpert):
+  """Takes the presented hammer and places it on the table target.
+
+  Memory: the previous grip point (the hammer's speed) and the last grip
+  point seen presented (where to wait when the person sways it back).
+  """
+
+  TASKS = (('handover', 'human_to_robot'),)
+
+  def __init__(self, env):
+    super().__init__(env)
+    self.reset()
+
+  def reset(self):
+    self._previous_grip = None
+    self._last_presented = None
+
+  def _placed(self, obs):
+    offset = obs['object_position'] - obs['target_position']
+    return bool(np.linalg.norm(offset) <= handover.SUCCESS_DISTANCE)
+
+  def _presented(self, obs):
+    """Held by the person on its side, high above the table."""
+    rotation = _rotation(obs['object_quaternion'])
+    return bool(obs['object_held_by_human'][0] > 0.5
+                and rotation[2, 1] > PRESENTED_UPRIGHT
+                and obs['object_position'][2]
+                > layout.TABLE_TOP_Z + PRESENTED_HEIGHT)
+
+  def _ready_point(self, grip):
+    """Where to wait for the presentation."""
+    if self._last_presented is not None:
+      return self._last_presented + (0.0, 0.0, READY_ABOVE)
+    home = self._home
+    return np.array([
+        home[0] + np.clip(grip[0] - home[0], 0.0, READY_AHEAD),
+        home[1] + np.clip(grip[1] - home[1], -READY_SIDE, READY_SIDE),
+        max(home[2], layout.TABLE_TOP_Z + READY_HEIGHT)])
+
+  def _carry(self, obs):
+    tcp, grip = obs['eef_position'], obs['object_position']
+    target = obs['target_position']
+    horizontal = np.linalg.norm((target - grip)[:2])
+    if horizontal > OVER_TARGET:
+      aim_grip = target + (0.0, 0.0, CARRY_HEIGHT)
+      # Lift before crossing: not below the carry height while far.
+      if grip[2] < aim_grip[2] - 0.03 and horizontal > 0.1:
+        aim_grip = np.array([grip[0], grip[1], aim_grip[2]])
+    else:
+      aim_grip = target + (0.0, 0.0, RELEASE_HEIGHT)
+    low = grip[2] - target[2] < RELEASE_BELOW
+    gripper = -1.0 if (low and horizontal < OVER_TARGET + 0.01) else 1.0
+    return self._steer.action(tcp + aim_grip - grip, tcp,
+                              obs['joint_positions'], gripper)
+
+  def action(self, obs):
+    grip = obs['object_position']
+    speed = (0.0 if self._previous_grip is None
+             else float(np.linalg.norm(grip - self._previous_grip)))
+    self._previous_grip = grip.copy()
+    held = obs['object_held_by_human'][0] > 0.5
+    if self._in_hand(obs):
+      if held:   # The person lets go of a grasp at once.
+        return self._hold_still(obs, 1.0)
+      return self._carry(obs)
+    if self._presented(obs):
+      if speed < PRESENTED_SPEED:
+        self._last_presented = grip.copy()
+        return self._grasp(obs)
+      return self._hover(obs, grip + (0.0, 0.0, HOVER_HEIGHT))
+    if held:   # Being lifted or swayed back: wait nearby.
+      return self._hover(obs, self._ready_point(grip))
+    # Lying on the table (before the person's pick, placed, or dropped:
+    # the tool may not reach into the table): wait at home.
+    return self._go_home(obs, -1.0)
+
+  def _hover(self, obs, point):
+    """Towards `point`, gripper open."""
+    tcp = obs['eef_position']
+    return self._steer.action(point, tcp, obs['joint_positions'], -1.0)
