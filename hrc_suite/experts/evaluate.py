@@ -101,25 +101,33 @@ def _json_number(value):
 
 def run_job(job):
   """One episode: job = (domain, task, robot, action_space, policy,
-  time_limit, seed). Returns its result dict (JSON-able)."""
+  time_limit, seed). Returns its result dict (JSON-able). An exception in
+  the expert or the task does not stop the run: the episode's result then
+  carries 'error' (the exception) and counts as a failure."""
   domain, task, robot, action_space, policy_name, time_limit, seed = job
-  env, policy = _environment(domain, task, robot, action_space, policy_name,
-                             time_limit)
-  env.random_state.seed(seed)
-  if hasattr(policy, 'set_episode'):
-    policy.set_episode(seed)
+  result = {'domain': domain, 'task': task, 'robot': robot,
+            'action_space': action_space, 'shield': None,
+            'policy': policy_name, 'seed': seed, 'control_timestep': None,
+            'wall_time': 0.0, 'metrics': None, 'error': None}
   start = time.perf_counter()
-  episode = metrics_lib.run_episode(env, policy)
-  wall_time = time.perf_counter() - start
-  return {
-      'domain': domain, 'task': task, 'robot': robot,
-      'action_space': env.task.action_space_name,
-      'shield': env.task.shield_mode, 'policy': policy_name, 'seed': seed,
-      'control_timestep': env.task.control_timestep,
-      'wall_time': wall_time,
-      'metrics': {name: _json_number(value)
-                  for name, value in episode.items()},
-  }
+  try:
+    env, policy = _environment(domain, task, robot, action_space,
+                               policy_name, time_limit)
+    result.update(action_space=env.task.action_space_name,
+                  shield=env.task.shield_mode,
+                  control_timestep=env.task.control_timestep)
+    env.random_state.seed(seed)
+    if hasattr(policy, 'set_episode'):
+      policy.set_episode(seed)
+    start = time.perf_counter()
+    episode = metrics_lib.run_episode(env, policy)
+    result['metrics'] = {name: _json_number(value)
+                         for name, value in episode.items()}
+  except Exception as e:   # pylint: disable=broad-except
+    _ENV_CACHE.clear()   # Its state is unknown now.
+    result['error'] = f'{type(e).__name__}: {e}'
+  result['wall_time'] = time.perf_counter() - start
+  return result
 
 
 def jobs(tasks, robots, policies, episodes, action_spaces=(None,),
@@ -175,7 +183,7 @@ def success_ci(successes, seed=BOOTSTRAP_SEED):
 
 
 def _mean(results, name):
-  values = [r['metrics'].get(name) for r in results]
+  values = [r['metrics'].get(name) for r in results if r['metrics']]
   values = [v for v in values if v is not None]
   return float(np.mean(values)) if values else float('nan')
 
@@ -189,19 +197,26 @@ def summarise(results):
     groups.setdefault(key, []).append(result)
   rows = []
   for (domain, task, robot, space, policy), group in groups.items():
-    success = [r['metrics']['success'] for r in group]
+    done = [r for r in group if r['metrics']]
+    errors = [r for r in group if not r['metrics']]
+    # An episode that raised counts as a failure.
+    success = [r['metrics']['success'] if r['metrics'] else 0.0
+               for r in group]
     rate, low, high = success_ci(success)
     steps = _mean(group, 'steps')
+    timestep = next((r['control_timestep'] for r in done), float('nan'))
     row = {
         'domain': domain, 'task': task, 'robot': robot,
         'action_space': space, 'policy': policy,
-        'shield': group[0]['shield'], 'episodes': len(group),
+        'shield': done[0]['shield'] if done else None,
+        'episodes': len(group), 'errors': len(errors),
+        'first_error': errors[0]['error'] if errors else None,
         'success': rate, 'success_low': low, 'success_high': high,
         'return': _mean(group, 'return'), 'steps': steps,
-        'seconds': steps * group[0]['control_timestep'],
+        'seconds': steps * timestep,
         'shield_interventions': _mean(group, 'shield_interventions'),
         'critical_episodes': sum(
-            1 for r in group if r['metrics']['contacts_human_critical']),
+            1 for r in done if r['metrics']['contacts_human_critical']),
         'wall_time': float(np.mean([r['wall_time'] for r in group])),
     }
     for _, name in CONTACT_COLUMNS:
@@ -218,14 +233,26 @@ def below_bar(row):
   if row['critical_episodes']:
     reasons.append(f'critical human contacts in {row["critical_episodes"]} '
                    f'of {row["episodes"]} episodes')
+  if row['errors']:
+    reasons.append(f'{row["errors"]} episodes raised ({row["first_error"]})')
   return reasons
+
+
+def _cpu_model():
+  try:
+    with open('/proc/cpuinfo') as f:
+      for line in f:
+        if line.startswith('model name'):
+          return line.split(':', 1)[1].strip()
+  except OSError:
+    pass
+  return platform.processor() or platform.machine()
 
 
 def machine():
   """A short description of the machine."""
   return {'cpus': os.cpu_count(), 'platform': platform.platform(),
-          'processor': platform.processor() or platform.machine(),
-          'python': platform.python_version()}
+          'processor': _cpu_model(), 'python': platform.python_version()}
 
 
 def _git_commit():
@@ -301,7 +328,9 @@ def write(results, out, json_out, info, not_evaluated=()):
   for path in (out, json_out):
     path.parent.mkdir(parents=True, exist_ok=True)
   out.write_text(markdown(rows, info, not_evaluated))
-  payload = {'info': info, 'rows': rows, 'episodes': results,
+  finite = [{k: _json_number(v) if isinstance(v, float) else v
+             for k, v in row.items()} for row in rows]
+  payload = {'info': info, 'rows': finite, 'episodes': results,
              'not_evaluated': {f'{d}/{t}': error for (d, t), error in
                                sorted(dict(not_evaluated).items())}}
   json_out.write_text(json.dumps(payload, indent=1, allow_nan=False) + '\n')

@@ -16,6 +16,7 @@ def _parsed_flags():
   # pytest parses no absl flags: the binary's defaults, overridden per test.
   if not flags.FLAGS.is_parsed():
     flags.FLAGS.mark_as_parsed()
+  evaluate._ENV_CACHE.clear()   # pylint: disable=protected-access
 
 def test_success_ci_known_cases():
   assert evaluate.success_ci([1.0] * 20) == (1.0, 1.0, 1.0)
@@ -112,3 +113,23 @@ def test_unknown_task_or_policy_is_a_usage_error():
   with flagsaver.flagsaver(policies=['random'], progress=False):
     with pytest.raises(Exception, match=r"Unknown policies \['random'\]"):
       evaluate.main(['evaluate'])
+
+
+def test_an_episode_that_raises_is_a_reported_failure(monkeypatch):
+  def broken(env, noise=None):
+    del env, noise
+
+    def policy(timestep):
+      raise RuntimeError('expert lost track')
+    return policy
+
+  monkeypatch.setattr(evaluate.experts, 'make', broken)
+  job_list = evaluate.jobs([('reach', 'dense')], ['schunk'], ['expert'], 2,
+                           time_limit=0.3)
+  results = evaluate.run(job_list)
+  assert [r['error'] for r in results] == [
+      'RuntimeError: expert lost track'] * 2
+  row, = evaluate.summarise(results)
+  assert row['errors'] == 2 and row['success'] == 0.0
+  assert evaluate.below_bar(row)[-1] == (
+      '2 episodes raised (RuntimeError: expert lost track)')
