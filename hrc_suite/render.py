@@ -162,13 +162,23 @@ class RenderedEpisode:
   frame_period: float   # s of simulated time between frames
 
 
+def frame_period(env, substeps_per_frame=None):
+  """Simulated seconds between frames: an RL step, or substeps_per_frame
+  physics steps."""
+  if substeps_per_frame is None:
+    return float(env.control_timestep())
+  return substeps_per_frame * float(env.physics.model.opt.timestep)
+
+
 def render_episode(env, policy, camera='side', width=640, height=480,
-                   overlay=True, substeps_per_frame=None, max_steps=None):
+                   overlay=True, substeps_per_frame=None, max_steps=None,
+                   on_frame=None, keep_frames=True):
   """Plays one episode of `env` (an hrc_suite task) with `policy` and
   renders it: a frame after reset, then one per RL step or one every
   `substeps_per_frame` physics steps. Frames of an RL step carry that
   step's markers (the shield's interventions and contacts are counted per
-  RL step). Returns a RenderedEpisode."""
+  RL step). Each finished frame goes to `on_frame(frame)` if given and is
+  kept in the result if keep_frames. Returns a RenderedEpisode."""
   from dm_control.mujoco import engine  # pylint: disable=g-import-not-at-top
   width, height = _positive_int('width', width), _positive_int('height',
                                                                 height)
@@ -182,11 +192,13 @@ def render_episode(env, policy, camera='side', width=640, height=480,
   physics = env.physics
   callback = (render_overlay.ShieldOverlay(env.task.shield) if overlay
               else None)
-  from dm_control.mujoco.wrapper import core  # pylint: disable=g-import-not-at-top
-  max_geom = max(1000, core._estimate_max_renderable_geoms(physics.model))  # pylint: disable=protected-access
+  model = physics.model
+  # What the model itself may put in the scene (geoms, frames, contacts),
+  # as generously as dm_control's own estimate, plus the overlay's room.
+  max_geom = (1000 + 5 * (model.ngeom + model.nbody + model.nsite)
+              + OVERLAY_MAX_GEOMS)
   view = engine.Camera(physics, height, width, camera_index(env, camera),
-                       max_geom=max_geom + OVERLAY_MAX_GEOMS,
-                       scene_callback=callback)
+                       max_geom=max_geom, scene_callback=callback)
 
   def shot():
     return view.render().copy(), float(physics.data.time)
@@ -201,18 +213,20 @@ def render_episode(env, policy, camera='side', width=640, height=480,
         if counter['substeps'] % substeps_per_frame == 0:
           pending.append(shot())
     env.add_extra_hook('after_substep', after_substep)
-    frame_period = substeps_per_frame * float(physics.model.opt.timestep)
-  else:
-    frame_period = env.control_timestep()
+  frames, infos = [], []
 
   def finish(image, info):
-    return render_overlay.annotate(image, info, legend=True) if overlay else (
-        image)
+    if overlay:
+      image = render_overlay.annotate(image, info, legend=True)
+    infos.append(info)
+    if keep_frames:
+      frames.append(image)
+    if on_frame is not None:
+      on_frame(image)
 
   image, time = shot()
-  first = render_overlay.FrameInfo(time=time, reward=None,
-                                   episode_return=0.0, success=False)
-  frames, infos = [finish(image, first)], [first]
+  finish(image, render_overlay.FrameInfo(time=time, reward=None,
+                                         episode_return=0.0, success=False))
   steps = 0
   try:
     while not timestep.last() and (max_steps is None or steps < max_steps):
@@ -223,25 +237,62 @@ def render_episode(env, policy, camera='side', width=640, height=480,
       info = render_overlay.frame_info(env.task.step_metrics,
                                        env.task.episode_metrics, 0.0)
       for image, time in pending:
-        info = dataclasses.replace(info, time=time)
-        frames.append(finish(image, info))
-        infos.append(info)
+        finish(image, dataclasses.replace(info, time=time))
       pending.clear()
   finally:
     counter['active'] = False
   metrics = {k: float(v) for k, v in env.task.episode_metrics.items()}
-  return RenderedEpisode(frames, infos, metrics, frame_period)
+  return RenderedEpisode(frames, infos, metrics,
+                         frame_period(env, substeps_per_frame))
 
 
-def _scaled(frames, scale):
-  """Frames resized by `scale` (Pillow, area-averaging)."""
+class VideoWriter:
+  """Streams frames into an .mp4 (H.264, as `rendering.write_video`), or
+  collects them, scaled by gif_scale, for a .gif written on close."""
+
+  def __init__(self, path, fps, gif_scale=1.0):
+    import imageio.v2 as imageio  # pylint: disable=g-import-not-at-top
+    self.path = pathlib.Path(path)
+    self.suffix = self.path.suffix.lower()
+    if self.suffix not in ('.mp4', '.gif'):
+      raise ValueError(f'Unsupported video format {self.suffix!r} for '
+                       f'{self.path}: expected .mp4 or .gif')
+    if not 0.0 < gif_scale <= 1.0:
+      raise ValueError(f'gif_scale: expected a number in (0, 1], got '
+                       f'{gif_scale!r}')
+    self.fps, self.gif_scale, self.count = float(fps), gif_scale, 0
+    self._gif_frames = []
+    self._writer = None
+    self.path.parent.mkdir(parents=True, exist_ok=True)
+    if self.suffix == '.mp4':
+      self._writer = imageio.get_writer(
+          self.path, fps=self.fps, codec='libx264', quality=7,
+          macro_block_size=1, pixelformat='yuv420p')
+
+  def append(self, frame):
+    frame = np.asarray(frame, dtype=np.uint8)
+    self.count += 1
+    if self._writer is not None:
+      self._writer.append_data(frame)
+    else:
+      self._gif_frames.append(_scaled(frame, self.gif_scale))
+
+  def close(self):
+    if self._writer is not None:
+      self._writer.close()
+    elif self._gif_frames:
+      rendering.write_video(self.path, self._gif_frames, fps=self.fps)
+    return self.path
+
+
+def _scaled(frame, scale):
+  """A frame resized by `scale` (Pillow, area-averaging)."""
   from PIL import Image  # pylint: disable=g-import-not-at-top
   if scale == 1.0:
-    return frames
-  height, width = frames[0].shape[:2]
+    return frame
+  height, width = frame.shape[:2]
   size = (max(1, round(width * scale)), max(1, round(height * scale)))
-  return [np.asarray(Image.fromarray(f).resize(size, Image.Resampling.BOX))
-          for f in frames]
+  return np.asarray(Image.fromarray(frame).resize(size, Image.Resampling.BOX))
 
 
 def run(domain, task, robot='panda', policy='random', out='episode.mp4',
@@ -264,21 +315,29 @@ def run(domain, task, robot='panda', policy='random', out='episode.mp4',
   if suffix not in ('.mp4', '.gif'):
     raise ValueError(f'Unsupported video format {suffix!r} for {out}: '
                      'expected .mp4 or .gif')
+  width, height = _positive_int('width', width), _positive_int('height',
+                                                                height)
+  if substeps_per_frame is not None:
+    substeps_per_frame = _positive_int('substeps_per_frame',
+                                       substeps_per_frame)
   if suffix == '.mp4' and (width % 2 or height % 2):
     raise ValueError(f'.mp4 (H.264, yuv420p) needs an even frame size, got '
                      f'width={width}, height={height}')
   env = suite.load(domain, task, task_kwargs=dict(
       task_kwargs or {}, robot=robot, seed=seed))
   try:
-    episode = render_episode(env, factory(env, seed), camera, width, height,
-                             overlay, substeps_per_frame, max_steps)
+    camera_index(env, camera)   # Before any file is written.
+    policy_fn = factory(env, seed)
+    writer = VideoWriter(out, fps or 1.0 / frame_period(
+        env, substeps_per_frame), gif_scale)
+    try:
+      episode = render_episode(env, policy_fn, camera, width, height,
+                               overlay, substeps_per_frame, max_steps,
+                               on_frame=writer.append, keep_frames=False)
+    finally:
+      path = writer.close()
   finally:
     env.close()
-  frames = episode.frames
-  if suffix == '.gif':
-    frames = _scaled(frames, gif_scale)
-  fps = fps or 1.0 / episode.frame_period
-  path = rendering.write_video(out, frames, fps=fps)
   markers = {m: sum(m in info.markers() for info in episode.infos)
              for m in render_overlay.MARKERS}
   metrics_path = pathlib.Path(path).with_suffix('.json')
@@ -286,7 +345,8 @@ def run(domain, task, robot='panda', policy='random', out='episode.mp4',
       domain=domain, task=task, robot=robot,
       policy=policy if isinstance(policy, str) else getattr(
           policy, '__name__', repr(policy)),
-      seed=seed, camera=camera, overlay=overlay, frames=len(frames), fps=fps,
+      seed=seed, camera=camera, overlay=overlay, frames=writer.count,
+      fps=writer.fps,
       frames_with_markers=markers, task_kwargs=task_kwargs or {},
       metrics=episode.metrics), indent=1) + '\n')
   return path, episode.metrics
