@@ -12,7 +12,9 @@ action of the task's action space:
   ahead (a nearly straight TCP path); the action is its joint difference /
   JOINT_STEP, scaled down as a whole (joint direction kept) into [-1, 1].
 * Joint goals (`joint_goal_action`): joint space, the joint difference /
-  JOINT_STEP clipped; Cartesian space, the goal's TCP position as the aim.
+  JOINT_STEP scaled into [-1, 1] (a straight joint path; or clipped per
+  joint like the reference); Cartesian space, the goal's TCP position as
+  the aim.
 
 Tasks with a gripper get the gripper command (-1 open ... +1 closed)
 appended. Everything is deterministic.
@@ -84,12 +86,19 @@ class Steering:
     self._ik = ik
     return ik.solve(tcp + delta, q, self.yaw).q
 
-  def joint_arm(self, q_goal, q):
-    """Joint arm action (dof,) towards joint positions q_goal."""
+  def joint_arm(self, q_goal, q, keep_direction=True):
+    """Joint arm action (dof,) towards joint positions q_goal: the joint
+    difference / JOINT_STEP, scaled down as a whole into [-1, 1] (a straight
+    joint-space path) or, keep_direction=False, clipped per joint (the
+    reference's clip(goal difference))."""
     dof = self._model.dof
     q_goal = self._check('q_goal', q_goal, dof)
     q = self._check('q', q, dof)
-    return np.clip((q_goal - q) / actions.JOINT_STEP, -1.0, 1.0)
+    arm = (q_goal - q) / actions.JOINT_STEP
+    if not keep_direction:
+      return np.clip(arm, -1.0, 1.0)
+    largest = np.abs(arm).max()
+    return arm / largest if largest > 1.0 else arm
 
   def action(self, aim, tcp, q, gripper=None):
     """The action moving the TCP from `tcp` (joint positions q) towards
@@ -98,17 +107,15 @@ class Steering:
       arm = self.cartesian_arm(aim, tcp)
     else:
       q = self._check('q', q, self._model.dof)
-      arm = (self.ik_target(aim, tcp, q) - q) / actions.JOINT_STEP
-      largest = np.abs(arm).max()
-      if largest > 1.0:
-        arm /= largest
+      arm = self.joint_arm(self.ik_target(aim, tcp, q), q)
     return self._finish(arm, gripper)
 
-  def joint_goal_action(self, q_goal, q, tcp, gripper=None):
-    """The action moving the joints to q_goal (joint space) or the TCP to
-    q_goal's TCP position (Cartesian space)."""
+  def joint_goal_action(self, q_goal, q, tcp, gripper=None,
+                        keep_direction=True):
+    """The action moving the joints to q_goal (joint space, see
+    `joint_arm`) or the TCP to q_goal's TCP position (Cartesian space)."""
     if self.space == 'joint':
-      arm = self.joint_arm(q_goal, q)
+      arm = self.joint_arm(q_goal, q, keep_direction)
     else:
       q_goal = self._check('q_goal', q_goal, self._model.dof)
       arm = self.cartesian_arm(self._model.tcp_pose(q_goal)[:3, 3], tcp)

@@ -1,0 +1,88 @@
+"""Reach expert: straight to the goal (the reference's goal difference as
+the action), with a via point when the straight joint path collides.
+
+Joint space: the action is the joint difference q_goal - q / JOINT_STEP,
+scaled as a whole into [-1, 1] (a straight joint-space path; the reference
+clips per joint, which bends the path and can run it into the table). If the
+straight path from q to the goal hits the table, pedestal or the robot
+itself (the task's collision model: collision prevention would replace
+every action and the robot would stand still), the expert plans one via
+point with a collision-free straight path from q and a collision-free
+straight path on to the goal: the home configuration, then q with one joint
+already at its goal value, then q with all but one joint at their goal
+values (in that order; the first that works). Each step it steers straight
+to the goal if that path is free, else to the via point (planned again when
+the path to it is no longer free, e.g. after the shield braked off the line).
+
+Cartesian space: the TCP moves in a straight line to the goal position
+(`steering`, gripper-down IK by the action space).
+
+The shield (SSM) stops the robot while the person is close; the expert
+keeps its aim and continues when the shield lets it (no timeout).
+
+Privileged: the task's collision model (`task.collision_checker`, the
+robot's capsules and the workcell boxes; no episode state) for the via
+point.
+"""
+
+import numpy as np
+
+from hrc_suite.experts import base
+from hrc_suite.experts import steering
+
+# Joint distance (rad, max norm) under which the expert aims at the goal
+# without checking the path (the last step is tiny).
+NEAR_GOAL = 0.05
+
+
+class ReachExpert(base.Expert):
+  """Moves the joints (joint space) or the TCP (Cartesian) to the goal."""
+
+  OBSERVED = ('goal_joint_difference', 'goal_position', 'eef_position',
+              'joint_positions')
+  TASKS = (('reach', 'dense'), ('reach', 'sparse'))
+
+  def __init__(self, env):
+    super().__init__(env)
+    self._steer = steering.Steering(self._task)
+    self._checker = self._task.collision_checker
+    self._q_home = np.asarray(self._task.robot.description.q_home, float)
+    self.reset()
+
+  def reset(self):
+    self._via = None      # None: straight to the goal.
+
+  @property
+  def via(self):
+    """The planned via point (joint positions) or None."""
+    return None if self._via is None else self._via.copy()
+
+  def _free(self, q_start, q_goals):
+    return self._checker.paths_free(q_start, np.atleast_2d(q_goals))
+
+  def _plan(self, q, goal):
+    """A via point v with free straight paths q -> v -> goal, or None."""
+    one_first = np.eye(len(q), dtype=bool)
+    candidates = np.concatenate([
+        self._q_home[None], np.where(one_first, goal, q),
+        np.where(~one_first, goal, q)])
+    for v in candidates[self._free(q, candidates)]:
+      if self._free(v, goal)[0]:
+        return v
+    return None
+
+  def _joint_aim(self, q, goal):
+    if np.abs(goal - q).max() < NEAR_GOAL or self._free(q, goal)[0]:
+      self._via = None
+      return goal
+    if self._via is None or not self._free(q, self._via)[0]:
+      self._via = self._plan(q, goal)
+    return goal if self._via is None else self._via
+
+  def action(self, observation):
+    q = observation['joint_positions']
+    tcp = observation['eef_position']
+    if self._steer.space == 'joint':
+      goal = q + observation['goal_joint_difference']
+      return self._steer.joint_goal_action(self._joint_aim(q, goal), q, tcp)
+    return self._steer.action(observation['goal_position'], tcp, q)

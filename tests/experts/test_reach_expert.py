@@ -1,0 +1,83 @@
+"""Reach expert: reaches the goal in both action spaces, plans around the
+table when the straight joint path collides, takes over mid-episode."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.experts import reach as reach_expert
+from hrc_suite.tasks import metrics
+
+
+def _env(robot='schunk', space='joint', reward='sparse', seed=0, **kwargs):
+  return suite.load('reach', reward, task_kwargs={
+      'robot': robot, 'action_space': space, **kwargs},
+                    environment_kwargs={'random_state': seed})
+
+
+@pytest.mark.parametrize('space', ('joint', 'cartesian'))
+def test_schunk_reaches_two_of_three(space):
+  successes = 0
+  for seed in range(3):
+    env = _env('schunk', space, seed=seed)
+    expert = experts.make(env)
+    assert isinstance(expert, reach_expert.ReachExpert)
+    result = metrics.run_episode(env, expert)
+    assert result['contacts_human_critical'] == 0
+    assert result['self_collisions'] == 0 and result['contacts_static'] == 0
+    successes += int(result['success'])
+  assert successes >= 2
+
+
+def test_dense_reward_improves_along_the_way():
+  env = _env('panda', 'cartesian', reward='dense', seed=1)
+  expert = experts.make(env)
+  timestep = env.reset()
+  rewards = []
+  while not timestep.last():
+    timestep = env.step(expert(timestep))
+    rewards.append(timestep.reward)
+  assert env.task.episode_metrics['success'] == 1.0
+  assert rewards[-1] > rewards[0]
+
+
+def test_via_point_when_the_straight_joint_path_hits_the_table():
+  env = _env('panda', 'joint', seed=0)
+  env.reset()
+  task, physics = env.task, env.physics
+  checker = task.collision_checker
+  expert = experts.make(env)
+  q = task.robot.joint_positions(physics)
+  # A goal low in front of the robot, reached from the home pose by a
+  # straight joint path that dips the gripper through the table: found by
+  # a search over goals the task would sample.
+  rs = np.random.RandomState(5)
+  for _ in range(400):
+    goal, _ = task._sample_goal(rs)   # pylint: disable=protected-access
+    if not checker.is_safe(q, goal):
+      break
+  else:
+    pytest.fail('no goal with a colliding straight path in 400 samples')
+  via = expert._plan(q, goal)   # pylint: disable=protected-access
+  assert via is not None
+  assert checker.is_safe(q, via) and checker.is_safe(via, goal)
+  # The expert's first aim is the via point, not the goal.
+  observation = {'joint_positions': q, 'goal_joint_difference': goal - q,
+                 'goal_position': task.kinematics.tcp_pose(goal)[:3, 3],
+                 'eef_position': task.robot.tcp_pose(physics)[0]}
+  action = expert.action(observation)
+  direction = (via - q) / np.abs(via - q).max()
+  np.testing.assert_allclose(action, direction, atol=1e-12)
+
+
+def test_takes_over_from_a_snapshot():
+  env = _env('panda', 'joint', seed=2)
+  timestep = env.reset()
+  rs = np.random.RandomState(0)
+  for _ in range(5):   # Someone else drove first.
+    timestep = env.step(rs.uniform(-1, 1, env.action_spec().shape))
+  expert = experts.make(env)
+  while not timestep.last():
+    timestep = env.step(expert(timestep))
+  assert env.task.episode_metrics['success'] == 1.0
