@@ -8,7 +8,9 @@ NumPy arrays, NumPy scalars, Python bool/int/float, None and strings.
   where their numbers are: None, {'str': s}, {'bool'|'int'|'float': i},
   {'scalar': dtype, 'at': i}, {'array': dtype, 'at': i, 'shape': [...]}
   (plus 'dtype': the dtype string if not in native byte order),
-  {'dict': [[key, spec], ...]}, {'list': [...]}, {'tuple': [...]};
+  {'dict': [[key, spec], ...]}, {'list': [...]}, {'tuple': [...]}, and
+  for a list or tuple of Python floats {'floats': i, 'n': n, 'as': 'list'
+  or 'tuple'};
 * buffers: one flat array per dtype name ('float64', 'int64', 'bool',
   'uint32', ...) holding every number of that dtype, in tree order.
 
@@ -35,80 +37,126 @@ _PYTHON_SCALARS = (('bool', bool, np.bool_), ('int', int, np.int64),
 
 
 class _Writer:
-  """Collects leaves into per-dtype lists while building the spec."""
+  """Collects leaves into per-dtype chunks while building the spec."""
 
   def __init__(self):
-    self.parts = {}     # dtype name -> list of 1-D arrays
+    self.chunks = {}    # dtype name -> list of 1-D arrays or Python lists
     self.sizes = {}     # dtype name -> numbers so far
 
-  def add(self, array):
-    array = np.asarray(array)
+  def _chunks(self, name):
+    chunks = self.chunks.get(name)
+    if chunks is None:
+      chunks = self.chunks[name] = []
+      self.sizes[name] = 0
+    return chunks
+
+  def scalars(self, name, values):
+    """Python numbers of dtype `name`; returns the offset of the first."""
+    chunks = self._chunks(name)
+    if not chunks or not isinstance(chunks[-1], list):
+      chunks.append([])
+    chunks[-1].extend(values)
+    at = self.sizes[name]
+    self.sizes[name] = at + len(values)
+    return at
+
+  def array(self, array):
+    """A native-byte-order array; returns (dtype name, offset)."""
     name = array.dtype.name
-    at = self.sizes.get(name, 0)
-    self.parts.setdefault(name, []).append(array.reshape(-1))
+    self._chunks(name).append(array.reshape(-1))
+    at = self.sizes[name]
     self.sizes[name] = at + array.size
     return name, at
 
   def buffers(self):
-    return {name: np.concatenate(parts) for name, parts in self.parts.items()}
+    return {name: np.concatenate([
+        np.asarray(chunk, dtype=name) if isinstance(chunk, list) else chunk
+        for chunk in chunks]) for name, chunks in self.chunks.items()}
 
 
-def _check_dtype(array, path):
-  kind = array.dtype.kind
-  if kind not in 'biufc' or array.dtype.fields is not None:
-    raise ValueError(f'Snapshot value at {path} is an array of dtype '
-                     f'{array.dtype}: only bool, integer, float and complex '
-                     'arrays can be stored')
+class _Unstorable(ValueError):
+  """A value flatten cannot store; `path` is filled in on the way up."""
+
+  def __init__(self, message):
+    super().__init__(message)
+    self.message = message
+    self.path = []
 
 
-def _flatten(value, path, writer):
-  # bool before int: bool is an int subclass.
+def _check_dtype(array):
+  if array.dtype.kind not in 'biufc' or array.dtype.fields is not None:
+    raise _Unstorable(f'is an array of dtype {array.dtype}: only bool, '
+                      'integer, float and complex arrays can be stored')
+
+
+def _flatten(value, writer):
+  kind = type(value)
+  # Exact type checks: bool is an int subclass, np.float64 a float one.
+  if kind is float:
+    return {'float': writer.scalars('float64', (value,))}
+  if kind is bool:
+    return {'bool': writer.scalars('bool', (value,))}
+  if kind is int:
+    if not _INT64.min <= value <= _INT64.max:
+      raise _Unstorable(f'is the int {value}, outside the int64 range')
+    return {'int': writer.scalars('int64', (value,))}
   if value is None:
     return None
-  if isinstance(value, str):
+  if kind is str:
     return {'str': value}
+  if kind is dict:
+    items = []
+    for key, item in value.items():
+      if type(key) is not str:   # pylint: disable=unidiomatic-typecheck
+        raise _Unstorable(f'has the key {key!r} of type '
+                          f'{type(key).__name__}: keys must be strings')
+      try:
+        items.append([key, _flatten(item, writer)])
+      except _Unstorable as e:
+        e.path.append(f'/{key}')
+        raise
+    return {'dict': items}
+  if kind is list or kind is tuple:
+    tag = kind.__name__
+    if value and all(type(item) is float for item in value):   # pylint: disable=unidiomatic-typecheck
+      # Fast path for the common list of floats.
+      return {'floats': writer.scalars('float64', value), 'n': len(value),
+              'as': tag}
+    nodes = []
+    for i, item in enumerate(value):
+      try:
+        nodes.append(_flatten(item, writer))
+      except _Unstorable as e:
+        e.path.append(f'[{i}]')
+        raise
+    return {tag: nodes}
   if isinstance(value, np.ndarray):
-    _check_dtype(value, path)
+    _check_dtype(value)
     native = value.astype(value.dtype.newbyteorder('='), copy=False)
-    name, at = writer.add(native)
+    name, at = writer.array(native)
     node = {'array': name, 'at': at, 'shape': list(value.shape)}
     if native.dtype.str != value.dtype.str:   # e.g. big-endian data
       node['dtype'] = value.dtype.str
     return node
   if isinstance(value, np.generic):
     array = np.asarray(value)
-    _check_dtype(array, path)
-    name, at = writer.add(array.astype(array.dtype.newbyteorder('=')))
+    _check_dtype(array)
+    name, at = writer.array(array.astype(array.dtype.newbyteorder('=')))
     return {'scalar': name, 'at': at}
-  for tag, python_type, dtype in _PYTHON_SCALARS:
-    if type(value) is python_type:   # pylint: disable=unidiomatic-typecheck
-      if tag == 'int' and not _INT64.min <= value <= _INT64.max:
-        raise ValueError(f'Snapshot value at {path} is the int {value}, '
-                         'outside the int64 range')
-      _, at = writer.add(np.asarray(value, dtype=dtype))
-      return {tag: at}
-  if isinstance(value, dict):
-    items = []
-    for key, item in value.items():
-      if not isinstance(key, str):
-        raise ValueError(f'Snapshot dict at {path} has the key {key!r} of '
-                         f'type {type(key).__name__}: keys must be strings')
-      items.append([key, _flatten(item, f'{path}/{key}', writer)])
-    return {'dict': items}
-  if type(value) in (list, tuple):
-    tag = type(value).__name__
-    return {tag: [_flatten(item, f'{path}[{i}]', writer)
-                  for i, item in enumerate(value)]}
-  raise ValueError(
-      f'Snapshot value at {path} has the type {type(value).__name__} '
-      f'({value!r:.60}): expected dict, list, tuple, str, None, bool, int, '
-      'float, a NumPy scalar or a numeric NumPy array')
+  raise _Unstorable(
+      f'has the type {kind.__name__} ({value!r:.60}): expected dict, list, '
+      'tuple, str, None, bool, int, float, a NumPy scalar or a numeric NumPy '
+      'array')
 
 
 def flatten(state):
   """(spec, buffers): a JSON-able spec and {dtype name: 1-D array}."""
   writer = _Writer()
-  spec = _flatten(state, '', writer)
+  try:
+    spec = _flatten(state, writer)
+  except _Unstorable as e:
+    path = ''.join(reversed(e.path)) or '/'
+    raise ValueError(f'Snapshot value at {path} {e.message}') from None
   return spec, writer.buffers()
 
 
@@ -134,6 +182,10 @@ def _unflatten(spec, buffers):
     return [_unflatten(item, buffers) for item in spec['list']]
   if 'tuple' in spec:
     return tuple(_unflatten(item, buffers) for item in spec['tuple'])
+  if 'floats' in spec:
+    values = _buffer(buffers, 'float64', int(spec['floats']),
+                     int(spec['n'])).tolist()
+    return tuple(values) if spec['as'] == 'tuple' else values
   if 'str' in spec:
     return str(spec['str'])
   if 'array' in spec:

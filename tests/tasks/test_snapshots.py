@@ -29,6 +29,7 @@ def _nested():
       'inf': float('inf'), 'nan': float('nan'), 'negative_zero': -0.0,
       'list': [1, 2.5, None, 'a', [True]], 'tuple': (None, {'x': 1.0}),
       'empty': ([], (), {}), 'array': np.arange(6.0).reshape(2, 3),
+      'floats': [[0.5, -1e300], (2.0, float('nan'))],
       'uint32': np.arange(4, dtype=np.uint32), 'mask': np.array([True]),
       'empty_array': np.zeros((0, 4, 6)), 'column': np.ones((3, 1), '>f4'),
       'rng': np.random.RandomState(5).get_state(),
@@ -44,6 +45,8 @@ def test_nested_values_round_trip_with_their_types(tmp_path):
   assert isinstance(loaded['tuple'], tuple) and isinstance(
       loaded['list'], list)
   assert np.signbit(loaded['negative_zero'])
+  assert type(loaded['floats'][1]) is tuple
+  assert type(loaded['floats'][0][0]) is float
   assert loaded['column'].dtype == np.dtype('>f4')
   # Arrays are independent copies (set_state may keep and modify them).
   assert loaded['array'].flags.writeable and loaded['array'].base is None
