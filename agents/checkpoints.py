@@ -137,6 +137,15 @@ def resolve(path):
   return found
 
 
+def agent_directory(path):
+  """The agent directory (for `agents.sac.agent.load_policy`) of a run
+  logdir, its checkpoints/ folder, a checkpoint or an agent directory."""
+  path = os.fspath(path)
+  if os.path.exists(os.path.join(path, 'agent.json')):
+    return path
+  return os.path.join(resolve(path), AGENT_DIR)
+
+
 def load_loop_state(directory):
   """(loop state dict, environment RandomState state tuple)."""
   state = read_json(os.path.join(directory, _LOOP_FILE))

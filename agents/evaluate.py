@@ -40,21 +40,6 @@ _TABLE = (
 )
 
 
-def load_agent(directory, env=None):
-  """(agent, run config, env) restored from a checkpoint; env is built from
-  the run config (seeded by the run's evaluation stream) unless given."""
-  directory = checkpoints.resolve(directory)
-  loop_state, _ = checkpoints.load_loop_state(directory)
-  run_config = loop_state['run_config']
-  if env is None:
-    env = train_lib.make_environment(
-        run_config, train_lib.derived_seed(run_config['seed'],
-                                           _EVALUATE_ENV))
-  agent = train_lib.make_agent(run_config, env)
-  agent.restore(os.path.join(directory, checkpoints.AGENT_DIR))
-  return agent, run_config, env
-
-
 def summary(episodes, random_state):
   """{metric: {'mean', 'low', 'high'} or {'min'}} over the episodes."""
   result = {}
@@ -99,9 +84,11 @@ def run(checkpoint, episodes, seed=None):
   if seed is None:
     seed = train_lib.derived_seed(run_config['seed'], _EVALUATE_ENV)
   env = train_lib.make_environment(run_config, seed)
-  agent, _, _ = load_agent(directory, env)
-  results = loop_lib.evaluate(env, agent.policy(deterministic=True),
-                              episodes)
+  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
+  policy = agent_lib.load_policy(
+      os.path.join(directory, checkpoints.AGENT_DIR), env,
+      deterministic=True)
+  results = loop_lib.evaluate(env, policy, episodes)
   return results, summary(results, np.random.RandomState(seed))
 
 

@@ -161,3 +161,17 @@ def test_bad_run_configs():
     train.parse_overrides(['batch_size'])
   with pytest.raises(ValueError, match='expected JSON'):
     train.parse_overrides(['learning_rate=fast'])
+
+
+def test_policy_of_a_run_for_rendering(two_runs):
+  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
+  directory = checkpoints.agent_directory(two_runs[0])
+  assert directory == os.path.join(checkpoints.latest(two_runs[0]), 'agent')
+  assert checkpoints.agent_directory(directory) == directory
+  env = train.make_environment(_run_config(), seed=3)
+  policy = agent_lib.load_policy(directory, env)
+  timestep = env.reset()
+  action = policy(timestep)
+  assert action.shape == env.action_spec().shape
+  assert np.all(np.abs(action) <= 1.0)
+  np.testing.assert_array_equal(policy(timestep), action)   # Deterministic.
