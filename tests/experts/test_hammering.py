@@ -1,0 +1,62 @@
+"""The hammering expert: brings the nail to the person's target, holds the
+board still under the blows, and gets the nail driven in."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.experts import hammering as hammering_expert
+from hrc_suite.tasks import metrics
+
+
+def _env(robot='schunk', space='cartesian', seed=0, time_limit=100.0):
+  return suite.load('hammering', 'default', task_kwargs={
+      'robot': robot, 'action_space': space, 'time_limit': time_limit,
+      'observations': 'full'}, environment_kwargs={'random_state': seed})
+
+
+def test_tcp_yaw_of_quaternions():
+  half = np.sqrt(0.5)
+  assert hammering_expert.tcp_yaw([1.0, 0, 0, 0]) == pytest.approx(0.0)
+  assert hammering_expert.tcp_yaw([half, 0, 0, half]) == pytest.approx(
+      np.pi / 2)
+  # Gripper down (half turn about x), then yaw pi/2 about world z.
+  down = np.array([0.0, 1.0, 0.0, 0.0])
+  turn = np.array([half, 0, 0, half])
+  w1, v1 = turn[0], turn[1:]
+  w2, v2 = down[0], down[1:]
+  both = np.concatenate([[w1 * w2 - v1 @ v2],
+                         w1 * v2 + w2 * v1 + np.cross(v1, v2)])
+  assert hammering_expert.tcp_yaw(both) == pytest.approx(np.pi / 2)
+
+
+@pytest.mark.parametrize('space', ('cartesian', 'joint'))
+def test_brings_the_nail_to_the_target_and_holds_it(space):
+  env = _env('panda', space, seed=1, time_limit=4.0)
+  expert = experts.make(env)
+  assert isinstance(expert, hammering_expert.HammeringExpert)
+  timestep = env.reset()
+  start = np.linalg.norm(timestep.observation['eef_to_target'])
+  while not timestep.last():
+    action = expert(timestep)
+    assert action[-1] == 1.0
+    timestep = env.step(action)
+    assert env.task.step_metrics['object_gripped'] == 1.0
+  offset = timestep.observation['eef_to_target'] + [
+      0.0, 0.0, hammering_expert.HOLD_ABOVE_TARGET]
+  assert start > 0.1
+  assert np.linalg.norm(offset) < 0.01
+  assert env.task.episode_metrics['contacts_human_critical'] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('space', ('cartesian', 'joint'))
+def test_drives_the_nail_in_on_the_schunk(space):
+  successes = 0
+  for seed in range(3):
+    env = _env('schunk', space, seed=seed)
+    result = metrics.run_episode(env, experts.make(env))
+    assert result['contacts_human_critical'] == 0
+    successes += int(result['success'])
+  assert successes >= 2
