@@ -196,3 +196,33 @@ def test_noisy_expert_dataset(tmp_path):
   assert np.mean(difference != 0.0) > 0.9   # (Equal only where clipped.)
   # (1 - w) a_e + w X with w = 0.02 and |a_e| <= 1: at most 0.02 (1 + |X|).
   assert np.abs(difference).max() < 0.2
+
+
+class _Random:
+  """Uniform actions from a seed reset at every first timestep."""
+
+  def __init__(self, env):
+    self._shape = env.action_spec().shape
+    self._random = None
+
+  def __call__(self, timestep):
+    if timestep.first():
+      self._random = np.random.RandomState(7)
+    return self._random.uniform(-1.0, 1.0, self._shape)
+
+
+@pytest.mark.parametrize('domain, task', suite.all_tasks())
+def test_reseeded_environment_plays_what_a_fresh_one_plays(domain, task):
+  # collect and evaluate reuse one environment, reseeding it per episode.
+  kwargs = {'robot': 'schunk', 'time_limit': 1.0, 'observations': 'full'}
+  used = suite.load(domain, task, task_kwargs=kwargs,
+                    environment_kwargs={'random_state': 0})
+  dataset.record_episode(used, _Random(used))
+  used.random_state.seed(1)
+  replayed, _ = dataset.record_episode(used, _Random(used))
+  fresh = suite.load(domain, task, task_kwargs=kwargs,
+                     environment_kwargs={'random_state': 1})
+  expected, _ = dataset.record_episode(fresh, _Random(fresh))
+  assert sorted(replayed) == sorted(expected)
+  for key, value in expected.items():
+    np.testing.assert_array_equal(replayed[key], value, err_msg=key)
