@@ -1,0 +1,138 @@
+"""Soft actor-critic hyperparameters: a frozen dataclass and named presets.
+
+Two presets:
+
+* `default_config()`: the values of Haarnoja et al. 2018 ("Soft Actor-Critic
+  Algorithms and Applications", Table 1: Adam lr 3e-4, two hidden layers of
+  256 units, batch 256, tau 0.005, gamma 0.99, one gradient step per
+  environment step) with an initial temperature of 1.0 (Acme's SAC default):
+  a high temperature explores broadly at first and the automatic tuning
+  brings it down within a few thousand updates.
+* `reference_config()`: the Human-Robot Gym paper's SAC (see
+  ../shared/docs/reference-benchmark.md, "Training and evaluation"): lr 5e-4,
+  buffer 1e6, learning starts at 1000 transitions, batch 128, tau 0.005,
+  gamma 0.99, 100 gradient steps every 100 environment steps, initial
+  temperature 0.2, MLP (64, 64, 64).
+
+Seeds are not part of a config: agents take them separately.
+"""
+
+import dataclasses
+import math
+from typing import Optional, Tuple
+
+
+@dataclasses.dataclass(frozen=True)
+class SACConfig:
+  """Hyperparameters of `agents.sac.SACAgent` (defaults = `default_config`).
+
+  Attributes:
+    learning_rate: Adam step size of the policy, critics and temperature.
+    batch_size: transitions per gradient step.
+    replay_capacity: transitions the ring buffer holds.
+    min_replay_size: transitions in the buffer before learning starts.
+    discount: gamma, multiplied by the environment's per-step discount.
+    tau: Polyak rate of the target critics (target += tau (online - target)).
+    hidden_sizes: units of each hidden layer of the policy and both critics.
+    initial_temperature: entropy temperature alpha at the start.
+    target_entropy: entropy the temperature tuning aims at; None means
+      -action_size (Haarnoja et al. 2018).
+    updates_per_step: gradient steps per environment step (may be < 1).
+    update_every: environment steps between bursts of updates; a burst runs
+      updates_per_step * update_every gradient steps.
+    max_grad_norm: clip each gradient to this global norm (None: no clipping).
+  """
+  learning_rate: float = 3e-4
+  batch_size: int = 256
+  replay_capacity: int = 1_000_000
+  min_replay_size: int = 1000
+  discount: float = 0.99
+  tau: float = 0.005
+  hidden_sizes: Tuple[int, ...] = (256, 256)
+  initial_temperature: float = 1.0
+  target_entropy: Optional[float] = None
+  updates_per_step: float = 1.0
+  update_every: int = 1
+  max_grad_norm: Optional[float] = None
+
+  def __post_init__(self):
+    # Lists (e.g. from JSON) become tuples so the config stays hashable.
+    object.__setattr__(self, 'hidden_sizes', tuple(self.hidden_sizes))
+    _check(self.learning_rate > 0, 'learning_rate', self.learning_rate, '> 0')
+    for name in ('batch_size', 'replay_capacity', 'update_every'):
+      value = getattr(self, name)
+      _check(isinstance(value, int) and value >= 1, name, value,
+             'an integer >= 1')
+    _check(isinstance(self.min_replay_size, int) and self.min_replay_size >= 0,
+           'min_replay_size', self.min_replay_size, 'an integer >= 0')
+    _check(0 <= self.discount <= 1, 'discount', self.discount, 'in [0, 1]')
+    _check(0 < self.tau <= 1, 'tau', self.tau, 'in (0, 1]')
+    _check(len(self.hidden_sizes) >= 1 and all(
+        isinstance(h, int) and h >= 1 for h in self.hidden_sizes),
+           'hidden_sizes', self.hidden_sizes,
+           'a non-empty tuple of integers >= 1')
+    _check(self.initial_temperature > 0, 'initial_temperature',
+           self.initial_temperature, '> 0')
+    _check(self.target_entropy is None or math.isfinite(self.target_entropy),
+           'target_entropy', self.target_entropy, 'None or a finite number')
+    _check(self.updates_per_step >= 0, 'updates_per_step',
+           self.updates_per_step, '>= 0')
+    _check(self.max_grad_norm is None or self.max_grad_norm > 0,
+           'max_grad_norm', self.max_grad_norm, 'None or > 0')
+
+  def entropy_target(self, action_size):
+    """`target_entropy`, or -action_size when it is None."""
+    if self.target_entropy is None:
+      return -float(action_size)
+    return float(self.target_entropy)
+
+  def to_dict(self):
+    """JSON-ready dict (`SACConfig(**d)` rebuilds the config)."""
+    values = dataclasses.asdict(self)
+    values['hidden_sizes'] = list(self.hidden_sizes)
+    return values
+
+
+def _check(condition, name, value, expected):
+  if not condition:
+    raise ValueError(f'SACConfig.{name}={value!r}: expected {expected}')
+
+
+def default_config(**overrides):
+  """Sensible SAC defaults (Haarnoja et al. 2018, Table 1)."""
+  return SACConfig(**overrides)
+
+
+def reference_config(**overrides):
+  """The Human-Robot Gym paper's SAC hyperparameters."""
+  values = dict(
+      learning_rate=5e-4,
+      batch_size=128,
+      replay_capacity=1_000_000,
+      min_replay_size=1000,
+      discount=0.99,
+      tau=0.005,
+      hidden_sizes=(64, 64, 64),
+      initial_temperature=0.2,
+      target_entropy=None,
+      updates_per_step=1.0,
+      update_every=100,
+  )
+  values.update(overrides)
+  return SACConfig(**values)
+
+
+CONFIGS = {'default': default_config, 'reference': reference_config}
+
+
+def config_from_name(name, **overrides):
+  """The preset called `name` ('default' or 'reference') with overrides."""
+  if name not in CONFIGS:
+    raise ValueError(f'Unknown SAC config {name!r}: expected one of '
+                     f'{", ".join(CONFIGS)}')
+  fields = {field.name for field in dataclasses.fields(SACConfig)}
+  unknown = sorted(set(overrides) - fields)
+  if unknown:
+    raise ValueError(f'Unknown SACConfig fields {unknown}: expected some of '
+                     f'{", ".join(sorted(fields))}')
+  return CONFIGS[name](**overrides)

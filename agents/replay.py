@@ -1,0 +1,135 @@
+"""Uniform replay: a NumPy ring buffer of float32 transitions."""
+
+import collections
+
+import numpy as np
+
+Transition = collections.namedtuple(
+    'Transition',
+    ['observation', 'action', 'reward', 'discount', 'next_observation'])
+
+_FIELD_SHAPES = {  # Per-transition shape of each field (None: a size).
+    'observation': 'observation_size',
+    'action': 'action_size',
+    'reward': None,
+    'discount': None,
+    'next_observation': 'observation_size',
+}
+
+
+class ReplayBuffer:
+  """Fixed-capacity ring buffer; the oldest transitions are overwritten.
+
+  `discount` is the environment's discount of the step (0 at termination,
+  1 otherwise, also at a time-limit truncation); the learner multiplies it
+  by its own gamma.
+  """
+
+  def __init__(self, capacity, observation_size, action_size):
+    for name, value in (('capacity', capacity),
+                        ('observation_size', observation_size),
+                        ('action_size', action_size)):
+      if not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f'{name}={value!r}: expected an integer >= 1')
+    self._capacity = int(capacity)
+    self._observation_size = int(observation_size)
+    self._action_size = int(action_size)
+    self._data = {
+        field: np.zeros((self._capacity,) + self._row_shape(field),
+                        dtype=np.float32) for field in Transition._fields}
+    self._insert_index = 0   # Slot the next transition goes to.
+    self._size = 0
+
+  def _row_shape(self, field):
+    size_name = _FIELD_SHAPES[field]
+    return () if size_name is None else (getattr(self, '_' + size_name),)
+
+  @property
+  def capacity(self):
+    return self._capacity
+
+  @property
+  def observation_size(self):
+    return self._observation_size
+
+  @property
+  def action_size(self):
+    return self._action_size
+
+  def __len__(self):
+    return self._size
+
+  def add(self, observation, action, reward, discount, next_observation):
+    """Stores one transition."""
+    self.add_batch(np.asarray(observation)[None], np.asarray(action)[None],
+                   np.asarray(reward)[None], np.asarray(discount)[None],
+                   np.asarray(next_observation)[None])
+
+  def add_batch(self, observations, actions, rewards, discounts,
+                next_observations):
+    """Stores a batch of transitions (leading axis = batch) in order."""
+    values = dict(zip(Transition._fields, (
+        observations, actions, rewards, discounts, next_observations)))
+    batch = None
+    for field, value in values.items():
+      value = np.asarray(value)
+      expected = self._row_shape(field)
+      if value.ndim != len(expected) + 1 or value.shape[1:] != expected:
+        raise ValueError(f'{field} has shape {value.shape}, expected '
+                         f'(batch,) + {expected}')
+      if batch is None:
+        batch = value.shape[0]
+      elif value.shape[0] != batch:
+        raise ValueError(f'{field} has batch size {value.shape[0]}, '
+                         f'expected {batch} like the other fields')
+      values[field] = value
+    if batch > self._capacity:   # Only the newest `capacity` survive.
+      values = {k: v[batch - self._capacity:] for k, v in values.items()}
+      batch = self._capacity
+    slots = (self._insert_index + np.arange(batch)) % self._capacity
+    for field, value in values.items():
+      self._data[field][slots] = value
+    self._insert_index = int((self._insert_index + batch) % self._capacity)
+    self._size = min(self._size + batch, self._capacity)
+
+  def sample(self, batch_size, random_state):
+    """Transition of `batch_size` rows drawn uniformly with replacement."""
+    if self._size == 0:
+      raise ValueError('Cannot sample from an empty replay buffer')
+    if not isinstance(random_state, np.random.RandomState):
+      raise TypeError('random_state must be a np.random.RandomState, got '
+                      f'{type(random_state).__name__}')
+    indices = random_state.randint(0, self._size, size=batch_size)
+    return Transition(*(self._data[field][indices]
+                        for field in Transition._fields))
+
+  def state(self):
+    """{name: array} of the stored transitions and the insertion index."""
+    state = {'capacity': np.int64(self._capacity),
+             'insert_index': np.int64(self._insert_index),
+             'size': np.int64(self._size)}
+    for field in Transition._fields:
+      state[field] = self._data[field][:self._size].copy()
+    return state
+
+  def restore(self, state):
+    """Restores a `state()` of a buffer of the same capacity and sizes."""
+    capacity = int(state['capacity'])
+    if capacity != self._capacity:
+      raise ValueError(f'Replay state has capacity {capacity}, expected '
+                       f'{self._capacity}')
+    size = int(state['size'])
+    insert_index = int(state['insert_index'])
+    if not 0 <= size <= capacity or not 0 <= insert_index < capacity:
+      raise ValueError(f'Replay state has size {size} and insert_index '
+                       f'{insert_index}, expected both in [0, {capacity}]')
+    for field in Transition._fields:
+      expected = (size,) + self._row_shape(field)
+      if state[field].shape != expected:
+        raise ValueError(f'Replay state {field} has shape '
+                         f'{state[field].shape}, expected {expected}')
+    for field in Transition._fields:
+      self._data[field][:size] = state[field]
+      self._data[field][size:] = 0
+    self._size = size
+    self._insert_index = insert_index

@@ -1,0 +1,329 @@
+"""SACAgent: flattener + actor + learner + replay, in Acme's agent shape.
+
+  agent = SACAgent(specs.make_environment_spec(env), config, seed=0)
+  timestep = env.reset()
+  agent.observe_first(timestep)
+  while ...:
+    action = agent.select_action(timestep.observation)
+    timestep = env.step(action)
+    agent.observe(action, timestep)
+    agent.update()
+
+Bootstrapping uses the environment's discount: 0 at a termination, 1 at a
+time-limit truncation (dm_env's convention), times the config's gamma.
+Updates start once the replay holds `min_replay_size` transitions; then
+every `update_every` observed steps a burst of `updates_per_step *
+update_every` gradient steps runs (fractional parts carry over).
+
+Checkpoints (`save` / `restore`, and `load_policy` for rendering) are a
+directory holding agent.json (config, sizes, counters, caller metadata),
+learner.npz (TrainingState), replay.npz and agent.npz (actor key, replay
+sampling RandomState, the episode's last observation, caller arrays).
+"""
+
+import collections
+import pathlib
+
+import jax
+import numpy as np
+
+from agents import config as config_lib
+from agents import observations
+from agents import replay as replay_lib
+from agents.sac import actor as actor_lib
+from agents.sac import checkpointing
+from agents.sac import learning
+from agents.sac import networks as networks_lib
+
+CHECKPOINT_FORMAT = 1
+_EXTRA_PREFIX = 'extra/'
+
+CheckpointExtras = collections.namedtuple('CheckpointExtras',
+                                          ['metadata', 'arrays'])
+
+
+def _seeds(seed, count):
+  """`count` independent 31-bit seeds derived from one seed."""
+  if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or (
+      seed < 0):
+    raise ValueError(f'seed={seed!r}: expected an integer >= 0')
+  state = np.random.SeedSequence(int(seed)).generate_state(count, np.uint32)
+  return [int(s) >> 1 for s in state]
+
+
+class SACAgent:
+  """Soft actor-critic agent on a dm_env environment spec."""
+
+  def __init__(self, environment_spec, config=None, seed=0, images='error'):
+    self._config = config or config_lib.default_config()
+    if not isinstance(self._config, config_lib.SACConfig):
+      raise TypeError(f'config must be a SACConfig, got '
+                      f'{type(self._config).__name__}')
+    self._seed = int(seed) if not isinstance(seed, bool) else seed
+    learner_seed, actor_seed, replay_seed = _seeds(seed, 3)
+    self._images = images
+    self._flattener = observations.ObservationFlattener(
+        environment_spec.observations, images=images)
+    self._scaler = actor_lib.ActionScaler(environment_spec.actions)
+    observation_size = self._flattener.size
+    action_size = self._scaler.size
+    self._networks = networks_lib.make_networks(
+        observation_size, action_size, self._config.hidden_sizes)
+    self._learner = learning.SACLearner(self._networks, self._config,
+                                        observation_size, action_size,
+                                        learner_seed)
+    self._replay = replay_lib.ReplayBuffer(self._config.replay_capacity,
+                                           observation_size, action_size)
+    self._actor = actor_lib.SACActor(self._networks, self._policy_params,
+                                     actor_seed)
+    self._sample_random_state = np.random.RandomState(replay_seed)
+    self._last_observation = None   # Flat observation before the next action.
+    self._flat_cache = (None, None)   # (observation dict, its flat vector).
+    self._env_steps = 0
+    self._steps_since_update = 0
+    self._update_credit = 0.0
+
+  def _policy_params(self):
+    return self._learner.policy_params
+
+  def _flatten(self, observation):
+    cached_dict, cached_vector = self._flat_cache
+    if observation is cached_dict:
+      return cached_vector
+    vector = self._flattener(observation)
+    self._flat_cache = (observation, vector)
+    return vector
+
+  # Acme's actor interface.
+
+  def select_action(self, observation):
+    """float64 action within the action spec (sampled from the policy)."""
+    return self._scaler.to_environment(
+        self._actor.select_action(self._flatten(observation)))
+
+  def observe_first(self, timestep):
+    self._last_observation = self._flatten(timestep.observation)
+
+  def observe(self, action, next_timestep):
+    """Stores (s, a, r, discount, s') for the step that led to next_timestep."""
+    if self._last_observation is None:
+      raise RuntimeError('observe() called before observe_first() of the '
+                         'episode')
+    next_observation = self._flatten(next_timestep.observation)
+    self._replay.add(self._last_observation,
+                     self._scaler.to_normalised(action),
+                     np.float32(next_timestep.reward),
+                     np.float32(next_timestep.discount), next_observation)
+    self._last_observation = (None if next_timestep.last()
+                              else next_observation)
+    self._env_steps += 1
+    self._steps_since_update += 1
+
+  def update(self):
+    """Runs the gradient steps due; their mean metrics, or None."""
+    config = self._config
+    if len(self._replay) < max(config.min_replay_size, 1):
+      self._steps_since_update = 0
+      return None
+    if self._steps_since_update < config.update_every:
+      return None
+    self._update_credit += config.updates_per_step * self._steps_since_update
+    self._steps_since_update = 0
+    num_steps = int(self._update_credit)
+    self._update_credit -= num_steps
+    if num_steps == 0:
+      return None
+    return self.learn(num_steps)
+
+  def learn(self, num_steps=1):
+    """`num_steps` gradient steps on fresh replay samples; mean metrics."""
+    if len(self._replay) == 0:
+      raise ValueError('Cannot learn from an empty replay buffer')
+    batch = self._replay.sample(num_steps * self._config.batch_size,
+                                self._sample_random_state)
+    if num_steps == 1:
+      return self._learner.update(batch)
+    batches = replay_lib.Transition(*(
+        field.reshape((num_steps, self._config.batch_size) + field.shape[1:])
+        for field in batch))
+    return self._learner.update_steps(batches)
+
+  # Evaluation.
+
+  def policy(self, deterministic=True, seed=0):
+    """Callable timestep -> action with the agent's current parameters.
+
+    Deterministic: tanh(mean). Otherwise samples with its own key from
+    `seed` (the training actor's key is left alone).
+    """
+    actor = actor_lib.SACActor(self._networks, self._policy_params, seed,
+                               evaluation=deterministic)
+    return _TimestepPolicy(self._flattener, actor, self._scaler)
+
+  # Accessors.
+
+  @property
+  def config(self):
+    return self._config
+
+  @property
+  def learner(self):
+    return self._learner
+
+  @property
+  def replay(self):
+    return self._replay
+
+  @property
+  def actor(self):
+    return self._actor
+
+  @property
+  def flattener(self):
+    return self._flattener
+
+  @property
+  def env_steps(self):
+    """Transitions observed."""
+    return self._env_steps
+
+  # Checkpoints.
+
+  def _description(self):
+    return {
+        'format': CHECKPOINT_FORMAT,
+        'config': self._config.to_dict(),
+        'seed': self._seed,
+        'images': self._images,
+        'observation_keys': list(self._flattener.keys),
+        'observation_size': self._flattener.size,
+        'action_size': self._scaler.size,
+        'action_minimum': self._scaler.minimum.tolist(),
+        'action_maximum': self._scaler.maximum.tolist(),
+    }
+
+  def save(self, directory, metadata=None, arrays=None):
+    """Writes the whole agent to `directory` (replaced atomically).
+
+    metadata: JSON-able dict and arrays: {name: array} of the caller (e.g.
+    loop counters, environment RNG state), returned by `restore`.
+    """
+    description = self._description()
+    description['counters'] = {
+        'env_steps': self._env_steps,
+        'steps_since_update': self._steps_since_update,
+        'update_credit': self._update_credit,
+        'learner_steps': self._learner.steps,
+    }
+    description['metadata'] = metadata or {}
+    name, keys, position, has_gauss, cached = (
+        self._sample_random_state.get_state())
+    agent_arrays = {
+        'actor_key': self._actor.key,
+        'sample_random_state/keys': keys,
+        'sample_random_state/position': np.int64(position),
+        'sample_random_state/has_gauss': np.int64(has_gauss),
+        'sample_random_state/cached_gaussian': np.float64(cached),
+    }
+    if self._last_observation is not None:
+      agent_arrays['last_observation'] = self._last_observation
+    for key, value in (arrays or {}).items():
+      agent_arrays[_EXTRA_PREFIX + key] = np.asarray(value)
+    with checkpointing.atomic_directory(directory) as staging:
+      checkpointing.save_json(staging / 'agent.json', description)
+      checkpointing.save_arrays(staging / 'learner.npz',
+                                self._learner.state())
+      checkpointing.save_arrays(staging / 'replay.npz', self._replay.state())
+      checkpointing.save_arrays(staging / 'agent.npz', agent_arrays)
+
+  def restore(self, directory):
+    """Restores a `save`d agent built with the same spec and config.
+
+    Returns CheckpointExtras(metadata, arrays) given to `save`.
+    """
+    directory = pathlib.Path(directory)
+    description = checkpointing.load_json(directory / 'agent.json')
+    expected = self._description()
+    for key in ('format', 'config', 'images', 'observation_keys',
+                'observation_size', 'action_size', 'action_minimum',
+                'action_maximum'):
+      if description.get(key) != expected[key]:
+        raise ValueError(f'Checkpoint {directory} has {key}='
+                         f'{description.get(key)!r}, this agent has '
+                         f'{expected[key]!r}')
+    agent_arrays = checkpointing.load_arrays(directory / 'agent.npz')
+    self._learner.restore(checkpointing.load_arrays(directory /
+                                                    'learner.npz'))
+    self._replay.restore(checkpointing.load_arrays(directory / 'replay.npz'))
+    self._actor.key = agent_arrays['actor_key']
+    self._sample_random_state.set_state((
+        'MT19937', agent_arrays['sample_random_state/keys'],
+        int(agent_arrays['sample_random_state/position']),
+        int(agent_arrays['sample_random_state/has_gauss']),
+        float(agent_arrays['sample_random_state/cached_gaussian'])))
+    self._last_observation = agent_arrays.get('last_observation')
+    self._flat_cache = (None, None)
+    counters = description['counters']
+    self._env_steps = int(counters['env_steps'])
+    self._steps_since_update = int(counters['steps_since_update'])
+    self._update_credit = float(counters['update_credit'])
+    self._seed = description['seed']
+    extras = {key[len(_EXTRA_PREFIX):]: value
+              for key, value in agent_arrays.items()
+              if key.startswith(_EXTRA_PREFIX)}
+    return CheckpointExtras(description['metadata'], extras)
+
+
+class _TimestepPolicy:
+  """timestep -> environment action, through a flattener and an actor."""
+
+  def __init__(self, flattener, actor, scaler):
+    self._flattener = flattener
+    self._actor = actor
+    self._scaler = scaler
+
+  def __call__(self, timestep):
+    return self._scaler.to_environment(
+        self._actor.select_action(self._flattener(timestep.observation)))
+
+
+def load_policy(directory, environment, deterministic=True, seed=0):
+  """timestep -> action callable of a saved agent's policy on `environment`.
+
+  Reads only agent.json and learner.npz's policy parameters; the
+  environment must have the observations and actions the agent was trained
+  on.
+  """
+  directory = pathlib.Path(directory)
+  description = checkpointing.load_json(directory / 'agent.json')
+  if description.get('format') != CHECKPOINT_FORMAT:
+    raise ValueError(f'Checkpoint {directory} has format '
+                     f'{description.get("format")!r}, expected '
+                     f'{CHECKPOINT_FORMAT}')
+  flattener = observations.ObservationFlattener(
+      environment.observation_spec(), images=description['images'])
+  if list(flattener.keys) != description['observation_keys'] or (
+      flattener.size != description['observation_size']):
+    raise ValueError(
+        f'The environment observes {list(flattener.keys)} ({flattener.size} '
+        f'values), the checkpoint {directory} was trained on '
+        f'{description["observation_keys"]} '
+        f'({description["observation_size"]} values)')
+  scaler = actor_lib.ActionScaler(environment.action_spec())
+  if (scaler.size != description['action_size']
+      or scaler.minimum.tolist() != description['action_minimum']
+      or scaler.maximum.tolist() != description['action_maximum']):
+    raise ValueError(f'The environment action spec {environment.action_spec()}'
+                     f' differs from the checkpoint\'s ({directory})')
+  config = config_lib.SACConfig(**description['config'])
+  networks = networks_lib.make_networks(flattener.size, scaler.size,
+                                        config.hidden_sizes)
+  prefix = 'policy_params/'
+  arrays = {key[len(prefix):]: value for key, value in
+            checkpointing.load_arrays(directory / 'learner.npz').items()
+            if key.startswith(prefix)}
+  params = learning.unflatten_from_arrays(
+      networks.policy_init(jax.random.PRNGKey(0)), arrays)
+  actor = actor_lib.SACActor(networks, lambda: params, seed,
+                             evaluation=deterministic)
+  return _TimestepPolicy(flattener, actor, scaler)

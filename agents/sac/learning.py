@@ -1,0 +1,296 @@
+"""SAC learner: one jit-compiled update of critics, policy and temperature.
+
+Per gradient step on a batch (s, a, r, d, s') (Haarnoja et al. 2018):
+
+* critic: y = r + gamma d (min_j Q'_j(s', a') - alpha log pi(a'|s')) with
+  a' ~ pi(.|s') and target critics Q'; loss = mean_j 0.5 (Q_j(s, a) - y)^2;
+* policy: loss = alpha log pi(a~|s) - min_j Q_j(s, a~), a~ ~ pi(.|s)
+  reparameterised, with the critics before this step's critic update;
+* temperature: loss = alpha (-log pi(a~|s) - H_target) with the entropy
+  estimate held fixed, so alpha falls while the entropy is above target;
+* targets: Q' <- (1 - tau) Q' + tau Q.
+
+alpha is the temperature before this step's update in all three losses. All
+of it, and several steps at once (`update_steps`, a lax.scan), is one XLA
+computation.
+"""
+
+import collections
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+TrainingState = collections.namedtuple('TrainingState', [
+    'policy_params', 'q_params', 'target_q_params', 'log_temperature',
+    'policy_optimizer_state', 'q_optimizer_state',
+    'temperature_optimizer_state', 'key', 'steps'])
+
+METRIC_NAMES = ('critic_loss', 'actor_loss', 'temperature_loss',
+                'temperature', 'entropy', 'q_values', 'target_q_values')
+
+
+def _optimizer(config):
+  adam = optax.adam(config.learning_rate)
+  if config.max_grad_norm is None:
+    return adam
+  return optax.chain(optax.clip_by_global_norm(config.max_grad_norm), adam)
+
+
+def _path_name(path):
+  """'a/b/0' name of a jax.tree_util key path."""
+  parts = []
+  for entry in path:
+    if isinstance(entry, jax.tree_util.DictKey):
+      parts.append(str(entry.key))
+    elif isinstance(entry, jax.tree_util.GetAttrKey):
+      parts.append(entry.name)
+    elif isinstance(entry, jax.tree_util.SequenceKey):
+      parts.append(str(entry.idx))
+    elif isinstance(entry, jax.tree_util.FlattenedIndexKey):
+      parts.append(str(entry.key))
+    else:
+      parts.append(str(entry))
+  return '/'.join(parts)
+
+
+def flatten_to_arrays(tree):
+  """{path name: NumPy array} of every leaf of a pytree."""
+  leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+  return {_path_name(path): np.array(leaf, copy=True)
+          for path, leaf in leaves}
+
+
+def unflatten_from_arrays(template, arrays):
+  """Pytree shaped like `template` with leaves from `flatten_to_arrays`."""
+  leaves, treedef = jax.tree_util.tree_flatten_with_path(template)
+  names = [_path_name(path) for path, _ in leaves]
+  missing = [name for name in names if name not in arrays]
+  extra = sorted(set(arrays) - set(names))
+  if missing or extra:
+    raise ValueError(f'State arrays do not match: missing {missing}, '
+                     f'unexpected {extra}')
+  restored = []
+  for name, (_, leaf) in zip(names, leaves):
+    value = np.asarray(arrays[name])
+    if value.shape != np.shape(leaf) or value.dtype != np.asarray(leaf).dtype:
+      raise ValueError(f'State array {name!r} has shape {value.shape} and '
+                       f'dtype {value.dtype}, expected {np.shape(leaf)} and '
+                       f'{np.asarray(leaf).dtype}')
+    restored.append(jnp.asarray(value))
+  return jax.tree_util.tree_unflatten(treedef, restored)
+
+
+def _to_floats(metrics):
+  """{name: float} of a dict of device scalars (one transfer)."""
+  return {name: float(value)
+          for name, value in jax.device_get(metrics).items()}
+
+
+class _UpdateFunctions:
+  """Pure SAC maths for one (networks, config, action size).
+
+  `compiled_update_functions` caches its jitted functions, so learners of
+  the same networks and config share compilations.
+  """
+
+  def __init__(self, networks, config, action_size):
+    self.networks = networks
+    self.config = config
+    self.target_entropy = config.entropy_target(action_size)
+    self.policy_optimizer = _optimizer(config)
+    self.q_optimizer = _optimizer(config)
+    self.temperature_optimizer = _optimizer(config)
+
+  def initial_state(self, policy_params, q_params, key):
+    log_temperature = jnp.log(jnp.asarray(self.config.initial_temperature,
+                                          jnp.float32))
+    return TrainingState(
+        policy_params=policy_params,
+        q_params=q_params,
+        target_q_params=jax.tree_util.tree_map(jnp.copy, q_params),
+        log_temperature=log_temperature,
+        policy_optimizer_state=self.policy_optimizer.init(policy_params),
+        q_optimizer_state=self.q_optimizer.init(q_params),
+        temperature_optimizer_state=self.temperature_optimizer.init(
+            log_temperature),
+        key=key,
+        steps=jnp.zeros((), jnp.int32))
+
+  def critic_loss(self, q_params, state, batch, temperature, key):
+    networks = self.networks
+    next_mean, next_log_std = networks.policy_apply(
+        state.policy_params, batch.next_observation)
+    next_action, next_log_prob = networks.sample(key, next_mean,
+                                                 next_log_std)
+    next_q = networks.q_apply(state.target_q_params, batch.next_observation,
+                              next_action)
+    next_value = jnp.min(next_q, axis=-1) - temperature * next_log_prob
+    target = jax.lax.stop_gradient(
+        batch.reward + self.config.discount * batch.discount * next_value)
+    q = networks.q_apply(q_params, batch.observation, batch.action)
+    loss = 0.5 * jnp.mean(jnp.square(q - target[:, None]))
+    return loss, (q, target)
+
+  def actor_loss(self, policy_params, state, batch, temperature, key):
+    networks = self.networks
+    mean, log_std = networks.policy_apply(policy_params, batch.observation)
+    action, log_prob = networks.sample(key, mean, log_std)
+    q = networks.q_apply(state.q_params, batch.observation, action)
+    loss = jnp.mean(temperature * log_prob - jnp.min(q, axis=-1))
+    return loss, log_prob
+
+  def sgd_step(self, state, batch):
+    """(next TrainingState, metrics) of one gradient step."""
+    key, critic_key, actor_key = jax.random.split(state.key, 3)
+    temperature = jnp.exp(state.log_temperature)
+
+    (critic_loss, (q, target)), q_grads = jax.value_and_grad(
+        self.critic_loss, has_aux=True)(state.q_params, state, batch,
+                                        temperature, critic_key)
+    (actor_loss, log_prob), policy_grads = jax.value_and_grad(
+        self.actor_loss, has_aux=True)(state.policy_params, state, batch,
+                                       temperature, actor_key)
+    entropy = -jnp.mean(log_prob)
+    entropy_gap = jax.lax.stop_gradient(entropy - self.target_entropy)
+    temperature_loss, temperature_grad = jax.value_and_grad(
+        lambda log_temperature: jnp.exp(log_temperature) * entropy_gap)(
+            state.log_temperature)
+
+    q_updates, q_optimizer_state = self.q_optimizer.update(
+        q_grads, state.q_optimizer_state, state.q_params)
+    q_params = optax.apply_updates(state.q_params, q_updates)
+    policy_updates, policy_optimizer_state = self.policy_optimizer.update(
+        policy_grads, state.policy_optimizer_state, state.policy_params)
+    policy_params = optax.apply_updates(state.policy_params, policy_updates)
+    temperature_update, temperature_optimizer_state = (
+        self.temperature_optimizer.update(
+            temperature_grad, state.temperature_optimizer_state,
+            state.log_temperature))
+    log_temperature = optax.apply_updates(state.log_temperature,
+                                          temperature_update)
+    tau = self.config.tau
+    target_q_params = jax.tree_util.tree_map(
+        lambda target, online: (1.0 - tau) * target + tau * online,
+        state.target_q_params, q_params)
+
+    new_state = TrainingState(
+        policy_params=policy_params,
+        q_params=q_params,
+        target_q_params=target_q_params,
+        log_temperature=log_temperature,
+        policy_optimizer_state=policy_optimizer_state,
+        q_optimizer_state=q_optimizer_state,
+        temperature_optimizer_state=temperature_optimizer_state,
+        key=key,
+        steps=state.steps + 1)
+    metrics = {
+        'critic_loss': critic_loss,
+        'actor_loss': actor_loss,
+        'temperature_loss': temperature_loss,
+        'temperature': temperature,
+        'entropy': entropy,
+        'q_values': jnp.mean(q),
+        'target_q_values': jnp.mean(target),
+    }
+    return new_state, metrics
+
+  def sgd_steps(self, state, batches):
+    """Several steps (leading axis of `batches`) in one lax.scan."""
+    state, metrics = jax.lax.scan(self.sgd_step, state, batches)
+    return state, jax.tree_util.tree_map(jnp.mean, metrics)
+
+
+CompiledUpdate = collections.namedtuple(
+    'CompiledUpdate', ['initial_state', 'sgd_step', 'sgd_steps'])
+
+
+@functools.lru_cache(maxsize=None)
+def compiled_update_functions(networks, config, action_size):
+  """Jitted (initial_state, sgd_step, sgd_steps), shared across learners.
+
+  No buffer donation: actors and policies keep reading the parameters of a
+  state while the next one is computed.
+  """
+  functions = _UpdateFunctions(networks, config, action_size)
+  return CompiledUpdate(jax.jit(functions.initial_state),
+                        jax.jit(functions.sgd_step),
+                        jax.jit(functions.sgd_steps))
+
+
+class SACLearner:
+  """Holds the TrainingState and applies jit-compiled SAC updates."""
+
+  def __init__(self, networks, config, observation_size, action_size, seed):
+    if (networks.observation_size != observation_size
+        or networks.action_size != action_size):
+      raise ValueError(
+          f'Networks built for observation_size {networks.observation_size}'
+          f' and action_size {networks.action_size}, learner given '
+          f'{observation_size} and {action_size}')
+    self._observation_size = int(observation_size)
+    self._action_size = int(action_size)
+    self._functions = compiled_update_functions(networks, config,
+                                                self._action_size)
+    random_state = np.random.RandomState(seed)
+    policy_params = networks.policy_init(random_state)
+    q_params = networks.q_init(random_state)
+    self._state = self._functions.initial_state(policy_params, q_params,
+                                                jax.random.PRNGKey(seed))
+
+  # Public interface.
+
+  def _check_batch(self, batch, leading):
+    sizes = {'observation': self._observation_size,
+             'action': self._action_size,
+             'next_observation': self._observation_size}
+    for field in batch._fields:
+      value = getattr(batch, field)
+      rank = leading + (1 if field in sizes else 0)
+      if np.ndim(value) != rank or (
+          field in sizes and np.shape(value)[-1] != sizes[field]):
+        expected = ('(steps, batch' if leading == 2 else '(batch') + (
+            f', {sizes[field]})' if field in sizes else ')')
+        raise ValueError(f'Batch {field} has shape {np.shape(value)}, '
+                         f'expected {expected}')
+
+  def update(self, batch):
+    """One gradient step on `batch` (a replay.Transition); metrics dict."""
+    self._check_batch(batch, leading=1)
+    self._state, metrics = self._functions.sgd_step(self._state, batch)
+    return _to_floats(metrics)
+
+  def update_steps(self, batches):
+    """len(batches.reward) gradient steps (leading axis = step), in one
+    compiled loop; metrics averaged over the steps."""
+    self._check_batch(batches, leading=2)
+    self._state, metrics = self._functions.sgd_steps(self._state, batches)
+    return _to_floats(metrics)
+
+  @property
+  def policy_params(self):
+    return self._state.policy_params
+
+  @property
+  def training_state(self):
+    return self._state
+
+  @property
+  def steps(self):
+    """Gradient steps taken."""
+    return int(self._state.steps)
+
+  @property
+  def temperature(self):
+    return float(np.exp(np.asarray(self._state.log_temperature)))
+
+  def state(self):
+    """{path: NumPy array} of the whole TrainingState (for .npz)."""
+    return flatten_to_arrays(self._state._asdict())
+
+  def restore(self, arrays):
+    """Restores a `state()` exactly (shapes and dtypes must match)."""
+    restored = unflatten_from_arrays(self._state._asdict(), arrays)
+    self._state = TrainingState(**restored)
