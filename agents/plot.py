@@ -139,7 +139,7 @@ def draw(curves, out, title):
   import matplotlib   # pylint: disable=g-import-not-at-top
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
-  figure, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+  figure, axes = plt.subplots(1, 2, figsize=(10, 4.5), constrained_layout=True)
   for curve in curves:
     for axis, (mean, low, high) in zip(axes, (curve.success, curve.returns)):
       label = f'{curve.label}, {len(curve.seeds)} seed(s)'
@@ -155,7 +155,9 @@ def draw(curves, out, title):
   for axis in axes:
     axis.set_xlabel('environment steps')
     axis.grid(alpha=0.3)
-  axes[0].legend(loc='best', fontsize='small')
+  handles, labels = axes[0].get_legend_handles_labels()
+  figure.legend(handles, labels, loc='outside lower center',
+                ncol=min(len(labels), 2), fontsize='small')
   figure.suptitle(f'{title}: mean and 95 % bootstrap CI over seeds')
   stem, _ = os.path.splitext(os.fspath(out))
   directory = os.path.dirname(stem)
