@@ -5,7 +5,9 @@ human partner either stands across the table facing the robot (-x) or beside
 the robot's workspace. Tasks place objects and the human relative to these.
 """
 
+import dataclasses
 import math
+from typing import Optional
 
 # Table: top height about 0.82 m (a standard workbench, DIN EN 527-1 range
 # 0.72-0.90 m, chosen to match the reference's tabletop scenes).
@@ -14,10 +16,59 @@ TABLE_THICKNESS = 0.04
 TABLE_X = (0.15, 1.15)    # near edge (robot side), far edge (human side)
 TABLE_Y = (-0.75, 0.75)
 
-# Robot base frame: on the pedestal top, flush with the table top, x forward.
+# Robot base frame (default mount): on the pedestal top, flush with the
+# table top, x forward.
 ROBOT_BASE_POS = (0.0, 0.0, TABLE_TOP_Z)
 PEDESTAL_HALF_SIZE = (0.17, 0.17)  # x, y half extents; from floor to base.
 PEDESTAL_CENTER_XY = (-0.03, 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotMount:
+  """Where a robot's base frame stands (facing +x) and the pedestal under it
+  (a box from the floor up to the base)."""
+  base_position: tuple                 # world, m
+  pedestal_center_xy: tuple = PEDESTAL_CENTER_XY
+  pedestal_half_size: tuple = PEDESTAL_HALF_SIZE
+  # Scale of the table workspace boxes about the base (ik.table_workspace_box);
+  # None: from the robot's home TCP distance.
+  workspace_scale: Optional[float] = None
+
+  @property
+  def height_above_table(self) -> float:
+    """m, base frame origin above the table top."""
+    return self.base_position[2] - TABLE_TOP_Z
+
+  def base_pose(self):
+    """4x4 world pose of the base frame."""
+    import numpy as np   # pylint: disable=g-import-not-at-top
+    pose = np.eye(4)
+    pose[:3, 3] = self.base_position
+    return pose
+
+
+DEFAULT_MOUNT = RobotMount(ROBOT_BASE_POS)
+
+# The Schunk LWA 4P is a short arm: 0.65 m from shoulder to wrist, and
+# 0.358 m from its wrist centre to our TCP (robots.md's 0.163 m tool offset
+# + the 0.12 m gripper); its wrist bends at most 1.85 rad. On the default
+# mount gripper-down IK reaches at most ~0.21 m above the table (0.42 m
+# ahead) and 0.64 m ahead: not the handover heights, the nail, the lifted
+# board or the stack. Raised 0.4 m and moved to the pedestal's front edge
+# (the pedestal's front face flush with the table edge), it reaches every
+# task point with the gripper down (measured, docs/tasks.md) except the
+# highest handover points, which it serves in joint space.
+SCHUNK_MOUNT = RobotMount(
+    base_position=(0.15, 0.0, TABLE_TOP_Z + 0.40),
+    pedestal_center_xy=(-0.02, 0.0),
+    workspace_scale=0.85)
+
+ROBOT_MOUNTS = {'schunk': SCHUNK_MOUNT}
+
+
+def robot_mount(robot_name: str) -> RobotMount:
+  """The mount of the named robot (DEFAULT_MOUNT unless listed)."""
+  return ROBOT_MOUNTS.get(robot_name, DEFAULT_MOUNT)
 
 # Human stations: (x, y, yaw) of the clip frame's origin on the floor. A clip
 # is authored with the person at the origin facing +x; yaw turns it.

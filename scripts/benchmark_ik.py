@@ -33,10 +33,9 @@ ACCURACY = 5e-3     # m, issue 2's accuracy requirement.
 
 
 def world_model(name):
-  base = np.eye(4)
-  base[:3, 3] = layout.ROBOT_BASE_POS
-  return kinematics.KinematicModel(robot_description.load(name),
-                                   base_pose=base)
+  return kinematics.KinematicModel(
+      robot_description.load(name),
+      base_pose=layout.robot_mount(name).base_pose())
 
 
 def reference_solver(model):

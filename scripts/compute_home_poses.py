@@ -36,14 +36,11 @@ from hrc_suite.control import kinematics
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from make_robot_descriptions import to_json  # pylint: disable=g-bad-import-order
 
-# TCP in the base frame, m: 0.45 m in front, 0.25 m above the table top
-# (issue 2). The Schunk LWA 4P cannot hold its gripper vertical that high:
-# its wrist bends at most 1.85 rad and wrist centre to TCP is 0.358 m
-# (0.0748 + 0.163 flange + 0.12 gripper), so with the forearm at least 16 deg
-# below vertical the wrist centre stays under ~0.59 m, i.e. the TCP under
-# ~0.23 m above the base; it gets a lower, closer home.
+# TCP relative to the default mount's base (world offset), m: 0.45 m in
+# front of it, 0.25 m above the table top (issue 2). Every robot's home TCP
+# is this world point; the Schunk LWA 4P (on its raised mount, layout.py,
+# whose wrist cannot hold the gripper vertical much higher) too.
 HOME_TCP = {name: (0.45, 0.0, 0.25) for name in robot_description.ROBOT_NAMES}
-HOME_TCP['schunk'] = (0.40, 0.0, 0.15)
 
 # Link indices (0-based) whose frame origins are the shoulder, elbow and
 # wrist, from the chains in robots.md.
@@ -70,9 +67,8 @@ _SEGMENT_SAMPLES = np.linspace(0.0, 1.0, 11)
 
 
 def world_model(description):
-  base = np.eye(4)
-  base[:3, 3] = layout.ROBOT_BASE_POS
-  return kinematics.KinematicModel(description, base_pose=base)
+  mount = layout.robot_mount(description.name)
+  return kinematics.KinematicModel(description, base_pose=mount.base_pose())
 
 
 def workcell_clearance(model, q):
@@ -90,11 +86,12 @@ def workcell_clearance(model, q):
   over_table = ((x + r > layout.TABLE_X[0]) & (y + r > layout.TABLE_Y[0]) &
                 (y - r < layout.TABLE_Y[1]))
   table_gap = np.where(over_table, z - r - layout.TABLE_TOP_Z, np.inf)
-  cx, cy = layout.PEDESTAL_CENTER_XY
-  hx, hy = layout.PEDESTAL_HALF_SIZE
+  mount = layout.robot_mount(model.description.name)
+  cx, cy = mount.pedestal_center_xy
+  hx, hy = mount.pedestal_half_size
   outside = np.hypot(np.maximum(np.abs(x - cx) - hx, 0.0),
                      np.maximum(np.abs(y - cy) - hy, 0.0))
-  below_top = z - r < layout.ROBOT_BASE_POS[2]
+  below_top = z - r < mount.base_position[2]
   pedestal_gap = np.where(below_top, outside - r, np.inf)
   return float(min(table_gap.min(), pedestal_gap.min()))
 
@@ -145,12 +142,15 @@ def _refine(model, q0, target, rotation, points):
 
 def _coverage_targets(model, name):
   """Fixed table-workspace TCP targets (the box of ik.table_workspace_box)."""
-  scale = min(1.0, np.linalg.norm(HOME_TCP[name]) /
-              np.linalg.norm(ik.NOMINAL_HOME_TCP))
+  mount = layout.robot_mount(name)
+  scale = (mount.workspace_scale if mount.workspace_scale is not None else
+           min(1.0, np.linalg.norm(HOME_TCP[name]) /
+               np.linalg.norm(ik.NOMINAL_HOME_TCP)))
   random_state = np.random.RandomState(SEED + 1)
   local = scale * random_state.uniform(
       ik.TABLE_WORKSPACE_LOW, ik.TABLE_WORKSPACE_HIGH,
       size=(NUM_COVERAGE_TARGETS, 3))
+  local[:, 2] -= mount.height_above_table
   return local + model.base_pose[:3, 3]
 
 
@@ -176,6 +176,7 @@ def compute_home(name):
                                 position_tolerance=1e-5,
                                 orientation_tolerance=1e-4)
   target = np.asarray(layout.ROBOT_BASE_POS) + np.asarray(HOME_TCP[name])
+  base = model.base_pose[:3, 3]
   rotation = ik.gripper_down_rotation(0.0)
   points = ARM_POINTS[name]
   random_state = np.random.RandomState(SEED)
@@ -214,7 +215,7 @@ def compute_home(name):
       (s for s in scored if s[0] >= top - COVERAGE_SLACK),
       key=lambda s: s[1])
   summary = dict(
-      tcp=model.tcp_pose(best)[:3, 3] - np.asarray(layout.ROBOT_BASE_POS),
+      tcp=model.tcp_pose(best)[:3, 3] - base,
       clearance=workcell_clearance(model, best),
       elbow=elbow_height(model, best, points),
       limit_margin=float(np.min(np.minimum(best - limits.q_min,

@@ -25,6 +25,7 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 
+from hrc_suite import layout
 from hrc_suite.control import kinematics
 
 # Reference benchmark IK: residual 1e-3, at most 50 iterations
@@ -224,18 +225,33 @@ TABLE_WORKSPACE_HIGH = (0.70, 0.40, 0.40)   # m
 NOMINAL_HOME_TCP = (0.45, 0.0, 0.25)
 
 
-def table_workspace_box(model: kinematics.KinematicModel):
-  """(low, high) corners of the robot's table workspace box, base frame, m.
-
-  TABLE_WORKSPACE_LOW/HIGH scaled about the base by the robot's home-TCP
-  distance over NOMINAL_HOME_TCP's (at most 1).
-  """
+def workspace_scale(model: kinematics.KinematicModel) -> float:
+  """Scale of the table workspace boxes about the base: the mount's
+  (layout.RobotMount.workspace_scale) or the robot's home-TCP distance over
+  NOMINAL_HOME_TCP's (at most 1)."""
+  mount = layout.robot_mount(model.description.name)
+  if mount.workspace_scale is not None:
+    return float(mount.workspace_scale)
   base = model.base_pose
   home = base[:3, :3].T @ (model.tcp_pose(model.description.q_home)[:3, 3] -
                            base[:3, 3])
-  scale = min(1.0, np.linalg.norm(home) / np.linalg.norm(NOMINAL_HOME_TCP))
-  return (scale * np.asarray(TABLE_WORKSPACE_LOW),
-          scale * np.asarray(TABLE_WORKSPACE_HIGH))
+  home[2] += mount.height_above_table   # Measured from the table top.
+  return min(1.0, np.linalg.norm(home) / np.linalg.norm(NOMINAL_HOME_TCP))
+
+
+def table_workspace_box(model: kinematics.KinematicModel):
+  """(low, high) corners of the robot's table workspace box, base frame, m.
+
+  TABLE_WORKSPACE_LOW/HIGH scaled about the base by `workspace_scale`; the
+  heights count from the table top, which lies the mount's
+  height_above_table below the base.
+  """
+  scale = workspace_scale(model)
+  drop = np.array([0.0, 0.0,
+                   layout.robot_mount(model.description.name)
+                   .height_above_table])
+  return (scale * np.asarray(TABLE_WORKSPACE_LOW) - drop,
+          scale * np.asarray(TABLE_WORKSPACE_HIGH) - drop)
 
 
 def sample_table_targets(model: kinematics.KinematicModel, num_targets: int,

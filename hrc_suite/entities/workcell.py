@@ -106,12 +106,9 @@ class Workcell(composer.Arena):
             pos=(x, y, leg_half_height), material=steel))
     self._table_legs = tuple(legs)
 
-    half_x, half_y = layout.PEDESTAL_HALF_SIZE
-    pedestal_height = layout.ROBOT_BASE_POS[2]
-    self._pedestal = worldbody.add(
-        'geom', name='pedestal', type='box',
-        size=(half_x, half_y, pedestal_height / 2),
-        pos=(*layout.PEDESTAL_CENTER_XY, pedestal_height / 2), material=steel)
+    self._pedestal = worldbody.add('geom', name='pedestal', type='box',
+                                   material=steel)
+    self._set_pedestal(layout.DEFAULT_MOUNT)   # attach_robot resizes it.
 
     self._static_geoms = (self._floor, self._table_top, *self._table_legs,
                           self._pedestal)
@@ -151,9 +148,17 @@ class Workcell(composer.Arena):
     return tuple(self._cameras.values())
 
   def attach_robot(self, robot):
-    """Attaches the robot with its base frame at layout.ROBOT_BASE_POS,
-    facing +x. Returns the attachment frame."""
+    """Attaches the robot with its base frame at its mount
+    (layout.robot_mount), facing +x, and sizes the pedestal to the mount.
+    Returns the attachment frame."""
+    mount = layout.robot_mount(robot.description.name)
+    self._set_pedestal(mount)
     frame = self.attach(robot)
-    frame.pos = layout.ROBOT_BASE_POS
+    frame.pos = mount.base_position
     frame.quat = (1.0, 0.0, 0.0, 0.0)
     return frame
+
+  def _set_pedestal(self, mount):
+    height = mount.base_position[2]
+    self._pedestal.size = (*mount.pedestal_half_size, height / 2)
+    self._pedestal.pos = (*mount.pedestal_center_xy, height / 2)

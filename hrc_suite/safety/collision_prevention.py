@@ -64,14 +64,15 @@ _ESCAPE_SLACK = 1e-9
 _ALWAYS_FRACTION = 1.0
 
 
-def workcell_boxes(floor=True):
-  """Named static boxes (min, max) of the workcell, world frame (layout)."""
+def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT):
+  """Named static boxes (min, max) of the workcell, world frame (layout),
+  with the pedestal of `mount` (layout.RobotMount)."""
   table_min = (layout.TABLE_X[0], layout.TABLE_Y[0],
                layout.TABLE_TOP_Z - layout.TABLE_THICKNESS)
   table_max = (layout.TABLE_X[1], layout.TABLE_Y[1], layout.TABLE_TOP_Z)
-  cx, cy = layout.PEDESTAL_CENTER_XY
-  hx, hy = layout.PEDESTAL_HALF_SIZE
-  base_z = layout.ROBOT_BASE_POS[2]
+  cx, cy = mount.pedestal_center_xy
+  hx, hy = mount.pedestal_half_size
+  base_z = mount.base_position[2]
   boxes = {'table': (table_min, table_max),
            'pedestal': ((cx - hx, cy - hy, 0.0), (cx + hx, cy + hy, base_z))}
   if floor:  # The floor as a thick slab below z = 0.
@@ -103,7 +104,7 @@ class CollisionPrevention:
   # -- Construction ---------------------------------------------------------
 
   def _setup_boxes(self, extra_boxes, floor, tool_table_allowance):
-    boxes = workcell_boxes(floor)
+    boxes = workcell_boxes(floor, layout.robot_mount(self.description.name))
     for i, box in enumerate(extra_boxes):
       try:
         lo, hi = (np.asarray(x, dtype=float) for x in box)

@@ -20,7 +20,7 @@ from hrc_suite.safety import kernels
 
 
 def pose_matrix(pose):
-  """4x4 pose from None (the workcell's robot base), a 4x4 matrix, or
+  """4x4 pose from None (the default mount's robot base), a 4x4 matrix, or
   (x, y, z, roll, pitch, yaw) with R = Rz(yaw) Ry(pitch) Rx(roll)."""
   if pose is None:
     out = np.eye(4)
@@ -73,7 +73,8 @@ class RobotReach:
                secure_radius=None, alpha=None):
     self.description = description
     self.dof = description.dof
-    self.base_pose = pose_matrix(base_pose)
+    self.base_pose = (layout.robot_mount(description.name).base_pose()
+                      if base_pose is None else pose_matrix(base_pose))
     self._fixed = description.fixed_transforms()          # (dof, 4, 4)
     p1, p2, radius = description.capsule_arrays()
     frame_index = list(range(self.dof))

@@ -15,6 +15,7 @@ NaN or infinite entries and wrong shapes raise a ValueError.
 from dm_env import specs
 import numpy as np
 
+from hrc_suite import layout
 from hrc_suite.control import ik as ik_lib
 
 ACTION_SPACES = ('joint', 'cartesian')
@@ -52,12 +53,13 @@ def workspace_box(kinematic_model):
   `ik.table_workspace_box` for robots with a short reach, then moved to the
   world.
   """
-  nominal_low, _ = ik_lib.table_workspace_box(kinematic_model)
-  scale = nominal_low[0] / ik_lib.TABLE_WORKSPACE_LOW[0]
+  scale = ik_lib.workspace_scale(kinematic_model)
   base = kinematic_model.base_pose
-  low = base[:3, 3] + scale * np.asarray(WORKSPACE_LOW)
-  high = base[:3, 3] + scale * np.asarray(WORKSPACE_HIGH)
-  low[2] = base[2, 3] + WORKSPACE_LOW[2]   # Keep the height above the table.
+  table = base[:3, 3] - [0.0, 0.0, layout.robot_mount(
+      kinematic_model.description.name).height_above_table]
+  low = table + scale * np.asarray(WORKSPACE_LOW)
+  high = table + scale * np.asarray(WORKSPACE_HIGH)
+  low[2] = table[2] + WORKSPACE_LOW[2]   # Keep the height above the table.
   return low, high
 
 

@@ -230,8 +230,7 @@ class HrcTask(composer.Task):
 
     # Models of the robot for IK, the shield and collision prevention.
     description = self._robot.description
-    base_pose = np.eye(4)
-    base_pose[:3, 3] = layout.ROBOT_BASE_POS
+    base_pose = layout.robot_mount(description.name).base_pose()
     self._kinematics = kinematics.KinematicModel(
         description, base_pose, tcp_offset=gripper_lib.TCP_OFFSET)
     p1, p2, radius = self._gripper.enclosing_capsule()

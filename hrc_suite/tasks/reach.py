@@ -59,7 +59,8 @@ class Reach(base.HrcTask):
     self._ik = ik_lib.InverseKinematics(self._kinematics)
     low, high = ik_lib.table_workspace_box(self._kinematics)
     low = low.copy()
-    low[2] = max(low[2], GOAL_MIN_HEIGHT)
+    table = -layout.robot_mount(self._robot.description.name).height_above_table
+    low[2] = max(low[2], table + GOAL_MIN_HEIGHT)   # Base frame.
     self._goal_box = (low, high)
     self._success = False
 

@@ -181,7 +181,8 @@ class Stacking(base.HrcTask):
       self._picks[i] = targets[f'cube_{i + 1}_pick']
       self._places[i] = targets[f'cube_{i + 1}_place']
     side = random_state.choice([-1.0, 1.0])
-    robot_base = np.asarray(layout.ROBOT_BASE_POS, float)
+    robot_base = self._kinematics.base_pose[:3, 3].copy()
+    robot_base[2] = layout.TABLE_TOP_Z   # On the table in front of the base.
     for k, i in enumerate(ROBOT_CUBES):
       sign = side if k == 0 else -side
       self._picks[i] = robot_base + [random_state.uniform(*ROBOT_CUBE_X),

@@ -13,11 +13,14 @@ from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 
+
+def _base(description):
+  """World pose of the robot's base on its mount (layout.robot_mount)."""
+  return layout.robot_mount(description.name).base_pose()
+
 JOINT_TOLERANCE = 0.01    # rad (issue 2, item 7)
 CAPSULE_TOLERANCE = 0.01  # m
 CLEARANCE = 0.015         # m above the table top for every capsule.
-BASE = np.eye(4)
-BASE[:3, 3] = layout.ROBOT_BASE_POS
 
 
 def _scene(name):
@@ -31,7 +34,7 @@ def _scene(name):
 
 def _lowest_point(description, q, tool_capsule):
   """Lowest z of any link capsule or the gripper capsule, for q (..., dof)."""
-  frames = description.forward_kinematics(q, base=BASE)
+  frames = description.forward_kinematics(q, base=_base(description))
   p1, p2, radius = description.capsule_arrays()
   rot, pos = frames[..., :3, :3], frames[..., :3, 3]
   z1 = np.einsum('...nj,nj->...n', rot[..., 2, :], p1) + pos[..., 2]
@@ -102,7 +105,8 @@ def _track(name, limits='full', seed=0, around_home=False):
     physics.step()
     joint_error = max(joint_error, np.abs(
         robot.joint_positions(physics) - q[k + 1]).max())
-    desired = description.forward_kinematics(q[k + 1], base=BASE)
+    desired = description.forward_kinematics(q[k + 1],
+                                             base=_base(description))
     rot = bodies.xmat.reshape(-1, 3, 3)
     for point in (p1, p2):
       simulated = np.einsum('nij,nj->ni', rot, point) + bodies.xpos

@@ -198,11 +198,10 @@ def test_bad_input_raises_clear_errors():
 
 # --- Home poses (q_home in the description files). ---
 
-# Where the home TCP should be, base frame, m (issue 2; the Schunk LWA 4P's
-# wrist cannot hold the gripper vertical that high, see
+# Where the home TCP should be, relative to the default mount's base, m
+# (issue 2; the same world point for every robot, whatever its mount, see
 # scripts/compute_home_poses.py).
 HOME_TCP = {name: (0.45, 0.0, 0.25) for name in ROBOTS}
-HOME_TCP['schunk'] = (0.40, 0.0, 0.15)
 # Link indices of shoulder, elbow and wrist (as in compute_home_poses.py).
 ARM_POINTS = {
     'panda': (1, 3, 5), 'sawyer': (1, 3, 5), 'iiwa': (1, 3, 5),
@@ -214,9 +213,8 @@ HOME_CLEARANCE = 0.02      # m, capsules above the table top / off the pedestal.
 
 
 def _world_model(description):
-  base = np.eye(4)
-  base[:3, 3] = layout.ROBOT_BASE_POS
-  return kinematics.KinematicModel(description, base_pose=base)
+  return kinematics.KinematicModel(
+      description, base_pose=layout.robot_mount(description.name).base_pose())
 
 
 def _capsule_points(model, q, samples=51):
@@ -258,11 +256,12 @@ def test_home_pose_links_clear_table_and_pedestal(name):
   x, y, z = points[..., 0], points[..., 1], points[..., 2]
   over_table = x + radius > layout.TABLE_X[0]
   assert np.all((z - radius)[over_table] > layout.TABLE_TOP_Z + HOME_CLEARANCE)
-  cx, cy = layout.PEDESTAL_CENTER_XY
-  hx, hy = layout.PEDESTAL_HALF_SIZE
+  mount = layout.robot_mount(name)
+  cx, cy = mount.pedestal_center_xy
+  hx, hy = mount.pedestal_half_size
   beside = np.hypot(np.maximum(np.abs(x - cx) - hx, 0),
                     np.maximum(np.abs(y - cy) - hy, 0)) - radius
-  above = z - radius - layout.ROBOT_BASE_POS[2]
+  above = z - radius - mount.base_position[2]
   assert np.all(np.maximum(beside, above) > HOME_CLEARANCE)
   # The TCP itself (gripper fingertips) is above the table, too.
   assert model.tcp_pose(description.q_home)[2, 3] > layout.TABLE_TOP_Z + 0.1

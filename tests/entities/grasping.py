@@ -13,8 +13,10 @@ from hrc_suite.entities import props
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell
 
-BASE = np.eye(4)
-BASE[:3, 3] = layout.ROBOT_BASE_POS
+
+def _base(description):
+  """World pose of the robot's base on its mount (layout.robot_mount)."""
+  return layout.robot_mount(description.name).base_pose()
 
 
 def scene(*free_entities, robot_name='ur5e'):
@@ -45,7 +47,8 @@ class PickUp:
     self.physics, self.robot, self.gripper, self.prop = (physics, robot,
                                                          gripper, prop)
     description = robot.description
-    model = kinematics.KinematicModel(description, base_pose=BASE,
+    model = kinematics.KinematicModel(description,
+                                      base_pose=_base(description),
                                       tcp_offset=gripper_lib.TCP_OFFSET)
     solver = ik_lib.InverseKinematics(model)
     physics.forward()

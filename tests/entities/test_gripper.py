@@ -13,10 +13,13 @@ from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 
+
+def _base(description):
+  """World pose of the robot's base on its mount (layout.robot_mount)."""
+  return layout.robot_mount(description.name).base_pose()
+
 CUBE_HALF = 0.02   # m: the issue's 4 cm cube.
 CUBE_MASS = 0.1    # kg
-BASE = np.eye(4)
-BASE[:3, 3] = layout.ROBOT_BASE_POS
 
 
 def _gripper_alone():
@@ -81,7 +84,7 @@ def test_enclosing_capsule_covers_every_geom(command):
 
 
 def _tcp_pose(description, q):
-  flange = description.forward_kinematics(q, base=BASE)[-1] @ (
+  flange = description.forward_kinematics(q, base=_base(description))[-1] @ (
       description.flange_transform())
   return flange[:3, 3] + flange[:3, 2] * gripper_lib.TCP_OFFSET, flange[:3, :3]
 

@@ -45,8 +45,9 @@ def test_every_robot_compiles_in_the_workcell_without_contact(name):
   # Base frame on the pedestal, facing +x.
   base = physics.bind(robot.link_bodies[0])
   frames = robot.description.forward_kinematics(_centre(robot.description))
-  np.testing.assert_allclose(base.xpos, frames[0, :3, 3] +
-                             layout.ROBOT_BASE_POS, atol=1e-12)
+  np.testing.assert_allclose(
+      base.xpos, frames[0, :3, 3] +
+      layout.robot_mount(name).base_position, atol=1e-12)
   np.testing.assert_allclose(base.xmat.reshape(3, 3), frames[0, :3, :3],
                              atol=1e-12)
   assert physics.data.ncon == 0   # Nothing touches at the centre pose.

@@ -35,7 +35,8 @@ def _dense_free(prevention, description, q_start, q_goal, count=1500):
 def _static_and_self(prevention, q):
   """Independent exact check of single configurations (N, dof)."""
   p1, p2, r = prevention.reach.capsules(q)
-  boxes = collision_prevention.workcell_boxes()
+  boxes = collision_prevention.workcell_boxes(
+      mount=layout.robot_mount(prevention.description.name))
   hit = np.zeros(len(q), dtype=bool)
   for name, (lo, hi) in boxes.items():
     dist = geometry.capsule_box_distance(p1, p2, r, np.array(lo),

@@ -167,7 +167,7 @@ def test_cube_and_target_on_either_side_within_reach(robot):
     assert np.sign(cube[1]) == -np.sign(target[1])
     sides.add(np.sign(cube[1]))
     for point in (cube, target):
-      local = point - layout.ROBOT_BASE_POS
+      local = point - task.kinematics.base_pose[:3, 3]
       assert pick_place.REGION_X[0] <= local[0] <= pick_place.REGION_X[1]
       assert (pick_place.REGION_ABS_Y[0] <= abs(local[1])
               <= pick_place.REGION_ABS_Y[1])

@@ -6,6 +6,7 @@ from dm_env import test_utils
 import numpy as np
 import pytest
 
+from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.tasks import actions
@@ -95,8 +96,9 @@ def test_goals_are_reachable_and_collision_free(robot, space):
                                task.goal_position, atol=1e-3)
     if space == 'cartesian':
       local = task.goal_position - np.asarray(task.kinematics.base_pose[:3, 3])
-      assert np.all(local >= np.maximum(low, [-9, -9, reach.GOAL_MIN_HEIGHT])
-                    - 1e-3)
+      table = -layout.robot_mount(robot).height_above_table
+      assert np.all(local >= np.maximum(
+          low, [-9, -9, table + reach.GOAL_MIN_HEIGHT]) - 1e-3)
       assert np.all(local <= high + 1e-3)
     # The marker shows the goal.
     np.testing.assert_allclose(
