@@ -9,6 +9,9 @@ given) and writes docs/results/experts.md (one row per task, robot and
 policy: success rate with a 95 % bootstrap confidence interval, return,
 episode length, shield interventions and contacts by type per episode,
 wall time) and the raw per-episode results as docs/results/experts.json.
+Finished episodes are logged to <json>.partial.jsonl as they come: a
+killed run started again with the same flags skips them (the file is
+removed once the table is written; delete it to start afresh).
 Episode `seed` runs in an environment whose random_state is seeded `seed`;
 the noisy expert uses the noise of episode `seed` of NoisyExpert(seed=0),
 as a dataset collected with --seed=0 does. Experts whose module does not
@@ -105,7 +108,7 @@ def run_job(job):
   the expert or the task does not stop the run: the episode's result then
   carries 'error' (the exception) and counts as a failure."""
   domain, task, robot, action_space, policy_name, time_limit, seed = job
-  result = {'domain': domain, 'task': task, 'robot': robot,
+  result = {'job': list(job), 'domain': domain, 'task': task, 'robot': robot,
             'action_space': action_space, 'shield': None,
             'policy': policy_name, 'seed': seed, 'control_timestep': None,
             'wall_time': 0.0, 'metrics': None, 'error': None}
@@ -139,31 +142,67 @@ def jobs(tasks, robots, policies, episodes, action_spaces=(None,),
           for seed in range(episodes)]
 
 
-def run(job_list, workers=1, progress=False):
+def _job_key(job):
+  return json.dumps(list(job))
+
+
+def load_partial(path):
+  """{job key: result} of the episodes a previous run logged to `path`
+  (one JSON object per line; a torn last line is ignored)."""
+  done = {}
+  path = pathlib.Path(path)
+  if not path.exists():
+    return done
+  for line in path.read_text().splitlines():
+    try:
+      result = json.loads(line)
+    except json.JSONDecodeError:
+      continue   # The line a killed run was writing.
+    if isinstance(result, dict) and 'job' in result:
+      done[_job_key(result['job'])] = result
+  return done
+
+
+def run(job_list, workers=1, progress=False, partial=None):
   """Results of `job_list`, in its order; workers > 1 runs them in spawned
-  processes."""
+  processes. With `partial` (a path), every finished episode is appended
+  to it as a JSON line, and episodes already logged there are not run
+  again (a killed run resumes)."""
+  done = load_partial(partial) if partial is not None else {}
+  results = [done.get(_job_key(job)) for job in job_list]
+  todo = [(i, job) for i, job in enumerate(job_list) if results[i] is None]
   bar = None
   if progress:
     import tqdm   # pylint: disable=g-import-not-at-top
-    bar = tqdm.tqdm(total=len(job_list), unit='episode')
-  results = [None] * len(job_list)
+    bar = tqdm.tqdm(total=len(job_list), initial=len(job_list) - len(todo),
+                    unit='episode')
+  log = None
+  if partial is not None:
+    log = open(partial, 'a')   # pylint: disable=consider-using-with
+    if log.tell() and not pathlib.Path(partial).read_text().endswith('\n'):
+      log.write('\n')   # After a torn line.
+
+  def finished(i, result):
+    results[i] = result
+    if log is not None:
+      log.write(json.dumps(result) + '\n')
+      log.flush()
+    if bar is not None:
+      bar.update(1)
+
   try:
     if workers <= 1:
-      for i, job in enumerate(job_list):
-        results[i] = run_job(job)
-        if bar is not None:
-          bar.update(1)
+      for item in todo:
+        finished(*_run_indexed(item))
     else:
       context = multiprocessing.get_context('spawn')
       with context.Pool(workers) as pool:
-        indexed = pool.imap_unordered(_run_indexed, enumerate(job_list))
-        for i, result in indexed:
-          results[i] = result
-          if bar is not None:
-            bar.update(1)
+        for i, result in pool.imap_unordered(_run_indexed, todo):
+          finished(i, result)
   finally:
-    if bar is not None:
-      bar.close()
+    for handle in (bar, log):
+      if handle is not None:
+        handle.close()
   return results
 
 
@@ -353,8 +392,9 @@ _TIME_LIMIT = flags.DEFINE_float('time_limit', None, 'Episode length in s '
                                  "(default: each task's horizon).")
 _WORKERS = flags.DEFINE_integer('workers', 1, 'Parallel processes.',
                                 lower_bound=1)
-_OUT = flags.DEFINE_string('out', str(_REPOSITORY / 'docs' / 'results' /
-                                      'experts.md'), 'Markdown table.')
+_OUT = flags.DEFINE_string('out', 'docs/results/experts.md',
+                           'Markdown table (relative to the current '
+                           'directory: run from the repository root).')
 _JSON_OUT = flags.DEFINE_string('json_out', None, 'Per-episode results '
                                 '(default: --out with .json).')
 _PROGRESS = flags.DEFINE_bool('progress', True, 'Show a progress bar.')
@@ -380,8 +420,13 @@ def main(argv):
   spaces = tuple(_ACTION_SPACES.value) or (None,)
   job_list = jobs(tasks, _ROBOTS.value, _POLICIES.value, _EPISODES.value,
                   spaces, _TIME_LIMIT.value)
+  json_out = _JSON_OUT.value or str(pathlib.Path(_OUT.value).with_suffix(
+      '.json'))
+  partial = pathlib.Path(json_out + '.partial.jsonl')
+  partial.parent.mkdir(parents=True, exist_ok=True)
   start = time.perf_counter()
-  results = run(job_list, workers=_WORKERS.value, progress=_PROGRESS.value)
+  results = run(job_list, workers=_WORKERS.value, progress=_PROGRESS.value,
+                partial=partial)
   info = {
       'command': ' '.join(shlex.quote(a) for a in
                           ['python', '-m', 'hrc_suite.experts.evaluate']
@@ -391,9 +436,8 @@ def main(argv):
       'machine': machine(), 'workers': _WORKERS.value,
       'wall_time': time.perf_counter() - start, 'commit': _git_commit(),
   }
-  json_out = _JSON_OUT.value or str(pathlib.Path(_OUT.value).with_suffix(
-      '.json'))
   rows = write(results, _OUT.value, json_out, info, not_evaluated)
+  partial.unlink()
   print(f'Wrote {_OUT.value} ({len(rows)} rows) and {json_out}')
   for row in rows:
     for reason in below_bar(row):

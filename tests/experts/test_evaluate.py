@@ -133,3 +133,25 @@ def test_an_episode_that_raises_is_a_reported_failure(monkeypatch):
   assert row['errors'] == 2 and row['success'] == 0.0
   assert evaluate.below_bar(row)[-1] == (
       '2 episodes raised (RuntimeError: expert lost track)')
+
+
+def test_a_killed_run_resumes_from_its_partial_log(tmp_path, monkeypatch):
+  partial = tmp_path / 'experts.json.partial.jsonl'
+  job_list = evaluate.jobs([('reach', 'dense')], ['schunk'], ['expert'], 2,
+                           time_limit=0.3)
+  calls = []
+  real = evaluate.run_job
+  monkeypatch.setattr(evaluate, 'run_job',
+                      lambda job: calls.append(job) or real(job))
+  first = evaluate.run(job_list, partial=partial)
+  assert len(calls) == 2 and len(partial.read_text().splitlines()) == 2
+  # Kill after episode 0: its line stays, a torn line follows.
+  line = json.loads(partial.read_text().splitlines()[0])
+  partial.write_text(json.dumps(line) + '\n{"job": ["rea')
+  resumed = evaluate.run(job_list, partial=partial)
+  assert calls[2:] == [job_list[1]]   # Only the missing episode ran.
+  assert resumed[0] == first[0]
+  assert resumed[1]['metrics'] == first[1]['metrics']
+  # Both episodes are logged now (after the torn line): nothing runs.
+  assert evaluate.run(job_list, partial=partial)[1] == resumed[1]
+  assert len(calls) == 3
