@@ -236,14 +236,16 @@ def train(run_config, logdir, resume=False, progress=False):
   run_config = dict(run_config, **task_facts(env))
   checkpoints.write_json(config_path, run_config)
 
-  resumed_at = loop.counter.steps
+  # Rows logged after the checkpoint (all rows if there is none) are
+  # logged again by this run.
+  resumed_at = loop.counter.steps if checkpoint is not None else -1
   train_csv = logging_lib.CSVLogger(os.path.join(logdir, 'train.csv'))
   eval_csv = logging_lib.CSVLogger(os.path.join(logdir, 'eval.csv'))
   for logger in (train_csv, eval_csv):
     logger.truncate(resumed_at)
   writer = logging_lib.summary_writer(
       os.path.join(logdir, 'tensorboard'),
-      purge_step=resumed_at + 1 if checkpoint is not None else None)
+      purge_step=resumed_at + 1 if resume else None)
   train_log = logging_lib.Dispatcher(
       [train_csv, logging_lib.TensorBoardLogger(writer, 'train')])
   learner_log = logging_lib.TensorBoardLogger(writer, 'learner')
@@ -251,7 +253,7 @@ def train(run_config, logdir, resume=False, progress=False):
       [eval_csv, logging_lib.TensorBoardLogger(writer, 'eval')])
   bar = _Progress(progress, run_config['steps'], loop.counter.steps)
   start = time.perf_counter() - state['wall_time']
-  last_saved = resumed_at if checkpoint is not None else None
+  last_saved = loop.counter.steps if checkpoint is not None else None
 
   def save():
     state['wall_time'] = time.perf_counter() - start

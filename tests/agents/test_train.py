@@ -175,3 +175,15 @@ def test_policy_of_a_run_for_rendering(two_runs):
   assert action.shape == env.action_spec().shape
   assert np.all(np.abs(action) <= 1.0)
   np.testing.assert_array_equal(policy(timestep), action)   # Deterministic.
+
+
+def test_resume_without_a_checkpoint_starts_afresh(tmp_path):
+  logdir = str(tmp_path / 'run')
+  # Ends inside the second episode with no checkpoint due: none is written.
+  train.train(_run_config(steps=15, checkpoint_every=0), logdir)
+  assert checkpoints.latest(logdir) is None
+  first = _deterministic_rows(os.path.join(logdir, 'train.csv'))
+  train.train(_run_config(steps=15, checkpoint_every=0), logdir, resume=True)
+  assert _deterministic_rows(os.path.join(logdir, 'train.csv')) == first
+  evaluations = logging_lib.read_csv(os.path.join(logdir, 'eval.csv'))
+  assert [int(r['step']) for r in evaluations] == [0]   # Not twice.
