@@ -1,0 +1,263 @@
+"""Imitation as environment wrappers (dm_env in, dm_env out).
+
+* ReferenceStateInitialization (RSI): with probability p an episode starts
+  from a state of an expert-dataset episode (any recorded step but the
+  last), restored with HrcTask.set_state; otherwise a fresh task instance.
+  The restored episode keeps the reference's clock (the person's clip and
+  the time limit continue from that step) and its metrics so far.
+* StateImitationReward (SIR, with RSI): every episode follows a reference
+  episode from its start step; at the k-th step after it the reward is
+  (1 - varsigma) r_env + varsigma * 2^(-(|s - s~_k| / iota)^2), s the TCP
+  position (Cartesian action space) or the joint positions (joint) with the
+  gripper aperture appended for tasks with a gripper action, s~ the
+  reference's (noise-free, full-preset) observation; past the reference's
+  end its last state. Default p = 1 (every episode has a reference; with
+  p < 1 the fresh episodes get r_env unchanged).
+* ActionImitationReward (AIR): the task's expert is queried online on the
+  current state; only the agent's action is executed, and the reward is
+  (1 - varsigma) r_env + varsigma * similarity(a, a~).
+
+The reference (reference-benchmark.md) also started plain SAC episodes from
+dataset states; here plain SAC samples fresh task instances (no wrapper).
+"""
+
+import dm_env
+import numpy as np
+
+from agents.imitation import rewards as rewards_lib
+from hrc_suite import experts as experts_lib
+
+DEFAULT_RSI_PROBABILITY = 0.5    # reference-benchmark.md (RSI, p = 0.5)
+
+
+class EnvironmentWrapper(dm_env.Environment):
+  """Delegates everything to the wrapped environment (task, physics...)."""
+
+  def __init__(self, environment):
+    self._environment = environment
+
+  @property
+  def environment(self):
+    return self._environment
+
+  def __getattr__(self, name):
+    if name.startswith('__'):
+      raise AttributeError(name)
+    return getattr(self._environment, name)
+
+  def reset(self):
+    return self._environment.reset()
+
+  def step(self, action):
+    return self._environment.step(action)
+
+  def observation_spec(self):
+    return self._environment.observation_spec()
+
+  def action_spec(self):
+    return self._environment.action_spec()
+
+  def reward_spec(self):
+    return self._environment.reward_spec()
+
+  def discount_spec(self):
+    return self._environment.discount_spec()
+
+  def close(self):
+    return self._environment.close()
+
+
+def _composer_environment(environment):
+  """The innermost environment (the composer.Environment)."""
+  while isinstance(environment, EnvironmentWrapper):
+    environment = environment.environment
+  return environment
+
+
+def _check_dataset(environment, dataset):
+  task = _composer_environment(environment).task
+  meta = dataset.metadata
+  name = tuple(getattr(task, 'suite_name', ()))
+  expected = (meta.get('domain'), meta.get('task'))
+  if name != expected:
+    raise ValueError(f'The dataset in {dataset.directory} is of task '
+                     f'{expected[0]}/{expected[1]}, the environment runs '
+                     f'{"/".join(name) or "an unnamed task"}')
+  robot = task.robot.description.name
+  kwargs = meta.get('task_kwargs', {})
+  if kwargs.get('robot', robot) != robot:
+    raise ValueError(f'The dataset in {dataset.directory} was recorded '
+                     f'with robot {kwargs["robot"]!r}, the environment uses '
+                     f'{robot!r}')
+  space = task.action_space_name
+  if kwargs.get('action_space', space) != space:
+    raise ValueError(f'The dataset in {dataset.directory} was recorded '
+                     f'with {kwargs["action_space"]!r} actions, the '
+                     f'environment uses {space!r}')
+  if not dataset.metadata['episodes']:
+    raise ValueError(f'The dataset in {dataset.directory} has no episodes')
+
+
+def _restart_observation(environment):
+  """The observation of the composer environment's current state, as a
+  reset would produce it (observables re-initialised)."""
+  # composer.Environment has no public call for this; reset() does the same.
+  updater = environment._observation_updater   # pylint: disable=protected-access
+  updater.reset(environment.physics, environment.random_state)
+  return updater.get_observation()
+
+
+class ReferenceStateInitialization(EnvironmentWrapper):
+  """Starts episodes from expert-dataset states with probability p."""
+
+  def __init__(self, environment, dataset,
+               probability=DEFAULT_RSI_PROBABILITY, seed=0):
+    super().__init__(environment)
+    if not 0.0 <= probability <= 1.0:
+      raise ValueError(f'probability must be in [0, 1], got {probability!r}')
+    _check_dataset(environment, dataset)
+    self._dataset = dataset
+    self._probability = float(probability)
+    self._random = np.random.RandomState(seed)
+    # Every (episode, step) with a step after it: uniform over states.
+    lengths = np.array([entry['steps']
+                        for entry in dataset.metadata['episodes']])
+    self._episode_of = np.repeat(np.arange(len(lengths)), lengths)
+    self._step_of = np.concatenate([np.arange(n) for n in lengths])
+    self.reference = None   # (episode, step) the episode started from.
+
+  @property
+  def dataset(self):
+    return self._dataset
+
+  def _draw_reference(self):
+    index = self._random.randint(len(self._episode_of))
+    return int(self._episode_of[index]), int(self._step_of[index])
+
+  def reset(self):
+    timestep = self._environment.reset()
+    self.reference = None
+    if self._random.uniform() < self._probability:
+      episode, step = self._draw_reference()
+      inner = _composer_environment(self._environment)
+      inner.task.set_state(inner.physics,
+                           self._dataset.snapshot(episode, step))
+      timestep = dm_env.restart(_restart_observation(inner))
+      self.reference = (episode, step)
+    return timestep
+
+
+def _state_names(task):
+  names = ['eef_position' if task.action_space_name == 'cartesian'
+           else 'joint_positions']
+  if task.HAS_GRIPPER_ACTION:
+    names.append('gripper_aperture')
+  return tuple(names)
+
+
+class StateImitationReward(ReferenceStateInitialization):
+  """SIR: RSI plus a reward for staying near the reference episode."""
+
+  def __init__(self, environment, dataset, probability=1.0, seed=0,
+               weight=rewards_lib.IMITATION_WEIGHT,
+               scale=rewards_lib.DISTANCE_SCALE,
+               gripper_scale=rewards_lib.SIR_GRIPPER_SCALE,
+               position_weight=rewards_lib.POSITION_WEIGHT):
+    super().__init__(environment, dataset, probability, seed)
+    task = _composer_environment(environment).task
+    self._names = _state_names(task)
+    self._reward = rewards_lib.ImitationReward(
+        weight=weight, scale=scale, gripper_scale=gripper_scale,
+        position_weight=position_weight,
+        gripper_size=int(task.HAS_GRIPPER_ACTION))
+    observables = task.task_observables
+    self._state_callables = None
+    self._observables = [observables[name] for name in self._names]
+    self._reference_states = None
+    self._index = 0
+
+  def state(self):
+    """The compared state s now (noise-free)."""
+    physics = _composer_environment(self._environment).physics
+    return np.concatenate([np.ravel(obs._callable(physics)())   # pylint: disable=protected-access
+                           for obs in self._observables])
+
+  def reset(self):
+    timestep = super().reset()
+    if self.reference is None:
+      self._reference_states = None
+      return timestep
+    episode, step = self.reference
+    observed = self._dataset.episodes[episode].expert_observations
+    self._reference_states = np.concatenate(
+        [observed[name].reshape(len(observed[name]), -1)
+         for name in self._names], axis=1)
+    self._index = step
+    return timestep
+
+  def step(self, action):
+    timestep = self._environment.step(action)
+    if self._reference_states is None or timestep.reward is None:
+      return timestep
+    self._index = min(self._index + 1, len(self._reference_states) - 1)
+    reward = self._reward.reward(timestep.reward, self.state(),
+                                 self._reference_states[self._index])
+    return timestep._replace(reward=np.asarray(reward, np.float64))
+
+
+class ActionImitationReward(EnvironmentWrapper):
+  """AIR: rewards agreement with the expert's action on the same state."""
+
+  def __init__(self, environment, expert=None,
+               weight=rewards_lib.IMITATION_WEIGHT,
+               scale=rewards_lib.DISTANCE_SCALE,
+               gripper_scale=rewards_lib.AIR_GRIPPER_SCALE,
+               position_weight=rewards_lib.POSITION_WEIGHT):
+    super().__init__(environment)
+    inner = _composer_environment(environment)
+    self._expert = expert if expert is not None else experts_lib.make(inner)
+    self._reward = rewards_lib.ImitationReward(
+        weight=weight, scale=scale, gripper_scale=gripper_scale,
+        position_weight=position_weight,
+        gripper_size=int(inner.task.HAS_GRIPPER_ACTION))
+    self._timestep = None
+    self.last_expert_action = None
+
+  def reset(self):
+    self._timestep = self._environment.reset()
+    return self._timestep
+
+  def step(self, action):
+    if self._timestep is None:
+      raise RuntimeError('step() before reset()')
+    expert_action = np.asarray(self._expert(self._timestep), np.float64)
+    self.last_expert_action = expert_action
+    timestep = self._environment.step(action)
+    self._timestep = timestep
+    if timestep.reward is None:
+      return timestep
+    executed = np.clip(np.asarray(action, np.float64), -1.0, 1.0)
+    reward = self._reward.reward(timestep.reward, executed, expert_action)
+    return timestep._replace(reward=np.asarray(reward, np.float64))
+
+
+AGENTS = ('sac', 'rsi', 'sir', 'air')
+
+
+def wrap(environment, agent, dataset=None, seed=0, **kwargs):
+  """The environment for `agent` ('sac': unchanged; 'rsi'/'sir' need a
+  loaded dataset, hrc_suite.experts.dataset.load_dataset)."""
+  if agent not in AGENTS:
+    raise ValueError(f'Unknown agent {agent!r}: expected one of '
+                     f'{", ".join(AGENTS)}')
+  if agent == 'sac':
+    return environment
+  if agent == 'air':
+    return ActionImitationReward(environment, **kwargs)
+  if dataset is None:
+    raise ValueError(f'agent {agent!r} needs an expert dataset (collect one '
+                     'with python -m agents.collect_expert)')
+  if agent == 'rsi':
+    return ReferenceStateInitialization(environment, dataset, seed=seed,
+                                        **kwargs)
+  return StateImitationReward(environment, dataset, seed=seed, **kwargs)
