@@ -24,7 +24,6 @@ sampling RandomState, the episode's last observation, caller arrays).
 import collections
 import pathlib
 
-import jax
 import numpy as np
 
 from agents import config as config_lib
@@ -323,7 +322,7 @@ def load_policy(directory, environment, deterministic=True, seed=0):
             checkpointing.load_arrays(directory / 'learner.npz').items()
             if key.startswith(prefix)}
   params = learning.unflatten_from_arrays(
-      networks.policy_init(jax.random.PRNGKey(0)), arrays)
+      networks.policy_init(np.random.RandomState(0)), arrays)
   actor = actor_lib.SACActor(networks, lambda: params, seed,
                              evaluation=deterministic)
   return _TimestepPolicy(flattener, actor, scaler)

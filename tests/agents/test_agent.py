@@ -1,0 +1,293 @@
+"""Tests of agents/sac/agent.py (and the actor) on a toy task and on reach."""
+
+import collections
+
+import dm_env
+from dm_env import specs as dm_specs
+import numpy as np
+import pytest
+
+from agents import config as config_lib
+from agents import specs
+from agents.sac import actor as actor_lib
+from agents.sac import agent as agent_lib
+from agents.sac import SACAgent
+
+STEP_SCALE = 0.2   # Toy task: position change per step at |action| = 1.
+
+
+class PointReach(dm_env.Environment):
+  """Move a point in [-1, 1]^2 to a goal; reward -distance; fixed horizon.
+
+  With `terminate_at` the episode ends (discount 0) within that distance of
+  the goal; otherwise it is truncated (discount 1) after `horizon` steps.
+  """
+
+  def __init__(self, seed, horizon=20, terminate_at=None,
+               action_bounds=(-1.0, 1.0)):
+    self._random_state = np.random.RandomState(seed)
+    self._horizon = horizon
+    self._terminate_at = terminate_at
+    self._bounds = action_bounds
+
+  def observation_spec(self):
+    return collections.OrderedDict(
+        position=dm_specs.Array((2,), np.float64, 'position'),
+        goal=dm_specs.Array((2,), np.float64, 'goal'))
+
+  def action_spec(self):
+    return dm_specs.BoundedArray((2,), np.float64, [self._bounds[0]] * 2,
+                                 [self._bounds[1]] * 2, 'move')
+
+  def _observation(self):
+    return collections.OrderedDict(position=self._position.copy(),
+                                   goal=self._goal.copy())
+
+  def reset(self):
+    self._position = self._random_state.uniform(-1, 1, 2)
+    self._goal = self._random_state.uniform(-1, 1, 2)
+    self._steps = 0
+    return dm_env.restart(self._observation())
+
+  def step(self, action):
+    low, high = self._bounds
+    move = 2 * (np.clip(action, low, high) - low) / (high - low) - 1
+    self._position = np.clip(self._position + STEP_SCALE * move, -1, 1)
+    self._steps += 1
+    distance = np.linalg.norm(self._position - self._goal)
+    if self._terminate_at is not None and distance < self._terminate_at:
+      return dm_env.termination(-distance, self._observation())
+    if self._steps >= self._horizon:
+      return dm_env.truncation(-distance, self._observation())
+    return dm_env.transition(-distance, self._observation())
+
+
+def _small_config(**overrides):
+  values = dict(hidden_sizes=(64, 64), batch_size=64, min_replay_size=100)
+  values.update(overrides)
+  return config_lib.default_config(**values)
+
+
+def _run(env, agent, steps, timestep=None):
+  """`steps` training steps; returns the timestep to continue from."""
+  if timestep is None:
+    timestep = env.reset()
+    agent.observe_first(timestep)
+  for _ in range(steps):
+    action = agent.select_action(timestep.observation)
+    timestep = env.step(action)
+    agent.observe(action, timestep)
+    agent.update()
+    if timestep.last():
+      timestep = env.reset()
+      agent.observe_first(timestep)
+  return timestep
+
+
+def _mean_return(env, policy, episodes):
+  returns = []
+  for _ in range(episodes):
+    timestep, total = env.reset(), 0.0
+    while not timestep.last():
+      timestep = env.step(policy(timestep))
+      total += timestep.reward
+    returns.append(total)
+  return float(np.mean(returns))
+
+
+def test_actions_lie_in_the_action_spec_and_follow_the_seed():
+  env = PointReach(0, action_bounds=(0.0, 4.0))
+  spec = specs.make_environment_spec(env)
+  first = SACAgent(spec, _small_config(), seed=1)
+  second = SACAgent(spec, _small_config(), seed=1)
+  observation = env.reset().observation
+  actions = np.array([first.select_action(observation) for _ in range(200)])
+  assert actions.dtype == np.float64 and actions.shape == (200, 2)
+  assert actions.min() >= 0.0 and actions.max() <= 4.0
+  assert actions.std() > 0.5   # Sampled, not deterministic.
+  np.testing.assert_array_equal(
+      actions[:5], [second.select_action(observation) for _ in range(5)])
+  deterministic = first.policy(deterministic=True)
+  timestep = env.reset()
+  assert np.array_equal(deterministic(timestep), deterministic(timestep))
+
+
+def test_replay_stores_normalised_actions_and_environment_discounts():
+  env = PointReach(0, horizon=5, terminate_at=0.3,
+                   action_bounds=(-2.0, 2.0))
+  agent = SACAgent(specs.make_environment_spec(env),
+                   _small_config(min_replay_size=10_000), seed=0)
+  timestep = env.reset()
+  agent.observe_first(timestep)
+  seen = []
+  while len(seen) < 200:
+    action = agent.select_action(timestep.observation)
+    next_timestep = env.step(action)
+    agent.observe(action, next_timestep)
+    seen.append((action / 2.0, next_timestep.discount, next_timestep.last()))
+    timestep = next_timestep
+    if timestep.last():
+      timestep = env.reset()
+      agent.observe_first(timestep)
+  state = agent.replay.state()
+  np.testing.assert_allclose(state['action'], [a for a, _, _ in seen],
+                             atol=1e-6)
+  discounts = np.array([d for _, d, _ in seen])
+  np.testing.assert_array_equal(state['discount'], discounts)
+  lasts = np.array([last for _, _, last in seen])
+  assert np.any(lasts & (discounts == 0))   # Terminations.
+  assert np.any(lasts & (discounts == 1))   # Time-limit truncations.
+  # Consecutive transitions chain within an episode.
+  chained = ~lasts[:-1]
+  np.testing.assert_array_equal(state['next_observation'][:-1][chained],
+                                state['observation'][1:][chained])
+  with pytest.raises(RuntimeError, match='observe_first'):
+    fresh = SACAgent(specs.make_environment_spec(env), _small_config(), 0)
+    fresh.observe(np.zeros(2), timestep)
+
+
+def test_update_schedule_follows_the_config():
+  env = PointReach(0)
+  config = _small_config(min_replay_size=30, update_every=10,
+                         updates_per_step=0.25, batch_size=8)
+  agent = SACAgent(specs.make_environment_spec(env), config, seed=0)
+  _run(env, agent, 29)
+  assert agent.learner.steps == 0
+  # From the 30th transition on: 10 steps -> 2.5 gradient steps, carried.
+  _run(env, agent, 1 + 40, timestep=None)
+  assert agent.learner.steps == 10
+
+
+def _assert_same_agents(first, second):
+  for key, value in first.learner.state().items():
+    np.testing.assert_array_equal(second.learner.state()[key], value,
+                                  err_msg=key)
+  for key, value in first.replay.state().items():
+    np.testing.assert_array_equal(second.replay.state()[key], value,
+                                  err_msg=key)
+
+
+def test_save_restore_gives_identical_agents_and_continuations(tmp_path):
+  env = PointReach(0)
+  spec = specs.make_environment_spec(env)
+  config = _small_config(min_replay_size=50, update_every=2,
+                         updates_per_step=1.5)
+  agent = SACAgent(spec, config, seed=3)
+  timestep = _run(env, agent, 75)   # Mid-episode, mid-burst.
+  agent.save(tmp_path / 'agent', metadata={'episode': 3},
+             arrays={'loop_counter': np.arange(4)})
+  restored = SACAgent(spec, config, seed=99)
+  extras = restored.restore(tmp_path / 'agent')
+  assert extras.metadata == {'episode': 3}
+  np.testing.assert_array_equal(extras.arrays['loop_counter'], np.arange(4))
+  _assert_same_agents(agent, restored)
+  assert restored.env_steps == agent.env_steps == 75
+  # Both continue identically: same actions, transitions and updates.
+  env_state = env._random_state.get_state()
+  twin_env = PointReach(0)
+  twin_env._random_state.set_state(env_state)
+  twin_env._position, twin_env._goal = env._position, env._goal
+  twin_env._steps = env._steps
+  for _ in range(30):
+    action = agent.select_action(timestep.observation)
+    np.testing.assert_array_equal(restored.select_action(timestep.observation),
+                                  action)
+    next_timestep = env.step(action)
+    twin_timestep = twin_env.step(action)
+    agent.observe(action, next_timestep)
+    restored.observe(action, twin_timestep)
+    assert agent.update() == restored.update()
+    timestep = next_timestep
+    if timestep.last():
+      timestep = env.reset()
+      twin_env.reset()
+      agent.observe_first(timestep)
+      restored.observe_first(timestep)
+  _assert_same_agents(agent, restored)
+
+
+def test_save_replaces_atomically_and_restore_checks_the_config(tmp_path):
+  env = PointReach(0)
+  spec = specs.make_environment_spec(env)
+  agent = SACAgent(spec, _small_config(), seed=0)
+  agent.save(tmp_path / 'agent')
+  _run(env, agent, 10)
+  agent.save(tmp_path / 'agent')
+  assert sorted(p.name for p in tmp_path.iterdir()) == ['agent']
+  other = SACAgent(spec, _small_config(batch_size=32), seed=0)
+  with pytest.raises(ValueError, match='config'):
+    other.restore(tmp_path / 'agent')
+  with pytest.raises(FileNotFoundError, match='agent.json'):
+    other.restore(tmp_path / 'missing')
+
+
+def test_load_policy_acts_like_the_agents_policy(tmp_path):
+  env = PointReach(0, action_bounds=(-3.0, 3.0))
+  agent = SACAgent(specs.make_environment_spec(env), _small_config(), seed=0)
+  _run(env, agent, 150)
+  agent.save(tmp_path / 'agent')
+  loaded = agent_lib.load_policy(tmp_path / 'agent', env)
+  own = agent.policy(deterministic=True)
+  for _ in range(5):
+    timestep = env.reset()
+    np.testing.assert_allclose(loaded(timestep), own(timestep), rtol=1e-6)
+  with pytest.raises(ValueError, match='action spec'):
+    agent_lib.load_policy(tmp_path / 'agent', PointReach(0))
+
+
+def test_action_scaler_round_trip_and_errors():
+  spec = dm_specs.BoundedArray((3,), np.float64, [0.0, -1.0, -5.0],
+                               [2.0, 1.0, 5.0])
+  scaler = actor_lib.ActionScaler(spec)
+  normalised = np.array([-1.0, 0.25, 1.0])
+  np.testing.assert_allclose(scaler.to_environment(normalised),
+                             [0.0, 0.25, 5.0])
+  np.testing.assert_allclose(
+      scaler.to_normalised(scaler.to_environment(normalised)), normalised)
+  with pytest.raises(ValueError, match='bounded 1-D'):
+    actor_lib.ActionScaler(dm_specs.Array((2,), np.float64))
+  with pytest.raises(ValueError, match='finite'):
+    actor_lib.ActionScaler(dm_specs.BoundedArray((1,), np.float64, [-np.inf],
+                                                 [1.0]))
+
+
+def test_bad_seed_and_config_are_rejected():
+  spec = specs.make_environment_spec(PointReach(0))
+  with pytest.raises(ValueError, match='seed=-1'):
+    SACAgent(spec, _small_config(), seed=-1)
+  with pytest.raises(TypeError, match='SACConfig'):
+    SACAgent(spec, {'batch_size': 3}, seed=0)
+
+
+def test_toy_smoke_run_beats_a_random_policy():
+  env = PointReach(0)
+  agent = SACAgent(specs.make_environment_spec(env), _small_config(),
+                   seed=0)
+  random_state = np.random.RandomState(0)
+  random_return = _mean_return(PointReach(1),
+                               lambda _: random_state.uniform(-1, 1, 2), 20)
+  _run(env, agent, 1500)
+  trained_return = _mean_return(PointReach(1), agent.policy(), 20)
+  # Random play wanders (about -22); heading to the goal gives about -5.
+  assert trained_return > random_return + 6.0, (random_return,
+                                                trained_return)
+
+
+@pytest.mark.slow
+def test_reach_smoke_run_beats_a_random_policy():
+  from hrc_suite import suite   # pylint: disable=g-import-not-at-top
+  task_kwargs = {'robot': 'schunk', 'action_space': 'cartesian',
+                 'time_limit': 2.0}
+  env = suite.load('reach', 'dense', task_kwargs=task_kwargs,
+                   environment_kwargs={'random_state': 0})
+  eval_env = suite.load('reach', 'dense', task_kwargs=task_kwargs,
+                        environment_kwargs={'random_state': 1})
+  agent = SACAgent(specs.make_environment_spec(env),
+                   _small_config(min_replay_size=200), seed=0)
+  random_state = np.random.RandomState(0)
+  action_shape = env.action_spec().shape
+  random_return = _mean_return(
+      eval_env, lambda _: random_state.uniform(-1, 1, action_shape), 10)
+  _run(env, agent, 2000)
+  trained_return = _mean_return(eval_env, agent.policy(), 10)
+  assert trained_return > random_return, (random_return, trained_return)
