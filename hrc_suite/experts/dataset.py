@@ -98,25 +98,34 @@ def expert_observation_names(task):
                if not isinstance(obs, observable_lib.MJCFCamera))
 
 
-def _stack_snapshots(states):
+class _SnapshotStack:
   """Per-step snapshots as a few arrays: the distinct specs (JSON strings),
   each step's spec index, and per dtype one flat buffer with per-step
   offsets (step t's numbers are buffer[offsets[t]:offsets[t + 1]])."""
-  specs, index, parts = {}, [], []
-  for state in states:
+
+  def __init__(self):
+    self._specs, self._index, self._parts = {}, [], []
+
+  def add(self, state):
+    """Flattens `state` now (flat buffers are smaller than nested states)."""
     spec, buffers = snapshots.flatten(state)
-    index.append(specs.setdefault(snapshots.spec_to_json(spec), len(specs)))
-    parts.append(buffers)
-  arrays = {SNAPSHOT + 'specs': np.array(list(specs), dtype=str),
-            SNAPSHOT + 'spec_index': np.array(index, dtype=np.int32)}
-  for name in sorted({name for buffers in parts for name in buffers}):
-    pieces = [buffers.get(name, np.zeros(0)) for buffers in parts]
-    offsets = np.zeros(len(pieces) + 1, dtype=np.int64)
-    np.cumsum([piece.size for piece in pieces], out=offsets[1:])
-    arrays[f'{SNAPSHOT}buffer/{name}'] = np.concatenate(
-        [buffers[name] for buffers in parts if name in buffers])
-    arrays[f'{SNAPSHOT}offsets/{name}'] = offsets
-  return arrays
+    key = snapshots.spec_to_json(spec)
+    self._index.append(self._specs.setdefault(key, len(self._specs)))
+    self._parts.append(buffers)
+
+  def arrays(self):
+    parts = self._parts
+    arrays = {SNAPSHOT + 'specs': np.array(list(self._specs), dtype=str),
+              SNAPSHOT + 'spec_index': np.array(self._index, dtype=np.int32)}
+    for name in sorted({name for buffers in parts for name in buffers}):
+      sizes = [buffers[name].size if name in buffers else 0
+               for buffers in parts]
+      offsets = np.zeros(len(parts) + 1, dtype=np.int64)
+      np.cumsum(sizes, out=offsets[1:])
+      arrays[f'{SNAPSHOT}buffer/{name}'] = np.concatenate(
+          [buffers[name] for buffers in parts if name in buffers])
+      arrays[f'{SNAPSHOT}offsets/{name}'] = offsets
+    return arrays
 
 
 def record_episode(env, policy, progress=None):
@@ -135,7 +144,8 @@ def record_episode(env, policy, progress=None):
   observations = {name: [] for name in timestep.observation}
   expert_observations = {name: [] for name in expert_names}
   per_step = {name: [] for name in _PER_STEP}
-  step_types, states, metrics = [], [], []
+  step_types, metrics = [], []
+  states = _SnapshotStack()
 
   def observe(timestep):
     step_types.append(int(timestep.step_type))
@@ -143,7 +153,7 @@ def record_episode(env, policy, progress=None):
       observations[name].append(np.array(value, copy=True))
     for name, fn in zip(expert_names, expert_callables):
       expert_observations[name].append(np.array(fn(), copy=True))
-    states.append(task.get_state(physics))
+    states.add(task.get_state(physics))
 
   observe(timestep)
   while not timestep.last():
@@ -175,7 +185,7 @@ def record_episode(env, policy, progress=None):
   episode_metrics = dict(task.episode_metrics)
   for name, value in episode_metrics.items():
     arrays[EPISODE_METRICS + name] = np.array(float(value))
-  arrays.update(_stack_snapshots(states))
+  arrays.update(states.arrays())
   summary = {'steps': len(metrics), **_json_value(episode_metrics)}
   return arrays, summary
 
