@@ -1,0 +1,138 @@
+"""Handover experts: they hand the hammer over (robot to human), take it and
+place it (human to robot) with the Schunk and the Panda in both action
+spaces, deterministically, without critical human contacts, and take over
+from a snapshot state."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.experts import handover as handover_experts
+from hrc_suite.experts import noise as noise_lib
+
+
+def _env(task, robot='schunk', space='cartesian', seed=0, **kwargs):
+  return suite.load('handover', task, task_kwargs={
+      'robot': robot, 'action_space': space, **kwargs},
+                    environment_kwargs={'random_state': seed})
+
+
+def _run(env, expert, max_steps=1000, until=None, timestep=None):
+  """Steps the expert; returns the last timestep."""
+  timestep = env.reset() if timestep is None else timestep
+  for _ in range(max_steps):
+    if timestep.last() or (until is not None and until(env)):
+      break
+    timestep = env.step(expert(timestep))
+  return timestep
+
+
+def _held_by_human(env):
+  task = env.task
+  return task.human.holding(task.hammer.body) is not None
+
+
+def _in_robot_hand(env):
+  task = env.task
+  return (task.gripper.is_grasping(env.physics, task.hammer.body)
+          and not _held_by_human(env))
+
+
+def test_registry_makes_the_handover_experts():
+  for name, cls in (('robot_to_human', handover_experts.RobotToHumanExpert),
+                    ('human_to_robot', handover_experts.HumanToRobotExpert)):
+    expert = experts.make(_env(name, time_limit=1.0))
+    assert type(expert) is cls
+    assert ('handover', name) in cls.TASKS
+
+
+@pytest.mark.parametrize('space', ('cartesian', 'joint'))
+def test_robot_to_human_hands_over_and_lets_go(space):
+  env = _env('robot_to_human', space=space, seed=1)
+  expert = experts.make(env)
+  timestep = _run(env, expert, max_steps=200, until=_held_by_human)
+  assert _held_by_human(env), 'the person never took the hammer'
+  assert env.task.episode_metrics['handovers'] == 1
+  # The expert opens at once and never leaves the hammer to fall.
+  timestep = _run(env, expert, max_steps=5, timestep=timestep)
+  assert not env.task.gripper.is_grasping(env.physics, env.task.hammer.body)
+  assert _held_by_human(env)
+  assert env.task.episode_metrics['contacts_human_critical'] == 0
+
+
+@pytest.mark.parametrize('space', ('cartesian', 'joint'))
+def test_human_to_robot_takes_the_presented_hammer(space):
+  env = _env('human_to_robot', space=space, seed=2)
+  expert = experts.make(env)
+  timestep = _run(env, expert, max_steps=250, until=_in_robot_hand)
+  assert _in_robot_hand(env), 'the robot never took the hammer'
+  assert env.task.episode_metrics['handovers'] == 1
+  # Lifted off the person's hand and held (not dropped) while carried.
+  _run(env, expert, max_steps=10, timestep=timestep)
+  assert _in_robot_hand(env)
+  assert env.task.episode_metrics['contacts_human_critical'] == 0
+
+
+def test_same_seed_same_actions():
+  runs = []
+  for _ in range(2):
+    env = _env('human_to_robot', seed=5)
+    expert = experts.make(env)
+    timestep, taken = env.reset(), []
+    for _ in range(90):
+      taken.append(expert(timestep))
+      timestep = env.step(taken[-1])
+    runs.append(np.array(taken))
+  np.testing.assert_array_equal(runs[0], runs[1])
+  # It moved, and towards the person's presentation.
+  assert np.abs(runs[0][:, :3]).max() > 0.1
+
+
+def test_human_to_robot_takes_over_from_a_snapshot():
+  # An episode in which the robot already holds the hammer is continued by
+  # a fresh expert in a fresh environment: it places the hammer.
+  env = _env('human_to_robot', seed=3)
+  _run(env, experts.make(env), max_steps=300, until=_in_robot_hand)
+  assert _in_robot_hand(env)
+  state = env.task.get_state(env.physics)
+  fresh = _env('human_to_robot', seed=42)
+  timestep = fresh.reset()
+  fresh.task.set_state(fresh.physics, state)
+  timestep = _run(fresh, experts.make(fresh), max_steps=80,
+                  timestep=timestep)
+  task = fresh.task
+  assert not _in_robot_hand(fresh) and not _held_by_human(fresh)
+  grip = fresh.physics.bind(task.hammer.grip_site).xpos
+  assert np.linalg.norm(grip - task.target(fresh.physics)) < 0.1
+
+
+def _successes(task, robot, space, seeds, noisy=False):
+  count = 0
+  for seed in seeds:
+    env = _env(task, robot, space, seed=seed)
+    expert = experts.make(env)
+    if noisy:   # The reference's OU noise, seeded by the episode's seed.
+      noise = noise_lib.OrnsteinUhlenbeckNoise.reference(
+          env.action_spec().shape[0], space)
+      expert = noise_lib.NoisyExpert(expert, noise, seed=seed)
+    timestep = _run(env, expert)
+    metrics = env.task.episode_metrics
+    assert metrics['contacts_human_critical'] == 0, (task, robot, seed)
+    if metrics['success']:
+      assert timestep.last() and timestep.reward == 1.0
+      count += 1
+  return count
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('task', ('robot_to_human', 'human_to_robot'))
+@pytest.mark.parametrize('space', ('cartesian', 'joint'))
+def test_expert_completes_the_task_on_the_schunk(task, space):
+  assert _successes(task, 'schunk', space, range(3)) >= 2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('task', ('robot_to_human', 'human_to_robot'))
+def test_noisy_expert_completes_the_task_on_the_panda(task):
+  assert _successes(task, 'panda', 'cartesian', range(3), noisy=True) >= 2
