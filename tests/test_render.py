@@ -12,30 +12,40 @@ import pytest
 from hrc_suite import render
 from hrc_suite import render_overlay
 from hrc_suite import rendering
+from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
+from hrc_suite.tasks import reach
 
 WIDTH, HEIGHT = 128, 96
-# A person gliding from the reach station into the Panda at home: the
-# direction (clip frame) and speed of the glide, 1.5 m/s for 1 s, below the
-# shield model's 2 m/s keypoint bound. Measured: with SSM and random actions
-# the shield intervenes from RL step 7 and the person touches the stopped
-# robot (safe contact) from step 9; unshielded, contacts at steps 9-11 are
+# A person gliding from the reach station into the Panda at home: the pelvis
+# glides in a straight line at 1.5 m/s (below the shield model's 2 m/s
+# keypoint bound) to this point beside the robot's upper arm (world xy,
+# relative to the robot base). Measured: with SSM and random actions the
+# shield intervenes from RL step 7 and the person touches the stopped robot
+# (safe contact) from step 9; unshielded, contacts at steps 9-11 are
 # critical.
-_GLIDE_DIRECTION = np.array([0.71, -1.3]) / np.linalg.norm([0.71, -1.3])
-_GLIDE_SPEED = 1.5    # m/s
-_GLIDE_TIME = 1.0     # s
-_WALK_IN_STEPS = 12   # RL steps rendered
+_GLIDE_TARGET = np.array([0.45, 0.25])   # m
+_GLIDE_SPEED = 1.5                       # m/s
+_WALK_IN_STEPS = 12                      # RL steps rendered
 
 
 def _walk_in_clip():
   """The first pose of a shipped reach clip, gliding into the robot."""
   pose = clip_lib.shipped_library('reach')[0].positions[0]
+  x, y, yaw = reach.Reach.HUMAN_STATION
+  rotation = np.array([[np.cos(yaw), -np.sin(yaw)],
+                       [np.sin(yaw), np.cos(yaw)]])   # clip -> world
+  pelvis = rotation @ pose[keypoints.KEYPOINT_INDEX['pelvis'], :2] + (x, y)
+  target = np.asarray(layout.ROBOT_BASE_POS[:2]) + _GLIDE_TARGET
+  glide = rotation.T @ (target - pelvis)               # in the clip frame
+  distance = np.linalg.norm(glide)
   fps = 25.0
   t = np.arange(0.0, 3.0 + 1e-9, 1.0 / fps)
-  shift = np.minimum(t, _GLIDE_TIME) * _GLIDE_SPEED
+  shift = np.minimum(t * _GLIDE_SPEED, distance) / distance
   positions = np.repeat(pose[None], len(t), axis=0)
-  positions[:, :, :2] += shift[:, None, None] * _GLIDE_DIRECTION
+  positions[:, :, :2] += shift[:, None, None] * glide
   return clip_lib.validate(clip_lib.Clip(
       name='walk_in', task='reach', fps=fps,
       positions=positions.astype(np.float32)))
