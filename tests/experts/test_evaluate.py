@@ -155,3 +155,14 @@ def test_a_killed_run_resumes_from_its_partial_log(tmp_path, monkeypatch):
   # Both episodes are logged now (after the torn line): nothing runs.
   assert evaluate.run(job_list, partial=partial)[1] == resumed[1]
   assert len(calls) == 3
+
+
+@pytest.mark.slow   # Spawned processes import hrc_suite afresh (~15 s).
+def test_spawned_workers_give_the_same_episodes():
+  job_list = evaluate.jobs([('reach', 'dense')], ['schunk'],
+                           ['expert', 'noisy_expert'], 2, time_limit=0.4)
+  serial = evaluate.run(job_list)
+  parallel = evaluate.run(job_list, workers=2)
+  assert [r['job'] for r in parallel] == [list(job) for job in job_list]
+  for one, other in zip(serial, parallel):
+    assert one['metrics'] == other['metrics'] and other['error'] is None
