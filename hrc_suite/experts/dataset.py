@@ -26,7 +26,9 @@ import zipfile
 from dm_control.composer.observation import observable as observable_lib
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite import suite
+from hrc_suite.experts import noise as noise_lib
 from hrc_suite.tasks import snapshots
 
 FORMAT = 'hrc_suite.expert_dataset'
@@ -139,8 +141,9 @@ def record_episode(env, policy, progress=None):
   observables = task.task_observables
   expert_names = expert_observation_names(task)
   # The raw callables: no noise, no delay (as experts read them).
-  expert_callables = [observables[name]._callable(physics)   # pylint: disable=protected-access
-                      for name in expert_names]
+  expert_callables = [
+      observables[name]._callable(physics)   # pylint: disable=protected-access
+      for name in expert_names]
   observations = {name: [] for name in timestep.observation}
   expert_observations = {name: [] for name in expert_names}
   per_step = {name: [] for name in _PER_STEP}
@@ -197,8 +200,6 @@ def _environment(domain, task, task_kwargs, seed=None):
 
 def _make_policy(env, policy, seed, noise_kwargs):
   """(policy object, JSON noise parameters or None)."""
-  from hrc_suite import experts   # pylint: disable=g-import-not-at-top
-  from hrc_suite.experts import noise as noise_lib   # pylint: disable=g-import-not-at-top
   if policy == 'expert':
     if noise_kwargs:
       raise ValueError(f'noise_kwargs {noise_kwargs} given for the '
@@ -359,9 +360,10 @@ def _read_metadata(path):
   except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
     raise DatasetError(f'{path}: not a readable dataset description ({e})'
                        ) from e
-  if not isinstance(metadata, dict) or metadata.get('format') != FORMAT:
+  found = metadata.get('format') if isinstance(metadata, dict) else None
+  if found != FORMAT:
     raise DatasetError(f'{path}: not an {FORMAT} description (format '
-                       f'{metadata.get("format") if isinstance(metadata, dict) else None!r})')
+                       f'{found!r})')
   if metadata.get('format_version') != FORMAT_VERSION:
     raise DatasetError(f'{path}: format version '
                        f'{metadata.get("format_version")!r}, this code reads '

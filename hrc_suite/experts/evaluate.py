@@ -414,8 +414,9 @@ def main(argv):
   registered = set(experts.registered())
   for task in requested or ():
     if task not in registered:
+      valid = ', '.join(sorted('/'.join(t) for t in registered))
       raise app.UsageError(f'No expert for {"/".join(task)}: experts exist '
-                           f'for {", ".join(sorted(map("/".join, registered)))}')
+                           f'for {valid}')
   tasks, not_evaluated = available_tasks(requested)
   spaces = tuple(_ACTION_SPACES.value) or (None,)
   job_list = jobs(tasks, _ROBOTS.value, _POLICIES.value, _EPISODES.value,
