@@ -8,9 +8,11 @@ A run's log directory holds
   checkpoints/latest         name of the newest complete checkpoint
   checkpoints/step_<steps>/  agent/ (SACAgent.save: parameters, optimiser
                              states, replay, RNG keys, counters), loop.json
-                             (loop counters, schedules, the environment's
-                             RandomState scalars, the run config) and
-                             env_random_state.npz (its Mersenne-Twister key)
+                             (loop counters, schedules, the training
+                             environment's and its wrappers' RandomState
+                             scalars, the run config) and
+                             random_states.npz (their Mersenne-Twister
+                             keys)
 
 A checkpoint is written into a temporary directory that is renamed into
 place, then `latest` is replaced atomically, so an interrupted write never
@@ -28,7 +30,7 @@ KEEP = 2                     # checkpoints kept per run
 _LATEST = 'latest'
 _PREFIX = 'step_'
 _LOOP_FILE = 'loop.json'
-_RNG_FILE = 'env_random_state.npz'
+_RNG_FILE = 'random_states.npz'
 AGENT_DIR = 'agent'
 
 
@@ -65,7 +67,7 @@ def random_state_from_arrays(key, scalars):
           float(scalars['cached_gaussian']))
 
 
-def save(logdir, steps, agent, loop_state, env_random_state):
+def save(logdir, steps, agent, loop_state, random_states):
   """Writes checkpoint step_<steps> of a run and points `latest` to it.
 
   Args:
@@ -73,7 +75,8 @@ def save(logdir, steps, agent, loop_state, env_random_state):
     steps: environment steps done (names the checkpoint).
     agent: has save(directory).
     loop_state: JSON-ready dict (counters, schedules, run config).
-    env_random_state: the training environment's np.random.RandomState.
+    random_states: {name: np.random.RandomState} of the training
+      environment (and its wrappers).
 
   Returns:
     The checkpoint's directory.
@@ -87,10 +90,12 @@ def save(logdir, steps, agent, loop_state, env_random_state):
     shutil.rmtree(temporary)
   os.makedirs(temporary)
   agent.save(os.path.join(temporary, AGENT_DIR))
-  key, scalars = random_state_to_arrays(env_random_state)
-  np.savez(os.path.join(temporary, _RNG_FILE), key=key)
+  keys, scalars = {}, {}
+  for label, random_state in random_states.items():
+    keys[label], scalars[label] = random_state_to_arrays(random_state)
+  np.savez(os.path.join(temporary, _RNG_FILE), **keys)
   write_json(os.path.join(temporary, _LOOP_FILE),
-             dict(loop_state, env_random_state=scalars))
+             dict(loop_state, random_states=scalars))
   if os.path.exists(final):   # Same step saved before (e.g. a rerun).
     shutil.rmtree(final)
   os.replace(temporary, final)
@@ -147,9 +152,14 @@ def agent_directory(path):
 
 
 def load_loop_state(directory):
-  """(loop state dict, environment RandomState state tuple)."""
+  """(loop state dict, {name: RandomState state tuple})."""
   state = read_json(os.path.join(directory, _LOOP_FILE))
   with np.load(os.path.join(directory, _RNG_FILE),
                allow_pickle=False) as data:
-    key = data['key']
-  return state, random_state_from_arrays(key, state['env_random_state'])
+    keys = {name: data[name] for name in data.files}
+  scalars = state['random_states']
+  if sorted(keys) != sorted(scalars):
+    raise ValueError(f'{directory}: {_RNG_FILE} holds {sorted(keys)}, '
+                     f'{_LOOP_FILE} describes {sorted(scalars)}')
+  return state, {name: random_state_from_arrays(keys[name], scalars[name])
+                 for name in keys}

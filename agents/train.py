@@ -37,10 +37,11 @@ from hrc_suite import suite
 from hrc_suite.tasks import metrics as metrics_lib
 
 AGENTS = ('sac', 'rsi', 'sir', 'air')
+_NEEDS_DATASET = ('rsi', 'sir')
 # Keys of the run config a resumed run may change.
 _RESUMABLE_CHANGES = ('steps',)
 # Purposes of seeds derived from the run seed (np.random.SeedSequence).
-_TRAIN_ENV, _AGENT, _EVAL_ENV = 0, 1, 2
+_TRAIN_ENV, _AGENT, _EVAL_ENV, _IMITATION = 0, 1, 2, 4
 
 
 
@@ -68,16 +69,19 @@ def parse_overrides(items):
 def make_run_config(domain, task, robot, action_space, agent='sac',
                     config='default', overrides=None, task_kwargs=None,
                     seed=0, steps=1000, eval_every=0, eval_episodes=0,
-                    checkpoint_every=0):
+                    checkpoint_every=0, dataset=None, imitation_kwargs=None):
   """The JSON-ready description of a run (config.json)."""
   if agent not in AGENTS:
     raise ValueError(f'Unknown agent {agent!r}: expected one of '
                      f'{", ".join(AGENTS)}')
-  if agent != 'sac':
-    raise ValueError(
-        f'--agent={agent} is not available yet: the imitation variants '
-        '(RSI/SIR/AIR) are environment wrappers in agents/imitation/, not '
-        'written yet; use --agent=sac')
+  if agent in _NEEDS_DATASET and not dataset:
+    raise ValueError(f'--agent={agent} needs --dataset (an expert dataset '
+                     'of the task: python -m agents.collect_expert)')
+  if agent not in _NEEDS_DATASET and dataset:
+    raise ValueError(f'--dataset is only used by --agent=rsi or sir, not '
+                     f'{agent}')
+  if imitation_kwargs and agent == 'sac':
+    raise ValueError('imitation_kwargs are for --agent=rsi, sir or air')
   for name, value, low in (('steps', steps, 0), ('eval_every', eval_every, 0),
                            ('eval_episodes', eval_episodes, 0),
                            ('checkpoint_every', checkpoint_every, 0)):
@@ -100,6 +104,8 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
       'steps': int(steps), 'eval_every': int(eval_every),
       'eval_episodes': int(eval_episodes),
       'checkpoint_every': int(checkpoint_every),
+      'dataset': os.path.abspath(dataset) if dataset else None,
+      'imitation_kwargs': dict(imitation_kwargs or {}),
   }
 
 
@@ -117,6 +123,39 @@ def make_environment(run_config, seed):
   env.reset()
   env.random_state.seed(int(seed))
   return env
+
+
+def make_training_environment(run_config):
+  """The training environment: the task, wrapped for imitation agents
+  (agents.imitation; evaluation always runs the bare task)."""
+  env = make_environment(run_config, derived_seed(run_config['seed'],
+                                                  _TRAIN_ENV))
+  if run_config['agent'] == 'sac':
+    return env
+  from agents import imitation   # pylint: disable=g-import-not-at-top
+  dataset = None
+  if run_config['dataset']:
+    from hrc_suite.experts import dataset as dataset_lib   # pylint: disable=g-import-not-at-top
+    dataset = dataset_lib.load_dataset(run_config['dataset'])
+  return imitation.wrap(env, run_config['agent'], dataset=dataset,
+                        seed=derived_seed(run_config['seed'], _IMITATION),
+                        **run_config['imitation_kwargs'])
+
+
+def random_states(env):
+  """{name: np.random.RandomState} of an environment and its wrappers:
+  'environment' (the composer environment's) and '<depth>/<attribute>' for
+  random states a wrapper keeps (e.g. RSI's draw of reference states)."""
+  found = {}
+  depth = 0
+  # A wrapper exposes the environment it wraps as an `environment` property.
+  while isinstance(getattr(type(env), 'environment', None), property):
+    for name, value in sorted(vars(env).items()):
+      if isinstance(value, np.random.RandomState):
+        found[f'{depth}/{name}'] = value
+    env, depth = env.environment, depth + 1
+  found['environment'] = env.random_state
+  return found
 
 
 def make_agent(run_config, env):
@@ -212,8 +251,7 @@ def train(run_config, logdir, resume=False, progress=False):
   if checkpoint is not None and os.path.exists(config_path):
     _check_resumable(checkpoints.read_json(config_path), run_config)
 
-  env = make_environment(run_config, derived_seed(run_config['seed'],
-                                                  _TRAIN_ENV))
+  env = make_training_environment(run_config)
   eval_env = None
   if run_config['eval_every']:
     eval_env = make_environment(run_config, derived_seed(run_config['seed'],
@@ -225,10 +263,16 @@ def train(run_config, logdir, resume=False, progress=False):
            'next_checkpoint': run_config['checkpoint_every'] or None,
            'wall_time': 0.0}
   if checkpoint is not None:
-    stored, rng_state = checkpoints.load_loop_state(checkpoint)
+    stored, rng_states = checkpoints.load_loop_state(checkpoint)
     agent.restore(os.path.join(checkpoint, checkpoints.AGENT_DIR))
     loop.counter.restore(stored['counter'])
-    env.random_state.set_state(rng_state)
+    current = random_states(env)
+    if sorted(current) != sorted(rng_states):
+      raise ValueError(f'Checkpoint {checkpoint} holds random states '
+                       f'{sorted(rng_states)}, the environment has '
+                       f'{sorted(current)}')
+    for name, rng_state in rng_states.items():
+      current[name].set_state(rng_state)
     state.update({k: stored[k] for k in state})
     logging.info('Resumed %s at step %d', checkpoint, loop.counter.steps)
   elif resume:
@@ -260,7 +304,7 @@ def train(run_config, logdir, resume=False, progress=False):
     loop_state = dict(state, counter=loop.counter.state(),
                       run_config=run_config)
     checkpoints.save(logdir, loop.counter.steps, agent, loop_state,
-                     env.random_state)
+                     random_states(env))
 
   def evaluate():
     row = evaluate_policy(run_config, eval_env, agent, state['evaluations'])
@@ -312,7 +356,12 @@ def define_flags():
                     'Action space.')
   flags.DEFINE_string('task_kwargs', '{}', 'JSON dict of further task '
                       'kwargs, e.g. \'{"time_limit": 5.0}\'.')
-  flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent variant.')
+  flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent: plain SAC or an '
+                    'imitation variant (agents.imitation).')
+  flags.DEFINE_string('dataset', None, 'Expert dataset directory (rsi, '
+                      'sir): python -m agents.collect_expert.')
+  flags.DEFINE_string('imitation_kwargs', '{}', 'JSON dict of the imitation '
+                      'wrapper\'s kwargs, e.g. \'{"probability": 0.5}\'.')
   flags.DEFINE_enum('config', 'default', list(config_lib.CONFIGS),
                     'SAC preset.')
   flags.DEFINE_multi_string(
@@ -340,7 +389,8 @@ def main(argv):
       config=f.config, overrides=parse_overrides(f.override),
       task_kwargs=json.loads(f.task_kwargs), seed=f.seed, steps=f.steps,
       eval_every=f.eval_every, eval_episodes=f.eval_episodes,
-      checkpoint_every=f.checkpoint_every)
+      checkpoint_every=f.checkpoint_every, dataset=f.dataset,
+      imitation_kwargs=json.loads(f.imitation_kwargs))
   train(run_config, f.logdir, resume=f.resume, progress=f.progress)
 
 

@@ -143,9 +143,12 @@ def test_resume_matches_an_uninterrupted_run(two_runs, tmp_path):
 
 
 def test_bad_run_configs():
-  with pytest.raises(ValueError, match='not available yet'):
+  with pytest.raises(ValueError, match='needs --dataset'):
     train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
-                          agent='air')
+                          agent='sir')
+  with pytest.raises(ValueError, match='only used by'):
+    train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
+                          agent='air', dataset='/tmp/data')
   with pytest.raises(ValueError, match='Unknown agent'):
     train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
                           agent='ppo')
@@ -187,3 +190,43 @@ def test_resume_without_a_checkpoint_starts_afresh(tmp_path):
   assert _deterministic_rows(os.path.join(logdir, 'train.csv')) == first
   evaluations = logging_lib.read_csv(os.path.join(logdir, 'eval.csv'))
   assert [int(r['step']) for r in evaluations] == [0]   # Not twice.
+
+
+def test_imitation_agents_train_and_resume_exactly(tmp_path):
+  from hrc_suite.experts import dataset as dataset_lib   # pylint: disable=g-import-not-at-top
+  data = str(tmp_path / 'dataset')
+  dataset_lib.collect(data, 'reach', 'dense', task_kwargs=dict(
+      _TASK_KWARGS, robot='schunk', action_space='cartesian'), episodes=2)
+
+  def config(steps):
+    return train.make_run_config(
+        'reach', 'dense', 'schunk', 'cartesian', agent='rsi',
+        overrides=_OVERRIDES, task_kwargs=_TASK_KWARGS, steps=steps,
+        eval_every=0, checkpoint_every=15, dataset=data,
+        imitation_kwargs={'probability': 0.5})
+
+  whole, split = str(tmp_path / 'whole'), str(tmp_path / 'split')
+  train.train(config(50), whole)
+  train.train(config(30), split)
+  train.train(config(50), split, resume=True)
+  lengths = [int(r['episode_length']) for r in
+             logging_lib.read_csv(os.path.join(whole, 'train.csv'))]
+  assert min(lengths) < 10   # Some episodes started from dataset states.
+  expected = _checkpoint_arrays(checkpoints.latest(whole))
+  actual = _checkpoint_arrays(checkpoints.latest(split))
+  assert expected.keys() == actual.keys()
+  for key, value in expected.items():
+    np.testing.assert_array_equal(actual[key], value, err_msg=key)
+  assert (_deterministic_rows(os.path.join(split, 'train.csv')) ==
+          _deterministic_rows(os.path.join(whole, 'train.csv')))
+  state, rng_states = checkpoints.load_loop_state(checkpoints.latest(whole))
+  assert sorted(rng_states) == ['0/_random', 'environment']
+  assert state['run_config']['agent'] == 'rsi'
+
+  # AIR: the reward mixes the expert agreement into the task reward.
+  air = str(tmp_path / 'air')
+  train.train(train.make_run_config(
+      'reach', 'dense', 'schunk', 'cartesian', agent='air',
+      overrides=_OVERRIDES, task_kwargs=_TASK_KWARGS, steps=20), air)
+  rows = logging_lib.read_csv(os.path.join(air, 'train.csv'))
+  assert all(float(r['episode_return']) != float(r['return']) for r in rows)
