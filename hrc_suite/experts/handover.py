@@ -8,15 +8,20 @@ handle-end difference (gripper down). Joint space: damped least squares on
 the handle's end with a soft gripper-down term, so robots whose gripper-down
 reach ends below the person's hands (the Schunk) still present the handle.
 
-Human to robot (`HumanToRobotExpert`): wait at home until the person
-presents the hammer (held, on its side, still, above the table), come down
-on its grip point inside a cone (the reference's pick-and-place approach),
-close; once the person lets go, carry it over the table target, lower it and
-open; then go home. A hammer lying on the table after the person's pick
-(dropped) is picked up again the same way.
+Human to robot (`HumanToRobotExpert`): wait near where the person will
+present the hammer, and once it is presented (held, on its side, above the
+table, still) come down on its grip point inside a cone (the reference's
+pick-and-place approach) and close; once the person lets go, carry it over
+the table target, lower it as far as the tool may go (the handovers let no
+tool capsule into the table) and open: it drops the last centimetres. Then
+go home. A hammer lying on the table (before the person's pick, placed, or
+dropped) is left alone: the gripper cannot reach down to it.
 
-Both derive their phase from the observed state every step; the only memory
-is the previous grip point (the hammer's speed, for the presenting test).
+Both derive their phase from the observed state every step (which hand
+holds the hammer, gripper aperture, where the hammer is). The human-to-robot
+expert also remembers the previous grip point (the hammer's speed) and the
+last presented one (where to wait while the person sways back); both are
+forgotten at reset, so it can take over from any state.
 """
 
 import numpy as np
@@ -258,9 +263,12 @@ class HumanToRobotExpert(_HammerExpert):
              else float(np.linalg.norm(grip - self._previous_grip)))
     self._previous_grip = grip.copy()
     held = obs['object_held_by_human'][0] > 0.5
-    if self._in_hand(obs):
-      if held:   # The person lets go of a grasp at once.
-        return self._hold_still(obs, 1.0)
+    if held and obs['object_gripped'][0] > 0.5:
+      # Both fingers on it and the person still holds it: they are not
+      # waiting to let go yet (they let go of a grasp at once when they
+      # are). Open and back off above it.
+      return self._hover(obs, grip + (0.0, 0.0, HOVER_HEIGHT))
+    if self._in_hand(obs) and not held:
       return self._carry(obs)
     if self._presented(obs):
       if speed < PRESENTED_SPEED:
