@@ -202,6 +202,9 @@ class Stacking(base.HrcTask):
     hands = self._human.keypoint_positions(physics)[_HAND_KEYPOINTS]
     for i in HUMAN_CUBES:
       state = self._human_state[i]
+      if state == ON_TABLE and any(self._human_state[j] != RELEASED
+                                   for j in HUMAN_CUBES if j < i):
+        continue   # One cube at a time: cube 3 only after cube 1 is down.
       if state == ON_TABLE:
         grip = physics.bind(self._cubes[i].body).xpos + _GRIP
         distances = np.linalg.norm(hands - grip, axis=1)

@@ -121,6 +121,21 @@ def test_the_human_carries_cube_1_to_the_stack():
   assert waits > 50 and task.player.waiting_for == stacking.EVENTS[0]
 
 
+def test_the_human_takes_cube_3_only_after_putting_cube_1_down():
+  # Seed 3 (Panda): the clip's cube 3 lies within reach of the hand that
+  # picks up cube 1; the person still carries one cube at a time.
+  env = _env(time_limit=20.0, seed=3)
+  env.reset()
+  task = env.task
+  pick = task.cubes[2].position(env.physics)
+  while task._human_state[0] != stacking.RELEASED:
+    env.step(_still(env))
+    if task._human_state[0] == stacking.HELD:
+      assert task._human_state[2] == stacking.ON_TABLE
+  np.testing.assert_allclose(task.cubes[2].position(env.physics), pick,
+                             atol=1e-3)
+
+
 def test_toppled_stack_ends_the_episode_with_minus_ten():
   env = _env(time_limit=20.0, seed=2, reward_delay=0)
   env.reset()
