@@ -1,0 +1,250 @@
+"""Stacking expert: put the robot's cubes 2 and 4 on the person's 1 and 3.
+
+Every step the expert works out from the observed cubes, slots and stacked
+flags which robot cube is next (cube 2 until it is stacked, then cube 4)
+and where that cube is, and chooses one aim for the TCP:
+
+* Not holding the cube: fetch it. Hover above its grasp point and descend
+  inside a cone (the lower the TCP, the closer above the cube it must be),
+  close the gripper once the TCP is on the grasp point (and keep closing
+  while the fingers travel).
+* Holding it: lift it straight up to the carrying height (its bottom
+  CARRY_CLEARANCE above the top of the cube below), then, once the cube
+  below is stacked and the person's hands are away from the stack, carry it
+  over its slot and set it down (a cone again, slowly); otherwise park it
+  PARK_BACK towards the robot from the stack. Open the gripper once the
+  cube sits in its slot.
+* Next to the stack with an empty gripper (just let go): wait until the
+  fingers are open, then rise straight up before going anywhere else, so
+  the fingers never drag a stacked cube.
+* Both cubes stacked: withdraw to a rest point (more than the task's
+  WITHDRAWN_DISTANCE from the top slot, so the person goes on) and wait.
+
+Carrying happens low (the wrist of an arm stretched over the stack would
+come close to the head of a person leaning over it, and the speed and
+separation shield would stop it there) and near the person slowly (the
+shield lets a slow robot come closer). The only memory is the gripper's
+closing hysteresis, read from the observed aperture; so the expert can
+take over from any state (snapshots, an agent's states).
+
+Joint space: the same aims, through `steering.Steering` (one gripper-down
+IK step at the task's yaw at a time).
+"""
+
+import numpy as np
+
+from hrc_suite.experts import base
+from hrc_suite.experts import steering
+from hrc_suite.human import keypoints
+from hrc_suite.safety import geometry
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import stacking
+
+# TCP above a cube's centre when the fingers grasp it (the pads, 2 cm long
+# above the TCP, hold the cube's upper part; collision prevention keeps
+# the TCP at least 2.8 cm above the table, 3 mm above a cube's centre).
+GRIP_HEIGHT = 0.01           # m
+# Fetch: TCP height above the grasp point while travelling, and the cone
+# of the descent (height allowed per metre of horizontal error).
+HOVER = 0.10                 # m
+CONE_SLOPE = 3.0
+# Close the gripper when the TCP is this near the grasp point (the 8.5 cm
+# opening leaves 1.75 cm either side of a 5 cm cube) ...
+GRASP_XY = 0.008             # m
+GRASP_Z = 0.008              # m
+# ... and keep closing while the fingers travel (aperture between these,
+# normalised: a 5 cm cube stops them at 0.59) and the TCP stays near.
+CLOSING_APERTURE = (0.4, 0.95)
+CLOSING_REACH = 0.02         # m
+# Carrying: the cube's bottom this far above the top of the cube below.
+CARRY_CLEARANCE = 0.03       # m
+# Lift straight up first while the cube is more than LIFT_SLACK below the
+# carrying height and farther than LIFT_REACH from its slot sideways.
+LIFT_SLACK = 0.02            # m
+LIFT_REACH = 0.05            # m
+# Let go when the cube is this near its slot (it drops at most that far;
+# the task's tolerance is stacking.STACK_TOLERANCE, 2.5 cm).
+RELEASE_XY = 0.008           # m
+RELEASE_Z = 0.01             # m
+# Wait with the cube this far from the stack towards the robot base while
+# the person places theirs (m, horizontally).
+PARK_BACK = 0.25             # m
+# The person's hands must be this far from the stack's axis (horizontally)
+# before the robot carries a cube over it.
+HANDS_CLEAR = 0.3            # m
+# After letting go: the gripper is near the stack within NEAR_STACK
+# sideways and below RISE_CLEARANCE above the top cube: open the fingers
+# to at least OPEN_APERTURE, then back off.
+NEAR_STACK = 0.07            # m
+RISE_CLEARANCE = 0.05        # m
+OPEN_APERTURE = 0.8
+# Rest point at the end: this far back from the stack and above its top.
+REST_BACK = 0.3              # m
+REST_ABOVE = 0.1             # m
+# Speed limits, as a fraction of a full Cartesian step (0.1 m per RL step):
+# near the stack's slot (precise placing) and near the person. The speed
+# and separation shield brakes a robot whose braking distance reaches the
+# person's reachable set; a robot it stopped in the middle of a motion
+# needs more clearance to start again than a robot that keeps going
+# slowly (measured: stuck at 0.30 m after a fast approach, moving freely
+# at 0.27 m at 2 cm per step). So the robot slows down with the clearance
+# (robot capsules to the person's body capsules), linearly between the
+# points NEAR_HUMAN, HUMAN_SPEED.
+PLACE_SPEED = 0.25
+PLACE_ZONE = 0.05            # m from the aim
+NEAR_HUMAN = (0.2, 0.35, 0.65)   # m of clearance ...
+HUMAN_SPEED = (0.1, 0.2, 1.0)    # ... and the speed limits there
+OPEN, CLOSED = -1.0, 1.0
+_HANDS = np.array(keypoints.index(['left_hand', 'right_hand']))
+
+
+class StackingExpert(base.Expert):
+  """Fetches, carries, places cubes 2 and 4 in turn (stacking/default).
+
+  Privileged: none. Besides the observables it uses the task's models
+  (not state): the shield's robot capsules at the observed joint positions
+  and the person's body capsules at the observed keypoints, for the
+  clearance that sets its speed near the person.
+  """
+
+  OBSERVED = ('eef_position', 'joint_positions', 'gripper_aperture',
+              'object_gripped', 'cube_positions', 'stack_slots',
+              'cubes_stacked', 'human_keypoints')
+  TASKS = (('stacking', 'default'),)
+
+  def __init__(self, env):
+    super().__init__(env)
+    self._steer = steering.Steering(self._task)
+    self._size = float(self._task.cubes[0].size)
+    self._base = np.asarray(self._task.kinematics.base_pose)[:3, 3].copy()
+    shield = self._task.shield
+    self._robot_capsules = shield.robot.capsules
+    self._body_capsules = shield.human.body_capsules
+    self.phase = None   # What the last action did (for inspection).
+
+  # ----------------------------------------------------------- state
+
+  def _state(self, obs):
+    """The observed state the decisions are made from."""
+    tcp = obs['eef_position']
+    cubes = obs['cube_positions']
+    slots = obs['stack_slots']
+    in_slot = (np.linalg.norm(cubes - slots, axis=1)
+               < stacking.STACK_TOLERANCE)
+    in_slot = np.logical_and.accumulate(in_slot)   # Stacked from cube 1.
+    stacked = (obs['cubes_stacked'] > 0.5) & in_slot
+    gripped = bool(obs['object_gripped'][0] > 0.5)
+    # The gripped cube is the one between the fingers.
+    between = np.linalg.norm(cubes - (tcp - [0.0, 0.0, GRIP_HEIGHT]), axis=1)
+    held = int(np.argmin(between)) if gripped else None
+    if held is not None and between[held] > self._size:
+      held = None
+    return tcp, cubes, slots, stacked, held
+
+  # ---------------------------------------------------------- actions
+
+  def action(self, observation):
+    obs = observation
+    tcp, cubes, slots, stacked, held = self._state(obs)
+    aperture = float(obs['gripper_aperture'][0])
+    axis = slots[0, :2]
+    top = self._stack_top(cubes, stacked)
+    todo = [i for i in stacking.ROBOT_CUBES
+            if not (stacked[i] and held != i)]
+    speed = 1.0
+    if held is None and (np.linalg.norm(tcp[:2] - axis) < NEAR_STACK
+                         and tcp[2] < top + RISE_CLEARANCE):
+      # Just let go on the stack: open fully, then back off towards the
+      # robot (the open fingers straddle the cube along y, so a move along
+      # the stack-to-base direction clears it; rising would bring the
+      # wrist closer to the head of a person leaning over the stack).
+      if aperture < OPEN_APERTURE:
+        self.phase, aim = 'open', tcp.copy()
+      else:
+        self.phase = 'withdraw'
+        aim = self._back_from_stack(axis, 2 * NEAR_STACK, tcp[2] + 0.01)
+      gripper, speed = OPEN, PLACE_SPEED
+    elif not todo:
+      self.phase, gripper = 'rest', OPEN
+      aim = self._back_from_stack(axis, REST_BACK, slots[3, 2] + REST_ABOVE)
+    elif held is None:
+      aim, gripper = self._fetch(tcp, cubes[todo[0]], aperture)
+    elif held != todo[0]:
+      # Holding some other cube (not the robot's next one): put it down
+      # where it is and let go.
+      self.phase, aim, gripper = 'drop', tcp.copy(), OPEN
+    else:
+      aim, gripper, speed = self._carry(obs, tcp, cubes, slots, stacked,
+                                        held)
+    speed = min(speed, self._human_speed(obs))
+    delta = aim - tcp
+    norm = np.linalg.norm(delta)
+    limit = speed * actions.CARTESIAN_STEP
+    if norm > limit:
+      aim = tcp + delta * (limit / norm)
+    return self._steer.action(aim, tcp, obs['joint_positions'], gripper)
+
+  def _stack_top(self, cubes, stacked):
+    """Height of the top of the stacked cubes (the table without any)."""
+    if not stacked[0]:
+      return cubes[0, 2] + self._size / 2
+    count = int(np.argmin(np.append(stacked, False)))
+    return float(cubes[count - 1, 2] + self._size / 2)
+
+  def _back_from_stack(self, axis, distance, height):
+    """A point `distance` from the stack's axis towards the robot base."""
+    direction = self._base[:2] - axis
+    direction /= max(np.linalg.norm(direction), 1e-9)
+    return np.append(axis + distance * direction, height)
+
+  def _fetch(self, tcp, cube, aperture):
+    """Aim and gripper command to grasp `cube` (centre) from above."""
+    grasp = cube + [0.0, 0.0, GRIP_HEIGHT]
+    error = np.linalg.norm(tcp[:2] - grasp[:2])
+    height = tcp[2] - grasp[2]
+    closing = (CLOSING_APERTURE[0] < aperture < CLOSING_APERTURE[1]
+               and np.linalg.norm(tcp - grasp) < CLOSING_REACH)
+    if (error < GRASP_XY and abs(height) < GRASP_Z) or closing:
+      self.phase = 'grasp'
+      return grasp, CLOSED
+    self.phase = 'fetch'
+    aim = grasp + [0.0, 0.0, min(HOVER, CONE_SLOPE * error)]
+    if aperture < CLOSING_APERTURE[1] and height < HOVER / 2:
+      aim = tcp.copy()   # A failed grasp: open before moving on.
+    return aim, OPEN
+
+  def _carry(self, obs, tcp, cubes, slots, stacked, held):
+    """Aim, gripper command and speed with cube `held` in the gripper."""
+    cube, slot = cubes[held], slots[held]
+    offset = tcp - cube   # Where the TCP holds the cube.
+    carry_z = slot[2] + CARRY_CLEARANCE
+    error = np.linalg.norm(cube[:2] - slot[:2])
+    below_ready = bool(stacked[held - 1])
+    hands = obs['human_keypoints'][_HANDS]
+    clear = np.min(np.linalg.norm(hands[:, :2] - slot[:2], axis=1))
+    if error < RELEASE_XY and abs(cube[2] - slot[2]) < RELEASE_Z:
+      self.phase = 'release'
+      return tcp.copy(), OPEN, PLACE_SPEED
+    if cube[2] < carry_z - LIFT_SLACK and error > LIFT_REACH:
+      self.phase = 'lift'
+      return np.append(tcp[:2], carry_z + offset[2]), CLOSED, 1.0
+    if not below_ready or (clear < HANDS_CLEAR and error > LIFT_REACH):
+      self.phase = 'park'
+      park = self._back_from_stack(slot[:2], PARK_BACK, carry_z)
+      return park + offset, CLOSED, 1.0
+    self.phase = 'place'
+    goal = slot + [0.0, 0.0, min(CARRY_CLEARANCE, CONE_SLOPE * error)]
+    speed = PLACE_SPEED if np.linalg.norm(goal - cube) < PLACE_ZONE else 1.0
+    return goal + offset, CLOSED, speed
+
+  def clearance(self, obs):
+    """Distance (m) between the robot's and the person's capsules."""
+    r1, r2, rr = self._robot_capsules(obs['joint_positions'])
+    h1, h2, hr = self._body_capsules(obs['human_keypoints'])
+    return float(geometry.capsule_distance(
+        r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
+        hr[None]).min())
+
+  def _human_speed(self, obs):
+    """Speed limit from the clearance to the person."""
+    return float(np.interp(self.clearance(obs), NEAR_HUMAN, HUMAN_SPEED))
