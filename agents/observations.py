@@ -9,6 +9,7 @@ by default they raise an error; `images='skip'` leaves them out and
 """
 
 import collections
+import collections.abc
 
 import numpy as np
 

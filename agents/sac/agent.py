@@ -58,8 +58,8 @@ class SACAgent:
     if not isinstance(self._config, config_lib.SACConfig):
       raise TypeError(f'config must be a SACConfig, got '
                       f'{type(self._config).__name__}')
-    self._seed = int(seed) if not isinstance(seed, bool) else seed
     learner_seed, actor_seed, replay_seed = _seeds(seed, 3)
+    self._seed = int(seed)
     self._images = images
     self._flattener = observations.ObservationFlattener(
         environment_spec.observations, images=images)

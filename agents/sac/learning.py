@@ -2,8 +2,9 @@
 
 Per gradient step on a batch (s, a, r, d, s') (Haarnoja et al. 2018):
 
-* critic: y = r + gamma d (min_j Q'_j(s', a') - alpha log pi(a'|s')) with
-  a' ~ pi(.|s') and target critics Q'; loss = mean_j 0.5 (Q_j(s, a) - y)^2;
+* critic: y = c r + gamma d (min_j Q'_j(s', a') - alpha log pi(a'|s')) with
+  a' ~ pi(.|s'), target critics Q' and reward scale c;
+  loss = mean_j 0.5 (Q_j(s, a) - y)^2;
 * policy: loss = alpha log pi(a~|s) - min_j Q_j(s, a~), a~ ~ pi(.|s)
   reparameterised, with the critics before this step's critic update;
 * temperature: loss = alpha (-log pi(a~|s) - H_target) with the entropy
@@ -129,7 +130,8 @@ class _UpdateFunctions:
                               next_action)
     next_value = jnp.min(next_q, axis=-1) - temperature * next_log_prob
     target = jax.lax.stop_gradient(
-        batch.reward + self.config.discount * batch.discount * next_value)
+        self.config.reward_scale * batch.reward
+        + self.config.discount * batch.discount * next_value)
     q = networks.q_apply(q_params, batch.observation, batch.action)
     loss = 0.5 * jnp.mean(jnp.square(q - target[:, None]))
     return loss, (q, target)

@@ -30,6 +30,7 @@ def test_default_preset():
   assert default.initial_temperature == 1.0
   assert default.updates_per_step == 1.0 and default.update_every == 1
   assert default.max_grad_norm is None
+  assert default.reward_scale == 1.0
 
 
 def test_config_from_name_applies_overrides():
@@ -54,7 +55,7 @@ def test_unknown_names_are_rejected():
     ('hidden_sizes', (64, 0)), ('initial_temperature', -1.0),
     ('updates_per_step', -1.0), ('update_every', 0),
     ('max_grad_norm', 0.0), ('min_replay_size', -1),
-    ('target_entropy', float('nan'))])
+    ('target_entropy', float('nan')), ('reward_scale', 0.0)])
 def test_bad_values_name_the_field(field, value):
   with pytest.raises(ValueError, match=field):
     config.default_config(**{field: value})

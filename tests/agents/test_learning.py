@@ -48,6 +48,14 @@ def test_critic_loss_decreases_on_a_fixed_batch():
   assert learner.steps == 301
 
 
+def test_terminal_targets_are_the_scaled_rewards():
+  batch = _batch()._replace(discount=np.zeros(64, np.float32))
+  for scale in (1.0, 20.0):
+    metrics = _learner(reward_scale=scale).update(batch)
+    assert metrics['target_q_values'] == pytest.approx(
+        scale * batch.reward.mean(), rel=1e-5)
+
+
 def test_temperature_falls_while_entropy_is_above_target():
   learner = _learner(target_entropy=-10.0, learning_rate=1e-2)
   metrics = [learner.update(_batch(seed=i)) for i in range(30)]
