@@ -26,6 +26,7 @@ import numpy as np
 from agents import config as config_lib
 from agents import loop as loop_lib
 from agents import specs as specs_lib
+from agents.sac import agent as agent_lib
 from hrc_suite import suite
 
 # The paper's cost figure: seconds per 10^3 RL steps of training on ten
@@ -49,7 +50,6 @@ def _timed(function):
 def measure(steps=1000, warmup=300, batch_size=256, hidden_sizes=(256, 256),
             robot='schunk', seed=0):
   """{section: (steps, wall s, cpu s)} of the four measurements."""
-  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
   if warmup < batch_size + 2:
     raise ValueError(f'warmup ({warmup}) must exceed batch_size '
                      f'({batch_size}) so that updates (and their compilation)'
@@ -100,19 +100,23 @@ def format_results(results):
   return '\n'.join(lines)
 
 
-def define_flags():
+def define_flags(flag_values=flags.FLAGS):
   """Defines the binary's flags (only when run as a program)."""
-  flags.DEFINE_integer('steps', 1000, 'Timed steps per section.')
-  flags.DEFINE_integer('warmup', 300, 'Training steps before timing.')
-  flags.DEFINE_integer('batch_size', 256, 'SAC batch size.')
-  flags.DEFINE_list('hidden_sizes', ['256', '256'], 'MLP hidden sizes.')
-  flags.DEFINE_string('robot', 'schunk', 'Robot.')
-  flags.DEFINE_integer('seed', 0, 'Seed.')
+  fv = flag_values
+  flags.DEFINE_integer('steps', 1000, 'Timed steps per section.',
+                       flag_values=fv)
+  flags.DEFINE_integer('warmup', 300, 'Training steps before timing.',
+                       flag_values=fv)
+  flags.DEFINE_integer('batch_size', 256, 'SAC batch size.', flag_values=fv)
+  flags.DEFINE_list('hidden_sizes', ['256', '256'], 'MLP hidden sizes.',
+                    flag_values=fv)
+  flags.DEFINE_string('robot', 'schunk', 'Robot.', flag_values=fv)
+  flags.DEFINE_integer('seed', 0, 'Seed.', flag_values=fv)
 
 
-def main(argv):
+def main(argv, flag_values=flags.FLAGS):
   del argv
-  f = flags.FLAGS
+  f = flag_values
   results = measure(steps=f.steps, warmup=f.warmup, batch_size=f.batch_size,
                     hidden_sizes=[int(h) for h in f.hidden_sizes],
                     robot=f.robot, seed=f.seed)

@@ -21,6 +21,7 @@ from agents import checkpoints
 from agents import loop as loop_lib
 from agents import statistics
 from agents import train as train_lib
+from agents.sac import agent as agent_lib
 
 # Seed purpose of evaluate's environment (train uses 0, 1, 2).
 _EVALUATE_ENV = 3
@@ -84,7 +85,6 @@ def run(checkpoint, episodes, seed=None):
   if seed is None:
     seed = train_lib.derived_seed(run_config['seed'], _EVALUATE_ENV)
   env = train_lib.make_environment(run_config, seed)
-  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
   policy = agent_lib.load_policy(
       os.path.join(directory, checkpoints.AGENT_DIR), env,
       deterministic=True)
@@ -92,19 +92,21 @@ def run(checkpoint, episodes, seed=None):
   return results, summary(results, np.random.RandomState(seed))
 
 
-def define_flags():
+def define_flags(flag_values=flags.FLAGS):
   """Defines the binary's flags (only when run as a program)."""
+  fv = flag_values
   flags.DEFINE_string('checkpoint', None, 'Checkpoint or run directory.',
-                      required=True)
-  flags.DEFINE_integer('episodes', 20, 'Episodes to run.')
+                      required=True, flag_values=fv)
+  flags.DEFINE_integer('episodes', 20, 'Episodes to run.', flag_values=fv)
   flags.DEFINE_integer('seed', None, 'Environment seed (default: derived '
-                       'from the run seed).')
-  flags.DEFINE_string('output', None, 'JSON file for the results.')
+                       'from the run seed).', flag_values=fv)
+  flags.DEFINE_string('output', None, 'JSON file for the results.',
+                      flag_values=fv)
 
 
-def main(argv):
+def main(argv, flag_values=flags.FLAGS):
   del argv
-  f = flags.FLAGS
+  f = flag_values
   results, table = run(f.checkpoint, f.episodes, f.seed)
   print(f'checkpoint: {checkpoints.resolve(f.checkpoint)}')
   print(format_table(table, len(results)))

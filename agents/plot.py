@@ -170,24 +170,26 @@ def draw(curves, out, title):
   return paths
 
 
-def define_flags():
+def define_flags(flag_values=flags.FLAGS):
   """Defines the binary's flags (only when run as a program)."""
+  fv = flag_values
   flags.DEFINE_list('logdirs', None, 'Run directories (comma-separated).',
-                    required=True)
+                    required=True, flag_values=fv)
   flags.DEFINE_string('out', 'curves.png', 'Output PNG; an SVG with the same '
-                      'stem is written too.')
+                      'stem is written too.', flag_values=fv)
   flags.DEFINE_float('expert_return', None, 'Mean expert episode return '
-                     '(overrides the experts file).')
+                     '(overrides the experts file).', flag_values=fv)
   flags.DEFINE_string('experts_json', _DEFAULT_EXPERTS,
-                      'Experts file (used when present).')
+                      'Experts file (used when present).', flag_values=fv)
   flags.DEFINE_integer('resamples', statistics.DEFAULT_RESAMPLES,
-                       'Bootstrap resamples.')
-  flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.')
+                       'Bootstrap resamples.', flag_values=fv)
+  flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.',
+                       flag_values=fv)
 
 
-def main(argv):
+def main(argv, flag_values=flags.FLAGS):
   del argv
-  f = flags.FLAGS
+  f = flag_values
   if f.expert_return is None and not os.path.exists(f.experts_json):
     logging.warning('No expert return (%s absent, no --expert_return): '
                     'plotting the raw return', f.experts_json)

@@ -27,13 +27,17 @@ from absl import app
 from absl import flags
 from absl import logging
 import numpy as np
+import tqdm
 
 from agents import checkpoints
 from agents import config as config_lib
+from agents import imitation
 from agents import logging as logging_lib
 from agents import loop as loop_lib
 from agents import specs as specs_lib
+from agents.sac import agent as agent_lib
 from hrc_suite import suite
+from hrc_suite.experts import dataset as dataset_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
 AGENTS = ('sac', 'rsi', 'sir', 'air')
@@ -132,10 +136,8 @@ def make_training_environment(run_config):
                                                   _TRAIN_ENV))
   if run_config['agent'] == 'sac':
     return env
-  from agents import imitation   # pylint: disable=g-import-not-at-top
   dataset = None
   if run_config['dataset']:
-    from hrc_suite.experts import dataset as dataset_lib   # pylint: disable=g-import-not-at-top
     dataset = dataset_lib.load_dataset(run_config['dataset'])
   return imitation.wrap(env, run_config['agent'], dataset=dataset,
                         seed=derived_seed(run_config['seed'], _IMITATION),
@@ -160,7 +162,6 @@ def random_states(env):
 
 def make_agent(run_config, env):
   """The run's agent (SACAgent) for env, seeded from the run seed."""
-  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
   sac_config = config_lib.SACConfig(**run_config['sac_config'])
   return agent_lib.SACAgent(specs_lib.make_environment_spec(env), sac_config,
                             seed=derived_seed(run_config['seed'], _AGENT))
@@ -223,7 +224,6 @@ class _Progress:
   def __init__(self, enabled, total, initial):
     self._bar = None
     if enabled:
-      import tqdm   # pylint: disable=g-import-not-at-top
       self._bar = tqdm.tqdm(total=total, initial=initial, unit='step',
                             dynamic_ncols=True, smoothing=0.05)
 
@@ -346,44 +346,50 @@ def train(run_config, logdir, resume=False, progress=False):
   return agent, dict(state, counter=loop.counter.state())
 
 
-def define_flags():
+def define_flags(flag_values=flags.FLAGS):
   """Defines the binary's flags (only when run as a program, so that the
   module can be imported next to the other binaries)."""
-  flags.DEFINE_string('domain', 'reach', 'Task domain.')
-  flags.DEFINE_string('task', 'dense', 'Task name within the domain.')
-  flags.DEFINE_string('robot', 'schunk', 'Robot name.')
+  fv = flag_values
+  flags.DEFINE_string('domain', 'reach', 'Task domain.', flag_values=fv)
+  flags.DEFINE_string('task', 'dense', 'Task name within the domain.',
+                      flag_values=fv)
+  flags.DEFINE_string('robot', 'schunk', 'Robot name.', flag_values=fv)
   flags.DEFINE_enum('action_space', 'cartesian', ['joint', 'cartesian'],
-                    'Action space.')
+                    'Action space.', flag_values=fv)
   flags.DEFINE_string('task_kwargs', '{}', 'JSON dict of further task '
-                      'kwargs, e.g. \'{"time_limit": 5.0}\'.')
+                      'kwargs, e.g. \'{"time_limit": 5.0}\'.', flag_values=fv)
   flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent: plain SAC or an '
-                    'imitation variant (agents.imitation).')
+                    'imitation variant (agents.imitation).', flag_values=fv)
   flags.DEFINE_string('dataset', None, 'Expert dataset directory (rsi, '
-                      'sir): python -m agents.collect_expert.')
+                      'sir): python -m agents.collect_expert.', flag_values=fv)
   flags.DEFINE_string('imitation_kwargs', '{}', 'JSON dict of the imitation '
-                      'wrapper\'s kwargs, e.g. \'{"probability": 0.5}\'.')
+                      'wrapper\'s kwargs, e.g. \'{"probability": 0.5}\'.',
+                      flag_values=fv)
   flags.DEFINE_enum('config', 'default', list(config_lib.CONFIGS),
-                    'SAC preset.')
+                    'SAC preset.', flag_values=fv)
   flags.DEFINE_multi_string(
       'override', [], 'SACConfig field=value (value as JSON), repeatable, '
-      'e.g. --override=min_replay_size=100.')
-  flags.DEFINE_integer('seed', 0, 'Run seed.')
-  flags.DEFINE_integer('steps', 200_000, 'Environment steps.')
+      'e.g. --override=min_replay_size=100.', flag_values=fv)
+  flags.DEFINE_integer('seed', 0, 'Run seed.', flag_values=fv)
+  flags.DEFINE_integer('steps', 200_000, 'Environment steps.', flag_values=fv)
   flags.DEFINE_integer('eval_every', 10_000,
-                       'Steps between evaluations (0: none).')
-  flags.DEFINE_integer('eval_episodes', 20, 'Episodes per evaluation.')
+                       'Steps between evaluations (0: none).', flag_values=fv)
+  flags.DEFINE_integer('eval_episodes', 20, 'Episodes per evaluation.',
+                       flag_values=fv)
   flags.DEFINE_integer(
       'checkpoint_every', 50_000, 'Steps between checkpoints (taken at the '
-      'next episode end; 0: only at the end of the run).')
-  flags.DEFINE_string('logdir', None, 'Run directory.', required=True)
+      'next episode end; 0: only at the end of the run).', flag_values=fv)
+  flags.DEFINE_string('logdir', None, 'Run directory.', required=True,
+                      flag_values=fv)
   flags.DEFINE_bool('resume', False, 'Continue from the latest checkpoint in '
-                    '--logdir (a fresh start if there is none).')
-  flags.DEFINE_bool('progress', True, 'Show a progress bar.')
+                    '--logdir (a fresh start if there is none).',
+                    flag_values=fv)
+  flags.DEFINE_bool('progress', True, 'Show a progress bar.', flag_values=fv)
 
 
-def main(argv):
+def main(argv, flag_values=flags.FLAGS):
   del argv
-  f = flags.FLAGS
+  f = flag_values
   run_config = make_run_config(
       f.domain, f.task, f.robot, f.action_space, agent=f.agent,
       config=f.config, overrides=parse_overrides(f.override),

@@ -5,12 +5,17 @@ import glob
 import json
 import os
 
+from absl import flags
 import numpy as np
 import pytest
 
 from agents import checkpoints
+from agents import evaluate
 from agents import logging as logging_lib
+from agents import plot
 from agents import train
+from agents.sac import agent as agent_lib
+from hrc_suite.experts import dataset as dataset_lib
 
 # Ten-step episodes of reach/dense and a tiny SAC, so that runs take seconds.
 _TASK_KWARGS = {'time_limit': 1.0}
@@ -49,14 +54,28 @@ def _deterministic_rows(path):
   return [{k: v for k, v in row.items() if k not in _TIMING} for row in rows]
 
 
+def _run_binary(module, args):
+  """Runs a binary's main with its command-line flags (own FlagValues)."""
+  flag_values = flags.FlagValues()
+  module.define_flags(flag_values)
+  flag_values([module.__name__] + list(args))
+  module.main([], flag_values=flag_values)
+
+
 @pytest.fixture(scope='module')
 def two_runs(tmp_path_factory):
+  """Seed 0 trained through the function, seed 1 through the command line
+  (the same configuration)."""
   root = tmp_path_factory.mktemp('runs')
-  logdirs = []
-  for seed in (0, 1):
-    logdir = str(root / f'seed{seed}')
-    train.train(_run_config(seed=seed), logdir)
-    logdirs.append(logdir)
+  logdirs = [str(root / 'seed0'), str(root / 'seed1')]
+  train.train(_run_config(seed=0), logdirs[0])
+  _run_binary(train, [
+      '--domain=reach', '--task=dense', '--robot=schunk',
+      '--action_space=cartesian', '--task_kwargs=' + json.dumps(_TASK_KWARGS),
+      '--override=min_replay_size=16', '--override=batch_size=8',
+      '--override=hidden_sizes=[16, 16]', '--seed=1', '--steps=60',
+      '--eval_every=25', '--eval_episodes=2', '--checkpoint_every=20',
+      f'--logdir={logdirs[1]}', '--noprogress'])
   return logdirs
 
 
@@ -93,7 +112,6 @@ def test_train_writes_logs_and_checkpoints(two_runs):
 
 
 def test_evaluate_checkpoint(two_runs):
-  from agents import evaluate   # pylint: disable=g-import-not-at-top
   results, summary = evaluate.run(two_runs[0], episodes=2, seed=7)
   assert len(results) == 2
   assert all(r['episode_length'] == 10 for r in results)
@@ -104,18 +122,28 @@ def test_evaluate_checkpoint(two_runs):
   assert again == results   # Deterministic policy, same seed.
   table = evaluate.format_table(summary, len(results))
   assert 'success rate' in table and 'shield interventions' in table
+  output = os.path.join(os.path.dirname(two_runs[0]), 'evaluation.json')
+  _run_binary(evaluate, [f'--checkpoint={two_runs[1]}', '--episodes=1',
+                         f'--output={output}'])
+  written = checkpoints.read_json(output)
+  assert len(written['episodes']) == 1
+  assert 0.0 <= written['summary']['success']['mean'] <= 1.0
   with pytest.raises(ValueError, match='No checkpoint'):
     evaluate.run(os.path.dirname(two_runs[0]), episodes=1)
 
 
 def test_plot_two_runs(two_runs, tmp_path):
-  from agents import plot   # pylint: disable=g-import-not-at-top
   curves = plot.learning_curves(two_runs, np.random.RandomState(0),
                                 expert=0.0, num_resamples=1000)
   assert len(curves) == 1 and curves[0].seeds == [0, 1]
   np.testing.assert_array_equal(curves[0].steps, [0, 25, 50])
   png, svg = plot.draw(curves, str(tmp_path / 'curves.png'), 'reach/dense')
   assert os.path.getsize(png) > 10_000 and os.path.getsize(svg) > 10_000
+  out = str(tmp_path / 'cli' / 'curves.png')
+  _run_binary(plot, ['--logdirs=' + ','.join(two_runs), f'--out={out}',
+                     '--resamples=200', '--expert_return=0'])
+  assert os.path.getsize(out) > 10_000
+  assert os.path.getsize(out[:-4] + '.svg') > 10_000
 
 
 def test_resume_matches_an_uninterrupted_run(two_runs, tmp_path):
@@ -167,7 +195,6 @@ def test_bad_run_configs():
 
 
 def test_policy_of_a_run_for_rendering(two_runs):
-  from agents.sac import agent as agent_lib   # pylint: disable=g-import-not-at-top
   directory = checkpoints.agent_directory(two_runs[0])
   assert directory == os.path.join(checkpoints.latest(two_runs[0]), 'agent')
   assert checkpoints.agent_directory(directory) == directory
@@ -193,7 +220,6 @@ def test_resume_without_a_checkpoint_starts_afresh(tmp_path):
 
 
 def test_imitation_agents_train_and_resume_exactly(tmp_path):
-  from hrc_suite.experts import dataset as dataset_lib   # pylint: disable=g-import-not-at-top
   data = str(tmp_path / 'dataset')
   dataset_lib.collect(data, 'reach', 'dense', task_kwargs=dict(
       _TASK_KWARGS, robot='schunk', action_space='cartesian'), episodes=2)
