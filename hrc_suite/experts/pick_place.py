@@ -46,10 +46,14 @@ CLOSE_XY = 0.035           # m
 CLOSE_DZ = 0.015           # m
 # Descent cone: the allowed height over the grasp or place point grows by
 # CONE_SLOPE per metre of horizontal error beyond CONE_RADIUS.
-CONE_RADIUS = 0.01         # m
+CONE_RADIUS = 0.02         # m
 CONE_SLOPE = 4.0
 # A TCP more than this below the cone rises vertically first.
-BELOW_CONE = 0.02          # m
+BELOW_CONE = 0.03          # m
+# Within NEAR of the grasp or place aim the TCP asks for GAIN of the way
+# per step: the arm (shield plans at 2 rad/s^2) brakes without overshooting.
+NEAR = 0.1                 # m
+GAIN = 0.5
 # TCP above the target's resting-cube centre when placing (cube 2 cm over
 # its resting height, TCP at the grasp offset above the cube centre).
 PLACE_ABOVE = 0.02 + pick_place.GRASP_TCP_ABOVE_CENTRE   # m
@@ -143,5 +147,7 @@ class PickPlaceExpert(base.Expert):
 
   def action(self, observation):
     self.phase, aim, gripper = self.plan(observation)
-    return self._steer.action(aim, observation['eef_position'],
-                              observation['joint_positions'], gripper)
+    tcp = observation['eef_position']
+    gain = GAIN if np.linalg.norm(aim - tcp) < NEAR else 1.0
+    return self._steer.action(aim, tcp, observation['joint_positions'],
+                              gripper, gain=gain)

@@ -61,3 +61,39 @@ def test_aim_is_reached_gripper_down(robot, space):
   z_axis = physics.bind(task.robot.tcp_site).xmat.reshape(3, 3)[:, 2]
   assert z_axis[2] < -0.99
   assert task.episode_metrics['ik_failures'] == 0
+
+
+def test_gain_asks_for_part_of_the_way():
+  env = _env('pick_place', 'default', 'panda', 'cartesian')
+  env.reset()
+  steer = steering.Steering(env.task)
+  tcp = np.array([0.5, 0.0, 1.0])
+  np.testing.assert_allclose(
+      steer.action(tcp + (0.06, 0, 0), tcp, None, gripper=0.0, gain=0.5),
+      [0.3, 0, 0, 0])
+  with pytest.raises(ValueError, match='gain must be in'):
+    steer.action(tcp, tcp, None, gripper=0.0, gain=0.0)
+
+
+@pytest.mark.parametrize('space', ('cartesian', 'joint'))
+def test_joint_goals_stay_within_what_the_robot_can_follow(space):
+  env = _env('pick_place', 'default', 'schunk', space, seed=1)
+  env.reset()
+  task, physics = env.task, env.physics
+  steer = steering.Steering(task)
+  limit = steer.max_joint_step
+  np.testing.assert_allclose(
+      limit, steering.SPEED_HEADROOM * 0.1
+      * np.asarray(task.robot.description.limits.v_max))
+  # Down onto the table in front of the base: the arm folds, and a 0.1 m
+  # Cartesian step would need more than the limit in some joint.
+  aim = task.object_position(physics) + (0, 0, 0.01)
+  for _ in range(12):
+    q = task.robot.joint_positions(physics)
+    tcp = task.robot.tcp_pose(physics)[0]
+    env.step(steer.action(aim, tcp, q, gripper=-1.0))
+    # Cartesian: the step is scaled linearly from the predicted IK, so the
+    # limit holds to first order (a few percent).
+    assert np.all(np.abs(task.q_goal - q) <= 1.05 * limit)
+  unlimited = steering.Steering(task, limit_speed=False)
+  assert unlimited.max_joint_step is None
