@@ -136,6 +136,23 @@ def test_the_human_takes_cube_3_only_after_putting_cube_1_down():
                              atol=1e-3)
 
 
+@pytest.mark.parametrize('seed', (2, 9))
+def test_the_human_sets_a_cube_down_upright_and_at_rest(seed):
+  env = _env(time_limit=20.0, seed=seed)
+  env.reset()
+  task = env.task
+  tilts = []
+  while task._human_state[0] != stacking.RELEASED:
+    env.step(_still(env))
+    if task._human_state[0] == stacking.HELD:
+      tilts.append(np.abs(task.cubes[0].quaternion(env.physics)[1:3]).max())
+  assert max(tilts) > 0.02   # The hand tilts the cube it carries ...
+  quaternion = task.cubes[0].quaternion(env.physics)
+  assert np.abs(quaternion[1:3]).max() < 1e-3   # ... and sets it down level,
+  velocity = env.physics.bind(task.cubes[0].body).cvel
+  assert np.abs(velocity).max() < 0.05   # at rest (a step of settling).
+
+
 def test_toppled_stack_ends_the_episode_with_minus_ten():
   env = _env(time_limit=20.0, seed=2, reward_delay=0)
   env.reset()
