@@ -1,0 +1,109 @@
+"""Pick-and-place expert: picks and places on the Schunk (2 of 3 seeds),
+phases follow the state, recovers from a dropped cube and from noise."""
+
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.experts import noise as noise_lib
+from hrc_suite.experts import pick_place as pick_place_expert
+from hrc_suite.tasks import metrics
+from hrc_suite.tasks import pick_place
+
+
+def _env(robot='schunk', space='cartesian', variant='default', seed=0,
+         **kwargs):
+  return suite.load('pick_place', variant, task_kwargs={
+      'robot': robot, 'action_space': space, **kwargs},
+                    environment_kwargs={'random_state': seed})
+
+
+def _successes(robot, space, variant, seeds=3):
+  successes = 0
+  for seed in range(seeds):
+    env = _env(robot, space, variant, seed)
+    result = metrics.run_episode(env, experts.make(env))
+    assert result['contacts_human_critical'] == 0
+    assert result['contacts_static'] == 0 and result['self_collisions'] == 0
+    if result['success']:
+      assert result['grasps'] >= 1
+      assert env.task.step_metrics['reward'] == pick_place.REWARD_SUCCESS
+    successes += int(result['success'])
+  return successes
+
+
+def test_cone_aim_rises_first_then_descends_inside_the_cone():
+  point = np.array([0.4, 0.2, 0.85])
+  far_low = np.array([0.4, -0.2, 0.86])
+  aim = pick_place_expert.cone_aim(point, far_low, hover=0.2)
+  np.testing.assert_allclose(aim, [0.4, -0.2, 1.05])   # Straight up.
+  # 4 cm off: the cone allows slope x (4 - 2) cm above the point.
+  high = np.array([0.4, 0.16, 0.95])
+  aim = pick_place_expert.cone_aim(point, high, hover=0.2)
+  np.testing.assert_allclose(aim[:2], point[:2])
+  assert aim[2] == pytest.approx(0.85 + pick_place_expert.CONE_SLOPE * (
+      0.04 - pick_place_expert.CONE_RADIUS))
+  above = np.array([0.4, 0.2, 1.0])
+  np.testing.assert_allclose(
+      pick_place_expert.cone_aim(point, above, hover=0.2), point)
+
+
+@pytest.mark.parametrize('variant', ('default', 'close'))
+def test_schunk_cartesian_two_of_three(variant):
+  assert _successes('schunk', 'cartesian', variant) >= 2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('variant', ('default', 'close'))
+@pytest.mark.parametrize('robot', ('schunk', 'panda'))
+def test_joint_space_two_of_three(robot, variant):
+  assert _successes(robot, 'joint', variant) >= 2
+
+
+def test_phases_follow_the_state_and_a_dropped_cube_is_picked_again():
+  env = _env('panda', 'cartesian', seed=3, done_at_success=False)
+  expert = experts.make(env)
+  timestep = env.reset()
+  task, physics = env.task, env.physics
+  phases = []
+  while 'carry' not in phases or task.object_position(physics)[2] < 0.93:
+    timestep = env.step(expert(timestep))
+    phases.append(expert.phase)
+    assert len(phases) < 200
+  assert phases[0] == 'approach' and 'close' in phases
+  assert timestep.observation['object_gripped'][0] == 1.0
+  # The cube falls out of the hand back onto the table, away from the TCP:
+  # the expert sees it is not in the hand and picks it up again.
+  start = task.object_position(physics)
+  task.cube.set_pose(physics, position=np.array([start[0] - 0.05, start[1],
+                                                 0.84]))
+  env.physics.forward()
+  for _ in range(150):
+    timestep = env.step(expert(timestep))
+    if task.episode_metrics['grasps'] >= 2:
+      break
+  assert task.episode_metrics['grasps'] >= 2
+  assert expert.phase in ('carry', 'close', 'release')
+
+
+def test_noisy_expert_still_succeeds():
+  env = _env('panda', 'cartesian', seed=4)
+  noise = noise_lib.OrnsteinUhlenbeckNoise.reference(
+      env.action_spec().shape[0], 'cartesian')
+  noisy = experts.make(env, noise=noise)
+  result = metrics.run_episode(env, noisy)
+  assert result['success'] == 1.0 and result['contacts_human_critical'] == 0
+
+
+def test_same_seed_same_actions():
+  runs = []
+  for _ in range(2):
+    env = _env('panda', 'joint', seed=5, time_limit=3.0)
+    expert = experts.make(env)
+    timestep, actions = env.reset(), []
+    while not timestep.last():
+      actions.append(expert(timestep))
+      timestep = env.step(actions[-1])
+    runs.append(np.array(actions))
+  np.testing.assert_array_equal(runs[0], runs[1])
