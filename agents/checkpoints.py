@@ -12,7 +12,9 @@ A run's log directory holds
                              environment's and its wrappers' RandomState
                              scalars, the run config) and
                              random_states.npz (their Mersenne-Twister
-                             keys)
+                             keys); episode.npz if the checkpoint was
+                             taken inside an episode (the task's snapshot
+                             and the last observation)
 
 A checkpoint is written into a temporary directory that is renamed into
 place, then `latest` is replaced atomically, so an interrupted write never
@@ -26,11 +28,16 @@ import shutil
 
 import numpy as np
 
+from hrc_suite.tasks import snapshots
+
 KEEP = 2                     # checkpoints kept per run
 _LATEST = 'latest'
 _PREFIX = 'step_'
 _LOOP_FILE = 'loop.json'
 _RNG_FILE = 'random_states.npz'
+_EPISODE_FILE = 'episode.npz'
+_TASK_PREFIX = 'task/'
+_OBSERVATION_PREFIX = 'observation/'
 AGENT_DIR = 'agent'
 
 
@@ -67,7 +74,7 @@ def random_state_from_arrays(key, scalars):
           float(scalars['cached_gaussian']))
 
 
-def save(logdir, steps, agent, loop_state, random_states):
+def save(logdir, steps, agent, loop_state, random_states, episode=None):
   """Writes checkpoint step_<steps> of a run and points `latest` to it.
 
   Args:
@@ -77,6 +84,10 @@ def save(logdir, steps, agent, loop_state, random_states):
     loop_state: JSON-ready dict (counters, schedules, run config).
     random_states: {name: np.random.RandomState} of the training
       environment (and its wrappers).
+    episode: None at an episode boundary, else (info, observation, task
+      snapshot) of the episode in progress: the loop's JSON-ready info and
+      observation dict (`EnvironmentLoop.episode_state`) and the task's
+      `get_state` snapshot.
 
   Returns:
     The checkpoint's directory.
@@ -94,8 +105,15 @@ def save(logdir, steps, agent, loop_state, random_states):
   for label, random_state in random_states.items():
     keys[label], scalars[label] = random_state_to_arrays(random_state)
   np.savez(os.path.join(temporary, _RNG_FILE), **keys)
+  episode_info = None
+  if episode is not None:
+    episode_info, observation, snapshot = episode
+    arrays = snapshots.to_arrays(snapshot, prefix=_TASK_PREFIX)
+    for key, value in observation.items():
+      arrays[_OBSERVATION_PREFIX + key] = np.asarray(value)
+    np.savez(os.path.join(temporary, _EPISODE_FILE), **arrays)
   write_json(os.path.join(temporary, _LOOP_FILE),
-             dict(loop_state, random_states=scalars))
+             dict(loop_state, random_states=scalars, episode=episode_info))
   if os.path.exists(final):   # Same step saved before (e.g. a rerun).
     shutil.rmtree(final)
   os.replace(temporary, final)
@@ -140,6 +158,22 @@ def resolve(path):
                      '(with checkpoints/latest), its checkpoints/ folder or '
                      f'a checkpoint directory holding {_LOOP_FILE}')
   return found
+
+
+def load_episode(directory):
+  """(info, observation dict, task snapshot) of the episode a checkpoint
+  was taken in, or None if it was taken at an episode boundary."""
+  state = read_json(os.path.join(directory, _LOOP_FILE))
+  if state.get('episode') is None:
+    return None
+  with np.load(os.path.join(directory, _EPISODE_FILE),
+               allow_pickle=False) as data:
+    arrays = {name: data[name] for name in data.files}
+  observation = {name[len(_OBSERVATION_PREFIX):]: value
+                 for name, value in arrays.items()
+                 if name.startswith(_OBSERVATION_PREFIX)}
+  return (state['episode'], observation,
+          snapshots.from_arrays(arrays, prefix=_TASK_PREFIX))
 
 
 def agent_directory(path):

@@ -19,6 +19,7 @@ by `env.step` after a last timestep), so every step counted is a transition.
 
 import time
 
+import dm_env
 import numpy as np
 
 _COUNTS = ('steps', 'episodes')
@@ -87,6 +88,37 @@ class EnvironmentLoop:
   def in_episode(self):
     """True between an episode's first and last timestep."""
     return self._timestep is not None
+
+  def episode_state(self):
+    """The episode in progress as (JSON-ready dict, {key: observation
+    array}), or None between episodes (for mid-episode checkpoints)."""
+    if self._timestep is None:
+      return None
+    timestep = self._timestep
+    info = {
+        'step_type': int(timestep.step_type),
+        'reward': None if timestep.reward is None else float(timestep.reward),
+        'discount': (None if timestep.discount is None
+                     else float(timestep.discount)),
+        'episode_return': self._episode_return,
+        'episode_steps': self._episode_steps,
+    }
+    observation = {key: np.asarray(value)
+                   for key, value in timestep.observation.items()}
+    return info, observation
+
+  def restore_episode(self, info, observation):
+    """Continues an episode saved by `episode_state` (the environment and
+    the agent restored separately); observers read the environment."""
+    reward, discount = info['reward'], info['discount']
+    self._timestep = dm_env.TimeStep(
+        step_type=dm_env.StepType(info['step_type']),
+        reward=None if reward is None else np.float64(reward),
+        discount=None if discount is None else np.float64(discount),
+        observation=dict(observation))
+    self._episode_return = float(info['episode_return'])
+    self._episode_steps = int(info['episode_steps'])
+    self._episode_start = time.perf_counter()
 
   def _begin_episode(self):
     timestep = self._env.reset()

@@ -11,12 +11,17 @@ environment, seeded from the run seed and the evaluation's index),
 tensorboard/ and checkpoints/ (`agents.checkpoints`).
 
 Resuming (--resume) continues exactly: the resumed run ends with the same
-parameters, replay contents and logs as an uninterrupted run. Checkpoints
-are taken at episode boundaries (the first episode end at or after every
---checkpoint_every steps, and the end of the run if it ends an episode),
-because a composer environment's observation buffers and step counters are
-not part of a task snapshot; a resumed run replays the steps since the last
-checkpoint, and the CSV/TensorBoard rows after it are dropped first.
+parameters, replay contents and logs as an uninterrupted run (the CSV and
+TensorBoard rows after the checkpoint are dropped first, and the steps
+after it are run again). Checkpoints are taken every --checkpoint_every
+steps and at the end of the run. Plain SAC checkpoints inside an episode
+too: the task's snapshot (HrcTask.get_state), the loop's last observation
+and the environment's random state restore the episode exactly, provided
+no observation is delayed (the delay buffers of composer's observation
+updater are not part of a snapshot). With an imitation wrapper (whose
+episode state is its own) or delayed observations, checkpoints wait for the
+next episode boundary, and a run that ends inside an episode keeps its
+previous checkpoint.
 """
 
 import json
@@ -142,6 +147,13 @@ def make_training_environment(run_config):
   return imitation.wrap(env, run_config['agent'], dataset=dataset,
                         seed=derived_seed(run_config['seed'], _IMITATION),
                         **run_config['imitation_kwargs'])
+
+
+def mid_episode_checkpoints(run_config):
+  """True if checkpoints of the run may be taken inside an episode: plain
+  SAC (no wrapper state) without delayed observations."""
+  return (run_config['agent'] == 'sac' and
+          not run_config['task_kwargs'].get('observation_delay'))
 
 
 def random_states(env):
@@ -273,6 +285,11 @@ def train(run_config, logdir, resume=False, progress=False):
                        f'{sorted(current)}')
     for name, rng_state in rng_states.items():
       current[name].set_state(rng_state)
+    episode = checkpoints.load_episode(checkpoint)
+    if episode is not None:
+      info, observation, snapshot = episode
+      env.task.set_state(env.physics, snapshot)
+      loop.restore_episode(info, observation)
     state.update({k: stored[k] for k in state})
     logging.info('Resumed %s at step %d', checkpoint, loop.counter.steps)
   elif resume:
@@ -299,12 +316,18 @@ def train(run_config, logdir, resume=False, progress=False):
   start = time.perf_counter() - state['wall_time']
   last_saved = loop.counter.steps if checkpoint is not None else None
 
+  def can_save():
+    return mid_episode or not loop.in_episode
+
   def save():
     state['wall_time'] = time.perf_counter() - start
     loop_state = dict(state, counter=loop.counter.state(),
                       run_config=run_config)
+    episode = loop.episode_state()
+    if episode is not None:
+      episode += (env.task.get_state(env.physics),)
     checkpoints.save(logdir, loop.counter.steps, agent, loop_state,
-                     random_states(env))
+                     random_states(env), episode=episode)
 
   def evaluate():
     row = evaluate_policy(run_config, eval_env, agent, state['evaluations'])
@@ -314,12 +337,13 @@ def train(run_config, logdir, resume=False, progress=False):
     state['next_eval'] += run_config['eval_every']
     bar.update(0, eval_success=f'{row["success_rate"]:.2f}')
 
-  pending = False   # A checkpoint is due at the next episode boundary.
+  mid_episode = mid_episode_checkpoints(run_config)
+  pending = False   # A checkpoint is due (when can_save()).
   try:
     while True:
       if eval_env is not None and loop.counter.steps >= state['next_eval']:
         evaluate()   # Before a checkpoint at the same step: it holds it.
-      if pending and not loop.in_episode:
+      if pending and can_save():
         save()
         pending, last_saved = False, loop.counter.steps
       if loop.counter.steps >= run_config['steps']:
@@ -336,7 +360,7 @@ def train(run_config, logdir, resume=False, progress=False):
       if due is not None and loop.counter.steps >= due:
         pending = True
         state['next_checkpoint'] += run_config['checkpoint_every']
-    if not loop.in_episode and last_saved != loop.counter.steps:
+    if can_save() and last_saved != loop.counter.steps:
       save()
   finally:
     bar.close()
@@ -377,8 +401,8 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_integer('eval_episodes', 20, 'Episodes per evaluation.',
                        flag_values=fv)
   flags.DEFINE_integer(
-      'checkpoint_every', 50_000, 'Steps between checkpoints (taken at the '
-      'next episode end; 0: only at the end of the run).', flag_values=fv)
+      'checkpoint_every', 50_000, 'Steps between checkpoints (0: only at '
+      'the end of the run); see the module docstring.', flag_values=fv)
   flags.DEFINE_string('logdir', None, 'Run directory.', required=True,
                       flag_values=fv)
   flags.DEFINE_bool('resume', False, 'Continue from the latest checkpoint in '

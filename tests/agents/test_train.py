@@ -4,6 +4,7 @@ exact resumption from a checkpoint."""
 import glob
 import json
 import os
+import shutil
 
 from absl import flags
 import numpy as np
@@ -148,10 +149,14 @@ def test_plot_two_runs(two_runs, tmp_path):
 
 def test_resume_matches_an_uninterrupted_run(two_runs, tmp_path):
   whole, split = two_runs[0], str(tmp_path / 'split')
-  # Interrupted after 35 steps: the latest checkpoint is at step 20 (the
-  # one due at 40 was never reached); steps 21-35 are replayed.
+  # Stopped after 35 steps, inside the fourth episode: the checkpoint
+  # holds the episode (task snapshot, last observation) and the run
+  # continues it.
   train.train(_run_config(steps=35), split)
-  assert os.path.basename(checkpoints.latest(split)) == 'step_0000000020'
+  latest = checkpoints.latest(split)
+  assert os.path.basename(latest) == 'step_0000000035'
+  info, observation, _ = checkpoints.load_episode(latest)
+  assert info['episode_steps'] == 5 and 'goal_difference' in observation
   assert len(logging_lib.read_csv(os.path.join(split, 'train.csv'))) == 3
   train.train(_run_config(steps=60), split, resume=True)
   expected = _checkpoint_arrays(checkpoints.latest(whole))
@@ -209,9 +214,9 @@ def test_policy_of_a_run_for_rendering(two_runs):
 
 def test_resume_without_a_checkpoint_starts_afresh(tmp_path):
   logdir = str(tmp_path / 'run')
-  # Ends inside the second episode with no checkpoint due: none is written.
   train.train(_run_config(steps=15, checkpoint_every=0), logdir)
-  assert checkpoints.latest(logdir) is None
+  # A crash before the first checkpoint: logs but no checkpoint.
+  shutil.rmtree(checkpoints.checkpoint_root(logdir))
   first = _deterministic_rows(os.path.join(logdir, 'train.csv'))
   train.train(_run_config(steps=15, checkpoint_every=0), logdir, resume=True)
   assert _deterministic_rows(os.path.join(logdir, 'train.csv')) == first
@@ -245,9 +250,15 @@ def test_imitation_agents_train_and_resume_exactly(tmp_path):
     np.testing.assert_array_equal(actual[key], value, err_msg=key)
   assert (_deterministic_rows(os.path.join(split, 'train.csv')) ==
           _deterministic_rows(os.path.join(whole, 'train.csv')))
-  state, rng_states = checkpoints.load_loop_state(checkpoints.latest(whole))
+  latest = checkpoints.latest(whole)
+  state, rng_states = checkpoints.load_loop_state(latest)
   assert sorted(rng_states) == ['0/_random', 'environment']
   assert state['run_config']['agent'] == 'rsi'
+  # Wrapped environments are checkpointed at episode boundaries only.
+  assert checkpoints.load_episode(latest) is None
+  episode_ends = {int(r['step']) for r in logging_lib.read_csv(
+      os.path.join(whole, 'train.csv'))}
+  assert state['counter']['steps'] in episode_ends
 
   # AIR: the reward mixes the expert agreement into the task reward.
   air = str(tmp_path / 'air')
