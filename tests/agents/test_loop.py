@@ -5,6 +5,7 @@ from dm_env import specs
 import numpy as np
 import pytest
 
+from agents import benchmark
 from agents import loop as loop_lib
 from agents import statistics
 from hrc_suite import suite
@@ -187,3 +188,15 @@ def test_bootstrap_ci_on_known_data():
     statistics.bootstrap_ci([1.0], rs, confidence=1.5)
   with pytest.raises(ValueError, match='RandomState'):
     statistics.bootstrap_ci([1.0], 0)
+
+
+def test_benchmark_measures_every_section():
+  results = benchmark.measure(steps=5, warmup=12, batch_size=8,
+                              hidden_sizes=(8,))
+  assert list(results) == ['training', 'environment only', 'update only',
+                           'actor only']
+  for steps, wall, cpu in results.values():
+    assert steps == 5 and wall > 0 and cpu >= 0
+  assert 's per 1000 RL steps' in benchmark.format_results(results)
+  with pytest.raises(ValueError, match='warmup'):
+    benchmark.measure(steps=5, warmup=8, batch_size=8)
