@@ -11,6 +11,7 @@ the return, the episode length, shield interventions and contacts; --output
 writes the per-episode metrics and the summary as JSON.
 """
 
+import math
 import os
 
 from absl import app
@@ -111,7 +112,19 @@ def main(argv, flag_values=flags.FLAGS):
   print(f'checkpoint: {checkpoints.resolve(f.checkpoint)}')
   print(format_table(table, len(results)))
   if f.output:
-    checkpoints.write_json(f.output, {'summary': table, 'episodes': results})
+    checkpoints.write_json(f.output, _finite({'summary': table,
+                                              'episodes': results}))
+
+
+def _finite(value):
+  """A copy with non-finite floats as None (strict JSON)."""
+  if isinstance(value, dict):
+    return {k: _finite(v) for k, v in value.items()}
+  if isinstance(value, list):
+    return [_finite(v) for v in value]
+  if isinstance(value, float) and not math.isfinite(value):
+    return None
+  return value
 
 
 if __name__ == '__main__':

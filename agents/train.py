@@ -421,7 +421,11 @@ def main(argv, flag_values=flags.FLAGS):
       eval_every=f.eval_every, eval_episodes=f.eval_episodes,
       checkpoint_every=f.checkpoint_every, dataset=f.dataset,
       imitation_kwargs=json.loads(f.imitation_kwargs))
-  train(run_config, f.logdir, resume=f.resume, progress=f.progress)
+  _, state = train(run_config, f.logdir, resume=f.resume,
+                   progress=f.progress)
+  logging.info('Done: %d steps, %d episodes, %d evaluations in %s',
+               state['counter']['steps'], state['counter']['episodes'],
+               state['evaluations'], f.logdir)
 
 
 if __name__ == '__main__':
