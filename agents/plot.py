@@ -1,7 +1,7 @@
 r"""Learning curves over seeds from training runs' eval.csv, as PNG and SVG.
 
   python -m agents.plot --logdirs=runs/reach/seed0,runs/reach/seed1 \
-      --out=curves.png
+      --out=curves.png     # writes curves.png, curves.svg and curves.csv
 
 Runs (log directories of `agents.train`) that differ only in their seed are
 one curve: at every evaluation step all of them reached, the mean over seeds
@@ -170,6 +170,24 @@ def draw(curves, out, title):
   return paths
 
 
+def write_table(curves, path):
+  """The curves as CSV rows (label, step, seeds, mean and CI bounds)."""
+  logger = logging_lib.CSVLogger(path)
+  try:
+    for curve in curves:
+      for i, step in enumerate(curve.steps):
+        row = {'label': curve.label, 'seeds': len(curve.seeds),
+               'normalised': int(curve.normalised)}
+        for name, values in (('success', curve.success),
+                             ('return', curve.returns)):
+          for bound, array in zip(('mean', 'low', 'high'), values):
+            row[f'{name}_{bound}'] = float(np.asarray(array)[i])
+        logger.write(row, int(step))
+  finally:
+    logger.close()
+  return path
+
+
 def define_flags(flag_values=flags.FLAGS):
   """Defines the binary's flags (only when run as a program)."""
   fv = flag_values
@@ -201,6 +219,10 @@ def main(argv, flag_values=flags.FLAGS):
   title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
   for path in draw(curves, f.out, title):
     print(path)
+  table = os.path.splitext(f.out)[0] + '.csv'
+  if os.path.exists(table):
+    os.remove(table)
+  print(write_table(curves, table))
 
 
 if __name__ == '__main__':

@@ -54,6 +54,11 @@ def test_curves_over_seeds_normalised_by_the_expert(tmp_path):
   with open(svg) as f:
     text = f.read()
   assert '<svg' in text and 'path' in text and len(text) > 10_000
+  rows = logging_lib.read_csv(plot.write_table(
+      curves, str(tmp_path / 'out' / 'curves.csv')))
+  assert [int(r['step']) for r in rows] == [0, 100, 200]
+  assert [float(r['success_mean']) for r in rows] == [0.0, 0.75, 1.0]
+  assert float(rows[1]['return_mean']) == pytest.approx(0.625)
 
 
 def test_groups_by_configuration_and_experts_file(tmp_path):
