@@ -8,9 +8,10 @@ one curve: at every evaluation step all of them reached, the mean over seeds
 with a 95 % percentile-bootstrap confidence interval from 10^4 resamples
 (the reference benchmark's protocol). Two panels: the evaluation success
 rate and the evaluation return normalised between the task's minimal
-episode return (0: reward_range low x horizon, from the run's config.json)
-and the mean expert return (1). The expert return comes from --expert_return
-or the experts file (--experts_json, by default docs/results/experts.json of
+episode return (0: reward_range low x horizon, from the run's config.json;
+--minimum=task: without collision penalties, as in the paper's runs) and
+the mean expert return (1). The expert return comes from --expert_return or
+the experts file (--experts_json, by default docs/results/experts.json of
 the repository when present); without either the raw return is plotted and
 the axis says so.
 
@@ -34,6 +35,9 @@ from agents import statistics
 _SEED_KEYS = ('seed', 'steps', 'checkpoint_every')
 _DEFAULT_EXPERTS = os.path.join(os.path.dirname(os.path.abspath(__file__)),
                                 '..', 'docs', 'results', 'experts.json')
+
+# Normalisation minimum -> the config.json entry holding it.
+MINIMA = {'total': 'min_return', 'task': 'min_task_return'}
 
 Curve = collections.namedtuple(
     'Curve', ['label', 'steps', 'seeds', 'success', 'returns', 'normalised'])
@@ -87,8 +91,16 @@ def _label(config):
 
 
 def learning_curves(logdirs, random_state, expert=None, experts_json=None,
-                    num_resamples=statistics.DEFAULT_RESAMPLES):
-  """One Curve per group of runs that differ only in their seed."""
+                    num_resamples=statistics.DEFAULT_RESAMPLES,
+                    minimum='total'):
+  """One Curve per group of runs that differ only in their seed.
+
+  minimum: the normalisation's 0, 'total' (the lowest possible return,
+  collision penalties included) or 'task' (the task reward's alone).
+  """
+  if minimum not in MINIMA:
+    raise ValueError(f'Unknown minimum {minimum!r}: expected one of '
+                     f'{", ".join(MINIMA)}')
   groups = collections.OrderedDict()
   for logdir in logdirs:
     config, columns = load_run(logdir)
@@ -118,7 +130,7 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
                                                            experts_json)
     normalised = best is not None
     if normalised:
-      low = config['min_return']
+      low = config[MINIMA[minimum]]
       if not best > low:
         raise ValueError(f'Expert return {best} must exceed the minimal '
                          f'return {low} of {config["domain"]}/'
@@ -203,6 +215,9 @@ def define_flags(flag_values=flags.FLAGS):
                        'Bootstrap resamples.', flag_values=fv)
   flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.',
                        flag_values=fv)
+  flags.DEFINE_enum('minimum', 'total', list(MINIMA), 'Normalisation 0: the '
+                    'lowest possible return (collision penalties included) '
+                    'or the task reward\'s alone.', flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):
@@ -214,7 +229,7 @@ def main(argv, flag_values=flags.FLAGS):
   curves = learning_curves(f.logdirs, np.random.RandomState(f.seed),
                            expert=f.expert_return,
                            experts_json=f.experts_json,
-                           num_resamples=f.resamples)
+                           num_resamples=f.resamples, minimum=f.minimum)
   config, _ = load_run(f.logdirs[0])
   title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
   for path in draw(curves, f.out, title):

@@ -180,11 +180,15 @@ def make_agent(run_config, env):
 
 
 def task_facts(env):
-  """Reward range, horizon and the minimal episode return of env's task."""
+  """Reward range, horizon and minimal episode returns of env's task:
+  min_return with the collision penalty (the lowest possible), and
+  min_task_return without it (the paper's runs had no penalty)."""
   low, high = env.task.reward_range
   horizon = int(env.task.horizon)
+  penalty = min(float(getattr(env.task, 'collision_reward', 0.0)), 0.0)
   return {'reward_range': [float(low), float(high)], 'horizon': horizon,
-          'min_return': float(low) * horizon}
+          'min_return': float(low) * horizon,
+          'min_task_return': (float(low) - penalty) * horizon}
 
 
 def summarize(episodes):

@@ -17,6 +17,7 @@ def _write_run(logdir, seed, success, returns, agent='sac', steps=None):
             'config': 'default', 'overrides': {}, 'seed': seed,
             'steps': 1000, 'eval_every': 100, 'eval_episodes': 4,
             'checkpoint_every': 0, 'min_return': -100.0,
+            'min_task_return': -60.0,
             'reward_range': [-1.0, 0.0], 'horizon': 100}
   with open(os.path.join(logdir, 'config.json'), 'w') as f:
     json.dump(config, f)
@@ -78,6 +79,14 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
   raw = plot.learning_curves([str(tmp_path / 's0')],
                              np.random.RandomState(0), num_resamples=100)
   assert not raw[0].normalised
+  # The task-only minimum (-60): (-50 + 60) / (-50 + 60) at the end.
+  task = plot.learning_curves([str(tmp_path / 's0')],
+                              np.random.RandomState(0), expert=-50.0,
+                              num_resamples=100, minimum='task')
+  np.testing.assert_allclose(task[0].returns[0], [-2.0, 1.0])
+  with pytest.raises(ValueError, match='Unknown minimum'):
+    plot.learning_curves([str(tmp_path / 's0')], np.random.RandomState(0),
+                         minimum='lowest')
   np.testing.assert_allclose(raw[0].returns[0], [-80.0, -50.0])
 
 
