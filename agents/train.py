@@ -49,9 +49,9 @@ AGENTS = ('sac', 'rsi', 'sir', 'air')
 _NEEDS_DATASET = ('rsi', 'sir')
 # Keys of the run config a resumed run may change.
 _RESUMABLE_CHANGES = ('steps',)
-# Purposes of seeds derived from the run seed (np.random.SeedSequence).
+# Purposes of seeds derived from the run seed (np.random.SeedSequence);
+# agents.evaluate uses 3.
 _TRAIN_ENV, _AGENT, _EVAL_ENV, _IMITATION = 0, 1, 2, 4
-
 
 
 def derived_seed(seed, *purpose):
