@@ -15,8 +15,11 @@ the experts file (--experts_json, by default docs/results/experts.json of
 the repository when present); without either the raw return is plotted and
 the axis says so.
 
-Experts file format read: {"<domain>/<task>": E} where E is a number, a
-dict with "return_mean", or a dict {robot: number or {"return_mean": ...}}.
+Experts files read: the output of `python -m hrc_suite.experts.evaluate`
+({"rows": [{domain, task, robot, action_space, policy, return, ...}]}: the
+deterministic expert's row of the run's task, robot and action space), or
+{"<domain>/<task>": E} with E a number, a dict with "return_mean", or a
+dict {robot: number or {"return_mean": ...}}.
 """
 
 import collections
@@ -60,15 +63,25 @@ def load_run(logdir):
 
 
 def expert_return(config, experts_json=None):
-  """The mean expert return of the run's task and robot, or None."""
+  """The mean expert return of the run's task, robot and action space, or
+  None (no file, or no matching entry)."""
   if not experts_json or not os.path.exists(experts_json):
     return None
   experts = checkpoints.read_json(experts_json)
-  entry = experts.get(f'{config["domain"]}/{config["task"]}')
-  if isinstance(entry, dict) and config['robot'] in entry:
-    entry = entry[config['robot']]
-  if isinstance(entry, dict):
-    entry = entry.get('return_mean')
+  if 'rows' in experts:   # python -m hrc_suite.experts.evaluate
+    matches = {row['policy']: row['return'] for row in experts['rows']
+               if (row['domain'], row['task'], row['robot'],
+                   row['action_space']) == (
+                       config['domain'], config['task'], config['robot'],
+                       config['action_space'])}
+    # The deterministic expert; the noisy one if that is all there is.
+    entry = matches.get('expert', matches.get('noisy_expert'))
+  else:
+    entry = experts.get(f'{config["domain"]}/{config["task"]}')
+    if isinstance(entry, dict) and config['robot'] in entry:
+      entry = entry[config['robot']]
+    if isinstance(entry, dict):
+      entry = entry.get('return_mean')
   if entry is None:
     return None
   if not isinstance(entry, (int, float)):

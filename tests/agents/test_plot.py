@@ -75,6 +75,21 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
       num_resamples=100)
   assert [c.label for c in curves] == ['sac (default)', 'air (default)']
   np.testing.assert_allclose(curves[0].returns[0], [0.4, 1.0])
+  # The rows of hrc_suite.experts.evaluate: the deterministic expert of the
+  # same robot and action space.
+  rows = [{'domain': 'reach', 'task': 'dense', 'robot': robot,
+           'action_space': space, 'policy': policy, 'return': value}
+          for robot, space, policy, value in (
+              ('panda', 'cartesian', 'expert', -10.0),
+              ('schunk', 'joint', 'expert', -10.0),
+              ('schunk', 'cartesian', 'noisy_expert', -10.0),
+              ('schunk', 'cartesian', 'expert', -50.0))]
+  experts.write_text(json.dumps({'info': {}, 'rows': rows}))
+  from_rows = plot.learning_curves([str(tmp_path / 's0')],
+                                   np.random.RandomState(0),
+                                   experts_json=str(experts),
+                                   num_resamples=100)
+  np.testing.assert_allclose(from_rows[0].returns[0], [0.4, 1.0])
   # Without an expert return the raw return is kept.
   raw = plot.learning_curves([str(tmp_path / 's0')],
                              np.random.RandomState(0), num_resamples=100)
