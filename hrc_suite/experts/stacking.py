@@ -15,8 +15,10 @@ and where that cube is, and chooses one aim for the TCP:
   PARK_BACK towards the robot from the stack. Open the gripper once the
   cube sits in its slot.
 * Next to the stack with an empty gripper (just let go): wait until the
-  fingers are open, then rise straight up before going anywhere else, so
-  the fingers never drag a stacked cube.
+  fingers are open, then back off horizontally towards the robot before
+  going anywhere else (the open fingers straddle the cube along the
+  gripper's closing axis, so they never drag a stacked cube; rising would
+  bring the wrist closer to the head of a person leaning over the stack).
 * Both cubes stacked: withdraw to a rest point (more than the task's
   WITHDRAWN_DISTANCE from the top slot, so the person goes on) and wait.
 
@@ -24,8 +26,8 @@ Carrying happens low (the wrist of an arm stretched over the stack would
 come close to the head of a person leaning over it, and the speed and
 separation shield would stop it there) and near the person slowly (the
 shield lets a slow robot come closer). The only memory is the gripper's
-closing hysteresis, read from the observed aperture; so the expert can
-take over from any state (snapshots, an agent's states).
+closing hysteresis, read from the observed aperture (no memory at all):
+the expert can take over from any state (snapshots, an agent's states).
 
 Joint space: the same aims, through `steering.Steering` (one gripper-down
 IK step at the task's yaw at a time).
@@ -117,6 +119,9 @@ class StackingExpert(base.Expert):
     self._steer = steering.Steering(self._task)
     self._size = float(self._task.cubes[0].size)
     self._base = np.asarray(self._task.kinematics.base_pose)[:3, 3].copy()
+    # The TCP's x axis, across the fingers' closing axis (y).
+    yaw = float(self._task.CARTESIAN_YAW)
+    self._along_fingers = np.array([np.cos(yaw), np.sin(yaw)])
     shield = self._task.shield
     self._robot_capsules = shield.robot.capsules
     self._body_capsules = shield.human.body_capsules
@@ -155,14 +160,17 @@ class StackingExpert(base.Expert):
     if held is None and (np.linalg.norm(tcp[:2] - axis) < NEAR_STACK
                          and tcp[2] < top + RISE_CLEARANCE):
       # Just let go on the stack: open fully, then back off towards the
-      # robot (the open fingers straddle the cube along y, so a move along
-      # the stack-to-base direction clears it; rising would bring the
-      # wrist closer to the head of a person leaning over the stack).
+      # robot along the TCP's x axis (the open fingers straddle the cube
+      # along y, the closing axis, so this clears it; rising would bring
+      # the wrist closer to the head of a person leaning over the stack).
       if aperture < OPEN_APERTURE:
         self.phase, aim = 'open', tcp.copy()
       else:
         self.phase = 'withdraw'
-        aim = self._back_from_stack(axis, 2 * NEAR_STACK, tcp[2] + 0.01)
+        away = self._along_fingers
+        if np.dot(away, self._base[:2] - axis) < 0.0:
+          away = -away
+        aim = tcp + np.append(2 * NEAR_STACK * away, 0.01)
       gripper, speed = OPEN, PLACE_SPEED
     elif not todo:
       self.phase, gripper = 'rest', OPEN
