@@ -4,34 +4,58 @@ hands say the board should be, level, gripper closed.
 The reference's expert keeps the end effector at the height of the midpoint
 of the person's hands, a fixed distance from it horizontally. Here the
 person holds the board at two points (the hold welds' anchors on the
-board), so the board pose the person wants is known exactly: those two
-points at the hands, the board level. The expert aims the TCP at the place
-of the handle on that board (the TCP's offset from the handle kept), led
-by LOOKAHEAD of the hands' velocity because the robot's trajectory
-planner lags a moving goal. Before the person takes the board and after
-they put it down the TCP stays on the handle.
+board), so the board the person wants is known exactly: those two points at
+the hands, the board level, its heading given by the line between the
+hands. The expert aims the TCP at the handle of that board (keeping the
+TCP's offset from the handle), led by LOOKAHEAD of the hands' velocity
+because the trajectory planner lags a moving goal. Before the person takes
+the board and after they put it down the TCP stays on the handle.
 
-Joint space turns the gripper with the board's heading (gripper-down IK at
-the grip yaw plus the heading); Cartesian actions keep the task's fixed
-grip yaw.
+* Steps are short (MAX_STEP): near the person the SSM shield stops a robot
+  commanded far ahead (the Schunk in joint space stalls for seconds with
+  0.1 m steps; measured, 6/10 -> 6/10 Cartesian, 4/10 -> 6/10 joint).
+* Out of gripper-down reach (IK from the current joints fails), the robot
+  end goes lower (REACH_DROPS): the board tilts but stays held.
+* Joint space turns the gripper with the board's heading (gripper-down IK at
+  the grip yaw plus the heading); Cartesian actions keep the task's fixed
+  grip yaw.
+
+Known limit (task geometry, not the expert): in three of the nine clips
+(lifting_01, _02, _08) the person walks the board 0.45-0.5 m further away
+(hands up to 1.43 m from the robot's base, 0.3-0.4 m above the table), so
+the handle would have to be ~0.9 m out; the Panda's and the Schunk's
+gripper-down reach ends at ~0.75-0.8 m there (and a straight Panda arm
+reaches 0.86 m). The hold welds stretch and pull the handle out of the
+fingers. lifting_05 (hands to 1.33 m) is at the limit.
 """
 
 import numpy as np
 
+from hrc_suite.control import ik as ik_lib
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
+from hrc_suite.tasks import actions
 from hrc_suite.tasks import lifting
 
 # Seconds of the hands' velocity the aim leads by: about the lag of the
-# shielded trajectory planner behind a goal that moves at walking speed
-# (it plans to stop at each new goal); measured, 0.1-0.3 s all track.
+# shielded trajectory planner behind a goal that moves at walking speed (it
+# plans to stop at each new goal).
 LOOKAHEAD = 0.2
+# Longest TCP step aimed at per RL step (m); the Cartesian action space
+# allows 0.1 m (module doc: the shield stalls longer ones near the person).
+MAX_STEP = 0.03
+# Where the aim is out of gripper-down reach, the robot end goes this much
+# lower (m, the first that IK reaches): the board tilts towards the robot
+# but stays held, and a lower TCP reaches further.
+REACH_DROPS = (0.03, 0.06, 0.1, 0.15, 0.2)
 GRIPPER_CLOSED = 1.0
+_MJ_EQ_WELD = 1   # mujoco.mjtEq.mjEQ_WELD
 
 
-def _rotation_from_quat(quat):
-  w, x, y, z = quat / np.linalg.norm(quat)
+def rotation_from_quat(quat):
+  """3x3 rotation of a unit quaternion (w, x, y, z)."""
+  w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
   return np.array([
       [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
       [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -41,6 +65,10 @@ def _rotation_from_quat(quat):
 def _yaw_rotation(angle):
   c, s = np.cos(angle), np.sin(angle)
   return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _wrap(angle):
+  return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 class LiftingExpert(base.Expert):
@@ -62,46 +90,44 @@ class LiftingExpert(base.Expert):
     self._steer = steering.Steering(self._task)
     self._hand_index = np.array(keypoints.index(
         ('left_hand', 'right_hand')))
+    self._ik = ik_lib.InverseKinematics(self._task.kinematics)
+    self._box = actions.workspace_box(self._task.kinematics)
 
   def _anchors(self):
     """(2, 3) anchor points of the active hold welds on the board (board
     frame, left then right), or None when the person does not hold it."""
     physics = self.physics
-    board_id = physics.bind(self._task.board.body).element_id
     model, data = physics.model, physics.data
+    board_id = physics.bind(self._task.board.body).element_id
     welds = np.flatnonzero((model.eq_obj2id == board_id)
                            & (data.eq_active != 0)
-                           & (model.eq_type == 1))   # mjEQ_WELD
-    if len(welds) != 2:
-      return None
+                           & (model.eq_type == _MJ_EQ_WELD))
     hand_of = {}
     for eq_id in welds:
-      name = physics.model.id2name(model.eq_obj1id[eq_id], 'body') or ''
+      name = model.id2name(model.eq_obj1id[eq_id], 'body') or ''
       hand_of['left' if 'left' in name else 'right'] = eq_id
     if set(hand_of) != {'left', 'right'}:
       return None
-    return np.stack([model.eq_data[hand_of[h], 0:3].copy()
-                     for h in ('left', 'right')])
+    return np.stack([model.eq_data[hand_of[hand], 0:3]
+                     for hand in ('left', 'right')])
 
   def board_aim(self, observation):
-    """World position of the handle on the board the person's hands want
-    (level, hold points at the hands) and that board's heading (world yaw
-    of its long axis, rad), or None when nobody holds the board."""
+    """(world position of the handle on the board the person's hands want,
+    that board's heading: world yaw of its long axis, rad), or None when
+    nobody holds the board."""
     anchors = self._anchors()
     if anchors is None:
       return None
-    tcp = observation['eef_position']
-    hands = tcp + observation['eef_to_hands']
-    rotation = _rotation_from_quat(observation['board_quaternion'])
-    position = observation['board_position']
-    handle_local = rotation.T @ (observation['handle_position'] - position)
+    hands = observation['eef_position'] + observation['eef_to_hands']
+    rotation = rotation_from_quat(observation['board_quaternion'])
+    handle_local = rotation.T @ (observation['handle_position']
+                                 - observation['board_position'])
     # Heading: the line between the hands against the line between the
-    # anchors (both horizontal).
+    # anchors on the board (both horizontal).
     across_world = hands[0] - hands[1]
     across_board = anchors[0] - anchors[1]
-    heading = (np.arctan2(across_world[1], across_world[0])
-               - np.arctan2(across_board[1], across_board[0]))
-    heading = float((heading + np.pi) % (2 * np.pi) - np.pi)
+    heading = _wrap(np.arctan2(across_world[1], across_world[0])
+                    - np.arctan2(across_board[1], across_board[0]))
     velocity = self._task.player.velocities[self._hand_index].mean(axis=0)
     middle = hands.mean(axis=0) + LOOKAHEAD * velocity
     aim = middle + _yaw_rotation(heading) @ (handle_local
@@ -114,11 +140,29 @@ class LiftingExpert(base.Expert):
     handle = observation['handle_position']
     wanted = self.board_aim(observation)
     if wanted is None:   # Nobody holds the board: stay on the handle.
-      rotation = _rotation_from_quat(observation['board_quaternion'])
+      rotation = rotation_from_quat(observation['board_quaternion'])
       wanted = handle, float(np.arctan2(rotation[1, 0], rotation[0, 0]))
     aim, heading = wanted
     # Keep the TCP's offset from the handle (the grasp as it is).
-    aim = aim + (tcp - handle)
+    delta = aim + (tcp - handle) - tcp
+    norm = np.linalg.norm(delta)
+    if norm > MAX_STEP:
+      delta *= MAX_STEP / norm
     if self._steer.space == 'joint':
       self._steer.yaw = lifting.GRIP_YAW + heading
+    aim = self._within_reach(tcp + delta, q)
     return self._steer.action(aim, tcp, q, GRIPPER_CLOSED)
+
+  def _within_reach(self, aim, q):
+    """`aim` (inside the Cartesian workspace box), or lower where
+    gripper-down IK from q does not reach it."""
+    aim = np.clip(aim, *self._box)
+    if self._ik.solve(aim, q, self._steer.yaw).success:
+      return aim
+    for drop in REACH_DROPS:
+      lower = aim - [0.0, 0.0, drop]
+      if lower[2] < self._box[0][2]:
+        break
+      if self._ik.solve(lower, q, self._steer.yaw).success:
+        return lower
+    return aim

@@ -11,8 +11,9 @@ from hrc_suite.tasks import metrics
 
 # Seeds whose clip the robots can follow: in lifting_01, _02 and _08 the
 # person carries the board up to 0.5 m further away, out of every robot's
-# gripper-down reach (see the expert's module docstring).
-FEASIBLE_SEEDS = (1, 2, 3)
+# gripper-down reach, and lifting_05 is at the Schunk's limit (see the
+# expert's module docstring).
+FEASIBLE_SEEDS = (1, 3, 4)
 
 
 def _env(robot='schunk', space='cartesian', seed=1, time_limit=30.0):
