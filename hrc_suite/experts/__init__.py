@@ -2,7 +2,8 @@
 
   env = suite.load('pick_place', 'default', task_kwargs={'robot': 'schunk'})
   expert = experts.make(env)                  # deterministic
-  noisy = experts.make(env, noise=experts.OrnsteinUhlenbeckNoise(...))
+  noise = experts.noise.OrnsteinUhlenbeckNoise.reference(4, 'cartesian')
+  noisy = experts.make(env, noise=noise, seed=0)   # reference OU noise
   timestep = env.reset(); action = expert(timestep)
 """
 
@@ -45,9 +46,11 @@ for _domain, _task, _path in (
   register(_domain, _task, _path)
 
 
-def make(env, noise=None):
+def make(env, noise=None, seed=0):
   """The expert of the environment's task (`env.task.suite_name`), wrapped
-  in `noise.NoisyExpert` when `noise` (a noise process) is given."""
+  in `noise.NoisyExpert` (noise seeded by `seed`) when `noise` (a noise
+  process, e.g. `noise.OrnsteinUhlenbeckNoise.reference(size, space)`) is
+  given."""
   name = getattr(env.task, 'suite_name', None)
   if name is None:
     raise ValueError('make(env) needs an environment from hrc_suite.suite.'
@@ -56,4 +59,4 @@ def make(env, noise=None):
   if noise is None:
     return expert
   from hrc_suite.experts import noise as noise_lib   # pylint: disable=g-import-not-at-top
-  return noise_lib.NoisyExpert(expert, noise)
+  return noise_lib.NoisyExpert(expert, noise, seed=seed)
