@@ -1,19 +1,23 @@
 """Stacking expert: put the robot's cubes 2 and 4 on the person's 1 and 3.
 
 Every step the expert works out from the observed cubes, slots and stacked
-flags which robot cube is next (cube 2 until it is stacked, then cube 4)
-and where that cube is, and chooses one aim for the TCP:
+flags which cube is next (cube 2 until it is stacked, then cube 4; cube 3
+before cube 4 if the person let it go off the stack and it lies on the
+table next to it) and where that cube is, and chooses one aim for the TCP:
 
-* Not holding the cube: fetch it. Hover above its grasp point and descend
-  inside a cone (the lower the TCP, the closer above the cube it must be),
-  close the gripper once the TCP is on the grasp point (and keep closing
-  while the fingers travel).
+* Not holding the cube: fetch it. Rise to the hover height first if low
+  and far, hover above its grasp point and descend inside a cone (the
+  lower the TCP, the closer above the cube it must be), close the gripper
+  once the TCP is on the grasp point (and keep closing while the fingers
+  travel). Holding a cube that is not next (cube 4 when cube 3 fell): set
+  it down on the table first.
 * Holding it: lift it straight up to the carrying height (its bottom
   CARRY_CLEARANCE above the top of the cube below), then, once the cube
   below is stacked and the person's hands are away from the stack, carry it
-  over its slot and set it down (a cone again, slowly); otherwise park it
-  PARK_BACK towards the robot from the stack. Open the gripper once the
-  cube sits in its slot.
+  over its slot and set it down (a cone again, slowly; cube 2 a little
+  towards where the person will put cube 3, SHIFT_FRACTION); otherwise
+  park it PARK_BACK towards the robot from the stack. Open the gripper
+  once the cube sits in its slot.
 * Next to the stack with an empty gripper (just let go): wait until the
   fingers are open, then back off horizontally towards the robot before
   going anywhere else (the open fingers straddle the cube along the
@@ -25,9 +29,9 @@ and where that cube is, and chooses one aim for the TCP:
 Carrying happens low (the wrist of an arm stretched over the stack would
 come close to the head of a person leaning over it, and the speed and
 separation shield would stop it there) and near the person slowly (the
-shield lets a slow robot come closer). The only memory is the gripper's
-closing hysteresis, read from the observed aperture (no memory at all):
-the expert can take over from any state (snapshots, an agent's states).
+shield lets a slow robot come closer). The expert keeps no memory (the
+gripper's closing hysteresis is read from the observed aperture): it can
+take over from any state (snapshots, an agent's states).
 
 Joint space: the same aims, through `steering.Steering` (one gripper-down
 IK step at the task's yaw at a time).
@@ -35,6 +39,7 @@ IK step at the task's yaw at a time).
 
 import numpy as np
 
+from hrc_suite import layout
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
@@ -68,6 +73,20 @@ LIFT_REACH = 0.05            # m
 # the task's tolerance is stacking.STACK_TOLERANCE, 2.5 cm).
 RELEASE_XY = 0.008           # m
 RELEASE_Z = 0.01             # m
+# Cube 2 goes on cube 1 shifted towards the stack's planned place (the
+# person's target for cube 3: `stack_slots` of a cube not yet in place
+# holds it) by SHIFT_FRACTION of the distance, at most SHIFT_MAX (the slot
+# tolerance is 2.5 cm). The person's hand puts cube 3 near that target,
+# while cube 1 lands 2-4 cm from it; a third of the way balances cube 3 on
+# cube 2 against cubes 2 and 3 on cube 1 (both offsets 2/3 of the
+# distance). Unshifted, cube 3 fell off the stack when it landed 3.5 cm
+# from cube 1 (Panda and Schunk seed 4).
+SHIFT_FRACTION = 1.0 / 3.0
+SHIFT_MAX = 0.012            # m
+# Cube 3 on the table within DROPPED_RADIUS of the stack's axis (its pick
+# spots are >= 0.2 m from the stack) was dropped off the stack by the
+# person: the robot stacks it then (set down cube 4 first).
+DROPPED_RADIUS = 0.15        # m
 # Wait with the cube this far from the stack towards the robot base while
 # the person places theirs (m, horizontally).
 PARK_BACK = 0.25             # m
@@ -119,6 +138,9 @@ class StackingExpert(base.Expert):
     self._steer = steering.Steering(self._task)
     self._size = float(self._task.cubes[0].size)
     self._base = np.asarray(self._task.kinematics.base_pose)[:3, 3].copy()
+    self._table = layout.TABLE_TOP_Z
+    # Above the top of cube 1 on the table (not reaching for a cube there).
+    self._above_base = self._table + 1.5 * self._size
     # The TCP's x axis, across the fingers' closing axis (y).
     yaw = float(self._task.CARTESIAN_YAW)
     self._along_fingers = np.array([np.cos(yaw), np.sin(yaw)])
@@ -154,11 +176,15 @@ class StackingExpert(base.Expert):
     aperture = float(obs['gripper_aperture'][0])
     axis = slots[0, :2]
     top = self._stack_top(cubes, stacked)
-    todo = [i for i in stacking.ROBOT_CUBES
-            if not (stacked[i] and held != i)]
+    # The robot's cubes, and cube 3 if the person dropped it next to the
+    # stack (or the robot holds it), in stacking order.
+    third = stacking.HUMAN_CUBES[1]
+    ours = held == third or self._dropped(cubes, stacked, axis)
+    todo = [i for i in (1, 2, 3) if not (stacked[i] and held != i)
+            and (i != third or ours)]
     speed = 1.0
     if held is None and (np.linalg.norm(tcp[:2] - axis) < NEAR_STACK
-                         and tcp[2] < top + RISE_CLEARANCE):
+                         and top + RISE_CLEARANCE > tcp[2] > self._above_base):
       # Just let go on the stack: open fully, then back off towards the
       # robot along the TCP's x axis (the open fingers straddle the cube
       # along y, the closing axis, so this clears it; rising would bring
@@ -178,9 +204,13 @@ class StackingExpert(base.Expert):
     elif held is None:
       aim, gripper = self._fetch(tcp, cubes[todo[0]], aperture)
     elif held != todo[0]:
-      # Holding some other cube (not the robot's next one): put it down
-      # where it is and let go.
-      self.phase, aim, gripper = 'drop', tcp.copy(), OPEN
+      # Holding a cube that is not next (cube 4 while cube 3 lies on the
+      # table): set it down on the table where it is and let go.
+      self.phase, gripper = 'set down', CLOSED
+      on_table = self._table + self._size / 2
+      aim = np.append(tcp[:2], on_table + (tcp[2] - cubes[held, 2]))
+      if cubes[held, 2] < on_table + RELEASE_Z:
+        aim, gripper = tcp.copy(), OPEN
     else:
       aim, gripper, speed = self._carry(obs, tcp, cubes, slots, stacked,
                                         held)
@@ -191,6 +221,15 @@ class StackingExpert(base.Expert):
     if norm > limit:
       aim = tcp + delta * (limit / norm)
     return self._steer.action(aim, tcp, obs['joint_positions'], gripper)
+
+  def _dropped(self, cubes, stacked, axis):
+    """Cube 3 lies on the table next to the stack of cubes 1 and 2 (the
+    person let it go off the stack)."""
+    i = stacking.HUMAN_CUBES[1]
+    cube = cubes[i]
+    return bool(stacked[i - 1] and not stacked[i]
+                and cube[2] < self._table + self._size / 2 + RELEASE_Z
+                and np.linalg.norm(cube[:2] - axis) < DROPPED_RADIUS)
 
   def _stack_top(self, cubes, stacked):
     """Height of the top of the stacked cubes (the table without any)."""
@@ -217,13 +256,18 @@ class StackingExpert(base.Expert):
       return grasp, CLOSED
     self.phase = 'fetch'
     aim = grasp + [0.0, 0.0, min(HOVER, CONE_SLOPE * error)]
+    if error > LIFT_REACH and height < HOVER - LIFT_SLACK:
+      # Rise first (a little above the hover height: the arm's path may
+      # sag on the way across).
+      aim = np.append(tcp[:2], grasp[2] + HOVER + LIFT_SLACK)
+      self.phase = 'rise'
     if aperture < CLOSING_APERTURE[1] and height < HOVER / 2:
       aim = tcp.copy()   # A failed grasp: open before moving on.
     return aim, OPEN
 
   def _carry(self, obs, tcp, cubes, slots, stacked, held):
     """Aim, gripper command and speed with cube `held` in the gripper."""
-    cube, slot = cubes[held], slots[held]
+    cube, slot = cubes[held], self._target(slots, held)
     offset = tcp - cube   # Where the TCP holds the cube.
     carry_z = slot[2] + CARRY_CLEARANCE
     error = np.linalg.norm(cube[:2] - slot[:2])
@@ -252,6 +296,18 @@ class StackingExpert(base.Expert):
     return float(geometry.capsule_distance(
         r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
         hr[None]).min())
+
+  @staticmethod
+  def _target(slots, i):
+    """Where cube i goes: its slot; cube 2's shifted towards the place the
+    person will put cube 3 (see SHIFT_FRACTION)."""
+    if i != stacking.ROBOT_CUBES[0]:
+      return slots[i]
+    shift = SHIFT_FRACTION * (slots[3, :2] - slots[i, :2])
+    norm = np.linalg.norm(shift)
+    if norm > SHIFT_MAX:
+      shift *= SHIFT_MAX / norm
+    return slots[i] + np.append(shift, 0.0)
 
   def _human_speed(self, obs):
     """Speed limit from the clearance to the person."""
