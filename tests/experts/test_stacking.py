@@ -104,6 +104,30 @@ def test_waits_with_its_cube_until_the_cube_below_is_stacked():
   assert parked > 0 and task.stacked[0]
 
 
+@pytest.mark.slow
+def test_stacks_cube_3_the_person_let_go_off_the_stack():
+  env = _env('panda', 'cartesian', seed=2)
+  expert = experts.make(env)
+  task = env.task
+  timestep = env.reset()
+  while not task.stacked[1]:
+    timestep = env.step(expert(timestep))
+  # The person's cube 3 lies on the table next to the stack (let go).
+  beside = task.slots[0] + [-0.03, 0.1, 0.0]
+  task.cubes[2].set_pose(env.physics, beside, np.array([1.0, 0, 0, 0]))
+  task._human_state[2] = stacking.RELEASED   # pylint: disable=protected-access
+  env.physics.forward()
+  gripped = []
+  while not timestep.last():
+    timestep = env.step(expert(timestep))
+    gripped += [i for i in (2, 3) if task.gripper.is_grasping(
+        env.physics, task.cubes[i].body) and i not in gripped]
+  result = task.episode_metrics
+  assert result['success'] == 1.0 and task.stacked.all()
+  assert result['contacts_human_critical'] == 0
+  assert gripped == [2, 3]   # The robot took cube 3 first, then its cube 4.
+
+
 def test_same_seed_same_actions():
   runs = []
   for _ in range(2):
