@@ -20,7 +20,7 @@ import numpy as np
 
 from agents import checkpoints
 from agents import loop as loop_lib
-from agents import statistics
+from hrc_suite import statistics
 from agents import train as train_lib
 from agents.sac import agent as agent_lib
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from agents import checkpoints
 from agents import logging as logging_lib
-from agents import statistics
+from hrc_suite import statistics
 
 # Parts of a run config that do not distinguish curves.
 _SEED_KEYS = ('seed', 'steps', 'checkpoint_every')

@@ -34,7 +34,7 @@ from absl import app
 from absl import flags
 import numpy as np
 
-from agents import statistics
+from hrc_suite import statistics
 from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib

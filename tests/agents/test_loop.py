@@ -7,7 +7,7 @@ import pytest
 
 from agents import benchmark
 from agents import loop as loop_lib
-from agents import statistics
+from hrc_suite import statistics
 from hrc_suite import suite
 from hrc_suite.tasks import metrics
 
