@@ -26,7 +26,11 @@ TCP position that grasps the cube from above):
 "In the hand": the gripped flag (both fingers touch the cube), or the cube
 within IN_HAND of the grasp pose relative to the TCP with the aperture
 below HOLDING (closing on the cube), so a flickering contact does not drop
-the phase. The shield may slow or stop the robot anywhere: the aims do not
+the phase. Within NEAR of its aim the TCP asks for GAIN of the remaining
+way per step (a proportional approach): the arm, whose plans accelerate
+at 2 rad/s^2, then brakes on the aim instead of overshooting it (the
+Schunk, folded over the table, overshot by 5 cm at full steps and lost
+its grasps). The shield may slow or stop the robot anywhere: the aims do not
 depend on time, the expert simply continues when the robot moves again.
 
 Both action spaces through `steering` (Cartesian: straight TCP line; joint:

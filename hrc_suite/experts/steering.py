@@ -134,7 +134,8 @@ class Steering:
 
     gain (0, 1]: the fraction of the way to the aim asked for in this step
     (1: all of it, up to the step limits; less: a gentler, proportional
-    approach that lets the robot brake without overshooting the aim)."""
+    approach that lets the robot brake without overshooting the aim).
+    In Cartesian space q may be None: the speed limit is then skipped."""
     if not 0.0 < gain <= 1.0:
       raise ValueError(f'gain must be in (0, 1], got {gain!r}')
     tcp = self._check('tcp', tcp, 3)
