@@ -4,10 +4,11 @@ Robot to human (`RobotToHumanExpert`): keep the gripper closed and bring the
 end of the handle (where a person holds a hammer) to the palm of the
 person's holding hand; when the person holds the hammer, open and, once the
 fingers are clear, go back home. Cartesian: the TCP moves by the palm-to-
-handle-end difference (gripper down). Joint space: the same aim through one
-gripper-down IK step. Where the palm is beyond the gripper-down reach the
-arm waits at the limit: the person's hand sways while they wait (the idle
-phase) and comes to the handle.
+handle-end difference (gripper down); joint space: the same aim through one
+gripper-down IK step. At the limit of the gripper-down reach the expert
+tries shorter steps and a sideways slide (retracting a little); where none
+is reachable the arm waits: the person's hand sways while they wait (the
+idle phase) and comes to the handle.
 
 Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
@@ -72,8 +73,11 @@ OVER_TARGET = 0.02                       # m, horizontal: lower the hammer
 # Robot to human: the handle's end is not taken lower than this above the
 # table top (a palm swaying low would pull the hammer into the table).
 MIN_HANDLE_END_HEIGHT = 0.05             # m
-# Fingers clear of the handle before moving away: aperture at least.
+# Fingers clear of the handle before moving away: aperture at least; then
+# straight up until the grip point is this far from the TCP (a joint path
+# home from a stretched arm swept the open fingers along the handle).
 RELEASED_APERTURE = 0.6                  # normalised
+CLEAR_DISTANCE = 0.06                    # m
 # Closing has begun: aperture below this (normalised).
 CLOSING_APERTURE = 0.9
 # Human to robot, waiting for the presentation: ready point this high above
@@ -84,12 +88,14 @@ READY_ABOVE = 0.1                        # m
 READY_HEIGHT = 0.42                      # m
 READY_AHEAD = 0.12                       # m
 READY_SIDE = 0.25                        # m
-# Joint-space presentation: fractions of the step tried by gripper-down IK.
-# (Damped least squares on the handle end with the orientation free reached
-# further, but pressed the gripper on the person's hand: 1200-2600
-# allowed-contact physics steps per episode, Schunk and Panda, seeds 0-3;
-# holding still at the gripper-down reach limit: none, same successes.)
-IK_STEP_FRACTIONS = (1.0, 0.5, 0.25)
+# Presenting at the edge of the gripper-down reach: steps tried (from the
+# TCP towards the aim, at most CARTESIAN_STEP) until gripper-down IK solves
+# one: the step, half, a quarter, and half of it plus a retraction of
+# RETRACT towards the base (which lets a stretched arm slide sideways along
+# its reach limit: Schunk, Cartesian, seed 12, palm 0.38 m to the side).
+# Where none solves, the arm holds still and the swaying palm comes to it.
+STEP_FRACTIONS = (1.0, 0.5, 0.25)
+RETRACT = 0.03                           # m
 
 
 def _rotation(quaternion):
@@ -115,6 +121,8 @@ class _HammerExpert(base.Expert):
     self._kinematics = self._task.kinematics
     self._q_home = np.asarray(self._kinematics.description.q_home, float)
     self._home = self._kinematics.tcp_pose(self._q_home)[:3, 3].copy()
+    # The Cartesian action space's box of TCP targets.
+    self._box = actions.workspace_box(self._kinematics)
 
   def _in_hand(self, obs):
     """The robot holds the hammer (grip point at the TCP, pads closed)."""
@@ -171,6 +179,13 @@ class RobotToHumanExpert(_HammerExpert):
     if held:
       if obs['gripper_aperture'][0] < RELEASED_APERTURE:
         return self._hold_still(obs, -1.0)
+      if np.linalg.norm(obs['object_position'] - tcp) < CLEAR_DISTANCE:
+        # Lift the open fingers off the handle (up and back) before
+        # heading home.
+        back = self._kinematics.base_pose[:3, 3] - tcp
+        back[2] = 0.0
+        back *= CLEAR_DISTANCE / max(np.linalg.norm(back), 1e-9)
+        return self._present(obs, back + (0.0, 0.0, CLEAR_DISTANCE), -1.0)
       return self._go_home(obs, -1.0)
     if not self._in_hand(obs):
       # Dropped: the tool may not reach into the table to pick it up.
@@ -179,26 +194,27 @@ class RobotToHumanExpert(_HammerExpert):
     end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
     palm = obs['target_position'].copy()
     palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
-    if self._steer.space == 'cartesian':
-      return self._steer.action(tcp + palm - end, tcp,
-                                obs['joint_positions'], 1.0)
-    return self._present_joint(obs['joint_positions'], tcp, end, palm)
+    return self._present(obs, palm - end, 1.0)
 
-  def _present_joint(self, q, tcp, end, palm):
-    """Joint step moving the handle end towards the palm with the gripper
-    down: one IK solve up to CARTESIAN_STEP ahead (shorter steps if that
-    fails); where none succeeds (a palm beyond the gripper-down reach) the
-    arm holds still and the swaying palm comes to the handle."""
-    error = palm - end
-    norm = np.linalg.norm(error)
+  def _present(self, obs, shift, gripper):
+    """Moves the TCP by `shift` (cut to one CARTESIAN_STEP) or the longest
+    of a few steps gripper-down IK reaches; holds still if none."""
+    tcp, q = obs['eef_position'], obs['joint_positions']
+    norm = np.linalg.norm(shift)
     if norm > actions.CARTESIAN_STEP:
-      error *= actions.CARTESIAN_STEP / norm
-    for fraction in IK_STEP_FRACTIONS:
-      result = self._steer.ik.solve(tcp + fraction * error, q,
-                                    self._steer.yaw)
+      shift = shift * (actions.CARTESIAN_STEP / norm)
+    inward = self._kinematics.base_pose[:3, 3] - tcp
+    inward[2] = 0.0
+    inward *= RETRACT / max(np.linalg.norm(inward), 1e-9)
+    steps = [f * shift for f in STEP_FRACTIONS] + [0.5 * shift + inward]
+    for step in steps:
+      target = np.clip(tcp + step, self._box[0], self._box[1])
+      result = self._steer.ik.solve(target, q, self._steer.yaw)
       if result.success:
-        return self._steer.joint_goal_action(result.q, q, tcp, 1.0)
-    return self._steer.joint_goal_action(q, q, tcp, 1.0)
+        if self._steer.space == 'cartesian':
+          return self._steer.action(target, tcp, q, gripper)
+        return self._steer.joint_goal_action(result.q, q, tcp, gripper)
+    return self._hold_still(obs, gripper)
 
 
 class HumanToRobotExpert(_HammerExpert):
