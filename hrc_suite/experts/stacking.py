@@ -79,8 +79,10 @@ RELEASE_Z = 0.01             # m
 # tolerance is 2.5 cm). The person's hand puts cube 3 near that target,
 # while cube 1 lands 2-4 cm from it; a third of the way balances cube 3 on
 # cube 2 against cubes 2 and 3 on cube 1 (both offsets 2/3 of the
-# distance). Unshifted, cube 3 fell off the stack when it landed 3.5 cm
-# from cube 1 (Panda and Schunk seed 4).
+# distance). Where cube 3 landed in Panda seeds 0 and 1, this takes its
+# offset from cube 2 from 2.3 to 1.5 cm and from 2.1 to 0.5 cm; it does not
+# save a cube 3 landing 4 cm from cube 1 (seed 4), which falls off: the
+# robot then stacks it itself (DROPPED_RADIUS).
 SHIFT_FRACTION = 1.0 / 3.0
 SHIFT_MAX = 0.012            # m
 # Cube 3 on the table within DROPPED_RADIUS of the stack's axis (its pick
