@@ -20,15 +20,22 @@ Cartesian space: the TCP moves in a straight line to the goal position
 The shield (SSM) stops the robot while the person is close; the expert
 keeps its aim and continues when the shield lets it (no timeout).
 
+The path to the goal counts as free if its straight joint path is free
+and the first step's goal passes the task's own collision prevention check
+(along the shield's plan from its command: a robot that overshot into a
+pose near the table can have a free straight path whose planned first
+step is still rejected; the Panda then stood still for 64 steps).
+
 Privileged: the task's collision model (`task.collision_checker`, the
-robot's capsules and the workcell boxes; no episode state) for the via
-point.
+robot's capsules and the workcell boxes) and the shield's command
+(`task.shield`, for the planned-path check), for the via point.
 """
 
 import numpy as np
 
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
+from hrc_suite.tasks import actions
 
 # Joint distance (rad, max norm) under which the expert aims at the goal
 # without checking the path (the last step is tiny).
@@ -60,22 +67,40 @@ class ReachExpert(base.Expert):
   def _free(self, q_start, q_goals):
     return self._checker.paths_free(q_start, np.atleast_2d(q_goals))
 
+  def _step_free(self, q, aims):
+    """Flags: the one-step joint goals towards each aim pass the task's own
+    check (the shield's planned path from its command, `collision_
+    prevention.planned_paths_free`), i.e. would not be replaced."""
+    model = self._task.kinematics
+    aims = np.atleast_2d(aims)
+    if not len(aims):
+      return np.zeros(0, dtype=bool)
+    steps = np.array([q + actions.JOINT_STEP * self._steer.joint_arm(a, q)
+                      for a in aims])
+    steps = np.clip(steps, model.q_min, model.q_max)
+    return self._checker.planned_paths_free(steps, self._task.shield)
+
   def _plan(self, q, goal):
-    """A via point v with free straight paths q -> v -> goal, or None."""
+    """A via point v whose first step is accepted, with free straight paths
+    q -> v -> goal, or None."""
     one_first = np.eye(len(q), dtype=bool)
     candidates = np.concatenate([
         self._q_home[None], np.where(one_first, goal, q),
         np.where(~one_first, goal, q)])
-    for v in candidates[self._free(q, candidates)]:
+    ok = self._free(q, candidates)
+    ok[ok] = self._step_free(q, candidates[ok])
+    for v in candidates[ok]:
       if self._free(v, goal)[0]:
         return v
     return None
 
   def _joint_aim(self, q, goal):
-    if np.abs(goal - q).max() < NEAR_GOAL or self._free(q, goal)[0]:
+    if np.abs(goal - q).max() < NEAR_GOAL or (
+        self._free(q, goal)[0] and self._step_free(q, goal)[0]):
       self._via = None
       return goal
-    if self._via is None or not self._free(q, self._via)[0]:
+    if self._via is None or not (self._free(q, self._via)[0] and
+                                 self._step_free(q, self._via)[0]):
       self._via = self._plan(q, goal)
     return goal if self._via is None else self._via
 
