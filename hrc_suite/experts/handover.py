@@ -51,11 +51,16 @@ IN_HAND_APERTURE = 0.4                   # normalised
 # point, and at most HOVER_HEIGHT.
 HOVER_HEIGHT = 0.08                      # m
 CONE_SLOPE = 3.0
-# Close when the TCP is this close to the grip point (horizontal,
-# vertical); keep closing while within KEEP_CLOSING of it.
-GRASP_XY = 0.012                         # m
+# Close when the grip point is between the pads: TCP offset from it along
+# the handle (towards its end; the head is 0.034 m the other way, the pads
+# 0.01 m wide), across it (the pads open 0.085 m around the 0.022 m deep
+# handle) and vertically within these; keep closing while within
+# KEEP_CLOSING of it. The approach aims at the grip point itself, so the
+# tolerances matter where the gripper-down reach ends short of it.
+GRASP_ALONG = (-0.008, 0.03)             # m
+GRASP_ACROSS = 0.015                     # m
 GRASP_Z = 0.008                          # m
-KEEP_CLOSING = 0.025                     # m
+KEEP_CLOSING = 0.035                     # m
 # Presented: held by the person, on its side (body y this close to up),
 # grip point this high above the table top and moving this little per RL
 # step (the person waits, the idle motion sways the hand slowly).
@@ -150,19 +155,50 @@ class _HammerExpert(base.Expert):
           obs['joint_positions'], obs['joint_positions'], tcp, gripper)
     return self._steer.action(tcp, tcp, obs['joint_positions'], gripper)
 
+  def _step(self, obs, shift, gripper):
+    """Moves the TCP by `shift` (cut to one CARTESIAN_STEP) or the longest
+    of a few steps gripper-down IK reaches; holds still if none."""
+    tcp, q = obs['eef_position'], obs['joint_positions']
+    norm = np.linalg.norm(shift)
+    if norm > actions.CARTESIAN_STEP:
+      shift = shift * (actions.CARTESIAN_STEP / norm)
+    inward = self._kinematics.base_pose[:3, 3] - tcp
+    inward[2] = 0.0
+    inward *= RETRACT / max(np.linalg.norm(inward), 1e-9)
+    vertical = shift * (0.0, 0.0, 1.0)
+    steps = [f * shift for f in STEP_FRACTIONS] + [vertical,
+                                                   0.5 * shift + inward]
+    for step in steps:
+      target = np.clip(tcp + step, self._box[0], self._box[1])
+      result = self._steer.ik.solve(target, q, self._steer.yaw)
+      if result.success:
+        if self._steer.space == 'cartesian':
+          return self._steer.action(target, tcp, q, gripper)
+        return self._steer.joint_goal_action(result.q, q, tcp, gripper)
+    return self._hold_still(obs, gripper)
+
   def _grasp(self, obs):
-    """Cone approach to the grip point and close when there."""
+    """Cone approach to the grip point and close when it is between the
+    pads (within the handle-frame tolerances)."""
     tcp, grip = obs['eef_position'], obs['object_position']
-    error = grip - tcp
-    horizontal = np.linalg.norm(error[:2])
-    height = min(HOVER_HEIGHT, CONE_SLOPE * max(horizontal - GRASP_XY, 0.0))
-    aim = grip + (0.0, 0.0, height)
-    distance = np.linalg.norm(error)
+    offset = tcp - grip
+    # Handle frame: along the handle towards its end (away from the head),
+    # across it (horizontal), up.
+    along_axis = -_rotation(obs['object_quaternion'])[:, 0]
+    along_axis[2] = 0.0
+    along_axis /= max(np.linalg.norm(along_axis), 1e-9)
+    across_axis = np.array([-along_axis[1], along_axis[0], 0.0])
+    along, across = offset @ along_axis, offset @ across_axis
+    excess = np.hypot(
+        max(along - GRASP_ALONG[1], GRASP_ALONG[0] - along, 0.0),
+        max(abs(across) - GRASP_ACROSS, 0.0))
+    height = min(HOVER_HEIGHT, CONE_SLOPE * excess)
+    close = excess == 0.0 and abs(offset[2]) < GRASP_Z
     closing = obs['gripper_aperture'][0] < CLOSING_APERTURE
-    close = (horizontal < GRASP_XY and abs(error[2]) < GRASP_Z) or (
-        closing and distance < KEEP_CLOSING)
-    return self._steer.action(aim, tcp, obs['joint_positions'],
-                              1.0 if close else -1.0)
+    if closing and np.linalg.norm(offset) < KEEP_CLOSING:
+      close = True
+    return self._step(obs, grip + (0.0, 0.0, height) - tcp,
+                      1.0 if close else -1.0)
 
 
 class RobotToHumanExpert(_HammerExpert):
@@ -185,7 +221,7 @@ class RobotToHumanExpert(_HammerExpert):
         back = self._kinematics.base_pose[:3, 3] - tcp
         back[2] = 0.0
         back *= CLEAR_DISTANCE / max(np.linalg.norm(back), 1e-9)
-        return self._present(obs, back + (0.0, 0.0, CLEAR_DISTANCE), -1.0)
+        return self._step(obs, back + (0.0, 0.0, CLEAR_DISTANCE), -1.0)
       return self._go_home(obs, -1.0)
     if not self._in_hand(obs):
       # Dropped: the tool may not reach into the table to pick it up.
@@ -194,28 +230,7 @@ class RobotToHumanExpert(_HammerExpert):
     end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
     palm = obs['target_position'].copy()
     palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
-    return self._present(obs, palm - end, 1.0)
-
-  def _present(self, obs, shift, gripper):
-    """Moves the TCP by `shift` (cut to one CARTESIAN_STEP) or the longest
-    of a few steps gripper-down IK reaches; holds still if none."""
-    tcp, q = obs['eef_position'], obs['joint_positions']
-    norm = np.linalg.norm(shift)
-    if norm > actions.CARTESIAN_STEP:
-      shift = shift * (actions.CARTESIAN_STEP / norm)
-    inward = self._kinematics.base_pose[:3, 3] - tcp
-    inward[2] = 0.0
-    inward *= RETRACT / max(np.linalg.norm(inward), 1e-9)
-    steps = [f * shift for f in STEP_FRACTIONS] + [0.5 * shift + inward]
-    for step in steps:
-      target = np.clip(tcp + step, self._box[0], self._box[1])
-      result = self._steer.ik.solve(target, q, self._steer.yaw)
-      if result.success:
-        if self._steer.space == 'cartesian':
-          return self._steer.action(target, tcp, q, gripper)
-        return self._steer.joint_goal_action(result.q, q, tcp, gripper)
-    return self._hold_still(obs, gripper)
-
+    return self._step(obs, palm - end, 1.0)
 
 class HumanToRobotExpert(_HammerExpert):
   """Takes the presented hammer and places it on the table target.
@@ -297,6 +312,5 @@ class HumanToRobotExpert(_HammerExpert):
     return self._go_home(obs, -1.0)
 
   def _hover(self, obs, point):
-    """Towards `point`, gripper open."""
-    tcp = obs['eef_position']
-    return self._steer.action(point, tcp, obs['joint_positions'], -1.0)
+    """Towards `point` (as far as gripper-down IK reaches), gripper open."""
+    return self._step(obs, point - obs['eef_position'], -1.0)

@@ -58,7 +58,8 @@ def test_robot_to_human_hands_over_and_lets_go(space):
   # person's hand pulls it between them for a few steps) without ever
   # leaving the hammer to fall.
   timestep = env.step(expert(timestep))
-  assert timestep.observation['gripper_aperture'][0] > 0.9
+  assert (timestep.observation['gripper_aperture'][0]
+          > handover_experts.RELEASED_APERTURE)
   free = lambda e: not e.task.gripper.is_grasping(e.physics, e.task.hammer.body)
   timestep = _run(env, expert, max_steps=10, until=free, timestep=timestep)
   assert free(env) and _held_by_human(env)
