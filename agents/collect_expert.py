@@ -16,31 +16,35 @@ from absl import flags
 
 from hrc_suite.experts import dataset
 
-_DOMAIN = flags.DEFINE_string('domain', None, 'Task domain, e.g. reach.')
-_TASK = flags.DEFINE_string('task', None, 'Task name, e.g. dense.')
-_ROBOT = flags.DEFINE_string('robot', 'schunk', 'Robot name.')
-_ACTION_SPACE = flags.DEFINE_enum(
-    'action_space', None, ['cartesian', 'joint'],
-    "Action space (default: the task's default).")
-_POLICY = flags.DEFINE_enum('policy', 'noisy_expert', list(dataset.POLICIES),
-                            'Expert with or without Ornstein-Uhlenbeck noise.')
-_EPISODES = flags.DEFINE_integer('episodes', 10,
-                                 'Episodes the dataset holds when done.',
-                                 lower_bound=0)
-_SEED = flags.DEFINE_integer('seed', 0, 'Episode i uses seed + i.',
-                             lower_bound=0)
-_OUT = flags.DEFINE_string('out', None, 'Dataset directory.')
-_TIME_LIMIT = flags.DEFINE_float(
-    'time_limit', None, "Episode length in s (default: the task's horizon).")
-_TASK_KWARGS = flags.DEFINE_string(
-    'task_kwargs', '{}', 'Further task kwargs as a JSON object, e.g. '
-    '\'{"shield": "pfl", "observations": "full"}\'.')
-_NOISE = flags.DEFINE_string(
-    'noise', '{}', 'Overrides of the reference OU noise parameters as a JSON '
-    'object (alpha, sigma, dt, mu, weight, start).')
-_PROGRESS = flags.DEFINE_bool('progress', True, 'Show progress bars.')
-
-flags.mark_flags_as_required(['domain', 'task', 'out'])
+def define_flags(flag_values=flags.FLAGS):
+  """Defines the command's flags (only when run as a program, so that the
+  module can be imported next to other binaries)."""
+  fv = flag_values
+  flags.DEFINE_string('domain', None, 'Task domain, e.g. reach.',
+                      flag_values=fv)
+  flags.DEFINE_string('task', None, 'Task name, e.g. dense.', flag_values=fv)
+  flags.DEFINE_string('robot', 'schunk', 'Robot name.', flag_values=fv)
+  flags.DEFINE_enum('action_space', None, ['cartesian', 'joint'],
+                    "Action space (default: the task's default).",
+                    flag_values=fv)
+  flags.DEFINE_enum('policy', 'noisy_expert', list(dataset.POLICIES),
+                    'Expert with or without Ornstein-Uhlenbeck noise.',
+                    flag_values=fv)
+  flags.DEFINE_integer('episodes', 10, 'Episodes the dataset holds when '
+                       'done.', lower_bound=0, flag_values=fv)
+  flags.DEFINE_integer('seed', 0, 'Episode i uses seed + i.', lower_bound=0,
+                       flag_values=fv)
+  flags.DEFINE_string('out', None, 'Dataset directory.', flag_values=fv)
+  flags.DEFINE_float('time_limit', None, 'Episode length in s (default: the '
+                     "task's horizon).", flag_values=fv)
+  flags.DEFINE_string('task_kwargs', '{}', 'Further task kwargs as a JSON '
+                      'object, e.g. \'{"shield": "pfl", "observations": '
+                      '"full"}\'.', flag_values=fv)
+  flags.DEFINE_string('noise', '{}', 'Overrides of the reference OU noise '
+                      'parameters as a JSON object (alpha, sigma, dt, mu, '
+                      'weight, start).', flag_values=fv)
+  flags.DEFINE_bool('progress', True, 'Show progress bars.', flag_values=fv)
+  flags.mark_flags_as_required(['domain', 'task', 'out'], flag_values=fv)
 
 
 def _json_object(flag):
@@ -54,20 +58,21 @@ def _json_object(flag):
   return value
 
 
-def main(argv):
+def main(argv, flag_values=flags.FLAGS):
+  f = flag_values
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
-  task_kwargs = _json_object(_TASK_KWARGS)
-  task_kwargs['robot'] = _ROBOT.value
-  if _ACTION_SPACE.value is not None:
-    task_kwargs['action_space'] = _ACTION_SPACE.value
-  if _TIME_LIMIT.value is not None:
-    task_kwargs['time_limit'] = _TIME_LIMIT.value
-  noise = _json_object(_NOISE) or None
+  task_kwargs = _json_object(f['task_kwargs'])
+  task_kwargs['robot'] = f.robot
+  if f.action_space is not None:
+    task_kwargs['action_space'] = f.action_space
+  if f.time_limit is not None:
+    task_kwargs['time_limit'] = f.time_limit
+  noise = _json_object(f['noise']) or None
   data = dataset.collect(
-      _OUT.value, _DOMAIN.value, _TASK.value, task_kwargs,
-      policy=_POLICY.value, episodes=_EPISODES.value, seed=_SEED.value,
-      noise_kwargs=noise, progress=_PROGRESS.value)
+      f.out, f.domain, f.task, task_kwargs,
+      policy=f.policy, episodes=f.episodes, seed=f.seed,
+      noise_kwargs=noise, progress=f.progress)
   episodes = data.metadata['episodes']
   if episodes:
     success = sum(e['success'] for e in episodes) / len(episodes)
@@ -77,4 +82,5 @@ def main(argv):
 
 
 if __name__ == '__main__':
+  define_flags()
   app.run(main)

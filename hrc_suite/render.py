@@ -41,34 +41,6 @@ OVERLAY_MAX_GEOMS = 2000
 # 15-23 s (seeds 0-2, measured), a random policy is cut off.
 DEFAULT_MAX_STEPS = 300
 
-_DOMAIN = flags.DEFINE_string('domain', 'handover', 'Task domain.')
-_TASK = flags.DEFINE_string('task', 'robot_to_human', 'Task name.')
-_ROBOT = flags.DEFINE_enum('robot', 'panda', robot_description.ROBOT_NAMES,
-                           'Robot.')
-_POLICY = flags.DEFINE_string('policy', 'random',
-                              f'Policy to run: {", ".join(POLICIES)}.')
-_SHIELD = flags.DEFINE_enum('shield', None, ('ssm', 'pfl', 'off'),
-                            'Shield mode (default: the task\'s).')
-_OUT = flags.DEFINE_string('out', 'episode.mp4', 'Video (.mp4 or .gif).')
-_CAMERA = flags.DEFINE_string(
-    'camera', 'side', 'Workcell camera (front, side, top, human_view).')
-_SEED = flags.DEFINE_integer('seed', 0, 'Seed of the episode and policy.')
-_MAX_STEPS = flags.DEFINE_integer(
-    'max_steps', DEFAULT_MAX_STEPS,
-    'At most this many RL steps (the episode may end earlier).')
-_WIDTH = flags.DEFINE_integer('width', 640, 'Frame width in pixels.')
-_HEIGHT = flags.DEFINE_integer('height', 480, 'Frame height in pixels.')
-_FPS = flags.DEFINE_float('fps', None,
-                          'Frames per second (default: real time).')
-_OVERLAY = flags.DEFINE_boolean(
-    'overlay', True, 'Shield capsules, event markers and caption.')
-_SUBSTEPS_PER_FRAME = flags.DEFINE_integer(
-    'substeps_per_frame', None,
-    'A frame every this many physics steps (default: one per RL step).')
-_GIF_SCALE = flags.DEFINE_float('gif_scale', 1.0,
-                                'Scale of .gif frames, in (0, 1].')
-
-
 # -------------------------------------------------------------- policies
 
 
@@ -356,14 +328,56 @@ def run(domain, task, robot='panda', policy='random', out='episode.mp4',
   return path, episode.metrics
 
 
-def main(argv):
+def define_flags(flag_values=flags.FLAGS):
+  """Defines the command's flags (only when run as a program, so that the
+  module can be imported next to other binaries)."""
+  fv = flag_values
+  flags.DEFINE_string('domain', 'handover', 'Task domain.', flag_values=fv)
+  flags.DEFINE_string('task', 'robot_to_human', 'Task name.', flag_values=fv)
+  flags.DEFINE_enum('robot', 'panda', robot_description.ROBOT_NAMES,
+                    'Robot.', flag_values=fv)
+  flags.DEFINE_string('policy', 'random',
+                      f'Policy to run: {", ".join(POLICIES)}.',
+                      flag_values=fv)
+  flags.DEFINE_enum('shield', None, ('ssm', 'pfl', 'off'),
+                    'Shield mode (default: the task\'s).', flag_values=fv)
+  flags.DEFINE_string('out', 'episode.mp4', 'Video (.mp4 or .gif).',
+                      flag_values=fv)
+  flags.DEFINE_string('camera', 'side',
+                      'Workcell camera (front, side, top, human_view).',
+                      flag_values=fv)
+  flags.DEFINE_integer('seed', 0, 'Seed of the episode and policy.',
+                       flag_values=fv)
+  flags.DEFINE_integer(
+      'max_steps', DEFAULT_MAX_STEPS,
+      'At most this many RL steps (the episode may end earlier).',
+      flag_values=fv)
+  flags.DEFINE_integer('width', 640, 'Frame width in pixels.',
+                       flag_values=fv)
+  flags.DEFINE_integer('height', 480, 'Frame height in pixels.',
+                       flag_values=fv)
+  flags.DEFINE_float('fps', None, 'Frames per second (default: real time).',
+                     flag_values=fv)
+  flags.DEFINE_boolean('overlay', True,
+                       'Shield capsules, event markers and caption.',
+                       flag_values=fv)
+  flags.DEFINE_integer(
+      'substeps_per_frame', None,
+      'A frame every this many physics steps (default: one per RL step).',
+      flag_values=fv)
+  flags.DEFINE_float('gif_scale', 1.0, 'Scale of .gif frames, in (0, 1].',
+                     flag_values=fv)
+
+
+def main(argv, flag_values=flags.FLAGS):
   del argv
-  task_kwargs = {'shield': _SHIELD.value} if _SHIELD.value else None
-  path, metrics = run(_DOMAIN.value, _TASK.value, _ROBOT.value, _POLICY.value,
-                      _OUT.value, _CAMERA.value, _SEED.value,
-                      _MAX_STEPS.value, _WIDTH.value, _HEIGHT.value,
-                      _OVERLAY.value, _FPS.value, _SUBSTEPS_PER_FRAME.value,
-                      _GIF_SCALE.value, task_kwargs)
+  f = flag_values
+  task_kwargs = {'shield': f.shield} if f.shield else None
+  path, metrics = run(f.domain, f.task, f.robot, f.policy,
+                      f.out, f.camera, f.seed,
+                      f.max_steps, f.width, f.height,
+                      f.overlay, f.fps, f.substeps_per_frame,
+                      f.gif_scale, task_kwargs)
   print('episode metrics:')
   for key, value in metrics.items():
     print(f'  {key}: {value:g}')
@@ -371,4 +385,5 @@ def main(argv):
 
 
 if __name__ == '__main__':
+  define_flags()
   app.run(main)

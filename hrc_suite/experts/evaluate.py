@@ -378,37 +378,41 @@ def write(results, out, json_out, info, not_evaluated=()):
 
 # -------------------------------------------------------------------- main
 
-_EPISODES = flags.DEFINE_integer('episodes', 50, 'Episodes (seeds 0..N-1) '
-                                 'per task, robot and policy.', lower_bound=1)
-_ROBOTS = flags.DEFINE_list('robots', ['schunk', 'panda'], 'Robots.')
-_TASKS = flags.DEFINE_list('tasks', [], 'domain/task names (default: every '
-                           'registered expert).')
-_POLICIES = flags.DEFINE_list('policies', list(POLICIES),
-                              'expert and/or noisy_expert.')
-_ACTION_SPACES = flags.DEFINE_list(
-    'action_spaces', [], "cartesian and/or joint (default: each task's "
-    'default).')
-_TIME_LIMIT = flags.DEFINE_float('time_limit', None, 'Episode length in s '
-                                 "(default: each task's horizon).")
-_WORKERS = flags.DEFINE_integer('workers', 1, 'Parallel processes.',
-                                lower_bound=1)
-_OUT = flags.DEFINE_string('out', 'docs/results/experts.md',
-                           'Markdown table (relative to the current '
-                           'directory: run from the repository root).')
-_JSON_OUT = flags.DEFINE_string('json_out', None, 'Per-episode results '
-                                '(default: --out with .json).')
-_PROGRESS = flags.DEFINE_bool('progress', True, 'Show a progress bar.')
+def define_flags(flag_values=flags.FLAGS):
+  """Defines the command's flags (only when run as a program, so that the
+  module can be imported next to other binaries)."""
+  fv = flag_values
+  flags.DEFINE_integer('episodes', 50, 'Episodes (seeds 0..N-1) per task, '
+                       'robot and policy.', lower_bound=1, flag_values=fv)
+  flags.DEFINE_list('robots', ['schunk', 'panda'], 'Robots.', flag_values=fv)
+  flags.DEFINE_list('tasks', [], 'domain/task names (default: every '
+                    'registered expert).', flag_values=fv)
+  flags.DEFINE_list('policies', list(POLICIES),
+                    'expert and/or noisy_expert.', flag_values=fv)
+  flags.DEFINE_list('action_spaces', [], 'cartesian and/or joint (default: '
+                    "each task's default).", flag_values=fv)
+  flags.DEFINE_float('time_limit', None, 'Episode length in s (default: '
+                     "each task's horizon).", flag_values=fv)
+  flags.DEFINE_integer('workers', 1, 'Parallel processes.', lower_bound=1,
+                       flag_values=fv)
+  flags.DEFINE_string('out', 'docs/results/experts.md', 'Markdown table '
+                      '(relative to the current directory: run from the '
+                      'repository root).', flag_values=fv)
+  flags.DEFINE_string('json_out', None, 'Per-episode results (default: '
+                      '--out with .json).', flag_values=fv)
+  flags.DEFINE_bool('progress', True, 'Show a progress bar.', flag_values=fv)
 
 
-def main(argv):
+def main(argv, flag_values=flags.FLAGS):
+  f = flag_values
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
-  unknown = [p for p in _POLICIES.value if p not in POLICIES]
+  unknown = [p for p in f.policies if p not in POLICIES]
   if unknown:
     raise app.UsageError(f'Unknown policies {unknown}: expected some of '
                          f'{", ".join(POLICIES)}')
   try:
-    requested = [_parse_task(t) for t in _TASKS.value] or None
+    requested = [_parse_task(t) for t in f.tasks] or None
   except ValueError as e:
     raise app.UsageError(str(e)) from e
   registered = set(experts.registered())
@@ -418,15 +422,15 @@ def main(argv):
       raise app.UsageError(f'No expert for {"/".join(task)}: experts exist '
                            f'for {valid}')
   tasks, not_evaluated = available_tasks(requested)
-  spaces = tuple(_ACTION_SPACES.value) or (None,)
-  job_list = jobs(tasks, _ROBOTS.value, _POLICIES.value, _EPISODES.value,
-                  spaces, _TIME_LIMIT.value)
-  json_out = _JSON_OUT.value or str(pathlib.Path(_OUT.value).with_suffix(
+  spaces = tuple(f.action_spaces) or (None,)
+  job_list = jobs(tasks, f.robots, f.policies, f.episodes,
+                  spaces, f.time_limit)
+  json_out = f.json_out or str(pathlib.Path(f.out).with_suffix(
       '.json'))
   partial = pathlib.Path(json_out + '.partial.jsonl')
   partial.parent.mkdir(parents=True, exist_ok=True)
   start = time.perf_counter()
-  results = run(job_list, workers=_WORKERS.value, progress=_PROGRESS.value,
+  results = run(job_list, workers=f.workers, progress=f.progress,
                 partial=partial)
   info = {
       'command': ' '.join(shlex.quote(a) for a in
@@ -434,12 +438,12 @@ def main(argv):
                           + sys.argv[1:]),
       'date': datetime.datetime.now(datetime.timezone.utc).strftime(
           '%Y-%m-%d %H:%M UTC'),
-      'machine': machine(), 'workers': _WORKERS.value,
+      'machine': machine(), 'workers': f.workers,
       'wall_time': time.perf_counter() - start, 'commit': _git_commit(),
   }
-  rows = write(results, _OUT.value, json_out, info, not_evaluated)
+  rows = write(results, f.out, json_out, info, not_evaluated)
   partial.unlink()
-  print(f'Wrote {_OUT.value} ({len(rows)} rows) and {json_out}')
+  print(f'Wrote {f.out} ({len(rows)} rows) and {json_out}')
   for row in rows:
     for reason in below_bar(row):
       print(f'BELOW THE BAR: {row["domain"]}/{row["task"]} {row["robot"]} '
@@ -447,4 +451,5 @@ def main(argv):
 
 
 if __name__ == '__main__':
+  define_flags()
   app.run(main)

@@ -3,7 +3,6 @@
 import json
 
 from absl import flags
-from absl.testing import flagsaver
 import numpy as np
 import pytest
 
@@ -12,11 +11,18 @@ from hrc_suite.experts import evaluate
 
 
 @pytest.fixture(autouse=True)
-def _parsed_flags():
-  # pytest parses no absl flags: the binary's defaults, overridden per test.
-  if not flags.FLAGS.is_parsed():
-    flags.FLAGS.mark_as_parsed()
+def _clear_cache():
   evaluate._ENV_CACHE.clear()   # pylint: disable=protected-access
+
+
+def _flags(**values):
+  """The command's flags (own FlagValues): defaults, then `values`."""
+  flag_values = flags.FlagValues()
+  evaluate.define_flags(flag_values)
+  flag_values(['evaluate'])
+  for name, value in values.items():
+    setattr(flag_values, name, value)
+  return flag_values
 
 def test_success_ci_known_cases():
   assert evaluate.success_ci([1.0] * 20) == (1.0, 1.0, 1.0)
@@ -77,10 +83,10 @@ def _table_rows(text):
                     reason='the reach expert is not written yet')
 def test_tiny_run_writes_a_well_formed_table(tmp_path):
   out, json_out = tmp_path / 'results' / 'experts.md', tmp_path / 'e.json'
-  with flagsaver.flagsaver(
+  flag_values = _flags(
       episodes=1, tasks=['reach/dense'], robots=['schunk'],
-      time_limit=0.5, out=str(out), json_out=str(json_out), progress=False):
-    evaluate.main(['evaluate'])
+      time_limit=0.5, out=str(out), json_out=str(json_out), progress=False)
+  evaluate.main(['evaluate'], flag_values)
   text = out.read_text()
   table = _table_rows(text)
   header, separator, *rows = table
@@ -107,12 +113,12 @@ def test_tiny_run_writes_a_well_formed_table(tmp_path):
 
 
 def test_unknown_task_or_policy_is_a_usage_error():
-  with flagsaver.flagsaver(tasks=['reach/far'], progress=False):
-    with pytest.raises(Exception, match='No expert for reach/far'):
-      evaluate.main(['evaluate'])
-  with flagsaver.flagsaver(policies=['random'], progress=False):
-    with pytest.raises(Exception, match=r"Unknown policies \['random'\]"):
-      evaluate.main(['evaluate'])
+  flag_values = _flags(tasks=['reach/far'], progress=False)
+  with pytest.raises(Exception, match='No expert for reach/far'):
+    evaluate.main(['evaluate'], flag_values)
+  flag_values = _flags(policies=['random'], progress=False)
+  with pytest.raises(Exception, match=r"Unknown policies \['random'\]"):
+    evaluate.main(['evaluate'], flag_values)
 
 
 def test_an_episode_that_raises_is_a_reported_failure(monkeypatch):
