@@ -5,10 +5,9 @@ end of the handle (where a person holds a hammer) to the palm of the
 person's holding hand; when the person holds the hammer, open and, once the
 fingers are clear, go back home. Cartesian: the TCP moves by the palm-to-
 handle-end difference (gripper down); joint space: the same aim through one
-gripper-down IK step. At the limit of the gripper-down reach the expert
-tries shorter steps and a sideways slide (retracting a little); where none
-is reachable the arm waits: the person's hand sways while they wait (the
-idle phase) and comes to the handle.
+gripper-down IK step (or a shorter one). Beyond the gripper-down reach the
+arm waits at its limit: the person's hand sways while they wait (the idle
+phase) and comes to the handle.
 
 Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
@@ -93,12 +92,15 @@ READY_ABOVE = 0.1                        # m
 READY_HEIGHT = 0.42                      # m
 READY_AHEAD = 0.12                       # m
 READY_SIDE = 0.25                        # m
-# Presenting at the edge of the gripper-down reach: steps tried (from the
-# TCP towards the aim, at most CARTESIAN_STEP) until gripper-down IK solves
-# one: the step, half, a quarter, and half of it plus a retraction of
-# RETRACT towards the base (which lets a stretched arm slide sideways along
-# its reach limit: Schunk, Cartesian, seed 12, palm 0.38 m to the side).
-# Where none solves, the arm holds still and the swaying palm comes to it.
+# At the edge of the gripper-down reach: steps tried (from the TCP towards
+# the aim, at most CARTESIAN_STEP) until gripper-down IK solves one: the
+# step, half, a quarter and, when sliding, straight up or down and half of
+# it plus a retraction of RETRACT towards the base (a stretched arm slides
+# along its reach limit towards a hammer presented beyond it). Where none
+# solves, the arm holds still. The robot-to-human presentation does not
+# slide: following a palm swaying beyond the reach took the Panda into the
+# person's path (shoved, hammer dropped, critical contacts; seeds 0, 5);
+# holding at the limit, the swaying palm comes to the handle.
 STEP_FRACTIONS = (1.0, 0.5, 0.25)
 RETRACT = 0.03                           # m
 
@@ -155,9 +157,11 @@ class _HammerExpert(base.Expert):
           obs['joint_positions'], obs['joint_positions'], tcp, gripper)
     return self._steer.action(tcp, tcp, obs['joint_positions'], gripper)
 
-  def _step(self, obs, shift, gripper):
+  def _step(self, obs, shift, gripper, slide=True):
     """Moves the TCP by `shift` (cut to one CARTESIAN_STEP) or the longest
-    of a few steps gripper-down IK reaches; holds still if none."""
+    of a few steps gripper-down IK reaches at the current gripper yaw
+    branch (slide: also straight up or down, and half the step plus a
+    retraction towards the base); holds still if none."""
     tcp, q = obs['eef_position'], obs['joint_positions']
     norm = np.linalg.norm(shift)
     if norm > actions.CARTESIAN_STEP:
@@ -166,12 +170,18 @@ class _HammerExpert(base.Expert):
     inward[2] = 0.0
     inward *= RETRACT / max(np.linalg.norm(inward), 1e-9)
     vertical = shift * (0.0, 0.0, 1.0)
-    steps = [f * shift for f in STEP_FRACTIONS] + [vertical,
-                                                   0.5 * shift + inward]
+    steps = [f * shift for f in STEP_FRACTIONS]
+    if slide:
+      steps += [vertical, 0.5 * shift + inward]
+    rotation = self._kinematics.tcp_pose(q)[:3, :3]
+    yaw_now = np.arctan2(rotation[1, 0], rotation[0, 0])
     for step in steps:
       target = np.clip(tcp + step, self._box[0], self._box[1])
       result = self._steer.ik.solve(target, q, self._steer.yaw)
-      if result.success:
+      # Not through the other gripper yaw (the IK's yaw + pi fallback):
+      # that half turn of the wrist swings the hammer about.
+      turn = (result.yaw - yaw_now + np.pi) % (2 * np.pi) - np.pi
+      if result.success and abs(turn) < np.pi / 2:
         if self._steer.space == 'cartesian':
           return self._steer.action(target, tcp, q, gripper)
         return self._steer.joint_goal_action(result.q, q, tcp, gripper)
@@ -230,7 +240,11 @@ class RobotToHumanExpert(_HammerExpert):
     end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
     palm = obs['target_position'].copy()
     palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
-    return self._step(obs, palm - end, 1.0)
+    if self._steer.space == 'cartesian':
+      # Straight at it; beyond the reach the action space keeps its goal.
+      return self._steer.action(tcp + palm - end, tcp,
+                                obs['joint_positions'], 1.0)
+    return self._step(obs, palm - end, 1.0, slide=False)
 
 class HumanToRobotExpert(_HammerExpert):
   """Takes the presented hammer and places it on the table target.
