@@ -22,6 +22,7 @@ import numpy as np
 
 from hrc_suite import layout
 from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import synthesis
 
 # Table edge towards the person and table top height in the clip frame.
 TABLE_EDGE_X = layout.HUMAN_STATION_ACROSS[0] - layout.TABLE_X[1]
@@ -278,6 +279,20 @@ def inspection(script, rs):
   _retreat(script, rs)
 
 
+# Where a person carrying one end of the board may walk (clip frame, m,
+# relative to where they lifted it: x towards the robot): steps of up to
+# 0.25 m used to add up to 0.5 m backwards, carrying the robot's end
+# (handle) ~0.9 m from the robot's base, beyond every robot's gripper-down
+# reach (~0.75-0.8 m, measured with the lifting expert).
+LIFT_WALK_RANGE = (np.array([-0.2, -0.2]), np.array([0.05, 0.2]))
+# Peak speed of the board while carried (m/s): the robot's end follows in
+# steps of at most 3 cm per 0.1 s RL step near the person (the lifting
+# expert's measured limit before the shield stalls it); the person's walks
+# and hand moves reached 0.35-0.5 m/s and pulled the board out of the
+# Schunk's fingers (clip lifting_05).
+LIFT_CARRY_SPEED = 0.2
+
+
 def lifting(script, rs):
   """Grasp the board's end with both hands, lift, carry slowly, put down."""
   script.start_at(_station(rs, 0.06), yaw=rs.uniform(-0.05, 0.05))
@@ -304,21 +319,37 @@ def lifting(script, rs):
   held_local = [script.value('left_hand').copy(),
                 script.value('right_hand').copy()]
   script.mark()
+  lifted_at = script.value('pelvis_xy').copy()
+
+  def carry_duration(distance, low, high):
+    # At least long enough for a peak speed of LIFT_CARRY_SPEED.
+    return max(rs.uniform(low, high), synthesis.MIN_JERK_PEAK_RATIO *
+               distance / LIFT_CARRY_SPEED)
+
   for _ in range(rs.randint(4, 8)):
     script.hold(rs.uniform(0.0, 0.3))
     if rs.uniform() < 0.4:
       step = np.array([rs.uniform(-0.25, 0.05), rs.uniform(-0.25, 0.25)])
-      script.walk(script.value('pelvis_xy') + step,
-                  duration=rs.uniform(1.8, 2.6))
+      # The robot holds the board's other end: the person stays where the
+      # robot's end can follow (LIFT_WALK_RANGE about the lifting stance).
+      target = np.clip(script.value('pelvis_xy') + step,
+                       lifted_at + LIFT_WALK_RANGE[0],
+                       lifted_at + LIFT_WALK_RANGE[1])
+      distance = np.linalg.norm(target - script.value('pelvis_xy'))
+      script.walk(target, duration=carry_duration(distance, 1.8, 2.6))
     else:
       # Around the lifted pose (not cumulative), in the body's frame.
       delta = np.array([rs.uniform(-0.12, 0.08), rs.uniform(-0.15, 0.15),
                         rs.uniform(-0.12, 0.12)])
-      script.move(rs.uniform(0.9, 1.5), lean=0.0, **{
-          hand: held_local[s] + delta for s, hand in enumerate(
-              ('left_hand', 'right_hand'))})
+      targets = [held_local[s] + delta for s in range(2)]
+      distance = max(np.linalg.norm(targets[s] - script.value(hand))
+                     for s, hand in enumerate(('left_hand', 'right_hand')))
+      script.move(carry_duration(distance, 0.9, 1.5), lean=0.0,
+                  left_hand=targets[0], right_hand=targets[1])
     script.mark()
-  script.walk(_station(rs, 0.02))
+  station = _station(rs, 0.02)
+  script.walk(station, duration=carry_duration(
+      np.linalg.norm(station - script.value('pelvis_xy')), 1.0, 1.0))
   down = [np.array([grasp_x, centre_y + half, board_top + 0.02]),
           np.array([grasp_x, centre_y - half, board_top + 0.02])]
   script.reach_both(down)
