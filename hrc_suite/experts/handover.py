@@ -71,6 +71,9 @@ PRESENTED_SPEED = 0.02                   # m per RL step
 # no tool capsule into the table: with the Panda's 0.064 m capsule radius
 # the TCP stays ~0.08 m above the top; the hammer drops the rest).
 CARRY_HEIGHT = 0.15                      # m
+# At most this far per RL step while carrying (0.5 m/s): full 0.1 m steps
+# pried a grasp near the end of the Schunk's reach open (joint seed 6).
+CARRY_STEP = 0.05                        # m
 RELEASE_HEIGHT = 0.08                    # m
 RELEASE_BELOW = 0.1                      # m: open once the grip is lower
 OVER_TARGET = 0.02                       # m, horizontal: lower the hammer
@@ -298,8 +301,11 @@ class HumanToRobotExpert(_HammerExpert):
       aim_grip = target + (0.0, 0.0, RELEASE_HEIGHT)
     low = grip[2] - target[2] < RELEASE_BELOW
     gripper = -1.0 if (low and horizontal < OVER_TARGET + 0.01) else 1.0
-    return self._steer.action(tcp + aim_grip - grip, tcp,
-                              obs['joint_positions'], gripper)
+    shift = aim_grip - grip
+    norm = np.linalg.norm(shift)
+    if norm > CARRY_STEP:
+      shift *= CARRY_STEP / norm
+    return self._step(obs, shift, gripper, slide=False)
 
   def action(self, obs):
     grip = obs['object_position']
