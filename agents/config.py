@@ -14,6 +14,12 @@ Two presets:
   gamma 0.99, 100 gradient steps every 100 environment steps, initial
   temperature 0.2, MLP (64, 64, 64).
 
+Measured on reach/dense (Schunk, Cartesian, default horizon): overrides
+reward_scale=100, initial_temperature=0.01, hidden_sizes=(64, 64) reach
+90 % deterministic evaluation success (20 episodes) after 2 x 10^4 steps
+with seeds 0 and 1; the default temperature with unscaled rewards showed no
+progress within 6000 steps (the entropy bonus swamps -0.1 x distance).
+
 Seeds are not part of a config: agents take them separately.
 """
 
