@@ -8,9 +8,10 @@ one curve: at every evaluation step all of them reached, the mean over seeds
 with a 95 % percentile-bootstrap confidence interval from 10^4 resamples
 (the reference benchmark's protocol). Two panels: the evaluation success
 rate and the evaluation return normalised between the task's minimal
-episode return (0: reward_range low x horizon, from the run's config.json;
---minimum=task: without collision penalties, as in the paper's runs) and
-the mean expert return (1). The expert return comes from --expert_return or
+episode return (0: the task reward's lowest value x horizon, from the run's
+config.json, as in the paper, whose runs had no collision penalty;
+--minimum=total: with the collision penalty, which puts the zero far below
+any real return) and the mean expert return (1). The expert return comes from --expert_return or
 the experts file (--experts_json, by default docs/results/experts.json of
 the repository when present); without either the raw return is plotted and
 the axis says so.
@@ -105,7 +106,7 @@ def _label(config):
 
 def learning_curves(logdirs, random_state, expert=None, experts_json=None,
                     num_resamples=statistics.DEFAULT_RESAMPLES,
-                    minimum='total'):
+                    minimum='task'):
   """One Curve per group of runs that differ only in their seed.
 
   minimum: the normalisation's 0, 'total' (the lowest possible return,
@@ -228,9 +229,10 @@ def define_flags(flag_values=flags.FLAGS):
                        'Bootstrap resamples.', flag_values=fv)
   flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.',
                        flag_values=fv)
-  flags.DEFINE_enum('minimum', 'total', list(MINIMA), 'Normalisation 0: the '
-                    'lowest possible return (collision penalties included) '
-                    'or the task reward\'s alone.', flag_values=fv)
+  flags.DEFINE_enum('minimum', 'task', list(MINIMA), 'Normalisation 0: the '
+                    'task reward\'s lowest return (the paper\'s) or the '
+                    'lowest possible return with collision penalties.',
+                    flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):

@@ -34,7 +34,8 @@ def test_curves_over_seeds_normalised_by_the_expert(tmp_path):
   _write_run(a, 0, [0.0, 0.5, 1.0], [-100.0, -60.0, -20.0])
   _write_run(b, 1, [0.0, 1.0, 1.0, 1.0], [-100.0, -40.0, -20.0, -20.0])
   curves = plot.learning_curves([a, b], np.random.RandomState(0),
-                                expert=-20.0, num_resamples=2000)
+                                expert=-20.0, num_resamples=2000,
+                                minimum='total')
   assert len(curves) == 1
   curve = curves[0]
   assert curve.seeds == [0, 1] and curve.normalised
@@ -72,7 +73,7 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
   curves = plot.learning_curves(
       [str(tmp_path / 's0'), str(tmp_path / 'air0')],
       np.random.RandomState(0), experts_json=str(experts),
-      num_resamples=100)
+      num_resamples=100, minimum='total')
   assert [c.label for c in curves] == ['sac (default)', 'air (default)']
   np.testing.assert_allclose(curves[0].returns[0], [0.4, 1.0])
   # The rows of hrc_suite.experts.evaluate: the deterministic expert of the
@@ -88,11 +89,12 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
   from_rows = plot.learning_curves([str(tmp_path / 's0')],
                                    np.random.RandomState(0),
                                    experts_json=str(experts),
-                                   num_resamples=100)
+                                   num_resamples=100, minimum='total')
   np.testing.assert_allclose(from_rows[0].returns[0], [0.4, 1.0])
   # Without an expert return the raw return is kept.
   raw = plot.learning_curves([str(tmp_path / 's0')],
-                             np.random.RandomState(0), num_resamples=100)
+                             np.random.RandomState(0), num_resamples=100,
+                             minimum='total')
   assert not raw[0].normalised
   # The task-only minimum (-60): (-50 + 60) / (-50 + 60) at the end.
   task = plot.learning_curves([str(tmp_path / 's0')],
@@ -107,12 +109,13 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
 
 def test_bad_runs_raise(tmp_path):
   with pytest.raises(ValueError, match='not a training run'):
-    plot.learning_curves([str(tmp_path)], np.random.RandomState(0))
+    plot.learning_curves([str(tmp_path)], np.random.RandomState(0),
+                         minimum='total')
   _write_run(str(tmp_path / 'a'), 0, [0.0], [-1.0])
   _write_run(str(tmp_path / 'b'), 0, [0.0], [-1.0])
   with pytest.raises(ValueError, match='repeat seeds'):
     plot.learning_curves([str(tmp_path / 'a'), str(tmp_path / 'b')],
-                         np.random.RandomState(0))
+                         np.random.RandomState(0), minimum='total')
   with pytest.raises(ValueError, match='must exceed the minimal'):
     plot.learning_curves([str(tmp_path / 'a')], np.random.RandomState(0),
-                         expert=-200.0)
+                         expert=-200.0, minimum='total')
