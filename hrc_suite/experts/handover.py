@@ -81,7 +81,7 @@ OVER_TARGET = 0.02                       # m, horizontal: lower the hammer
 # table top (a palm swaying low would pull the hammer into the table).
 MIN_HANDLE_END_HEIGHT = 0.05             # m
 # Fingers clear of the handle before moving away: aperture at least; then
-# straight up until the grip point is this far from the TCP (a joint path
+# up and back until the grip point is this far from the TCP (a joint path
 # home from a stretched arm swept the open fingers along the handle).
 RELEASED_APERTURE = 0.6                  # normalised
 CLEAR_DISTANCE = 0.06                    # m
