@@ -3,6 +3,7 @@
 import unittest
 
 from dm_env import test_utils
+import mujoco
 import numpy as np
 import pytest
 
@@ -150,6 +151,51 @@ def _oracle(env):
     return np.append(np.clip(delta / actions.CARTESIAN_STEP, -1, 1), 1.0)
 
   return policy
+
+
+def test_a_blow_is_an_impulse_not_a_press():
+  # The person holds the hammer compliantly (tasks/tool_hold.py): a blow
+  # peaks at hundreds of newtons or more for a few milliseconds, then the
+  # face rests on the nail with a few newtons although the kinematic hand's
+  # strike ends below the nail head (with the old weld: a press of
+  # kilonewtons until the next lift).
+  env = _env('panda', seed=1, time_limit=9.0)
+  task = env.task
+  forces = []
+  after_substep = task.after_substep
+
+  def record(physics, random_state):
+    after_substep(physics, random_state)
+    model, data = physics.model, physics.data
+    head = physics.bind(task.board.nail_head).element_id
+    hammer = physics.bind(task.hammer.body).element_id
+    force, total = np.zeros(6), 0.0
+    for i in range(data.ncon):
+      contact = data.contact[i]
+      if head in (contact.geom1, contact.geom2) and hammer in (
+          model.geom_bodyid[contact.geom1], model.geom_bodyid[contact.geom2]):
+        mujoco.mj_contactForce(model.ptr, data.ptr, i, force)
+        total += force[0]
+    forces.append(total)
+
+  task.after_substep = record
+  policy = _oracle(env)
+  timestep = env.reset()
+  weld = env.physics.bind(task._hammer_welds[task.player.clip.holding_hand])
+  assert weld.active == 0     # the hold, not the weld, carries the hammer
+  while not timestep.last():
+    timestep = env.step(policy(timestep))
+  forces = np.array(forces)
+  touching = forces[forces > 0.0]
+  assert task.board.progress(env.physics) > 0.05   # the blow drove the nail
+  assert forces.max() > 300.0
+  assert len(touching) > 50                        # the face rested on it
+  assert np.median(touching) < 10.0
+  # No press: the force stays above 30 N for at most 5 steps (20 ms) on end.
+  pressing = np.concatenate([[0], (forces > 30.0).astype(int), [0]])
+  edges = np.flatnonzero(np.diff(pressing))
+  assert (edges[1::2] - edges[::2]).max() <= 5
+  assert task.step_metrics['object_gripped'] == 1.0
 
 
 @pytest.mark.slow
