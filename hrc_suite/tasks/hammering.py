@@ -6,9 +6,13 @@ drives its nail in (reference-benchmark.md, paper Table I).
   only moves "to a point 0.1 m before the nail, gripper closed"). The gripper
   is turned to HOLD_YAW (Cartesian actions keep that yaw) so the nail sits
   0.095 m in front of the TCP towards the human, clear of the wrist; where
-  the IK finds no such turn at the home TCP, the robot keeps its home yaw. The human walks in
-  holding a claw hammer (`Human.hold`, a weld to the clip's holding hand,
-  set so the face lands on the clip's 'nail' target at each strike).
+  the IK finds no such turn at the home TCP, the robot keeps its home yaw.
+  The human walks in holding a claw hammer at the pose (`Human.hold`'s
+  weld data) at which the face lands on the clip's 'nail' target at the
+  strike; the weld is off, a compliant, force-limited hand hold
+  (tool_hold.CompliantHold) carries the hammer and aims it at the nail
+  head, so a blow is an impulse rather than a kinematic press
+  (docs/tasks.md).
 * Goal: the nail head NAIL_ABOVE_TARGET over the clip's 'nail' target, so
   the blows land on it while the hammer is still moving fast. The human's
   idle phase repeats blows until 'nail_hammered' (clip.TASK_EVENTS).
