@@ -50,26 +50,24 @@ def test_brings_the_nail_to_the_target_and_holds_it(space):
   assert env.task.episode_metrics['contacts_human_critical'] == 0
 
 
-@pytest.mark.slow
-def test_drives_the_nail_in_on_the_panda():
-  # Seeds whose boards stay in the fingers (see the expert's known limits).
+def _successes(robot, space, seeds):
   successes = 0
-  for seed in (2, 3, 4):
-    env = _env('panda', 'cartesian', seed=seed)
+  for seed in seeds:
+    env = _env(robot, space, seed=seed)
     result = metrics.run_episode(env, experts.make(env))
     assert result['contacts_human_critical'] == 0
+    assert env.task.step_metrics['object_gripped'] == 1.0   # never dropped
     successes += int(result['success'])
-  assert successes >= 2
+  return successes
 
 
 @pytest.mark.slow
-def test_drives_the_nail_on_the_schunk():
-  # The quick table asks for 2 of 3 Schunk successes; measured, the
-  # Schunk drops the board or runs out of time in most seeds (1 of 6), so
-  # this checks the part that works: blows land and drive the nail.
-  for seed in (2, 3):
-    env = _env('schunk', 'cartesian', seed=seed)
-    result = metrics.run_episode(env, experts.make(env))
-    assert result['contacts_human_critical'] == 0
-    assert result['nail_blows'] >= 5
-    assert env.task.board.progress(env.physics) > 0.5
+@pytest.mark.parametrize('robot', ('schunk', 'panda'))
+def test_drives_the_nail_in(robot):
+  # The quick table: 2 of 3 seeds (measured: 3 of 3 on both).
+  assert _successes(robot, 'cartesian', (0, 1, 2)) >= 2
+
+
+@pytest.mark.slow
+def test_drives_the_nail_in_in_joint_space():
+  assert _successes('schunk', 'joint', (0, 1, 2)) >= 2
