@@ -25,14 +25,14 @@ snapshots.
 import mujoco
 import numpy as np
 
-# Hand stiffness of a relaxed human arm: a few hundred N/m (Mussa-Ivaldi,
-# Hogan & Bizzi 1985, J. Neurosci. 5(10): 2732-2743, hand stiffness ellipses
-# of 200-700 N/m in the horizontal plane). With a 0.58 kg hammer this is a
-# time constant sqrt(m / k) of 38 ms.
+# Hand stiffness of a relaxed human arm: of the order of a few hundred N/m
+# (Mussa-Ivaldi, Hogan & Bizzi 1985, J. Neurosci. 5(10): 2732-2743, hand
+# stiffness ellipses measured in the horizontal plane). With a 0.58 kg
+# hammer this is a time constant sqrt(m / k) of 38 ms.
 STIFFNESS = 400.0          # N/m
-# Wrist stiffness: about 1-10 N m/rad from relaxed to co-contracted (e.g.
-# Drake & Charles 2014, J. Biomech. Eng. 136(10): wrist flexion-extension
-# stiffness ~1.5-2 N m/rad relaxed); a grip on a tool co-contracts.
+# Wrist stiffness: of the order of 1-10 N m/rad from relaxed to
+# co-contracted (design value within that range: a grip on a tool
+# co-contracts).
 ROTATIONAL_STIFFNESS = 5.0   # N m/rad
 DAMPING_RATIO = 1.0          # critically damped (no rebound of the tool)
 # The forces are explicit (computed before each step): about a principal
@@ -40,9 +40,9 @@ DAMPING_RATIO = 1.0          # critically damped (no rebound of the tool)
 # oscillate faster than the step resolves. Each axis' stiffness is capped
 # at inertia x MAX_FREQUENCY^2 (omega dt = 0.2 at 4 ms: stable, damped).
 MAX_FREQUENCY = 50.0         # rad/s
-# Limits of the hand's force and the wrist's torque on the tool. The clips'
-# swings accelerate a 0.58 kg hammer at up to ~100 m/s^2 (~60 N with its
-# weight); but their kinematic strikes stop dead at the end point, which a
+# Limits of the hand's force and the wrist's torque on the tool. A blow's
+# swing accelerates the 0.58 kg hammer at ~75 m/s^2 (0.25 m in 0.14 s,
+# minimum jerk: ~50 N with its weight); but their kinematic strikes stop dead at the end point, which a
 # hand cannot do to a swung hammer (it decelerates it over centimetres, or
 # the nail does): at 80 N a 2 m/s hammer needs ~15 ms and ~1.5 cm to stop,
 # so the blow's momentum reaches the nail (measured, Panda seed 1: a 2.3
@@ -52,8 +52,8 @@ MAX_FREQUENCY = 50.0         # rad/s
 MAX_FORCE = 80.0             # N
 MAX_TORQUE = 15.0            # N m
 # Aiming: the wrist turns the tool about the vertical through the hand by
-# at most the wrist's radial deviation (~20 deg; ulnar ~30 deg, AAOS joint
-# motion norms).
+# at most the wrist's radial deviation (~20 deg; ulnar ~30-35 deg: normal
+# ranges of joint motion).
 MAX_AIM = np.radians(20.0)   # rad
 # ... and the arm reaches up to this much further or shorter (m, design
 # value: the synthetic clips' blows scatter +-2.5 cm along the handle, a
