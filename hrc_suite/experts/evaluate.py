@@ -2,10 +2,12 @@ r"""The expert baseline table: every expert (and noisy expert) per task.
 
   python -m hrc_suite.experts.evaluate --episodes=50 --robots=schunk,panda \
       --workers=2
+  python -m hrc_suite.experts.evaluate \
+      --pairs=schunk:expert,schunk:noisy_expert,panda:expert --workers=2
 
 Runs episodes with seeds 0..N-1 of each registered expert's task on each
-robot and policy (shield and action space: the task's defaults unless
-given) and writes docs/results/experts.md (one row per task, robot and
+robot and policy, or on the given robot:policy pairs (shield and action
+space: the task's defaults unless given) and writes docs/results/experts.md (one row per task, robot and
 policy: success rate with a 95 % bootstrap confidence interval, return,
 episode length, shield interventions and contacts by type per episode,
 wall time) and the raw per-episode results as docs/results/experts.json.
@@ -134,12 +136,14 @@ def run_job(job):
 
 
 def jobs(tasks, robots, policies, episodes, action_spaces=(None,),
-         time_limit=None):
-  """Every episode to run, grouped by environment."""
+         time_limit=None, pairs=None):
+  """Every episode to run, grouped by environment: robots x policies, or
+  the (robot, policy) `pairs` when given."""
+  pairs = pairs or [(robot, policy) for robot in robots
+                    for policy in policies]
   return [(domain, task, robot, space, policy, time_limit, seed)
-          for domain, task in tasks for robot in robots
-          for space in action_spaces for policy in policies
-          for seed in range(episodes)]
+          for domain, task in tasks for robot, policy in pairs
+          for space in action_spaces for seed in range(episodes)]
 
 
 def _job_key(job):
@@ -385,6 +389,9 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_integer('episodes', 50, 'Episodes (seeds 0..N-1) per task, '
                        'robot and policy.', lower_bound=1, flag_values=fv)
   flags.DEFINE_list('robots', ['schunk', 'panda'], 'Robots.', flag_values=fv)
+  flags.DEFINE_list('pairs', [], 'robot:policy pairs to run instead of '
+                    '--robots x --policies, e.g. schunk:expert,'
+                    'schunk:noisy_expert,panda:expert.', flag_values=fv)
   flags.DEFINE_list('tasks', [], 'domain/task names (default: every '
                     'registered expert).', flag_values=fv)
   flags.DEFINE_list('policies', list(POLICIES),
@@ -423,8 +430,15 @@ def main(argv, flag_values=flags.FLAGS):
                            f'for {valid}')
   tasks, not_evaluated = available_tasks(requested)
   spaces = tuple(f.action_spaces) or (None,)
+  pairs = []
+  for pair in f.pairs:
+    robot, _, policy = pair.partition(':')
+    if policy not in POLICIES or not robot:
+      raise app.UsageError(f'--pairs entry {pair!r}: expected robot:policy '
+                           f'with policy one of {", ".join(POLICIES)}')
+    pairs.append((robot, policy))
   job_list = jobs(tasks, f.robots, f.policies, f.episodes,
-                  spaces, f.time_limit)
+                  spaces, f.time_limit, pairs)
   json_out = f.json_out or str(pathlib.Path(f.out).with_suffix(
       '.json'))
   partial = pathlib.Path(json_out + '.partial.jsonl')

@@ -172,3 +172,16 @@ def test_spawned_workers_give_the_same_episodes():
   assert [r['job'] for r in parallel] == [list(job) for job in job_list]
   for one, other in zip(serial, parallel):
     assert one['metrics'] == other['metrics'] and other['error'] is None
+
+
+def test_pairs_choose_robot_and_policy_combinations():
+  job_list = evaluate.jobs([('reach', 'dense')], ['schunk', 'panda'],
+                           ['expert', 'noisy_expert'], 2,
+                           pairs=[('schunk', 'expert'), ('panda', 'expert'),
+                                  ('schunk', 'noisy_expert')])
+  assert [(job[2], job[4]) for job in job_list[::2]] == [
+      ('schunk', 'expert'), ('panda', 'expert'), ('schunk', 'noisy_expert')]
+  assert len(job_list) == 6
+  with pytest.raises(Exception, match='robot:policy'):
+    evaluate.main(['evaluate'], _flags(pairs=['schunk-expert'],
+                                       progress=False))
