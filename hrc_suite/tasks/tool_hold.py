@@ -22,6 +22,8 @@ at consecutive physics steps; `state()` / `set_state()` carry them through
 snapshots.
 """
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -63,6 +65,10 @@ MAX_AIM = np.radians(20.0)   # rad
 MAX_REACH = 0.03             # m
 
 
+_NEXT = np.array([1, 2, 0])   # cross products by index (a x b)_i =
+_PREV = np.array([2, 0, 1])   # a_next b_prev - a_prev b_next
+
+
 def _quat_to_mat(quat):
   matrix = np.empty(9)
   mujoco.mju_quat2Mat(matrix, quat)
@@ -80,7 +86,8 @@ def _rotation_vector(q_to, q_from):
   difference = _quat_mul(q_to, q_from * np.array([1.0, -1.0, -1.0, -1.0]))
   if difference[0] < 0.0:
     difference = -difference
-  sine = np.linalg.norm(difference[1:])
+  vector = difference[1:]
+  sine = math.sqrt(vector @ vector)
   if sine < 1e-12:
     return 2.0 * difference[1:]
   return difference[1:] * (2.0 * np.arctan2(sine, difference[0]) / sine)
@@ -204,8 +211,8 @@ class CompliantHold:
                                s * arm[0] + c * arm[1]]
       quat = _quat_mul(np.array([np.cos(turn / 2), 0.0, 0.0,
                                  np.sin(turn / 2)]), quat)
-      distance = np.linalg.norm(want)
-      error = distance - np.linalg.norm(arm)
+      distance = math.sqrt(want @ want)
+      error = distance - math.sqrt(arm @ arm)
       size = abs(error)
       if size > MAX_REACH:
         error = np.sign(error) * max(0.0, 2.0 * MAX_REACH - size)
@@ -250,25 +257,25 @@ class CompliantHold:
 
     quat = data.qpos[self._qpos + 3:self._qpos + 7]
     rotation = _quat_to_mat(quat)
-    com = data.qpos[self._qpos:self._qpos + 3] + rotation @ self._com_local
+    lever = rotation @ self._com_local
+    com = data.qpos[self._qpos:self._qpos + 3] + lever
     body_omega = rotation @ data.qvel[self._qvel + 3:self._qvel + 6]
-    com_velocity = data.qvel[self._qvel:self._qvel + 3] + np.cross(
-        body_omega, rotation @ self._com_local)
+    com_velocity = data.qvel[self._qvel:self._qvel + 3] + (   # + w x r
+        body_omega[_NEXT] * lever[_PREV] - body_omega[_PREV] * lever[_NEXT])
 
     force = (self._mass * (acceleration - self._gravity)
              + self._k * (previous[:3] - com)
              + self._b * (previous_velocity - com_velocity))
     principal = rotation @ _quat_to_mat(self._inertia_quat)
     inertia = (principal * self._inertia) @ principal.T
-    correction = principal.T @ np.stack([
-        _rotation_vector(previous[3:], quat), previous_omega - body_omega],
-        axis=1)
+    rotation_error = principal.T @ _rotation_vector(previous[3:], quat)
+    omega_error = principal.T @ (previous_omega - body_omega)
     torque = inertia @ alpha + principal @ (
-        self._k_rot * correction[:, 0] + self._b_rot * correction[:, 1])
-    force_norm = np.linalg.norm(force)
+        self._k_rot * rotation_error + self._b_rot * omega_error)
+    force_norm = math.sqrt(force @ force)
     if force_norm > MAX_FORCE:
       force *= MAX_FORCE / force_norm
-    torque_norm = np.linalg.norm(torque)
+    torque_norm = math.sqrt(torque @ torque)
     if torque_norm > MAX_TORQUE:
       torque *= MAX_TORQUE / torque_norm
     data.xfrc_applied[self._body, :3] = force
