@@ -2,7 +2,12 @@
 
 import setuptools
 
-setuptools.setup(
+setuptools.# JAX agents (agents/): networks (flax), optimisers (optax), logs
+# (tensorboardX), learning-curve plots (matplotlib).
+TRAIN_REQUIRES = ['jax>=0.4.30', 'flax', 'optax', 'tensorboardX',
+                  'matplotlib']
+
+setup(
     name='hrc_suite',
     version='0.1.0',
     description=('Human-robot collaboration benchmark tasks for safe '
@@ -35,11 +40,11 @@ setuptools.setup(
         'numba>=0.60',
     ],
     extras_require={
-        'train': ['jax>=0.4.30', 'flax', 'optax', 'distrax', 'tensorboardX',
-                  'matplotlib'],
-        # Tests also check the gymnasium wrapper (tests/test_gym.py).
+        'train': TRAIN_REQUIRES,
+        # Tests also check the gymnasium wrapper (tests/test_gym.py) and the
+        # agents (tests/agents: the train extra).
         'dev': ['pytest>=7', 'pytest-xdist', 'shimmy[dm-control]',
-                'gymnasium'],
+                'gymnasium'] + TRAIN_REQUIRES,
         'gym': ['shimmy[dm-control]', 'gymnasium'],
     },
     classifiers=[
