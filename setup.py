@@ -2,12 +2,12 @@
 
 import setuptools
 
-setuptools.# JAX agents (agents/): networks (flax), optimisers (optax), logs
+# JAX agents (agents/): networks (flax), optimisers (optax), logs
 # (tensorboardX), learning-curve plots (matplotlib).
 TRAIN_REQUIRES = ['jax>=0.4.30', 'flax', 'optax', 'tensorboardX',
                   'matplotlib']
 
-setup(
+setuptools.setup(
     name='hrc_suite',
     version='0.1.0',
     description=('Human-robot collaboration benchmark tasks for safe '
