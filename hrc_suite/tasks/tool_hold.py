@@ -164,7 +164,9 @@ class CompliantHold:
       raise ValueError(f'weld {weld.name!r} does not start at a mocap body')
     physics.data.eq_active[eq_id] = 0
     self._hand = (mocap, eq_id)
+    self._aim = None           # A new hold aims nowhere until told.
     self._fresh = 0
+    self._history[:] = 0.0     # A new hold starts as a fresh one would.
     self._omega[:] = 0.0
     physics.data.xfrc_applied[self._body] = 0.0
 

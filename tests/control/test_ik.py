@@ -105,7 +105,7 @@ def test_unreachable_target_reports_failure(name):
   model = _world_model(name)
   solver = ik.InverseKinematics(model)
   q_home = model.description.q_home
-  far = np.array([3.0, 0.0, layout.TABLE_TOP_Z + 0.3])
+  far = model.base_pose[:3, 3] + [3.0, 0.0, 0.3]   # 3 m ahead of the base.
   result = solver.solve(far, q_home)
   assert not result.success
   assert result.position_error > 1.0
@@ -114,7 +114,7 @@ def test_unreachable_target_reports_failure(name):
   assert result.position_error == pytest.approx(
       np.linalg.norm(model.tcp_pose(result.q)[:3, 3] - far), abs=1e-9)
   # Straight up, out of reach, from a random seed.
-  above = np.array([0.0, 0.0, layout.TABLE_TOP_Z + 2.5])
+  above = model.base_pose[:3, 3] + [0.0, 0.0, 2.5]   # 2.5 m above the base.
   seed = np.random.RandomState(6).uniform(model.q_min, model.q_max)
   result = solver.solve(above, seed)
   assert not result.success and result.position_error > 1.0
