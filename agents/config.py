@@ -9,7 +9,7 @@ Two presets:
   a high temperature explores broadly at first and the automatic tuning
   brings it down within a few thousand updates.
 * `reference_config()`: the Human-Robot Gym paper's SAC (see
-  ../shared/docs/reference-benchmark.md, "Training and evaluation"): lr 5e-4,
+  the shared reference-benchmark.md, "Training and evaluation"): lr 5e-4,
   buffer 1e6, learning starts at 1000 transitions, batch 128, tau 0.005,
   gamma 0.99, 100 gradient steps every 100 environment steps, initial
   temperature 0.2, MLP (64, 64, 64).
