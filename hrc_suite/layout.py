@@ -9,6 +9,8 @@ import dataclasses
 import math
 from typing import Optional
 
+import numpy as np
+
 # Table: top height about 0.82 m (a standard workbench, DIN EN 527-1 range
 # 0.72-0.90 m, chosen to match the reference's tabletop scenes).
 TABLE_TOP_Z = 0.82
@@ -41,7 +43,6 @@ class RobotMount:
 
   def base_pose(self):
     """4x4 world pose of the base frame."""
-    import numpy as np   # pylint: disable=g-import-not-at-top
     pose = np.eye(4)
     pose[:3, 3] = self.base_position
     return pose

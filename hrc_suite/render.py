@@ -373,11 +373,9 @@ def main(argv, flag_values=flags.FLAGS):
   del argv
   f = flag_values
   task_kwargs = {'shield': f.shield} if f.shield else None
-  path, metrics = run(f.domain, f.task, f.robot, f.policy,
-                      f.out, f.camera, f.seed,
-                      f.max_steps, f.width, f.height,
-                      f.overlay, f.fps, f.substeps_per_frame,
-                      f.gif_scale, task_kwargs)
+  path, metrics = run(f.domain, f.task, f.robot, f.policy, f.out, f.camera,
+                      f.seed, f.max_steps, f.width, f.height, f.overlay,
+                      f.fps, f.substeps_per_frame, f.gif_scale, task_kwargs)
   print('episode metrics:')
   for key, value in metrics.items():
     print(f'  {key}: {value:g}')
