@@ -11,6 +11,8 @@ from hrc_suite.experts import pick_place as pick_place_expert
 from hrc_suite.tasks import metrics
 from hrc_suite.tasks import pick_place
 
+import expert_checks   # tests/experts/expert_checks.py
+
 
 def _env(robot='schunk', space='cartesian', variant='default', seed=0,
          **kwargs):
@@ -97,13 +99,5 @@ def test_noisy_expert_still_succeeds():
 
 
 def test_same_seed_same_actions():
-  runs = []
-  for _ in range(2):
-    env = _env('panda', 'joint', seed=5, time_limit=3.0)
-    expert = experts.make(env)
-    timestep, actions = env.reset(), []
-    while not timestep.last():
-      actions.append(expert(timestep))
-      timestep = env.step(actions[-1])
-    runs.append(np.array(actions))
-  np.testing.assert_array_equal(runs[0], runs[1])
+  expert_checks.assert_same_seed_same_actions(
+      lambda: _env('panda', 'joint', seed=5, time_limit=3.0))

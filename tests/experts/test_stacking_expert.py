@@ -12,6 +12,8 @@ from hrc_suite.experts import stacking as stacking_expert
 from hrc_suite.tasks import metrics
 from hrc_suite.tasks import stacking
 
+import expert_checks   # tests/experts/expert_checks.py
+
 
 def _env(robot='schunk', space='cartesian', seed=0, **kwargs):
   return suite.load('stacking', 'default', task_kwargs={
@@ -129,16 +131,8 @@ def test_stacks_cube_3_the_person_let_go_off_the_stack():
 
 
 def test_same_seed_same_actions():
-  runs = []
-  for _ in range(2):
-    env = _env('schunk', 'joint', seed=5, time_limit=3.0)
-    expert = experts.make(env)
-    timestep, actions = env.reset(), []
-    while not timestep.last():
-      actions.append(expert(timestep))
-      timestep = env.step(actions[-1])
-    runs.append(np.array(actions))
-  np.testing.assert_array_equal(runs[0], runs[1])
+  expert_checks.assert_same_seed_same_actions(
+      lambda: _env('schunk', 'joint', seed=5, time_limit=3.0))
 
 
 @pytest.mark.slow
