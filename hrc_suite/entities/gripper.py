@@ -78,7 +78,14 @@ class ParallelGripper(composer.Entity):
   TCP_OFFSET = TCP_OFFSET
   MAX_APERTURE = MAX_APERTURE
 
-  def _build(self, name='gripper'):
+  def _build(self, name='gripper', grip_force=GRIP_FORCE):
+    """grip_force: N, the opening's force limit (2F-85: 20-235 N). The
+    servo squeezes with all of it objects at least grip_force /
+    OPENING_STIFFNESS + CLOSED_TARGET thick (0 m at 40 N, 3 cm at 100 N)."""
+    if not (np.isfinite(grip_force) and 20.0 <= grip_force <= 235.0):
+      raise ValueError(f'grip_force={grip_force!r}: expected a force in '
+                       '[20, 235] N (the Robotiq 2F-85 range)')
+    self._grip_force = float(grip_force)
     root = mjcf.RootElement(model=name)
     self._mjcf_root = root
     aluminium = root.asset.add('material', name='aluminium',
@@ -131,7 +138,8 @@ class ParallelGripper(composer.Entity):
     self._actuator = root.actuator.add(
         'general', name='fingers', tendon=opening, ctrllimited=True,
         ctrlrange=(-1, 1), forcelimited=True,
-        forcerange=(-GRIP_FORCE, GRIP_FORCE), biastype='affine',
+        forcerange=(-self._grip_force, self._grip_force),
+        biastype='affine',
         gainprm=(OPENING_STIFFNESS * half_span,),
         biasprm=(OPENING_STIFFNESS * mid, -OPENING_STIFFNESS, 0.0))
 
@@ -153,6 +161,11 @@ class ParallelGripper(composer.Entity):
   @property
   def tcp_site(self):
     return self._tcp_site
+
+  @property
+  def grip_force(self):
+    """N, the force limit of the opening (how hard a grasp squeezes)."""
+    return self._grip_force
 
   @property
   def finger_geoms(self):

@@ -119,6 +119,7 @@ class HrcTask(composer.Task):
   # stay this far above the table, low enough to grasp objects lying on it.
   FINGERTIP_TABLE_CLEARANCE = None
   CARTESIAN_YAW = actions.GRIPPER_YAW        # rad, gripper yaw of IK goals
+  GRIP_FORCE = gripper_lib.GRIP_FORCE        # N, the gripper's squeeze
   # Attribute names that hold the task's own episode state (snapshots).
   TASK_STATE = ()
 
@@ -223,7 +224,7 @@ class HrcTask(composer.Task):
     self._arena = workcell_lib.Workcell()
     self._robot = robot_lib.make_robot(robot)
     self._gripper = self._robot.attach_gripper(
-        gripper_lib.ParallelGripper())
+        gripper_lib.ParallelGripper(grip_force=self.GRIP_FORCE))
     self._arena.attach_robot(self._robot)
     self._human = human_lib.Human()
     self._human.attach_to(self._arena)

@@ -196,3 +196,27 @@ def test_closing_on_air_is_not_a_grasp():
     physics.step()
   assert gripper.aperture(physics) < 0.01
   assert not gripper.is_grasping(physics, cube)
+
+
+@pytest.mark.parametrize('grip_force', [gripper_lib.GRIP_FORCE, 100.0])
+def test_squeezes_a_3cm_block_with_its_grip_force(grip_force):
+  gripper = gripper_lib.ParallelGripper(grip_force=grip_force)
+  assert gripper.grip_force == grip_force
+  block = gripper.mjcf_model.worldbody.add(
+      'geom', name='block', type='box', size=(0.01, 0.015, 0.01),
+      pos=(0, 0, gripper_lib.TCP_OFFSET))
+  collision_groups.set_object(block)
+  gripper.mjcf_model.option.timestep = workcell_lib.PHYSICS_TIMESTEP
+  physics = mjcf.Physics.from_mjcf_model(gripper.mjcf_model)
+  gripper.set_command(physics, 1.0)
+  physics.step(200)
+  assert np.sum(physics.bind(gripper.finger_joints).qpos) == pytest.approx(
+      0.03, abs=2e-3)
+  assert -physics.bind(gripper.actuator).force == pytest.approx(
+      grip_force, rel=0.05)
+
+
+def test_grip_force_outside_the_2f85_range_is_rejected():
+  for bad in (10.0, 300.0, float('nan')):
+    with pytest.raises(ValueError, match=r'grip_force=.*\[20, 235\] N'):
+      gripper_lib.ParallelGripper(grip_force=bad)

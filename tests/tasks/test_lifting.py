@@ -65,6 +65,16 @@ def test_starts_grasped_and_steps(robot, space):
   assert task.episode_metrics['return'] > 19.0
 
 
+def test_squeezes_the_handle_with_the_lifting_grip_force():
+  env = _env('schunk', 'cartesian')
+  env.reset()
+  gripper = env.task.gripper
+  assert gripper.grip_force == lifting.GRIP_FORCE == 100.0
+  env.step(_hold_still(env))
+  force = -env.physics.bind(gripper.actuator).force
+  assert force == pytest.approx(lifting.GRIP_FORCE, rel=0.05)
+
+
 def test_cartesian_actions_keep_the_grip_yaw():
   env = _env('panda', 'cartesian')
   env.reset()
