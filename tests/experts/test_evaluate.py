@@ -109,7 +109,63 @@ def test_tiny_run_writes_a_well_formed_table(tmp_path):
   assert [e['seed'] for e in payload['episodes']] == [0, 0]
   assert payload['episodes'][0]['metrics']['steps'] == 5.0
   assert len(payload['rows']) == 2
-  assert np.isfinite(payload['info']['wall_time'])
+  run, = payload['runs']
+  assert np.isfinite(run['wall_time'])
+  assert run['rows'] == ['reach/dense schunk expert default',
+                         'reach/dense schunk noisy_expert default']
+
+
+def _row_cells(text):
+  return [[c.strip() for c in row.strip('|').split('|')]
+          for row in _table_rows(text)[2:]]
+
+
+@pytest.mark.skipif(not _reach_expert_available(),
+                    reason='the reach expert is not written yet')
+def test_update_replaces_only_the_rows_it_reruns(tmp_path):
+  out, json_out = tmp_path / 'experts.md', tmp_path / 'experts.json'
+
+  def run(policy, episodes, update):
+    evaluate.main(['evaluate'], _flags(
+        episodes=episodes, tasks=['reach/dense'], robots=['schunk'],
+        policies=[policy], time_limit=0.3, out=str(out),
+        json_out=str(json_out), progress=False, update=update))
+    return json.loads(json_out.read_text())
+
+  run('expert', 1, update=False)
+  payload = run('noisy_expert', 1, update=True)
+  assert [r['policy'] for r in payload['rows']] == ['expert', 'noisy_expert']
+  assert len(payload['runs']) == 2
+  # Redo the expert row with 2 episodes: it stays first, the noisy row
+  # keeps its episode, and the first run (only the expert row) is gone.
+  payload = run('expert', 2, update=True)
+  cells = _row_cells(out.read_text())
+  assert [(c[2], c[4]) for c in cells] == [('expert', '2'),
+                                          ('noisy_expert', '1')]
+  assert [run['rows'] for run in payload['runs']] == [
+      ['reach/dense schunk noisy_expert default'],
+      ['reach/dense schunk expert default']]
+  assert out.read_text().count('* Command: `python -m') == 2
+  # Without --update the file is written afresh.
+  payload = run('expert', 1, update=False)
+  assert len(payload['rows']) == 1 and len(payload['runs']) == 1
+
+
+def test_update_reads_a_file_of_one_run_and_rejects_other_files(tmp_path):
+  old = tmp_path / 'old.json'
+  episode = dict(_result(1.0), job=['reach', 'dense', 'schunk', None,
+                                    'expert', None, 0])
+  old.write_text(json.dumps({'info': {'command': 'c'}, 'episodes': [episode],
+                             'rows': []}))
+  episodes, runs = evaluate.load_previous(old)
+  assert episodes == [episode]
+  assert runs == [{'command': 'c',
+                   'rows': ['reach/dense schunk expert default']}]
+  assert evaluate.load_previous(tmp_path / 'missing.json') == ([], [])
+  bad = tmp_path / 'bad.json'
+  bad.write_text('{"rows": []}')
+  with pytest.raises(ValueError, match='bad.json: not a results file'):
+    evaluate.load_previous(bad)
 
 
 def test_unknown_task_or_policy_is_a_usage_error():
