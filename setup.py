@@ -18,6 +18,10 @@ setuptools.setup(
     packages=setuptools.find_packages(include=['hrc_suite', 'hrc_suite.*',
                                                'agents', 'agents.*']),
     package_data={'hrc_suite': ['assets/**/*']},
+    # `python -m hrc_suite.render --policy=<checkpoint>` finds the agents'
+    # checkpoint loader here (hrc_suite does not import agents).
+    entry_points={'hrc_suite.checkpoint_policies': [
+        'sac = agents.checkpoint_policy:load']},
     include_package_data=True,
     install_requires=[
         # dm-control 1.0.50 crashes on mujoco 4 (MjModel.flex_vertedge).

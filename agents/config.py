@@ -1,6 +1,6 @@
 """Soft actor-critic hyperparameters: a frozen dataclass and named presets.
 
-Two presets:
+Three presets:
 
 * `default_config()`: the values of Haarnoja et al. 2018 ("Soft Actor-Critic
   Algorithms and Applications", Table 1: Adam lr 3e-4, two hidden layers of
@@ -13,6 +13,9 @@ Two presets:
   buffer 1e6, learning starts at 1000 transitions, batch 128, tau 0.005,
   gamma 0.99, 100 gradient steps every 100 environment steps, initial
   temperature 0.2, MLP (64, 64, 64).
+* `quick_config()`: the default with small networks (64, 64), rewards
+  scaled by 100 and an initial temperature of 0.01, for dense rewards of
+  a few hundredths per step (reach/dense); the README's quickstart run.
 
 Measured on reach/dense (Schunk, Cartesian, default horizon): overrides
 reward_scale=100, initial_temperature=0.01, hidden_sizes=(64, 64) reach
@@ -136,11 +139,22 @@ def reference_config(**overrides):
   return SACConfig(**values)
 
 
-CONFIGS = {'default': default_config, 'reference': reference_config}
+def quick_config(**overrides):
+  """The default with (64, 64) networks, rewards x 100 and temperature
+  0.01 at first: learns reach/dense (Schunk, Cartesian) within ~10^4 steps
+  (module docstring; docs/results/baselines.md)."""
+  values = dict(hidden_sizes=(64, 64), reward_scale=100.0,
+                initial_temperature=0.01)
+  values.update(overrides)
+  return SACConfig(**values)
+
+
+CONFIGS = {'default': default_config, 'reference': reference_config,
+           'quick': quick_config}
 
 
 def config_from_name(name, **overrides):
-  """The preset called `name` ('default' or 'reference') with overrides."""
+  """The preset called `name` (a key of CONFIGS) with overrides."""
   if name not in CONFIGS:
     raise ValueError(f'Unknown SAC config {name!r}: expected one of '
                      f'{", ".join(CONFIGS)}')

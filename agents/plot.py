@@ -235,24 +235,31 @@ def define_flags(flag_values=flags.FLAGS):
                     flag_values=fv)
 
 
+def plot(logdirs, out, seed=0, expert=None, experts_json=_DEFAULT_EXPERTS,
+         num_resamples=statistics.DEFAULT_RESAMPLES, minimum='task'):
+  """Writes the runs' curves as `out` (PNG), .svg and .csv; returns the
+  paths written."""
+  if expert is None and not os.path.exists(experts_json):
+    logging.warning('No expert return (%s absent, no --expert_return): '
+                    'plotting the raw return', experts_json)
+  curves = learning_curves(logdirs, np.random.RandomState(seed),
+                           expert=expert, experts_json=experts_json,
+                           num_resamples=num_resamples, minimum=minimum)
+  config, _ = load_run(logdirs[0])
+  title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
+  paths = list(draw(curves, out, title))
+  table = os.path.splitext(out)[0] + '.csv'
+  if os.path.exists(table):
+    os.remove(table)
+  return paths + [write_table(curves, table)]
+
+
 def main(argv, flag_values=flags.FLAGS):
   del argv
   f = flag_values
-  if f.expert_return is None and not os.path.exists(f.experts_json):
-    logging.warning('No expert return (%s absent, no --expert_return): '
-                    'plotting the raw return', f.experts_json)
-  curves = learning_curves(f.logdirs, np.random.RandomState(f.seed),
-                           expert=f.expert_return,
-                           experts_json=f.experts_json,
-                           num_resamples=f.resamples, minimum=f.minimum)
-  config, _ = load_run(f.logdirs[0])
-  title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
-  for path in draw(curves, f.out, title):
+  for path in plot(f.logdirs, f.out, f.seed, f.expert_return, f.experts_json,
+                   f.resamples, f.minimum):
     print(path)
-  table = os.path.splitext(f.out)[0] + '.csv'
-  if os.path.exists(table):
-    os.remove(table)
-  print(write_table(curves, table))
 
 
 if __name__ == '__main__':

@@ -22,6 +22,14 @@ updater are not part of a snapshot). With an imitation wrapper (whose
 episode state is its own) or delayed observations, checkpoints wait for the
 next episode boundary, and a run that ends inside an episode keeps its
 previous checkpoint.
+
+--plot writes the run's learning curve (`agents.plot`) as
+logdir/curves.png; --video renders one deterministic episode of the final
+policy (`hrc_suite.render`, with the shield overlay) as logdir/episode.mp4.
+The README's quickstart:
+
+  python -m agents.train --config=quick --steps=10000 --eval_every=2500 \
+      --logdir=runs/quickstart --plot --video
 """
 
 import json
@@ -34,13 +42,16 @@ from absl import logging
 import numpy as np
 import tqdm
 
+from agents import checkpoint_policy
 from agents import checkpoints
 from agents import config as config_lib
 from agents import imitation
 from agents import logging as logging_lib
 from agents import loop as loop_lib
+from agents import plot as plot_lib
 from agents import specs as specs_lib
 from agents.sac import agent as agent_lib
+from hrc_suite import render
 from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
 from hrc_suite.tasks import metrics as metrics_lib
@@ -413,6 +424,10 @@ def define_flags(flag_values=flags.FLAGS):
                     '--logdir (a fresh start if there is none).',
                     flag_values=fv)
   flags.DEFINE_bool('progress', True, 'Show a progress bar.', flag_values=fv)
+  flags.DEFINE_bool('plot', False, 'At the end, write the learning curve as '
+                    'logdir/curves.png (and .svg, .csv).', flag_values=fv)
+  flags.DEFINE_bool('video', False, 'At the end, render an episode of the '
+                    'final policy as logdir/episode.mp4.', flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):
@@ -430,6 +445,25 @@ def main(argv, flag_values=flags.FLAGS):
   logging.info('Done: %d steps, %d episodes, %d evaluations in %s',
                state['counter']['steps'], state['counter']['episodes'],
                state['evaluations'], f.logdir)
+  if f.plot:
+    for path in plot_lib.plot([f.logdir], os.path.join(f.logdir,
+                                                       'curves.png')):
+      print(f'Wrote {path}')
+  if f.video:
+    path, metrics = render_final_policy(f.logdir, f.seed)
+    print(f'Wrote {path}: success {metrics["success"]:g}, return '
+          f'{metrics["return"]:.3g}, {metrics["steps"]:g} steps')
+
+
+def render_final_policy(logdir, seed=0,
+                        out_name='episode.mp4', **render_kwargs):
+  """Renders one deterministic episode of the run's latest checkpoint
+  (hrc_suite.render.run); returns (video path, episode metrics)."""
+  trained = checkpoint_policy.load(logdir)
+  return render.run(trained.domain, trained.task, trained.robot,
+                    policy=trained.factory, out=os.path.join(logdir, out_name),
+                    seed=seed, task_kwargs=trained.task_kwargs,
+                    **render_kwargs)
 
 
 if __name__ == '__main__':

@@ -17,13 +17,20 @@ written to a JSON file beside the video.
 Policies (--policy): `expert` (the task's hand-crafted expert,
 `hrc_suite.experts`), `noisy_expert` (the expert with Ornstein-Uhlenbeck
 noise, seeded), `random` (uniform in the action spec, seeded) and `zero`
-(no motion, gripper closed). `policy_factory` maps the flag to a factory
-(env, seed) -> policy; trained checkpoints will be added there.
+(no motion, gripper closed), or a trained checkpoint: a directory (a
+training run's logdir or one of its checkpoints) read by an installed
+checkpoint loader (entry-point group `hrc_suite.checkpoint_policies`;
+agents/ registers the SAC agents' one, so hrc_suite never imports it). A
+checkpoint's episode runs in its training environment (domain, task, robot,
+task arguments); --domain/--task/--robot may be left out, and must match
+it if given.
 """
 
 import dataclasses
+import importlib.metadata
 import json
 import pathlib
+from typing import Any, Callable, Dict
 
 from absl import app
 from absl import flags
@@ -40,6 +47,12 @@ OVERLAY_MAX_GEOMS = 2000
 # RL steps rendered by default (30 s): the handover experts finish within
 # 15-23 s (seeds 0-2, measured), a random policy is cut off.
 DEFAULT_MAX_STEPS = 300
+# Entry-point group of checkpoint loaders: path -> TrainedPolicy, raising
+# ValueError for a directory they do not read.
+CHECKPOINT_LOADERS = 'hrc_suite.checkpoint_policies'
+# The episode a named policy runs when --domain/--task/--robot are not given.
+DEFAULT_DOMAIN, DEFAULT_TASK, DEFAULT_ROBOT = ('handover', 'robot_to_human',
+                                               'panda')
 
 # -------------------------------------------------------------- policies
 
@@ -90,13 +103,60 @@ _POLICY_FACTORIES = {
 
 
 def policy_factory(name):
-  """The factory (env, seed) -> policy (timestep -> action) of a --policy
-  value. (Trained checkpoints, issue 7: a checkpoint directory will map to
-  its loader here.)"""
+  """The factory (env, seed) -> policy (timestep -> action) of a named
+  policy (checkpoints: `load_checkpoint`)."""
   if name not in _POLICY_FACTORIES:
     raise ValueError(f'Unknown policy {name!r}: expected one of '
-                     f'{", ".join(POLICIES)}')
+                     f'{", ".join(POLICIES)} or a checkpoint directory')
   return _POLICY_FACTORIES[name]
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainedPolicy:
+  """A trained policy and the environment it was trained in."""
+  domain: str
+  task: str
+  robot: str
+  task_kwargs: Dict[str, Any]
+  factory: Callable    # (env, seed) -> policy (timestep -> action)
+
+
+def load_checkpoint(path):
+  """The TrainedPolicy of a checkpoint directory, from the first installed
+  loader (entry-point group CHECKPOINT_LOADERS) that reads it."""
+  loaders = importlib.metadata.entry_points(group=CHECKPOINT_LOADERS)
+  if not loaders:
+    raise ValueError(f'{path} is a directory, but no checkpoint loader is '
+                     f'installed (entry-point group {CHECKPOINT_LOADERS}; '
+                     "`pip install -e '.[train]'` registers agents/' one)")
+  errors = []
+  for loader in loaders:
+    try:
+      return loader.load()(path)
+    except ValueError as error:
+      errors.append(f'{loader.name}: {error}')
+  raise ValueError(f'No checkpoint loader reads {path}: ' + '; '.join(errors))
+
+
+def _episode_setup(policy, domain, task, robot, task_kwargs):
+  """(factory, domain, task, robot, task_kwargs) of a --policy value: a
+  name or factory runs on the given (or default) task; a checkpoint
+  directory on its training environment (given names must match it; given
+  task_kwargs override its own)."""
+  if callable(policy) or policy in POLICIES or not pathlib.Path(
+      policy).is_dir():
+    factory = policy if callable(policy) else policy_factory(policy)
+    return (factory, domain or DEFAULT_DOMAIN, task or DEFAULT_TASK,
+            robot or DEFAULT_ROBOT, dict(task_kwargs or {}))
+  trained = load_checkpoint(policy)
+  for name, given, own in (('domain', domain, trained.domain),
+                           ('task', task, trained.task),
+                           ('robot', robot, trained.robot)):
+    if given is not None and given != own:
+      raise ValueError(f'--{name}={given} differs from the checkpoint '
+                       f'{policy}, trained with {name} {own!r}')
+  return (trained.factory, trained.domain, trained.task, trained.robot,
+          dict(trained.task_kwargs, **(task_kwargs or {})))
 
 
 def make_policy(name, env, seed):
@@ -271,17 +331,22 @@ def _scaled(frame, scale):
   return np.asarray(Image.fromarray(frame).resize(size, Image.Resampling.BOX))
 
 
-def run(domain, task, robot='panda', policy='random', out='episode.mp4',
+def run(domain=None, task=None, robot=None, policy='random',
+        out='episode.mp4',
         camera='side', seed=0, max_steps=DEFAULT_MAX_STEPS, width=640,
         height=480, overlay=True, fps=None, substeps_per_frame=None,
         gif_scale=1.0, task_kwargs=None):
   """Runs and renders one episode; returns (video path, metrics dict).
 
-  policy: a name (POLICIES) or a factory (env, seed) -> policy.
+  policy: a name (POLICIES), a checkpoint directory (`load_checkpoint`) or
+    a factory (env, seed) -> policy.
+  domain, task, robot: the episode's (None: DEFAULT_* for named policies,
+    the training run's for a checkpoint).
   task_kwargs: more task arguments (e.g. {'shield': 'pfl'}).
   """
   from hrc_suite import suite  # pylint: disable=g-import-not-at-top
-  factory = policy if callable(policy) else policy_factory(policy)
+  factory, domain, task, robot, task_kwargs = _episode_setup(
+      policy, domain, task, robot, task_kwargs)
   if not 0.0 < gif_scale <= 1.0:
     raise ValueError(f'gif_scale: expected a number in (0, 1], got '
                      f'{gif_scale!r}')
@@ -300,7 +365,7 @@ def run(domain, task, robot='panda', policy='random', out='episode.mp4',
     raise ValueError(f'.mp4 (H.264, yuv420p) needs an even frame size, got '
                      f'width={width}, height={height}')
   env = suite.load(domain, task, task_kwargs=dict(
-      task_kwargs or {}, robot=robot, seed=seed))
+      task_kwargs, robot=robot, seed=seed))
   try:
     camera_index(env, camera)   # Before any file is written.
     policy_fn = factory(env, seed)
@@ -332,12 +397,17 @@ def define_flags(flag_values=flags.FLAGS):
   """Defines the command's flags (only when run as a program, so that the
   module can be imported next to other binaries)."""
   fv = flag_values
-  flags.DEFINE_string('domain', 'handover', 'Task domain.', flag_values=fv)
-  flags.DEFINE_string('task', 'robot_to_human', 'Task name.', flag_values=fv)
-  flags.DEFINE_enum('robot', 'panda', robot_description.ROBOT_NAMES,
-                    'Robot.', flag_values=fv)
+  flags.DEFINE_string('domain', None, f'Task domain (default: '
+                      f'{DEFAULT_DOMAIN}, or the checkpoint\'s).',
+                      flag_values=fv)
+  flags.DEFINE_string('task', None, f'Task name (default: {DEFAULT_TASK}, '
+                      'or the checkpoint\'s).', flag_values=fv)
+  flags.DEFINE_enum('robot', None, robot_description.ROBOT_NAMES,
+                    f'Robot (default: {DEFAULT_ROBOT}, or the checkpoint\'s).',
+                    flag_values=fv)
   flags.DEFINE_string('policy', 'random',
-                      f'Policy to run: {", ".join(POLICIES)}.',
+                      f'Policy to run: {", ".join(POLICIES)}, or a trained '
+                      'checkpoint (run or checkpoint directory).',
                       flag_values=fv)
   flags.DEFINE_enum('shield', None, ('ssm', 'pfl', 'off'),
                     'Shield mode (default: the task\'s).', flag_values=fv)

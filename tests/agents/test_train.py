@@ -16,6 +16,7 @@ from agents import logging as logging_lib
 from agents import plot
 from agents import train
 from agents.sac import agent as agent_lib
+from hrc_suite import render
 from hrc_suite.experts import dataset as dataset_lib
 
 # Ten-step episodes of reach/dense and a tiny SAC, so that runs take seconds.
@@ -210,6 +211,40 @@ def test_policy_of_a_run_for_rendering(two_runs):
   assert action.shape == env.action_spec().shape
   assert np.all(np.abs(action) <= 1.0)
   np.testing.assert_array_equal(policy(timestep), action)   # Deterministic.
+
+
+def test_render_renders_a_checkpoint_in_its_training_environment(
+    two_runs, tmp_path):
+  # hrc_suite.render finds agents' loader through the installed entry point.
+  out = tmp_path / 'trained.gif'
+  path, metrics = render.run(policy=two_runs[0], out=str(out), max_steps=3,
+                             width=64, height=48)
+  assert path.stat().st_size > 1000 and metrics['steps'] == 3
+  written = json.loads(path.with_suffix('.json').read_text())
+  assert (written['domain'], written['task'], written['robot']) == (
+      'reach', 'dense', 'schunk')
+  assert written['task_kwargs'] == dict(_TASK_KWARGS,
+                                        action_space='cartesian')
+  with pytest.raises(ValueError, match='--robot=panda differs from the '
+                     "checkpoint .* trained with robot 'schunk'"):
+    render.run(robot='panda', policy=two_runs[0], out=str(out))
+  with pytest.raises(ValueError, match='No checkpoint loader reads'):
+    render.run(policy=str(tmp_path), out=str(out))
+
+
+def test_train_writes_the_curve_and_a_video_of_the_final_policy(tmp_path):
+  logdir = tmp_path / 'quick'
+  _run_binary(train, [
+      '--config=quick', '--task_kwargs=' + json.dumps(_TASK_KWARGS),
+      '--override=min_replay_size=16', '--override=batch_size=8',
+      '--steps=20', '--eval_every=10', '--eval_episodes=1',
+      f'--logdir={logdir}', '--noprogress', '--plot', '--video'])
+  config = checkpoints.read_json(logdir / 'config.json')
+  assert config['sac_config']['reward_scale'] == 100.0
+  assert (logdir / 'curves.png').stat().st_size > 10_000
+  assert (logdir / 'episode.mp4').stat().st_size > 1000
+  episode = json.loads((logdir / 'episode.json').read_text())
+  assert episode['frames'] == 11 and episode['robot'] == 'schunk'
 
 
 def test_resume_without_a_checkpoint_starts_afresh(tmp_path):

@@ -1,0 +1,39 @@
+"""Trained checkpoints as `hrc_suite.render` policies.
+
+Registered in setup.py under the entry-point group
+`hrc_suite.checkpoint_policies` (name `sac`), so that
+
+  python -m hrc_suite.render --policy=runs/reach_dense/seed0 --out=x.mp4
+
+renders a training run's latest checkpoint (or a given one) while hrc_suite
+never imports agents. The episode runs in the run's evaluation environment
+(domain, task, robot, action space, task arguments) with the deterministic
+policy, as `agents.evaluate` does.
+"""
+
+import os
+
+from agents import checkpoints
+from agents.sac import agent as agent_lib
+from hrc_suite import render
+
+
+def load(path):
+  """render.TrainedPolicy of a run directory, its checkpoints/ folder or a
+  checkpoint; ValueError if `path` holds none."""
+  directory = checkpoints.resolve(path)
+  loop_state, _ = checkpoints.load_loop_state(directory)
+  run_config = loop_state['run_config']
+  agent_directory = os.path.join(directory, checkpoints.AGENT_DIR)
+
+  def factory(env, seed):
+    return agent_lib.load_policy(agent_directory, env, deterministic=True,
+                                 seed=seed)
+
+  factory.__name__ = f'checkpoint {directory}'
+  return render.TrainedPolicy(
+      domain=run_config['domain'], task=run_config['task'],
+      robot=run_config['robot'],
+      task_kwargs=dict(run_config['task_kwargs'],
+                       action_space=run_config['action_space']),
+      factory=factory)
