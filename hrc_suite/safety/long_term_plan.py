@@ -361,6 +361,10 @@ class _Solver:
     return cls._by_dof[dof]
 
 
+# Ruckig >= 0.13 raises RuckigError (an Exception, not a RuntimeError).
+_RUCKIG_ERRORS = (RuntimeError, getattr(ruckig, 'RuckigError', RuntimeError))
+
+
 def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   """Time-optimal jerk-limited synchronised plan to rest at q_goal.
 
@@ -400,7 +404,9 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   request.max_jerk = limits.j_max_ltt.tolist()
   try:
     result = otg.calculate(request, trajectory)
-  except RuntimeError as e:  # Ruckig raises on invalid input.
+  except _RUCKIG_ERRORS as e:
+    # Invalid input, and (rarely) valid input where Ruckig's time
+    # synchronisation fails numerically ("error in step 2 ... for t sync").
     raise PlanningError(f'Ruckig failed: {e}') from None
   if result not in (ruckig.Result.Working, ruckig.Result.Finished):
     raise PlanningError(f'Ruckig failed with {result}')

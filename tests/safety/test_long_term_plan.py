@@ -1,5 +1,7 @@
 """Long-term plan: Ruckig to rest, exact sampling, single index offset (B1)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import ruckig
@@ -165,3 +167,28 @@ def test_at_rest_plan(panda):
   q, dq, ddq, dddq = plan.evaluate(5.0, 1.0, 3.0, 10.0)
   np.testing.assert_allclose(q, panda.q_home)
   assert not np.any(dq) and not np.any(ddq) and not np.any(dddq)
+
+
+def test_a_ruckig_synchronisation_failure_is_a_planning_error():
+  # A Schunk state met during SAC training on reach/dense: Ruckig 0.19
+  # raises RuckigError ("error in step 2 in dof: 2 for t sync") on this
+  # valid input, which crashed collision prevention before it became a
+  # PlanningError (collision prevention then refuses the goal).
+  limits = robot_description.load('schunk').limits
+  dof = len(limits.q_min)
+  uniform = lambda value: np.full(dof, float(value))
+  limits = dataclasses.replace(limits, v_max=uniform(1), a_max_ltt=uniform(2),
+                               j_max_ltt=uniform(15))
+  q0 = [-0.7225385685656864, 1.062009157473606, -0.4233565510196746,
+        8.505388884500202e-05, -1.56199394286588, -0.7225831847022267]
+  dq0 = [-0.1555124557654212, 0.2813166836344332, 0.659007081125493,
+         -0.0001929529739378192, -0.5857813122970277, -0.1552860038678548]
+  ddq0 = [0, 0, -1.695596268834676, 0, -0.2665467357893452, 0]
+  goal = [-0.7759348564282871, 1.148705910766348, -0.2943895961277864,
+          -1.524685829954928e-07, -1.698121148369909, -0.7759132348990136]
+  try:
+    plan = ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, 0.004)
+  except ltp.PlanningError as e:
+    assert 'Ruckig failed' in str(e)
+  else:   # A Ruckig that solves it must reach the goal at rest.
+    np.testing.assert_allclose(plan.q[-1], goal, atol=1e-6)
