@@ -179,13 +179,19 @@ def test_a_ruckig_synchronisation_failure_is_a_planning_error():
   uniform = lambda value: np.full(dof, float(value))
   limits = dataclasses.replace(limits, v_max=uniform(1), a_max_ltt=uniform(2),
                                j_max_ltt=uniform(15))
-  q0 = [-0.7225385685656864, 1.062009157473606, -0.4233565510196746,
-        8.505388884500202e-05, -1.56199394286588, -0.7225831847022267]
-  dq0 = [-0.1555124557654212, 0.2813166836344332, 0.659007081125493,
-         -0.0001929529739378192, -0.5857813122970277, -0.1552860038678548]
-  ddq0 = [0, 0, -1.695596268834676, 0, -0.2665467357893452, 0]
-  goal = [-0.7759348564282871, 1.148705910766348, -0.2943895961277864,
-          -1.524685829954928e-07, -1.698121148369909, -0.7759132348990136]
+  # Exact values (hex): the logged state moved by a few ulps.
+  q0, dq0, ddq0, goal = ([float.fromhex(x) for x in row] for row in (
+      ['-0x1.71f093442d328p-1', '0x1.0fdfd50766d24p+0',
+       '-0x1.b1846134b51a4p-2', '0x1.64bdeaf1730cep-14',
+       '-0x1.8fded5c528b76p+0', '-0x1.71f66c55df05ap-1'],
+      ['-0x1.3e7d507d10a75p-3', '0x1.20117b101dc4cp-2',
+       '0x1.5169604a8866dp-1', '-0x1.94a6d6ceacc8ep-13',
+       '-0x1.2beb8735d8eeap-1', '-0x1.3e0696a11c99ap-3'],
+      ['0x0.0p+0', '0x0.0p+0', '-0x1.b21298d9dd536p+0', '0x0.0p+0',
+       '-0x1.10f1a0a4487dbp-2', '0x0.0p+0'],
+      ['-0x1.8d4755605f346p-1', '0x1.2611972f769eap+0',
+       '-0x1.2d74775e9b20ap-2', '-0x1.476c7d6c83800p-23',
+       '-0x1.b2b8114ce50d0p+0', '-0x1.8d447fe0d9836p-1']))
   try:
     plan = ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, 0.004)
   except ltp.PlanningError as e:
