@@ -21,6 +21,7 @@ import time
 
 from absl import app
 from absl import flags
+import jax
 import numpy as np
 
 from agents import config as config_lib
@@ -75,6 +76,8 @@ def measure(steps=1000, warmup=300, batch_size=256, hidden_sizes=(256, 256),
   def updates():
     for _ in range(steps):
       agent.learn(1)
+    # Updates are dispatched asynchronously: wait for the last one.
+    jax.block_until_ready(agent.learner.training_state)
   results['update only'] = (steps,) + _timed(updates)
 
   observation = env.reset().observation

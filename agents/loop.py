@@ -136,6 +136,13 @@ class EnvironmentLoop:
     if self._timestep is None:
       self._begin_episode()
     action = self._agent.select_action(self._timestep.observation)
+    if self._should_update:
+      # Before the environment step: a JAX learner's update, dispatched
+      # asynchronously, runs while the environment steps (it learns from
+      # the transitions up to the previous step).
+      metrics = self._agent.update()
+      if metrics:
+        self.update_metrics = metrics
     timestep = self._env.step(action)
     if timestep.first():
       raise RuntimeError('The environment restarted an episode inside '
@@ -143,10 +150,6 @@ class EnvironmentLoop:
     self._agent.observe(action, timestep)
     for observer in self._observers:
       observer.observe(self._env, timestep, action)
-    if self._should_update:
-      metrics = self._agent.update()
-      if metrics:
-        self.update_metrics = metrics
     self.counter.steps += 1
     self._episode_steps += 1
     self._episode_return += float(timestep.reward)

@@ -17,6 +17,7 @@ computation.
 """
 
 import collections
+import collections.abc
 import functools
 
 import jax
@@ -88,6 +89,35 @@ def _to_floats(metrics):
   """{name: float} of a dict of device scalars (one transfer)."""
   return {name: float(value)
           for name, value in jax.device_get(metrics).items()}
+
+
+class UpdateMetrics(collections.abc.Mapping):
+  """An update's metrics as floats, fetched from the device when first read.
+
+  JAX dispatches the update asynchronously: reading its metrics at once
+  would wait for it, leaving it unread lets it run while the caller (the
+  environment loop) steps the environment.
+  """
+
+  def __init__(self, device_metrics):
+    self._names = tuple(device_metrics)
+    self._device = device_metrics
+    self._floats = None
+
+  def _values(self):
+    if self._floats is None:
+      self._floats = _to_floats(self._device)
+      self._device = None
+    return self._floats
+
+  def __getitem__(self, name):
+    return self._values()[name]
+
+  def __iter__(self):
+    return iter(self._names)
+
+  def __len__(self):
+    return len(self._names)
 
 
 class _UpdateFunctions:
@@ -259,17 +289,18 @@ class SACLearner:
                          f'expected {expected}')
 
   def update(self, batch):
-    """One gradient step on `batch` (a replay.Transition); metrics dict."""
+    """One gradient step on `batch` (a replay.Transition), dispatched
+    asynchronously; its UpdateMetrics."""
     self._check_batch(batch, leading=1)
     self._state, metrics = self._functions.sgd_step(self._state, batch)
-    return _to_floats(metrics)
+    return UpdateMetrics(metrics)
 
   def update_steps(self, batches):
     """len(batches.reward) gradient steps (leading axis = step), in one
     compiled loop; metrics averaged over the steps."""
     self._check_batch(batches, leading=2)
     self._state, metrics = self._functions.sgd_steps(self._state, batches)
-    return _to_floats(metrics)
+    return UpdateMetrics(metrics)
 
   @property
   def policy_params(self):

@@ -133,3 +133,13 @@ def test_bad_batch_shape_is_rejected():
   batch = _batch()._replace(action=np.zeros((64, 3), np.float32))
   with pytest.raises(ValueError, match=r'action has shape \(64, 3\)'):
     learner.update(batch)
+
+
+def test_update_metrics_are_floats_read_when_needed():
+  learner = _learner()
+  metrics = learner.update(_batch())
+  # Names and length do not wait for the update; values are plain floats.
+  assert 'critic_loss' in list(metrics) and len(metrics) == len(dict(metrics))
+  assert all(isinstance(value, float) and np.isfinite(value)
+             for value in metrics.values())
+  assert dict(metrics) == dict(metrics)   # Fetched once, then kept.

@@ -72,9 +72,10 @@ def test_run_stops_at_exact_steps_and_continues_the_episode():
   kinds = [kind for kind, _ in agent.calls]
   assert kinds.count('first') == 2
   assert kinds.count('observe') == 8 and kinds.count('update') == 8
-  # observe_first, then (observe, update) per step, per episode.
-  assert kinds[:3] == ['first', 'observe', 'update']
-  assert agent.calls[7] == ('observe', dm_env.StepType.LAST)
+  # observe_first, then (update, observe) per step, per episode: the
+  # update is dispatched before the environment steps.
+  assert kinds[:3] == ['first', 'update', 'observe']
+  assert agent.calls[8] == ('observe', dm_env.StepType.LAST)
   assert agent.calls[9] == ('first', dm_env.StepType.FIRST)
 
 
