@@ -455,15 +455,15 @@ def main(argv, flag_values=flags.FLAGS):
           f'{metrics["return"]:.3g}, {metrics["steps"]:g} steps')
 
 
-def render_final_policy(logdir, seed=0,
-                        out_name='episode.mp4', **render_kwargs):
-  """Renders one deterministic episode of the run's latest checkpoint
-  (hrc_suite.render.run); returns (video path, episode metrics)."""
+def render_final_policy(logdir, seed=0):
+  """Renders one deterministic episode of the run's latest checkpoint as
+  logdir/episode.mp4 (hrc_suite.render.run); returns (video path, episode
+  metrics)."""
   trained = checkpoint_policy.load(logdir)
   return render.run(trained.domain, trained.task, trained.robot,
-                    policy=trained.factory, out=os.path.join(logdir, out_name),
-                    seed=seed, task_kwargs=trained.task_kwargs,
-                    **render_kwargs)
+                    policy=trained.factory,
+                    out=os.path.join(logdir, 'episode.mp4'), seed=seed,
+                    task_kwargs=trained.task_kwargs)
 
 
 if __name__ == '__main__':
