@@ -56,8 +56,8 @@ from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
-AGENTS = ('sac', 'rsi', 'sir', 'air')
-_NEEDS_DATASET = ('rsi', 'sir')
+AGENTS = imitation.AGENTS
+_NEEDS_DATASET = imitation.NEEDS_DATASET
 # Keys of the run config a resumed run may change.
 _RESUMABLE_CHANGES = ('steps',)
 # Purposes of seeds derived from the run seed (np.random.SeedSequence);
@@ -98,10 +98,12 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
     raise ValueError(f'--agent={agent} needs --dataset (an expert dataset '
                      'of the task: python -m agents.collect_expert)')
   if agent not in _NEEDS_DATASET and dataset:
-    raise ValueError(f'--dataset is only used by --agent=rsi or sir, not '
+    raise ValueError(f'--dataset is only used by --agent='
+                     f'{", ".join(_NEEDS_DATASET)}, not '
                      f'{agent}')
   if imitation_kwargs and agent == 'sac':
-    raise ValueError('imitation_kwargs are for --agent=rsi, sir or air')
+    raise ValueError('imitation_kwargs are for the imitation agents, not '
+                     'sac')
   for name, value, low in (('steps', steps, 0), ('eval_every', eval_every, 0),
                            ('eval_episodes', eval_episodes, 0),
                            ('checkpoint_every', checkpoint_every, 0)):
@@ -400,7 +402,8 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent: plain SAC or an '
                     'imitation variant (agents.imitation).', flag_values=fv)
   flags.DEFINE_string('dataset', None, 'Expert dataset directory (rsi, '
-                      'sir): python -m agents.collect_expert.', flag_values=fv)
+                      'sir, rsi+air): python -m agents.collect_expert.',
+                      flag_values=fv)
   flags.DEFINE_string('imitation_kwargs', '{}', 'JSON dict of the imitation '
                       'wrapper\'s kwargs, e.g. \'{"probability": 0.5}\'.',
                       flag_values=fv)

@@ -16,6 +16,8 @@
 * ActionImitationReward (AIR): the task's expert is queried online on the
   current state; only the agent's action is executed, and the reward is
   (1 - varsigma) r_env + varsigma * similarity(a, a~).
+* 'rsi+air' (wrap): AIR over RSI, the reference's AIR (its agents all
+  started from dataset states).
 
 The reference (reference-benchmark.md) also started plain SAC episodes from
 dataset states; here plain SAC samples fresh task instances (no wrapper).
@@ -241,12 +243,20 @@ class ActionImitationReward(EnvironmentWrapper):
     return timestep._replace(reward=np.asarray(reward, np.float64))
 
 
-AGENTS = ('sac', 'rsi', 'sir', 'air')
+AGENTS = ('sac', 'rsi', 'sir', 'air', 'rsi+air')
+NEEDS_DATASET = ('rsi', 'sir', 'rsi+air')
+# kwargs of the composed 'rsi+air' that go to RSI (the rest go to AIR).
+_RSI_KWARGS = ('probability',)
 
 
 def wrap(environment, agent, dataset=None, seed=0, **kwargs):
-  """The environment for `agent` ('sac': unchanged; 'rsi'/'sir' need a
-  loaded dataset, hrc_suite.experts.dataset.load_dataset)."""
+  """The environment for `agent` ('sac': unchanged; 'rsi', 'sir' and
+  'rsi+air' need a loaded dataset, hrc_suite.experts.dataset.load_dataset).
+
+  'rsi+air' composes the two wrappers: episodes start from dataset states
+  with probability p (kwarg `probability`, default 0.5, as the reference's
+  agents did) and the reward is AIR's (the other kwargs).
+  """
   if agent not in AGENTS:
     raise ValueError(f'Unknown agent {agent!r}: expected one of '
                      f'{", ".join(AGENTS)}')
@@ -260,4 +270,10 @@ def wrap(environment, agent, dataset=None, seed=0, **kwargs):
   if agent == 'rsi':
     return ReferenceStateInitialization(environment, dataset, seed=seed,
                                         **kwargs)
+  if agent == 'rsi+air':
+    rsi_kwargs = {name: kwargs.pop(name) for name in _RSI_KWARGS
+                  if name in kwargs}
+    starts = ReferenceStateInitialization(environment, dataset, seed=seed,
+                                          **rsi_kwargs)
+    return ActionImitationReward(starts, **kwargs)
   return StateImitationReward(environment, dataset, seed=seed, **kwargs)

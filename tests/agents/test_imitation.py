@@ -135,10 +135,36 @@ def test_air_rewards_agreeing_with_the_expert():
       0.75 * shadow_timestep.reward + 0.25 * similarity, abs=1e-12)
 
 
+def test_rsi_air_starts_from_dataset_states_with_the_air_reward(
+    reach_dataset):
+  env = imitation.wrap(_env(), 'rsi+air', dataset=reach_dataset, seed=5,
+                       probability=1.0, scale=0.5, weight=0.5)
+  assert isinstance(env, imitation.ActionImitationReward)
+  timestep = env.reset()
+  episode, step = env.reference   # RSI's, through the AIR wrapper.
+  np.testing.assert_array_equal(
+      env.task.get_state(env.physics)['physics'],
+      reach_dataset.snapshot(episode, step)['physics'])
+  # The expert is asked on the restored state: its action scores 1.
+  shadow = _env()
+  shadow.reset()
+  shadow.task.set_state(shadow.physics, reach_dataset.snapshot(episode, step))
+  expert_action = experts.make(shadow)(timestep)
+  timestep = env.step(expert_action)
+  np.testing.assert_array_equal(env.last_expert_action, expert_action)
+  assert timestep.reward == pytest.approx(
+      0.5 * env.task.step_metrics['reward'] + 0.5, abs=1e-12)
+  # AIR's kwargs stay AIR's; a misspelt one is not swallowed.
+  with pytest.raises(TypeError, match='probabilty'):
+    imitation.wrap(_env(), 'rsi+air', dataset=reach_dataset,
+                   probabilty=0.5)
+
+
 def test_wrap_names_and_needs():
   env = _env()
   assert imitation.wrap(env, 'sac') is env
-  with pytest.raises(ValueError, match='sac, rsi, sir, air'):
+  with pytest.raises(ValueError, match='sac, rsi, sir, air, rsi\\+air'):
     imitation.wrap(env, 'bc')
-  with pytest.raises(ValueError, match='dataset'):
-    imitation.wrap(env, 'rsi')
+  for agent in ('rsi', 'sir', 'rsi+air'):
+    with pytest.raises(ValueError, match='dataset'):
+      imitation.wrap(env, agent)

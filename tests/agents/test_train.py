@@ -177,9 +177,10 @@ def test_resume_matches_an_uninterrupted_run(two_runs, tmp_path):
 
 
 def test_bad_run_configs():
-  with pytest.raises(ValueError, match='needs --dataset'):
-    train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
-                          agent='sir')
+  for agent in ('rsi', 'sir', 'rsi+air'):
+    with pytest.raises(ValueError, match='needs --dataset'):
+      train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
+                            agent=agent)
   with pytest.raises(ValueError, match='only used by'):
     train.make_run_config('reach', 'dense', 'schunk', 'cartesian',
                           agent='air', dataset='/tmp/data')
@@ -302,3 +303,16 @@ def test_imitation_agents_train_and_resume_exactly(tmp_path):
       overrides=_OVERRIDES, task_kwargs=_TASK_KWARGS, steps=20), air)
   rows = logging_lib.read_csv(os.path.join(air, 'train.csv'))
   assert all(float(r['episode_return']) != float(r['return']) for r in rows)
+
+  # RSI under AIR: RSI's draws are checkpointed one wrapper deeper.
+  rsi_air = str(tmp_path / 'rsi_air')
+  train.train(train.make_run_config(
+      'reach', 'dense', 'schunk', 'cartesian', agent='rsi+air',
+      overrides=_OVERRIDES, task_kwargs=_TASK_KWARGS, steps=40,
+      checkpoint_every=10, dataset=data,
+      imitation_kwargs={'probability': 1.0, 'scale': 0.5}), rsi_air)
+  rows = logging_lib.read_csv(os.path.join(rsi_air, 'train.csv'))
+  assert all(float(r['episode_return']) != float(r['return']) for r in rows)
+  assert min(int(r['episode_length']) for r in rows) < 10
+  _, rng_states = checkpoints.load_loop_state(checkpoints.latest(rsi_air))
+  assert sorted(rng_states) == ['1/_random', 'environment']
