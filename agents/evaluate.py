@@ -112,16 +112,16 @@ def main(argv, flag_values=flags.FLAGS):
   print(f'checkpoint: {checkpoints.resolve(f.checkpoint)}')
   print(format_table(table, len(results)))
   if f.output:
-    checkpoints.write_json(f.output, _finite({'summary': table,
+    checkpoints.write_json(f.output, finite({'summary': table,
                                               'episodes': results}))
 
 
-def _finite(value):
+def finite(value):
   """A copy with non-finite floats as None (strict JSON)."""
   if isinstance(value, dict):
-    return {k: _finite(v) for k, v in value.items()}
+    return {k: finite(v) for k, v in value.items()}
   if isinstance(value, list):
-    return [_finite(v) for v in value]
+    return [finite(v) for v in value]
   if isinstance(value, float) and not math.isfinite(value):
     return None
   return value
