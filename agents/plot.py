@@ -180,6 +180,8 @@ def draw(curves, out, title):
                      'return (not normalised: no expert return)')
   for axis in axes:
     axis.set_xlabel('environment steps')
+    # 1e5-style offsets keep long step counts from running together.
+    axis.ticklabel_format(axis='x', style='sci', scilimits=(0, 4))
     axis.grid(alpha=0.3)
   handles, labels = axes[0].get_legend_handles_labels()
   figure.legend(handles, labels, loc='outside lower center',
