@@ -113,7 +113,7 @@ def main(argv, flag_values=flags.FLAGS):
   print(format_table(table, len(results)))
   if f.output:
     checkpoints.write_json(f.output, finite({'summary': table,
-                                              'episodes': results}))
+                                             'episodes': results}))
 
 
 def finite(value):
