@@ -14,7 +14,8 @@ config.json, as in the paper, whose runs had no collision penalty;
 any real return) and the mean expert return (1). The expert return comes from --expert_return or
 the experts file (--experts_json, by default docs/results/experts.json of
 the repository when present); without either the raw return is plotted and
-the axis says so.
+the axis says so. --per_seed draws one curve per run instead of the mean,
+which shows how seeds differ.
 
 Experts files read: the output of `python -m hrc_suite.experts.evaluate`
 ({"rows": [{domain, task, robot, action_space, policy, return, ...}]}: the
@@ -91,9 +92,10 @@ def expert_return(config, experts_json=None):
   return float(entry)
 
 
-def _group_key(config):
+def _group_key(config, per_seed=False):
+  ignored = _SEED_KEYS[1:] if per_seed else _SEED_KEYS
   return tuple(sorted((k, repr(v)) for k, v in config.items()
-                      if k not in _SEED_KEYS))
+                      if k not in ignored))
 
 
 def _label(config):
@@ -106,11 +108,13 @@ def _label(config):
 
 def learning_curves(logdirs, random_state, expert=None, experts_json=None,
                     num_resamples=statistics.DEFAULT_RESAMPLES,
-                    minimum='task'):
+                    minimum='task', per_seed=False):
   """One Curve per group of runs that differ only in their seed.
 
   minimum: the normalisation's 0, 'total' (the lowest possible return,
   collision penalties included) or 'task' (the task reward's alone).
+  per_seed: one Curve per run instead (its CI is the run's own values),
+  to show how seeds differ where the mean hides it.
   """
   if minimum not in MINIMA:
     raise ValueError(f'Unknown minimum {minimum!r}: expected one of '
@@ -118,7 +122,7 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
   groups = collections.OrderedDict()
   for logdir in logdirs:
     config, columns = load_run(logdir)
-    groups.setdefault(_group_key(config), []).append((config, columns))
+    groups.setdefault(_group_key(config, per_seed), []).append((config, columns))
   curves = []
   for runs in groups.values():
     config = runs[0][0]
@@ -168,7 +172,8 @@ def draw(curves, out, title):
   figure, axes = plt.subplots(1, 2, figsize=(10, 4.5), constrained_layout=True)
   for curve in curves:
     for axis, (mean, low, high) in zip(axes, (curve.success, curve.returns)):
-      label = f'{curve.label}, {len(curve.seeds)} seed(s)'
+      seeds = ', '.join(str(seed) for seed in curve.seeds)
+      label = f'{curve.label}, seed{"s" if len(curve.seeds) > 1 else ""} {seeds}'
       line, = axis.plot(curve.steps, mean, label=label)
       axis.fill_between(curve.steps, low, high, color=line.get_color(),
                         alpha=0.25, linewidth=0)
@@ -186,7 +191,7 @@ def draw(curves, out, title):
   handles, labels = axes[0].get_legend_handles_labels()
   figure.legend(handles, labels, loc='outside lower center',
                 ncol=min(len(labels), 2), fontsize='small')
-  figure.suptitle(f'{title}: mean and 95 % bootstrap CI over seeds')
+  figure.suptitle(title)
   stem, _ = os.path.splitext(os.fspath(out))
   directory = os.path.dirname(stem)
   if directory:
@@ -199,12 +204,14 @@ def draw(curves, out, title):
 
 
 def write_table(curves, path):
-  """The curves as CSV rows (label, step, seeds, mean and CI bounds)."""
+  """The curves as CSV rows (label, step, seed count and ids, mean and CI
+  bounds)."""
   logger = logging_lib.CSVLogger(path)
   try:
     for curve in curves:
       for i, step in enumerate(curve.steps):
         row = {'label': curve.label, 'seeds': len(curve.seeds),
+               'seed_ids': ' '.join(str(seed) for seed in curve.seeds),
                'normalised': int(curve.normalised)}
         for name, values in (('success', curve.success),
                              ('return', curve.returns)):
@@ -235,10 +242,13 @@ def define_flags(flag_values=flags.FLAGS):
                     'task reward\'s lowest return (the paper\'s) or the '
                     'lowest possible return with collision penalties.',
                     flag_values=fv)
+  flags.DEFINE_bool('per_seed', False, 'One curve per run instead of the '
+                    'mean over seeds.', flag_values=fv)
 
 
 def plot(logdirs, out, seed=0, expert=None, experts_json=_DEFAULT_EXPERTS,
-         num_resamples=statistics.DEFAULT_RESAMPLES, minimum='task'):
+         num_resamples=statistics.DEFAULT_RESAMPLES, minimum='task',
+         per_seed=False):
   """Writes the runs' curves as `out` (PNG), .svg and .csv; returns the
   paths written."""
   if expert is None and not os.path.exists(experts_json):
@@ -246,9 +256,12 @@ def plot(logdirs, out, seed=0, expert=None, experts_json=_DEFAULT_EXPERTS,
                     'plotting the raw return', experts_json)
   curves = learning_curves(logdirs, np.random.RandomState(seed),
                            expert=expert, experts_json=experts_json,
-                           num_resamples=num_resamples, minimum=minimum)
+                           num_resamples=num_resamples, minimum=minimum,
+                           per_seed=per_seed)
   config, _ = load_run(logdirs[0])
-  title = f'{config["domain"]}/{config["task"]}, {config["robot"]}'
+  title = (f'{config["domain"]}/{config["task"]}, {config["robot"]}: '
+           + ('one curve per seed' if per_seed else
+              'mean and 95 % bootstrap CI over seeds'))
   paths = list(draw(curves, out, title))
   table = os.path.splitext(out)[0] + '.csv'
   if os.path.exists(table):
@@ -260,7 +273,7 @@ def main(argv, flag_values=flags.FLAGS):
   del argv
   f = flag_values
   for path in plot(f.logdirs, f.out, f.seed, f.expert_return, f.experts_json,
-                   f.resamples, f.minimum):
+                   f.resamples, f.minimum, f.per_seed):
     print(path)
 
 

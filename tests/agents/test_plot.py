@@ -107,6 +107,26 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
   np.testing.assert_allclose(raw[0].returns[0], [-80.0, -50.0])
 
 
+def test_per_seed_curves_keep_each_run(tmp_path):
+  a, b = str(tmp_path / 'a'), str(tmp_path / 'b')
+  _write_run(a, 0, [0.0, 0.5, 1.0], [-100.0, -60.0, -20.0])
+  _write_run(b, 1, [0.0, 1.0, 1.0, 1.0], [-100.0, -40.0, -20.0, -20.0])
+  curves = plot.learning_curves([a, b], np.random.RandomState(0),
+                                expert=-20.0, num_resamples=100,
+                                per_seed=True)
+  assert [c.seeds for c in curves] == [[0], [1]]
+  # Each run keeps all its evaluations, and its band is its own values.
+  np.testing.assert_array_equal(curves[1].steps, [0, 100, 200, 300])
+  for curve, success in zip(curves, ([0.0, 0.5, 1.0], [0.0, 1.0, 1.0, 1.0])):
+    for array in curve.success:
+      np.testing.assert_allclose(array, success)
+  out = str(tmp_path / 'per_seed.png')
+  paths = plot.plot([a, b], out, expert=-20.0, num_resamples=100,
+                    per_seed=True)
+  rows = logging_lib.read_csv(paths[-1])
+  assert [r['seed_ids'] for r in rows] == ['0'] * 3 + ['1'] * 4
+
+
 def test_bad_runs_raise(tmp_path):
   with pytest.raises(ValueError, match='not a training run'):
     plot.learning_curves([str(tmp_path)], np.random.RandomState(0),
