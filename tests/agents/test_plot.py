@@ -29,10 +29,16 @@ def _write_run(logdir, seed, success, returns, agent='sac', steps=None):
   logger.close()
 
 
-def test_curves_over_seeds_normalised_by_the_expert(tmp_path):
+def _two_seeds(tmp_path):
+  """Two seeds of one configuration; the second has one more evaluation."""
   a, b = str(tmp_path / 'a'), str(tmp_path / 'b')
   _write_run(a, 0, [0.0, 0.5, 1.0], [-100.0, -60.0, -20.0])
   _write_run(b, 1, [0.0, 1.0, 1.0, 1.0], [-100.0, -40.0, -20.0, -20.0])
+  return a, b
+
+
+def test_curves_over_seeds_normalised_by_the_expert(tmp_path):
+  a, b = _two_seeds(tmp_path)
   curves = plot.learning_curves([a, b], np.random.RandomState(0),
                                 expert=-20.0, num_resamples=2000,
                                 minimum='total')
@@ -108,9 +114,7 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
 
 
 def test_per_seed_curves_keep_each_run(tmp_path):
-  a, b = str(tmp_path / 'a'), str(tmp_path / 'b')
-  _write_run(a, 0, [0.0, 0.5, 1.0], [-100.0, -60.0, -20.0])
-  _write_run(b, 1, [0.0, 1.0, 1.0, 1.0], [-100.0, -40.0, -20.0, -20.0])
+  a, b = _two_seeds(tmp_path)
   curves = plot.learning_curves([a, b], np.random.RandomState(0),
                                 expert=-20.0, num_resamples=100,
                                 per_seed=True)
