@@ -11,11 +11,11 @@ rate and the evaluation return normalised between the task's minimal
 episode return (0: the task reward's lowest value x horizon, from the run's
 config.json, as in the paper, whose runs had no collision penalty;
 --minimum=total: with the collision penalty, which puts the zero far below
-any real return) and the mean expert return (1). The expert return comes from --expert_return or
-the experts file (--experts_json, by default docs/results/experts.json of
-the repository when present); without either the raw return is plotted and
-the axis says so. --per_seed draws one curve per run instead of the mean,
-which shows how seeds differ.
+any real return) and the mean expert return (1). The expert return comes
+from --expert_return or the experts file (--experts_json, by default
+docs/results/experts.json of the repository when present); without either
+the raw return is plotted and the axis says so. --per_seed draws one curve
+per run instead of the mean, which shows how seeds differ.
 
 Experts files read: the output of `python -m hrc_suite.experts.evaluate`
 ({"rows": [{domain, task, robot, action_space, policy, return, ...}]}: the
@@ -36,8 +36,9 @@ from agents import checkpoints
 from agents import logging as logging_lib
 from hrc_suite import statistics
 
-# Parts of a run config that do not distinguish curves.
-_SEED_KEYS = ('seed', 'steps', 'checkpoint_every')
+# Parts of a run config that do not distinguish curves (with --per_seed the
+# seed does).
+_RUN_LENGTH_KEYS = ('steps', 'checkpoint_every')
 _DEFAULT_EXPERTS = os.path.join(os.path.dirname(os.path.abspath(__file__)),
                                 '..', 'docs', 'results', 'experts.json')
 
@@ -93,7 +94,7 @@ def expert_return(config, experts_json=None):
 
 
 def _group_key(config, per_seed=False):
-  ignored = _SEED_KEYS[1:] if per_seed else _SEED_KEYS
+  ignored = _RUN_LENGTH_KEYS + (() if per_seed else ('seed',))
   return tuple(sorted((k, repr(v)) for k, v in config.items()
                       if k not in ignored))
 
@@ -122,7 +123,8 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
   groups = collections.OrderedDict()
   for logdir in logdirs:
     config, columns = load_run(logdir)
-    groups.setdefault(_group_key(config, per_seed), []).append((config, columns))
+    key = _group_key(config, per_seed)
+    groups.setdefault(key, []).append((config, columns))
   curves = []
   for runs in groups.values():
     config = runs[0][0]
@@ -172,8 +174,9 @@ def draw(curves, out, title):
   figure, axes = plt.subplots(1, 2, figsize=(10, 4.5), constrained_layout=True)
   for curve in curves:
     for axis, (mean, low, high) in zip(axes, (curve.success, curve.returns)):
+      plural = 's' if len(curve.seeds) > 1 else ''
       seeds = ', '.join(str(seed) for seed in curve.seeds)
-      label = f'{curve.label}, seed{"s" if len(curve.seeds) > 1 else ""} {seeds}'
+      label = f'{curve.label}, seed{plural} {seeds}'
       line, = axis.plot(curve.steps, mean, label=label)
       axis.fill_between(curve.steps, low, high, color=line.get_color(),
                         alpha=0.25, linewidth=0)
