@@ -19,6 +19,9 @@ import numpy as np
 from hrc_suite.human import bvh
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
+from hrc_suite.human import placement
+from hrc_suite.human import synthesis
+from hrc_suite.human import task_targets
 
 LEG_KEYPOINTS = tuple(f'{side}_{part}' for side in ('left', 'right')
                       for part in ('hip', 'knee', 'ankle'))
@@ -439,6 +442,18 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
       raise clip_lib.ClipError(f'{info_path}: not valid JSON: {e}') from e
   fields = idle_phases_from_info(info, motion.fps, motion.num_frames, task,
                                  str(info_path))
+  # Placement and task facts (placement.py, task_targets.py): recordings of
+  # the reference share its lab's axes (they carry orientation_quat).
+  turn = (placement.snapped_turn(facts['facing_yaw_deg'])
+          if 'orientation_quat' in info else 0.0)
+  phases = fields['idle_phases']
+  anchor = fields['keyframes'][phases[0].keyframe] if phases else None
+  positions, facts['placement'] = placement.place_at_station(
+      positions, turn, anchor)
+  fields['idle_phases'] = tuple(_calm_idle_phase(p, motion.fps)
+                                for p in fields['idle_phases'])
+  fields, targets = task_targets.derive(task, positions, motion.fps, fields,
+                                        str(bvh_path))
   name = name or re.sub(r'[^A-Za-z0-9_.\-]', '_',
                         f'{folder}_{bvh_path.stem}')
   metadata = {
@@ -450,6 +465,34 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
   result = clip_lib.Clip(
       name=name, task=task, fps=motion.fps,
       positions=positions.astype(np.float32),
-      targets={}, fast_phases=fast_phases(positions, motion.fps),
+      targets=targets, fast_phases=fast_phases(positions, motion.fps),
       metadata=metadata, **fields)
-  return clip_lib.validate(result, source=str(bvh_path))
+  result = clip_lib.validate(result, source=str(bvh_path))
+  try:
+    # Idle phases slowed where their worst case passes the shield's model,
+    # as for the synthetic library.
+    return synthesis.fit_idle_phases(result)
+  except ValueError as e:
+    # Left as recorded: loading then refuses the clip or plays it outside
+    # the guarantee (tasks/motions.check_motions).
+    metadata = dict(result.metadata, idle_fit=str(e))
+    return result.replace(metadata=metadata)
+
+
+def _calm_idle_phase(phase, fps):
+  """The phase with sines above synthesis.MAX_IDLE_HZ slowed to it.
+
+  The reference's idle phases add a sine of 0.6-0.7 frames at 70-125 Hz
+  (docs/motion_library.md): it moves the person by under a millimetre but
+  multiplies keypoint speeds by up to 4. Slowing it to MAX_IDLE_HZ (slope
+  S = u * omega) keeps its amplitude and removes the jitter.
+  """
+  del fps
+  factor = (phase.speed_std_factor * phase.amplitude_std_factor) ** 3
+  omega_max = 2 * math.pi * synthesis.MAX_IDLE_HZ / factor
+  omegas = np.abs(phase.speeds) / phase.amplitudes
+  speeds = np.where(omegas > omega_max,
+                    np.sign(phase.speeds) * phase.amplitudes * omega_max,
+                    phase.speeds)
+  return dataclasses.replace(phase, speeds=np.floor(
+      speeds / synthesis.IDLE_SPEED_QUANTUM) * synthesis.IDLE_SPEED_QUANTUM)

@@ -15,6 +15,8 @@ import json
 import math
 import pathlib
 import re
+import zipfile
+import zlib
 
 import numpy as np
 
@@ -44,6 +46,24 @@ TASK_EVENTS = {
     'stacking': ('second_cube_placed', 'fourth_cube_placed'),
 }
 HANDS = ('left', 'right')
+
+# What each task reads from its clips besides the motion: target names
+# (clip frame) and the least number of keyframes (lifting: grasp, put down;
+# human-to-robot handover: pick, present), and whether the clip must name
+# the hand holding the task's object. `check_for_task` enforces them when a
+# task loads its motions; `task_targets` derives them for recordings.
+TASK_TARGETS = {
+    'reach': (),
+    'pick_place': (),
+    'inspection': ('inspection_point',),
+    'lifting': ('board_grasp_left', 'board_grasp_right'),
+    'handover_robot_to_human': (),
+    'handover_human_to_robot': ('object_pick',),
+    'hammering': ('nail', 'strike_grip'),
+    'stacking': ('stack_base', 'cube_1_pick', 'cube_1_place', 'cube_3_pick',
+                 'cube_3_place'),
+}
+TASK_KEYFRAMES = {'lifting': 2, 'handover_human_to_robot': 2}
 
 # The shield's human model bounds every keypoint speed by 2 m/s (SaRA
 # reachability, shield-spec.md; ISO/TS 15066 walking speed 1.6 m/s plus margin).
@@ -350,9 +370,13 @@ def load_clip(path):
   try:
     with np.load(npz_path, allow_pickle=False) as npz:
       positions = npz['positions']
-  except (OSError, ValueError, KeyError) as e:
-    raise ClipError(f'{npz_path}: field \'positions\': cannot read: '
-                    f'{e}') from e
+  except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile,
+          zlib.error) as e:
+    # A truncated or empty file fails in numpy or zipfile (EOFError,
+    # BadZipFile), a damaged one in zlib.
+    raise ClipError(f'{npz_path}: field \'positions\': cannot read '
+                    f'({type(e).__name__}: {e}); expected a .npz file with '
+                    f'a (T, {keypoints.NUM_KEYPOINTS}, 3) array') from e
   phases = _field(data, 'idle_phases', source)
   if not isinstance(phases, list):
     raise ClipError(f'{source}: field \'idle_phases\': expected a list')

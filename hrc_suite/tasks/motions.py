@@ -21,6 +21,9 @@ from typing import Any
 import numpy as np
 
 from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints as keypoints_lib
+from hrc_suite.human import recording_cache
+from hrc_suite.human import synthesis
 
 SPLITS = ('train', 'test')
 
@@ -89,7 +92,13 @@ class MotionSplit:
 
 def load_motions(motions, task):
   """Clips from None (the task's shipped library `task`), a folder, a
-  non-empty list of Clips, or a MotionSplit / split dict of any of those."""
+  non-empty list of Clips, or a MotionSplit / split dict of any of those.
+
+  A folder holds clips (<name>.json + .npz), BVH recordings (+ their
+  `_info.json`), or the reference's layout (one sub-folder per task, as
+  `human-robot-animations/`): recordings are converted on first use into
+  a cache (`recording_cache`).
+  """
   if isinstance(motions, dict):
     motions = MotionSplit.from_dict(motions)
   if isinstance(motions, MotionSplit):
@@ -100,7 +109,7 @@ def load_motions(motions, task):
   if motions is None:
     return clip_lib.shipped_library(task)
   if isinstance(motions, (str, pathlib.Path)):
-    return clip_lib.load_folder(motions)
+    return recording_cache.load_task_folder(motions, task)
   try:
     clips = list(motions)
   except TypeError:
@@ -110,4 +119,111 @@ def load_motions(motions, task):
         'motions must be None (shipped library), a folder path, a non-empty '
         "list of Clips or a train/test split ({'split': 'train'|'test', "
         f"'test_clips': n, 'split_seed': k}}), got {motions!r}")
+  return clips
+
+
+# What a task does with a clip over the shield's human model
+# (`check_motions`): refuse it, or play it outside the guarantee and count
+# the RL steps in which the person moved faster than the model
+# ('steps_outside_human_model').
+OUTSIDE_MODEL_POLICIES = ('refuse', 'allow')
+# Keypoints stay inside the workcell: within the floor (entities/workcell.py
+# FLOOR_HALF_SIZE 4 m) and below this height (m; a raised hand of a 95th
+# percentile man reaches ~2.2 m, DIN 33402-2).
+MAX_KEYPOINT_HEIGHT = 2.5
+
+
+def _clip_source(clip):
+  source = clip.metadata.get('file') if isinstance(clip.metadata, dict) else None
+  return f'clip {clip.name!r}' + (f' ({source})' if source else '')
+
+
+def _check_task_fields(clip, task, source):
+  missing = [t for t in clip_lib.TASK_TARGETS.get(task, ())
+             if t not in clip.targets]
+  if missing:
+    raise clip_lib.ClipError(
+        f'{source}: task {task!r} needs the targets {missing}; the clip has '
+        f'{sorted(clip.targets) or "none"}')
+  needed = clip_lib.TASK_KEYFRAMES.get(task, 0)
+  if len(clip.keyframes) < needed:
+    raise clip_lib.ClipError(
+        f'{source}: task {task!r} needs at least {needed} keyframes, the '
+        f'clip has {list(clip.keyframes)}')
+  events = [p.event for p in clip.idle_phases]
+  expected = list(clip_lib.TASK_EVENTS.get(task, events))
+  if events != expected:
+    raise clip_lib.ClipError(
+        f'{source}: task {task!r} waits for the events {expected} in this '
+        f'order, the clip\'s idle phases wait for {events}')
+
+
+def _check_workcell(clip, station, floor_half_size, source):
+  x, y, yaw = station
+  c, s = np.cos(yaw), np.sin(yaw)
+  p = clip.positions.astype(np.float64)
+  world_x = x + c * p[..., 0] - s * p[..., 1]
+  world_y = y + s * p[..., 0] + c * p[..., 1]
+  outside = ((np.abs(world_x) > floor_half_size)
+             | (np.abs(world_y) > floor_half_size)
+             | (p[..., 2] < 0.0) | (p[..., 2] > MAX_KEYPOINT_HEIGHT))
+  if outside.any():
+    frame, k = (int(v) for v in np.argwhere(outside)[0])
+    raise clip_lib.ClipError(
+        f'{source}: keypoint {keypoints_lib.KEYPOINT_NAMES[k]!r} at frame '
+        f'{frame} stands at world ({world_x[frame, k]:.3g}, '
+        f'{world_y[frame, k]:.3g}, {p[frame, k, 2]:.3g}) m, outside the '
+        f'workcell (|x|, |y| <= {floor_half_size} m, 0 <= z <= '
+        f'{MAX_KEYPOINT_HEIGHT} m)')
+
+
+def speed_excess(clip, v_max):
+  """(keypoint, m/s, clip time s) of the worst speed over `v_max` (per
+  keypoint, m/s), idle phases' fastest replay included; None if within."""
+  speeds = clip_lib.keypoint_speeds(clip)
+  rates = [1.0] + [synthesis.idle_max_rate(p) for p in clip.idle_phases]
+  bounds = [synthesis.idle_window_speed(clip, p) * r
+            for p, r in zip(clip.idle_phases, rates[1:])]
+  ratio = speeds / v_max
+  frame, k = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+  worst = (float(ratio[frame, k]), keypoints_lib.KEYPOINT_NAMES[k],
+           float(speeds[frame, k]), frame / float(clip.fps))
+  limit = float(np.min(v_max))
+  for phase, bound in zip(clip.idle_phases, bounds):
+    if bound / limit > worst[0]:
+      worst = (bound / limit, f'any keypoint (idle phase {phase.event!r})',
+               bound, clip.keyframe_time(phase.keyframe))
+  if worst[0] <= 1.0:
+    return None
+  return worst[1:]
+
+
+def check_motions(clips, task, station, v_max, outside_model='refuse',
+                  floor_half_size=4.0):
+  """Raises ClipError unless every clip can be played by `task`.
+
+  Checks the task's targets, keyframes and events, keypoints inside the
+  workcell at `station`, and speeds within the shield's human model
+  (`v_max`, per keypoint); over the model, `outside_model` 'allow' accepts
+  the clip (the task then counts 'steps_outside_human_model').
+  """
+  if outside_model not in OUTSIDE_MODEL_POLICIES:
+    raise ValueError(f'Unknown outside_human_model {outside_model!r}: '
+                     f'expected one of {OUTSIDE_MODEL_POLICIES}')
+  v_max = np.asarray(v_max, dtype=np.float64)
+  for clip in clips:
+    source = _clip_source(clip)
+    _check_task_fields(clip, task, source)
+    _check_workcell(clip, station, floor_half_size, source)
+    excess = speed_excess(clip, v_max)
+    if excess is not None and outside_model == 'refuse':
+      name, speed, time = excess
+      raise clip_lib.ClipError(
+          f'{source}: {name} moves at {speed:.2f} m/s at t = {time:.2f} s, '
+          f'over the shield\'s human model ({float(np.min(v_max)):g}-'
+          f'{float(np.max(v_max)):g} m/s, assets/human/'
+          f'shield_human_model.json): the safety guarantee would not hold. '
+          f"Pass task_kwargs={{'outside_human_model': 'allow'}} to play it "
+          f"anyway; the episode metric 'steps_outside_human_model' then "
+          f'counts the RL steps outside the guarantee')
   return clips

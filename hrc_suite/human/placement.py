@@ -1,0 +1,83 @@
+"""Where an imported recording stands: the placement rule (docs/motion_library.md).
+
+A task plays its clips with the clip frame's origin at the task's station
+(`layout.HUMAN_STATION_*`): the spot, facing the table, where a person
+stands to work with the robot, 0.30 m behind the table's edge. The
+shipped synthetic people walk in to that spot and stay there. A recording
+starts wherever the person stood in the lab, usually a metre back, and walks
+in; its first pose says nothing about where the table was. So a recording
+is placed by where it ends up, not where it starts:
+
+* facing: the clip's +x is the direction the person faces. Recordings of the
+  reference (their `_info.json` has `orientation_quat`) share one lab
+  frame, and the reference places every one of them with the same rotation,
+  so the table's axes are the lab's axes: the estimated facing is snapped to
+  the nearest lab axis (multiple of 90 degrees). Other recordings keep the
+  facing estimated from their first half second (`bvh_import`).
+* along the facing: the pelvis at the anchor frame lands on the station.
+  The anchor is where the person waits for the robot (the first idle
+  phase's keyframe) in tasks that wait, else the pelvis's farthest point
+  forward (the closest approach to the table). Some people wait a step
+  back and step in later: the pelvis may then pass the station by at most
+  LEAN_ALLOWANCE, so it stays at least 0.10 m behind the table's edge, as
+  close as the synthetic people come.
+* sideways: the pelvis at the anchor frame lands on the station's line.
+
+Only horizontal placement changes; heights stay as imported (floor at 0).
+"""
+
+import math
+
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite.human import keypoints
+
+_PELVIS = keypoints.KEYPOINT_INDEX['pelvis']
+# Station to the table's edge, the same for both stations
+# (layout.HUMAN_STATION_ACROSS: x 1.45 m, edge 1.15 m; HUMAN_STATION_BESIDE:
+# y 1.05 m, edge 0.75 m).
+TABLE_EDGE_CLEARANCE = layout.HUMAN_STATION_ACROSS[0] - layout.TABLE_X[1]
+LAB_AXIS = math.pi / 2   # rad; the lab frame's axes are this far apart.
+# How far past the station the pelvis may come (m): the synthetic people's
+# closest approach leaves 0.10 m to the table's edge (docs/motion_library.md).
+LEAN_ALLOWANCE = TABLE_EDGE_CLEARANCE - 0.10
+
+
+def _yaw_matrix(yaw):
+  c, s = math.cos(yaw), math.sin(yaw)
+  return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def snapped_turn(estimated_yaw_deg):
+  """Turn (rad) from the estimated facing to the nearest lab axis."""
+  estimated = math.radians(estimated_yaw_deg)
+  snapped = LAB_AXIS * round(estimated / LAB_AXIS)
+  return snapped - estimated
+
+
+def place_at_station(positions, turn=0.0, anchor=None):
+  """(positions, facts) with the clip placed by the module's rule.
+
+  `positions` (F, K, 3) are in a clip frame facing +x (floor at z = 0);
+  `turn` (rad) first turns them about the vertical through the origin (the
+  facing correction). `anchor` is the frame where the person waits for the
+  robot (None: the closest approach).
+  """
+  positions = np.asarray(positions, dtype=np.float64)
+  # Turning by `turn` moves the facing direction; turning the points by
+  # -turn keeps +x the facing.
+  rotation = _yaw_matrix(-turn)
+  placed = positions @ rotation.T
+  pelvis = placed[:, _PELVIS]
+  closest = int(np.argmax(pelvis[:, 0]))
+  frame = closest if anchor is None else int(anchor)
+  forward = min(-pelvis[frame, 0], LEAN_ALLOWANCE - pelvis[closest, 0])
+  shift = np.array([forward, -pelvis[frame, 1], 0.0])
+  placed = placed + shift
+  facts = {'rule': 'anchor pelvis at the station, closest approach at most '
+                   f'{LEAN_ALLOWANCE:.2f} m past it',
+           'facing_turn_deg': round(math.degrees(turn), 3),
+           'anchor_frame': frame, 'closest_frame': closest,
+           'shift_m': [round(float(v), 4) for v in shift[:2]]}
+  return placed, facts

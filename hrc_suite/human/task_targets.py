@@ -1,0 +1,213 @@
+"""A recording's task facts derived from the motion: keyframes and targets.
+
+The synthetic library writes each task's targets (where the hands grasp,
+strike, place, present) into its clips as it makes them; a recording has
+only the motion and, for the reference's recordings, an `_info.json` with
+keyframes and idle phases (`bvh_import.idle_phases_from_info`). Each rule
+below derives what its task needs (`clip.TASK_TARGETS`,
+`clip.TASK_KEYFRAMES`) from the placed motion (`placement`), in the clip
+frame (station at the origin, facing +x, table edge TABLE_EDGE_X ahead).
+A rule that cannot derive a target raises ClipError naming the clip, the
+target and the reason. docs/motion_library.md lists the rules.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
+from hrc_suite.human import placement
+
+_K = keypoints.KEYPOINT_INDEX
+TABLE_EDGE_X = placement.TABLE_EDGE_CLEARANCE   # clip frame, m
+TABLE_Z = layout.TABLE_TOP_Z
+# The synthetic library's values (task_motions): palm above a cube's centre
+# when gripping it, cube edge, hammer palm-to-face reach and face drop.
+GRIP_ABOVE_CENTRE = 0.035
+CUBE_SIZE = 0.05
+HAMMER_REACH = 0.26
+HAMMER_FACE_BELOW_PALM = 0.04
+# Where an object is held up for inspection, from the head of the waiting
+# person: the synthetic library's mean over its 8 clips (0.63 m ahead,
+# 0.33 m below; a reading distance).
+INSPECTION_FROM_HEAD = np.array([0.63, 0.0, -0.33])
+# How far onto the table (m) a point the robot brings an object to lies at
+# least: the synthetic library's nearest inspection point is 0.33 m on.
+OVER_TABLE = 0.3
+# Blows of a hammering hand: its lowest points at least this far apart (s).
+MIN_BLOW_PERIOD = 0.3
+
+
+def _fail(source, target, reason):
+  raise clip_lib.ClipError(f'{source}: cannot derive {target!r}: {reason}')
+
+
+def _hand(positions, side):
+  return positions[:, _K[f'{side}_hand']]
+
+
+def _window(fields, first, last, num_frames):
+  keys = fields['keyframes']
+  start = keys[first] if first is not None else 0
+  end = keys[last] if last is not None else num_frames - 1
+  return int(start), int(end)
+
+
+def _holding_hand(fields, source, target):
+  hand = fields.get('holding_hand')
+  if hand not in clip_lib.HANDS:
+    _fail(source, target, f'the clip names no holding hand (got {hand!r}; '
+          f'the info file\'s object_holding_hand)')
+  return hand
+
+
+def _handover_robot_to_human(positions, fps, fields, source):
+  del fps
+  hand = _holding_hand(fields, source, 'handover_point')
+  phase = fields['idle_phases'][0]
+  frame = fields['keyframes'][phase.keyframe]
+  return fields, {'handover_point': _hand(positions, hand)[frame]}
+
+
+def _handover_human_to_robot(positions, fps, fields, source):
+  """The person brings the object in hand: the pick keyframe is the first
+  frame, where the holding hand is ('object_pick'); the presentation is
+  the first idle phase's keyframe."""
+  del fps
+  hand = _holding_hand(fields, source, 'object_pick')
+  keys = tuple(sorted(set(fields['keyframes']) | {0}))
+  shift = len(keys) - len(fields['keyframes'])
+  phases = tuple(dataclasses.replace(p, keyframe=p.keyframe + shift)
+                 for p in fields['idle_phases'])
+  present = keys[phases[0].keyframe]
+  fields = dict(fields, keyframes=keys, idle_phases=phases)
+  return fields, {'object_pick': _hand(positions, hand)[0],
+                  'handover_point': _hand(positions, hand)[present]}
+
+
+def _inspection(positions, fps, fields, source):
+  """INSPECTION_FROM_HEAD from the head at the wait's keyframe, and at
+  least OVER_TABLE onto the table: a person waiting further back (some
+  recordings wait before their last step in) is shown the object where the
+  robot can bring it."""
+  del fps, source
+  frame = fields['keyframes'][fields['idle_phases'][0].keyframe]
+  point = positions[frame, _K['head']] + INSPECTION_FROM_HEAD
+  point[0] = max(point[0], TABLE_EDGE_X + OVER_TABLE)
+  return fields, {'inspection_point': point}
+
+
+def _lifting(positions, fps, fields, source):
+  """The reference's person holds the board for the whole recording: grasp
+  at the first frame, put down at the last; grasps where the hands are at
+  the first frame."""
+  del fps
+  if fields['keyframes']:
+    first, last = fields['keyframes'][0], fields['keyframes'][-1]
+  else:
+    first, last = 0, len(positions) - 1
+  if last <= first:
+    _fail(source, 'keyframes', f'grasp and put-down frames {first}, {last} '
+          f'are not in order')
+  left, right = _hand(positions, 'left')[first], _hand(positions, 'right')[
+      first]
+  if left[1] <= right[1]:
+    _fail(source, 'board_grasp_left', f'the left hand ({left.round(3)}) is '
+          f'not left of the right hand ({right.round(3)}) at the grasp')
+  fields = dict(fields, keyframes=(int(first), int(last)))
+  return fields, {'board_grasp_left': left, 'board_grasp_right': right}
+
+
+def _blow_points(z, fps):
+  """Frames of a hand's lowest points, MIN_BLOW_PERIOD apart."""
+  order = max(1, int(round(MIN_BLOW_PERIOD * fps / 2)))
+  frames = [i for i in range(len(z))
+            if z[i] <= z[max(0, i - order):i + order + 1].min()]
+  return np.array(frames, dtype=int)
+
+
+def _hammering(positions, fps, fields, source):
+  """The striking hand's lowest points while the person hammers (between
+  the first and last keyframe): 'strike_grip' their median, the nail
+  HAMMER_REACH ahead of it along the facing and HAMMER_FACE_BELOW_PALM
+  lower. The striking hand moves most up and down there."""
+  start, end = _window(fields, 0, -1, len(positions))
+  sides = clip_lib.HANDS
+  vertical = [np.std(_hand(positions, s)[start:end + 1, 2]) for s in sides]
+  hand = fields.get('holding_hand') or sides[int(np.argmax(vertical))]
+  z = _hand(positions, hand)[start:end + 1, 2]
+  blows = _blow_points(z, fps)
+  if len(blows) == 0:
+    _fail(source, 'strike_grip', f'the {hand} hand has no lowest point '
+          f'between frames {start} and {end}')
+  grip = np.median(_hand(positions, hand)[start + blows], axis=0)
+  nail = grip + [HAMMER_REACH, 0.0, -HAMMER_FACE_BELOW_PALM]
+  fields = dict(fields, holding_hand=hand)
+  return fields, {'strike_grip': grip, 'nail': nail}
+
+
+def _placing_point(positions, hand, start, end):
+  """Frame where `hand` is farthest forward in [start, end]."""
+  x = _hand(positions, hand)[start:end + 1, 0]
+  return start + int(np.argmax(x))
+
+
+def _stacking(positions, fps, fields, source):
+  """Cube 1 is placed by the first placing hand where it reaches farthest
+  forward before the robot's turn (keyframes 0 to 2), cube 3 by the hand
+  that reaches farthest between keyframes 2 and 4. A cube is picked where
+  its hand is lowest over the table before placing it."""
+  del fps
+  first = fields.get('placing_hand')
+  if first not in clip_lib.HANDS:
+    _fail(source, 'cube_1_place', f'the clip names no first placing hand '
+          f'(got {first!r}; the info file\'s first_placing_hand)')
+  targets = {}
+  windows = ((1, _window(fields, 0, 2, len(positions)), [first]),
+             (3, _window(fields, 2, 4, len(positions)), clip_lib.HANDS))
+  for cube, (start, end), hands in windows:
+    frames = {h: _placing_point(positions, h, start, end) for h in hands}
+    hand = max(hands, key=lambda h: _hand(positions, h)[frames[h], 0])
+    place = _hand(positions, hand)[frames[hand]] - [0, 0, GRIP_ABOVE_CENTRE]
+    if place[0] <= TABLE_EDGE_X:
+      _fail(source, f'cube_{cube}_place', f'the {hand} hand reaches at most '
+            f'x = {place[0]:.2f} m between frames {start} and {end}, not '
+            f'over the table (edge at {TABLE_EDGE_X:.2f} m)')
+    path = _hand(positions, hand)[start:frames[hand] + 1]
+    over = np.flatnonzero(path[:, 0] > TABLE_EDGE_X + CUBE_SIZE)
+    lowest = path[over[np.argmin(path[over, 2])]] if len(over) else place
+    pick = np.array([lowest[0], lowest[1], TABLE_Z + CUBE_SIZE / 2])
+    targets[f'cube_{cube}_pick'] = pick
+    targets[f'cube_{cube}_place'] = place
+  base = targets['cube_1_place']
+  targets['stack_base'] = np.array([base[0], base[1], TABLE_Z])
+  return fields, targets
+
+
+def _no_targets(positions, fps, fields, source):
+  del positions, fps, source
+  return fields, {}
+
+
+RULES = {
+    'reach': _no_targets,
+    'pick_place': _no_targets,
+    'inspection': _inspection,
+    'lifting': _lifting,
+    'handover_robot_to_human': _handover_robot_to_human,
+    'handover_human_to_robot': _handover_human_to_robot,
+    'hammering': _hammering,
+    'stacking': _stacking,
+    'other': _no_targets,
+}
+
+
+def derive(task, positions, fps, fields, source='<recording>'):
+  """(fields, targets): the clip fields (keyframes, idle_phases,
+  holding_hand, placing_hand) as the task reads them and its targets."""
+  fields, targets = RULES[task](np.asarray(positions, np.float64), fps,
+                                dict(fields), source)
+  return fields, {k: np.round(np.asarray(v, np.float64), 4)
+                  for k, v in targets.items()}
