@@ -43,6 +43,7 @@ target is the holding hand's palm (robot to human) or the table target.
 import math
 
 from dm_control.composer.observation import observable
+import mujoco
 import numpy as np
 
 from hrc_suite import layout
@@ -358,6 +359,29 @@ class HumanToRobot(_Handover):
     grip = pick + [0.0, 0.0, REST_HEIGHT] + direction * (
         props.HAMMER_HUMAN_GRIP + self._hammer.grip_site.pos[0])
     self._place_hammer(physics, grip, yaw)
+    physics.forward()
+    if self._player.clip.keyframes[0] == 0:
+      self._start_in_hand(physics)
+
+  def _start_in_hand(self, physics):
+    """A clip whose pick keyframe is its first frame (recordings: the
+    person walks in carrying the object, human/task_targets.py) starts with
+    the hammer in the presenting grip of the holding hand."""
+    hand = self._holding_hand
+    names = [seg[0] for seg in human_lib.SEGMENTS]
+    half = physics.bind(self._human.geoms[names.index(
+        f'{hand}_hand')]).size[1]
+    position, quaternion = self.presenting_grip(half)
+    hand_body = physics.bind(self._human.segment_bodies[
+        names.index(f'{hand}_hand')])
+    rotation = hand_body.xmat.reshape(3, 3)
+    world = hand_body.xpos + rotation @ position
+    world_quat = np.empty(4)
+    mujoco.mju_mulQuat(world_quat, hand_body.xquat, quaternion)
+    self._hammer.set_pose(physics, world, world_quat)
+    self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
+    self._hold(physics, self._hammer.body, hand, (position, quaternion))
+    self._picked, self._turn = True, 1.0
     physics.forward()
 
   def _target(self, physics):
