@@ -308,6 +308,11 @@ class Player:
     return None
 
   @property
+  def clips(self):
+    """The clips this player draws from, in the order given."""
+    return tuple(p.clip for p in self._clips)
+
+  @property
   def clip(self):
     return self._current.clip
 

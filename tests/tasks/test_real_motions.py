@@ -1,0 +1,88 @@
+"""Every task plays the real recordings (../shared/motions, skipped when
+absent) on two robots, and the speed model's opt-out is counted."""
+
+import pathlib
+
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import recording_cache
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
+# Each reference folder's task, as suite (domain, task) names.
+FOLDER_TASKS = {
+    'RobotHumanHandover': ('handover', 'robot_to_human'),
+    'HumanRobotHandover': ('handover', 'human_to_robot'),
+    'CollaborativeLifting': ('lifting', 'default'),
+    'CollaborativeStacking': ('stacking', 'default'),
+    'CollaborativeHammering': ('hammering', 'default'),
+    'ObjectInspection': ('inspection', 'default'),
+    'PickPlaceCloseHuman': ('pick_place', 'close'),
+}
+ROBOTS = ('schunk', 'panda')
+CASES = [(folder, robot) for folder in FOLDER_TASKS for robot in ROBOTS]
+
+
+@pytest.fixture(autouse=True)
+def cache(tmp_path_factory, monkeypatch):
+  monkeypatch.setenv(recording_cache.CACHE_ENV,
+                     str(tmp_path_factory.getbasetemp() / 'recordings'))
+  if not MOTIONS.is_dir():
+    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
+
+
+def _load(folder, robot, seed=0, **kwargs):
+  domain, task = FOLDER_TASKS[folder]
+  kwargs = dict({'robot': robot, 'seed': seed, 'motions': MOTIONS,
+                 'outside_human_model': 'allow'}, **kwargs)
+  return suite.load(domain, task, task_kwargs=kwargs)
+
+
+@pytest.mark.parametrize('folder,robot', CASES)
+def test_recordings_play_in_their_task(folder, robot):
+  env = _load(folder, robot)
+  clips = env.task.player.clips
+  assert len(clips) == len(list((MOTIONS / folder).glob('*.bvh')))
+  assert all(c.metadata['source'] == 'bvh' for c in clips)
+  policy = experts.make(env)
+  timestep = env.reset()
+  for _ in range(20):
+    timestep = env.step(policy(timestep))
+    if timestep.last():
+      break
+  metrics = env.task.episode_metrics
+  assert metrics['steps'] >= 1
+  assert metrics['contacts_human_critical'] == 0
+
+
+def test_fast_recordings_are_refused_by_default():
+  """pick_place's recordings move hands at 3-12 m/s (over the shield's
+  2 m/s model): refused unless allowed, then counted."""
+  with pytest.raises(clip_lib.ClipError, match='over the shield.s human '
+                     "model.*'outside_human_model': 'allow'"):
+    _load('PickPlaceCloseHuman', 'panda', outside_human_model='refuse')
+  env = _load('PickPlaceCloseHuman', 'panda')
+  env.reset()
+  outside = 0
+  for _ in range(150):
+    env.step(np.zeros(env.action_spec().shape))
+    outside = env.task.episode_metrics['steps_outside_human_model']
+    if outside:
+      break
+  assert outside > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('folder,robot', CASES)
+def test_full_expert_episode_on_recordings(folder, robot):
+  env = _load(folder, robot, seed=1)
+  policy = experts.make(env)
+  timestep = env.reset()
+  while not timestep.last():
+    timestep = env.step(policy(timestep))
+  metrics = env.task.episode_metrics
+  assert metrics['contacts_human_critical'] == 0, metrics
