@@ -133,7 +133,8 @@ class HrcTask(composer.Task):
                observation_delay=None, cameras=(),
                camera_size=DEFAULT_CAMERA_SIZE, v_safe=DEFAULT_V_SAFE,
                critical_speed=None,
-               collision_reward=DEFAULT_COLLISION_REWARD):
+               collision_reward=DEFAULT_COLLISION_REWARD,
+               outside_human_model='refuse'):
     """Builds the scene; every argument is checked, errors list valid values.
 
     Args:
@@ -146,7 +147,12 @@ class HrcTask(composer.Task):
       motions: None (the task's shipped clips), a folder of clips, a list
         of `clip.Clip`s, or one side of a train/test split
         (`motions.MotionSplit` or {'split': 'train'|'test', 'test_clips':
-        n, 'split_seed': k}).
+        n, 'split_seed': k}). A folder may hold BVH recordings or the
+        reference's layout (`human.recording_cache`).
+      outside_human_model: 'refuse' (a clip whose person moves faster than
+        the shield's human model raises ClipError at construction) or
+        'allow' (play it; the metric 'steps_outside_human_model' counts the
+        RL steps outside the guarantee; `motions.check_motions`).
       reward: one of the task's REWARDS (None: its first).
       reward_delay: RL steps by which task rewards are paid late (None: the
         task's default); what is still owed is paid at the episode's end.
@@ -253,8 +259,13 @@ class HrcTask(composer.Task):
         tool_table_allowance=self.tool_table_allowance)
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
+    clips = motions_lib.check_motions(
+        motions_lib.load_motions(motions, self.MOTIONS), self.MOTIONS,
+        self.HUMAN_STATION, self._shield.human.config.v_max,
+        outside_human_model)
+    self._human_v_max = self._shield.human.config.v_max.copy()
     self._player = player_lib.Player(
-        motions_lib.load_motions(motions, self.MOTIONS),
+        clips,
         station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
     self._playback = human_playback.HumanPlayback(
@@ -471,6 +482,7 @@ class HrcTask(composer.Task):
     self._terminate = False
     self._discount = 1.0
     self._substep = 0
+    self._outside_model = False
     self._playback.forget_clip()
     self._step_flags[:] = False
     self._contact_steps[:] = 0
@@ -557,6 +569,16 @@ class HrcTask(composer.Task):
     self._monitor.reset()
     self._substep = 0
     self._playback.advance(self._dt)
+    self._outside_model = self._faster_than_model()
+
+  def _faster_than_model(self):
+    """Whether a keypoint moves faster than the shield's human model between
+    this RL step's substeps. (The interval into the step is left out: it
+    would make the metric depend on playback state that snapshots do not
+    keep; check_motions has checked every frame of every clip.)"""
+    frames = self._playback.positions
+    speeds = np.linalg.norm(np.diff(frames, axis=0), axis=-1) / self._dt
+    return bool(np.any(speeds > self._human_v_max))
 
   def before_substep(self, physics, action, random_state):
     del action, random_state
@@ -626,6 +648,7 @@ class HrcTask(composer.Task):
     step['self_collisions'] = int(self_collision)
     step['goals_reached'] = int(success)
     step['min_human_distance'] = self._shield.min_distance
+    step['steps_outside_human_model'] = int(self._outside_model)
     step['max_human_contact_speed'] = self._monitor.max_human_contact_speed
     for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
       step[f'contacts_{name}'] = int(count)

@@ -20,12 +20,15 @@ from hrc_suite.tasks import contacts
 # * action_replacements: actions replaced by collision prevention.
 # * ik_failures: Cartesian actions whose IK failed (the goal was kept).
 # * goals_reached: RL steps at which the task's goal was reached.
+# * steps_outside_human_model: RL steps in which the person moved faster
+#   than the shield's human model (only with outside_human_model='allow':
+#   outside the safety guarantee, tasks/motions.check_motions).
 # Besides: success (0/1, reached at least once), return, steps,
 # min_human_distance (m, robot capsules at the shield's command to the human
 # body capsules, the minimum over RL step ends) and max_human_contact_speed
 # (m/s, the robot's fastest surface point in a human contact).
 COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
-             'self_collisions', 'goals_reached')
+             'self_collisions', 'goals_reached', 'steps_outside_human_model')
             + tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES))
 
 
