@@ -259,10 +259,13 @@ class HrcTask(composer.Task):
         tool_table_allowance=self.tool_table_allowance)
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
+    # The shipped library's documented fast phases (hammer blows,
+    # docs/motion_library.md) play as before; they are counted in
+    # steps_outside_human_model like any clip over the model.
     clips = motions_lib.check_motions(
         motions_lib.load_motions(motions, self.MOTIONS), self.MOTIONS,
         self.HUMAN_STATION, self._shield.human.config.v_max,
-        outside_human_model)
+        'allow' if motions is None else outside_human_model)
     self._human_v_max = self._shield.human.config.v_max.copy()
     self._player = player_lib.Player(
         clips,
