@@ -450,7 +450,7 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
   anchor = fields['keyframes'][phases[0].keyframe] if phases else None
   positions, facts['placement'] = placement.place_at_station(
       positions, turn, anchor)
-  fields['idle_phases'] = tuple(_calm_idle_phase(p, motion.fps)
+  fields['idle_phases'] = tuple(_calm_idle_phase(p)
                                 for p in fields['idle_phases'])
   fields, targets = task_targets.derive(task, positions, motion.fps, fields,
                                         str(bvh_path))
@@ -479,7 +479,7 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
     return result.replace(metadata=metadata)
 
 
-def _calm_idle_phase(phase, fps):
+def _calm_idle_phase(phase):
   """The phase with sines above synthesis.MAX_IDLE_HZ slowed to it.
 
   The reference's idle phases add a sine of 0.6-0.7 frames at 70-125 Hz
@@ -487,7 +487,6 @@ def _calm_idle_phase(phase, fps):
   multiplies keypoint speeds by up to 4. Slowing it to MAX_IDLE_HZ (slope
   S = u * omega) keeps its amplitude and removes the jitter.
   """
-  del fps
   factor = (phase.speed_std_factor * phase.amplitude_std_factor) ** 3
   omega_max = 2 * math.pi * synthesis.MAX_IDLE_HZ / factor
   omegas = np.abs(phase.speeds) / phase.amplitudes

@@ -17,11 +17,7 @@ import sys
 from hrc_suite.human import bvh
 from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
-
-
-def _bvh_files(folder):
-  return sorted(p for p in folder.iterdir()
-                if p.suffix.lower() == '.bvh' and p.is_file())
+from hrc_suite.human import recording_cache
 
 
 def plan(src, dst, task=None):
@@ -29,14 +25,14 @@ def plan(src, dst, task=None):
   src, dst = pathlib.Path(src), pathlib.Path(dst)
   if not src.is_dir():
     raise FileNotFoundError(f'{src}: not a folder')
-  files = _bvh_files(src)
+  files = recording_cache.bvh_files(src)
   if files:
     return [(f, dst, task) for f in files]
   jobs = []
   for sub in sorted(p for p in src.iterdir() if p.is_dir()):
     sub_task = task or bvh_import.REFERENCE_FOLDER_TASKS.get(sub.name)
     folder = dst / (sub_task or sub.name)
-    jobs.extend((f, folder, sub_task) for f in _bvh_files(sub))
+    jobs.extend((f, folder, sub_task) for f in recording_cache.bvh_files(sub))
   if not jobs:
     raise FileNotFoundError(f'{src}: no .bvh files in it or its sub-folders')
   return jobs
@@ -78,7 +74,7 @@ def load_clips(folder, task=None):
   if folder.is_dir() and any(p.suffix == '.json' and not p.stem.endswith(
       '_info') for p in folder.iterdir()):
     return clip_lib.load_folder(folder)
-  files = _bvh_files(folder) if folder.is_dir() else []
+  files = recording_cache.bvh_files(folder) if folder.is_dir() else []
   if not files:
     raise clip_lib.ClipError(f'{folder}: neither clips (<name>.json + .npz) '
                              f'nor .bvh files')

@@ -1,4 +1,4 @@
-"""Where an imported recording stands: the placement rule (docs/motion_library.md).
+"""Where an imported recording stands (docs/motion_library.md).
 
 A task plays its clips with the clip frame's origin at the task's station
 (`layout.HUMAN_STATION_*`): the spot, facing the table, where a person

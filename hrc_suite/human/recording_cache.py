@@ -38,7 +38,8 @@ def cache_dir():
   return pathlib.Path(base) / 'hrc_suite' / 'recordings'
 
 
-def _bvh_files(folder):
+def bvh_files(folder):
+  """The .bvh files of `folder`, sorted."""
   return sorted(p for p in folder.iterdir()
                 if p.is_file() and p.suffix.lower() == '.bvh')
 
@@ -53,7 +54,7 @@ def task_folder(folder, task):
   folder = pathlib.Path(folder)
   if not folder.is_dir():
     raise clip_lib.ClipError(f'{folder}: not a folder of motions')
-  if _has_clips(folder) or _bvh_files(folder):
+  if _has_clips(folder) or bvh_files(folder):
     return folder
   names = [name for name, t in bvh_import.REFERENCE_FOLDER_TASKS.items()
            if t == task] + [task]
@@ -76,7 +77,7 @@ def _key(files, task):
 
 
 def _recordings(folder):
-  files = _bvh_files(folder)
+  files = bvh_files(folder)
   infos = [bvh_import.info_path_for(f) for f in files]
   return files + [i for i in infos if i.is_file()]
 
@@ -84,7 +85,7 @@ def _recordings(folder):
 def convert_folder(folder, task, out):
   """Imports every BVH file of `folder` for `task` into clips in `out`."""
   out = pathlib.Path(out)
-  for path in _bvh_files(pathlib.Path(folder)):
+  for path in bvh_files(pathlib.Path(folder)):
     try:
       clip = bvh_import.import_clip(path, task=task)
     except bvh.BvhError as e:

@@ -134,7 +134,7 @@ MAX_KEYPOINT_HEIGHT = 2.5
 
 
 def _clip_source(clip):
-  source = clip.metadata.get('file') if isinstance(clip.metadata, dict) else None
+  source = clip.metadata.get('file')   # validate() made metadata a dict.
   return f'clip {clip.name!r}' + (f' ({source})' if source else '')
 
 
@@ -181,15 +181,13 @@ def speed_excess(clip, v_max):
   """(keypoint, m/s, clip time s) of the worst speed over `v_max` (per
   keypoint, m/s), idle phases' fastest replay included; None if within."""
   speeds = clip_lib.keypoint_speeds(clip)
-  rates = [1.0] + [synthesis.idle_max_rate(p) for p in clip.idle_phases]
-  bounds = [synthesis.idle_window_speed(clip, p) * r
-            for p, r in zip(clip.idle_phases, rates[1:])]
   ratio = speeds / v_max
   frame, k = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
   worst = (float(ratio[frame, k]), keypoints_lib.KEYPOINT_NAMES[k],
            float(speeds[frame, k]), frame / float(clip.fps))
   limit = float(np.min(v_max))
-  for phase, bound in zip(clip.idle_phases, bounds):
+  for phase in clip.idle_phases:
+    bound = synthesis.idle_speed_bound(clip, phase)
     if bound / limit > worst[0]:
       worst = (bound / limit, f'any keypoint (idle phase {phase.event!r})',
                bound, clip.keyframe_time(phase.keyframe))
