@@ -37,6 +37,9 @@ _TABLE = (
     ('static contacts', 'contacts_static', 'mean'),
     ('allowed human contacts', 'contacts_human_allowed', 'mean'),
     ('critical human contacts', 'contacts_human_critical', 'mean'),
+    ('pushed human contacts', 'contacts_human_pushed', 'mean'),
+    ('shield resyncs', 'shield_resyncs', 'mean'),
+    ('physics errors', 'physics_errors', 'mean'),
     ('self collisions', 'self_collisions', 'mean'),
     ('min human distance [m]', 'min_human_distance', 'min'),
 )

@@ -48,12 +48,14 @@ MARKER_COLOURS = {
     'static': (150, 90, 255),            # violet: robot hit the workcell
     'human_allowed': (40, 190, 70),      # green: human contact, robot slow
     'human_critical': (235, 20, 20),     # red: human contact, robot fast
+    'human_pushed': (30, 144, 255),      # blue: the person pushed the robot
 }
 MARKER_LABELS = {
     'intervention': 'SHIELD',
     'static': 'STATIC CONTACT',
     'human_allowed': 'HUMAN CONTACT (SAFE)',
     'human_critical': 'HUMAN CONTACT (CRITICAL)',
+    'human_pushed': 'PUSHED BY THE PERSON',
 }
 MARKERS = tuple(MARKER_COLOURS)
 CAPTION_BACKGROUND = (20, 20, 20)
@@ -193,9 +195,8 @@ class FrameInfo:
 def frame_info(step_metrics, episode_metrics, time):
   """FrameInfo of the RL step whose metrics are given (a task's
   step_metrics / episode_metrics dicts)."""
-  contacts = tuple(kind for kind in ('static', 'human_allowed',
-                                     'human_critical')
-                   if step_metrics.get(f'contacts_{kind}', 0) > 0)
+  contacts = tuple(kind for kind in MARKERS if kind != 'intervention'
+                   and step_metrics.get(f'contacts_{kind}', 0) > 0)
   return FrameInfo(
       time=float(time), reward=float(step_metrics.get('reward', 0.0)),
       episode_return=float(episode_metrics.get('return', 0.0)),
@@ -227,7 +228,9 @@ def border_width(height):
 
 def marker_box(marker, width, height):
   """(left, top, right, bottom) of a marker's badge: a column of badges at
-  the top left, inside the border, one fixed slot per marker."""
+  the top left, inside the border, one fixed slot per marker (in frames
+  under about 115 pixels the last slot reaches into the caption bar,
+  which badges are drawn over)."""
   if marker not in MARKER_COLOURS:
     raise ValueError(f'Unknown marker {marker!r}: expected one of '
                      f'{", ".join(MARKERS)}')
@@ -257,17 +260,17 @@ def annotate(frame, info, legend=False):
     draw.rectangle((0, 0, width - 1, height - 1),
                    outline=MARKER_COLOURS['intervention'],
                    width=border_width(height))
+  bar = caption_height(height)
+  draw.rectangle((0, height - bar, width - 1, height - 1),
+                 fill=CAPTION_BACKGROUND)
+  draw.text((4, height - bar + 3), info.caption(), fill=CAPTION_TEXT,
+            font=font)
   for marker in markers:
     box = marker_box(marker, width, height)
     draw.rectangle(box, fill=MARKER_COLOURS[marker])
     draw.text((box[0] + 3, box[1] + 2), MARKER_LABELS[marker],
               fill=(0, 0, 0) if marker == 'intervention' else (255, 255, 255),
               font=font)
-  bar = caption_height(height)
-  draw.rectangle((0, height - bar, width - 1, height - 1),
-                 fill=CAPTION_BACKGROUND)
-  draw.text((4, height - bar + 3), info.caption(), fill=CAPTION_TEXT,
-            font=font)
   if legend:
     x = width - border_width(height) - 3
     y = border_width(height) + 3

@@ -24,6 +24,11 @@ TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
 _REGISTRY = collections.OrderedDict()   # (domain, task) -> factory
 _TAGGED = collections.defaultdict(list)   # tag -> [(domain, task)]
 _LOADED = False
+# Resets tried when initialising an episode hits a MuJoCo physics error
+# (HrcTask raises composer.EpisodeInitializationError; each try draws the
+# episode anew from the continuing random_state). A few, because one
+# failure is already rare (docs/safety.md, "Physics errors").
+MAX_RESET_ATTEMPTS = 3
 
 
 def register(domain, task, tags=()):
@@ -108,6 +113,13 @@ def load(domain, task, task_kwargs=None, environment_kwargs=None):
   set half an RL step before the task's horizon so that floating-point
   accumulation of physics time cannot add an extra step. Observations have
   no leading buffer axis (strip_singleton_obs_buffer_dim=True).
+
+  A MuJoCo physics error (e.g. mjWARN_BADQACC) in `env.step` ends the
+  episode instead of raising (raise_exception_on_physics_error=False): the
+  step is LAST with reward 0 and discount 0, and the task's metrics record
+  `physics_errors` = 1 (HrcTask). A physics error while initialising an
+  episode draws it again, up to MAX_RESET_ATTEMPTS times
+  (max_reset_attempts). environment_kwargs may override both.
   """
   task_kwargs = dict(task_kwargs or {})
   environment_kwargs = dict(environment_kwargs or {})
@@ -118,6 +130,8 @@ def load(domain, task, task_kwargs=None, environment_kwargs=None):
     raise ValueError('time_limit is a task kwarg (task_kwargs), not an '
                      'environment kwarg')
   environment_kwargs.setdefault('strip_singleton_obs_buffer_dim', True)
+  environment_kwargs.setdefault('raise_exception_on_physics_error', False)
+  environment_kwargs.setdefault('max_reset_attempts', MAX_RESET_ATTEMPTS)
   # Tasks change nothing in the MJCF between episodes (goals are mocap
   # bodies, the human's capsule sizes are set in the compiled model), so
   # the model is compiled once instead of at every reset (~0.1-0.2 s each).

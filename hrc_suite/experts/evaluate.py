@@ -54,7 +54,8 @@ BOOTSTRAP_SEED = 0
 # Per-episode metrics reported as means per episode, in table order.
 CONTACT_COLUMNS = (('static', 'contacts_static'), ('self', 'self_collisions'),
                    ('human safe', 'contacts_human_allowed'),
-                   ('human critical', 'contacts_human_critical'))
+                   ('human critical', 'contacts_human_critical'),
+                   ('human pushed', 'contacts_human_pushed'))
 _REPOSITORY = pathlib.Path(__file__).resolve().parents[2]
 
 

@@ -10,7 +10,10 @@ path becomes the new verified path; if not, the robot keeps following the
 last verified path, so repeated failures brake it to rest along the plan
 (path-consistent braking). Nothing here reads the measured robot state: the
 shield's own command is the robot state (the controller must track it within
-the secure radius).
+the secure radius). When it does not (a person pushed the robot farther than
+that, `tracking_error` > `tracking_tolerance`; `tracking_bound` is a cheap
+upper bound to check first), the caller hands the measured pose to
+`resync`, which restarts the shield at rest there.
 
 Differences to the original (shield spec section 9), on purpose:
 * B1: plan look-ups subtract the plan's start once (`long_term_plan`).
@@ -138,6 +141,20 @@ class Shield:
       extents.append(lengths[-1] + max(np.linalg.norm(t1), np.linalg.norm(t2))
                      + t_radius)
     self._workspace_radius = max(extents) + self.robot.secure_radius
+    # Lever arms (m/rad): turning joint i by dq moves no point of a capsule
+    # axis after it (links i.. and the tool) by more than lever_i |dq| (an
+    # arc is longer than its chord; distances are bounded along the chain),
+    # so sum_i lever_i |dq_i| bounds how far a joint error moves the robot
+    # (`tracking_bound`, a per-step prefilter of `tracking_error`).
+    axis_ends = [max(np.linalg.norm(p1[i]), np.linalg.norm(p2[i]))
+                 for i in range(self.dof)]
+    if tool_capsule is not None:
+      axis_ends[-1] = max(axis_ends[-1], np.linalg.norm(t1),
+                          np.linalg.norm(t2))
+    self._levers = np.array([
+        max(lengths[j] - lengths[i] + axis_ends[j]
+            for j in range(i, self.dof)) for i in range(self.dof)])
+    self._levers.flags.writeable = False
     # Keypoint indices (2, B) of the human bodies' proximal and distal ends.
     self._body_ends = np.ascontiguousarray([
         keypoints.index([b.proximal for b in self.human.config.bodies]),
@@ -187,6 +204,76 @@ class Shield:
     self._goal = ltp.clamp_goal(q_goal, self.limits)
     self._goal_pending = True
     self._candidate = None
+
+  def resync(self, q):
+    """The robot was measured at q, off the command by more than the
+    tracking tolerance (a person pushed it): restart at rest at q.
+
+    The shield assumes the robot stays within the secure radius of its
+    command (docs/safety.md, Assumptions: Tracking; spec section 9, L1); a
+    robot pushed further is not on the verified path, which then no longer
+    describes it. The new verified path is the failsafe from the measured
+    pose in its strictest form: stand still there (q clipped to the joint
+    limits). The measured velocity is not taken over: it is the push, not
+    the robot's own motion, and continuing it would make the robot carry
+    on the person's shove of its own accord (to brake later, moving, at the
+    person). The goal is kept: it is planned again from q and adopted once
+    a step on it verifies, as after new_goal. The last cycle's verdict and
+    reach capsules stay readable (they describe that cycle's check).
+    """
+    q = np.asarray(q, dtype=float)
+    if q.shape != (self.dof,) or not np.all(np.isfinite(q)):
+      raise ValueError(f'q: expected {self.dof} finite joint positions for '
+                       f'{self.description.name}, got {q.tolist()}')
+    q = np.clip(q, self.limits.q_min, self.limits.q_max)
+    s = self._verified.s
+    self._plan = ltp.LongTermPlan.at_rest(q, self.cycle_time, s)
+    self._verified = path_lib.Path(s, 0.0, 0.0, 0.0)
+    self._intended = None
+    self._state = self._plan.state(s, 0.0, 0.0, 0.0)
+    self._goal_pending = self._goal is not None
+    self._candidate = None
+    self._pfl_speeds = {}
+    self._lazy = {}
+
+  @property
+  def tracking_tolerance(self):
+    """How far (m) the robot may be from its command: the secure radius,
+    by which every robot reach capsule is enlarged (docs/safety.md,
+    Assumptions: Tracking)."""
+    return self.robot.secure_radius
+
+  @property
+  def tracking_levers(self):
+    """Lever arms (dof,) in m/rad, read-only: sum_i lever_i |q_i - p_i|
+    (`tracking_bound`) bounds `tracking_error(q, p)`."""
+    return self._levers
+
+  def tracking_bound(self, q, reference=None):
+    """A cheap upper bound (m) on `tracking_error(q, reference)`: the joint
+    errors times `tracking_levers`."""
+    q, reference = self._joint_pair(q, reference)
+    return float(np.abs(q - reference) @ self._levers)
+
+  def tracking_error(self, q, reference=None):
+    """How far (m) the robot's capsules at joint positions q are from where
+    they are at `reference` (None: the command): the largest displacement
+    of a capsule axis end. Capsules move rigidly, so no point of a
+    capsule moves farther than its farther end."""
+    q, reference = self._joint_pair(q, reference)
+    p1, p2, _ = self.robot.capsules(np.stack([q, reference]))
+    moved = np.concatenate([p1[0] - p1[1], p2[0] - p2[1]])
+    return float(np.sqrt(np.einsum('ni,ni->n', moved, moved).max()))
+
+  def _joint_pair(self, q, reference):
+    reference = self._state[0] if reference is None else reference
+    q = np.asarray(q, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    if q.shape != (self.dof,) or reference.shape != (self.dof,):
+      raise ValueError(f'q, reference: expected {self.dof} joint positions '
+                       f'each for {self.description.name}, got shapes '
+                       f'{q.shape} and {reference.shape}')
+    return q, reference
 
   @property
   def goal(self):

@@ -17,10 +17,27 @@ step is exactly L shield cycles.
   before_step and its poses are played back substep by substep
   (`human_playback`: events only change between RL steps, so this is the
   same motion, computed with one vectorised call per RL step).
-* after_substep: the contact monitor (`contacts`).
+* after_substep: the tracking check, then the contact monitor
+  (`contacts`). The measured joints are compared with where the shield's
+  command puts them; farther than the shield's tracking tolerance (its
+  secure radius; `Shield.tracking_bound` every step, then
+  `Shield.tracking_error` when the bound exceeds it), the person has
+  pushed the robot:
+  robot-human contacts of that physics step are judged at the commanded
+  configuration (`human_pushed` or `human_critical`) and the shield is
+  re-synchronised to the measured pose (`Shield.resync`; docs/safety.md,
+  "Pushed robots").
 * after_step: self-collision check (capsule model), the task's own logic
   (`_update_task`, `_human_events`), reward (with optional delay and the
   collision penalty), termination, metrics (`metrics`).
+* Physics errors (MuJoCo warnings such as mjWARN_BADQACC): `suite.load`
+  makes the environment end the episode instead of raising
+  (raise_exception_on_physics_error=False): the step is LAST with reward 0
+  and discount 0, and after_step, seeing the RL step cut short, records
+  `physics_errors` = 1 and skips the task's logic (MuJoCo has reset the
+  state). A physics error while initialising an episode (e.g. lifting's
+  settling steps) raises composer.EpisodeInitializationError, so the
+  environment draws the episode again (docs/safety.md, "Physics errors").
 
 Subclasses set the class constants below and override `_build_task`,
 `_initialize_task`, `_update_task`, `_task_reward`, and optionally
@@ -48,6 +65,7 @@ import math
 
 from dm_control import composer
 from dm_control.composer.observation import observable
+from dm_control.rl import control as rl_control
 import mujoco
 import numpy as np
 
@@ -83,6 +101,9 @@ DEFAULT_COLLISION_REWARD = -10.0
 DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
 _SEED_RANGE = 2**31 - 1
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+# Flag positions of the contacts that cost collision_reward.
+_ILLEGAL_FLAGS = np.array([contacts.TYPE_INDEX[name]
+                           for name in contacts.ILLEGAL_TYPES])
 
 
 def _choice(name, value, valid):
@@ -282,6 +303,13 @@ class HrcTask(composer.Task):
     self._physics_ptr = None
     self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
     self._command_dq = np.zeros(self._robot.dof)
+    # Tracking check (after_substep): where the command puts the joints
+    # after the physics step, and how far the robot may be from it (m; the
+    # levers turn joint errors into a cheap upper bound).
+    self._expected_q = np.zeros(self._robot.dof)
+    self._tracking_scratch = np.zeros(self._robot.dof)
+    self._tracking_levers = self._shield.tracking_levers
+    self._tracking_tolerance = self._shield.tracking_tolerance
     self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
     self._init_episode_state()
     self._setup_observables(observations)
@@ -485,6 +513,9 @@ class HrcTask(composer.Task):
     self._terminate = False
     self._discount = 1.0
     self._substep = 0
+    self._completed_substeps = 0
+    self._resyncs = 0
+    self._max_tracking_error = 0.0
     self._outside_model = False
     self._playback.forget_clip()
     self._step_flags[:] = False
@@ -512,13 +543,26 @@ class HrcTask(composer.Task):
     self._monitor = contacts.ContactMonitor(
         physics, static, robot_geoms, self._object_geoms,
         self._human.geoms, critical_speed=self.critical_speed,
-        robot_dofs=joints.dofadr)
+        robot_dofs=joints.dofadr, robot_qpos=joints.qposadr)
     self._qpos_index = np.array(joints.qposadr)
+    # A view of the arm's joint positions (consecutive: the controller
+    # requires it), read every physics step without a copy.
+    first = int(self._qpos_index[0])
+    self._q_measured = physics.data.qpos[first:first + self._robot.dof]
     self._qvel_index = np.array(joints.dofadr)
     fingers = physics.bind(self._gripper.finger_joints)
     self._finger_qpos_index = np.array(fingers.qposadr)
 
   def initialize_episode(self, physics, random_state):
+    try:
+      self._initialize_episode(physics, random_state)
+    except rl_control.PhysicsError as error:
+      # The environment draws the episode again (max_reset_attempts).
+      raise composer.EpisodeInitializationError(
+          f'MuJoCo physics error while initialising the episode: {error}'
+      ) from error
+
+  def _initialize_episode(self, physics, random_state):
     if physics.data.ptr is not self._physics_ptr:
       self._bind(physics)
     self._init_episode_state()
@@ -571,6 +615,9 @@ class HrcTask(composer.Task):
     self._step_flags[:] = False
     self._monitor.reset()
     self._substep = 0
+    self._completed_substeps = 0
+    self._resyncs = 0
+    self._max_tracking_error = 0.0
     self._playback.advance(self._dt)
     self._outside_model = self._faster_than_model()
 
@@ -592,14 +639,42 @@ class HrcTask(composer.Task):
     q, dq, ddq = self._shield.step(positions, self._time)
     self._intervened |= self._shield.intervened
     self._command_dq[:] = dq
+    # Where the command puts the joints after this physics step: the
+    # controller drives the command's acceleration from the command's
+    # state, and MuJoCo's semi-implicit Euler moves q by h (dq + h ddq).
+    # (The command is the robot's state at the step's start: measured
+    # within ~2e-6 rad; after the step within ~2e-5 rad of this.)
+    expected = self._expected_q
+    np.multiply(ddq, self._dt, out=expected)
+    expected += dq
+    expected *= self._dt
+    expected += q
     self._controller(physics, q, dq, ddq)
 
   def after_substep(self, physics, random_state):
     del physics, random_state
-    flags = self._monitor.update(self._command_dq)
+    self._completed_substeps += 1
+    error = self._tracking_scratch
+    np.subtract(self._q_measured, self._expected_q, out=error)
+    np.abs(error, out=error)
+    distance = float(error @ self._tracking_levers)   # Shield.tracking_bound
+    pushed = distance > self._tracking_tolerance
+    if pushed:   # Rare: the exact distance (forward kinematics) decides.
+      distance = self._shield.tracking_error(self._q_measured,
+                                             self._expected_q)
+      pushed = distance > self._tracking_tolerance
+    if distance > self._max_tracking_error:
+      self._max_tracking_error = distance
+    flags = self._monitor.update(self._command_dq,
+                                 self._expected_q if pushed else None)
     if flags.any():
       self._step_flags |= flags
       self._contact_steps += flags
+    if pushed:
+      # The robot is not where the shield believes: it plans from the
+      # measured pose from the next physics step on.
+      self._shield.resync(self._q_measured)
+      self._resyncs += 1
 
   def _self_colliding(self, q):
     checker = self._collision_checker
@@ -614,6 +689,9 @@ class HrcTask(composer.Task):
   def after_step(self, physics, random_state):
     del random_state
     self._steps += 1
+    if self._completed_substeps < self.shield_substeps:
+      self._end_at_physics_error()
+      return
     q = physics.data.qpos[self._qpos_index]
     self_collision = self._self_colliding(q)
     clip_index = self._player.clip_index
@@ -627,7 +705,7 @@ class HrcTask(composer.Task):
       # The model changed: what the next step starts from is recomputed,
       # as restoring a snapshot does, so snapshots are exact.
       physics.forward()
-    illegal = self_collision or self._step_flags[0] or self._step_flags[2]
+    illegal = self_collision or bool(self._step_flags[_ILLEGAL_FLAGS].any())
     task_reward = float(self._task_reward(physics))
     success = bool(step.get('success', 0.0))
     failed = bool(self._failed(physics))
@@ -647,12 +725,36 @@ class HrcTask(composer.Task):
     self._discount = 0.0 if self._terminate else 1.0
     step.update(self._step_info)
     step['reward'] = self._reward
-    step['shield_interventions'] = int(self._intervened)
     step['self_collisions'] = int(self_collision)
     step['goals_reached'] = int(success)
+    self._record(step)
+
+  def _end_at_physics_error(self):
+    """The RL step was cut short by a MuJoCo physics error, which the
+    environment caught (suite.load: raise_exception_on_physics_error=False)
+    and reports as the last step with reward 0 and discount 0. MuJoCo has
+    reset the state, so the task's logic is skipped; rewards still owed
+    (reward_delay) are forfeited. Contacts up to the error are counted."""
+    self._terminate = True
+    self._discount = 0.0
+    self._reward = 0.0
+    self._pending_rewards.clear()
+    self._clip_ended = False
+    step = {'success': 0.0}
+    step.update(self._step_info)
+    step.update(reward=0.0, self_collisions=0, goals_reached=0,
+                physics_errors=1)
+    self._record(step)
+
+  def _record(self, step):
+    """Adds the metrics every RL step reports; records the step."""
+    step['shield_interventions'] = int(self._intervened)
     step['min_human_distance'] = self._shield.min_distance
     step['steps_outside_human_model'] = int(self._outside_model)
     step['max_human_contact_speed'] = self._monitor.max_human_contact_speed
+    step['shield_resyncs'] = self._resyncs
+    step['max_tracking_error'] = self._max_tracking_error
+    step.setdefault('physics_errors', 0)
     for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
       step[f'contacts_{name}'] = int(count)
     self._contact_steps[:] = 0
@@ -723,7 +825,16 @@ class HrcTask(composer.Task):
     self._pending_rewards = collections.deque(task['pending_rewards'])
     self._terminate = bool(task['terminate'])
     self._discount = float(task['discount'])
-    self._step_flags[:] = task['step_flags']
+    flags = np.asarray(task['step_flags'], dtype=bool)
+    if flags.shape[0] > self._step_flags.shape[0]:
+      raise ValueError(f'step_flags: expected at most '
+                       f'{self._step_flags.shape[0]} contact flags '
+                       f'({", ".join(contacts.CONTACT_TYPES)}), got '
+                       f'{flags.shape[0]}')
+    # Snapshots from before a contact type was added hold fewer flags (new
+    # types go last: contacts.CONTACT_TYPES).
+    self._step_flags[:] = False
+    self._step_flags[:flags.shape[0]] = flags
     self._command_dq[:] = task['command_dq']
     self._cp_random.set_state(task['cp_random'])
     self._metrics.set_state(copy.deepcopy(task['metrics']))

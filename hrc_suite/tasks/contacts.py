@@ -10,6 +10,8 @@ categories, vectorised over `physics.data.contact`:
   point (`mujoco.mj_jac` of the contacting robot body at the point times
   the shield's dq command): critical above `critical_speed` (PFL: the
   shield's v_safe; SSM: SSM_STOPPED_SPEED, the robot is not stopped);
+  pushed (`human_pushed`) instead of allowed when the person has pushed the
+  robot off its command (below);
 * robot-object, human-object, object-object, object-static: normal.
 
 Why the commanded and not the measured velocity: the human is kinematic
@@ -23,6 +25,17 @@ tracking controller follows it to ~3e-5 rad when nothing pushes.
 `surface_speed` gives the measured speed (mj_objectVelocity) for
 diagnostics.
 
+Pushed robots: a person can shove the robot far from its command (0-3 cm
+inside a link, joints 0.29-2.9 rad off, seen with real recordings). The
+Jacobian at the pushed pose times the command then judges the command
+where the robot never meant to be. So when the task finds the robot
+farther from the command than the shield's tracking tolerance (HrcTask,
+docs/safety.md "Pushed robots"), it passes the commanded configuration:
+each robot-human contact point is carried rigidly with its link to the
+link's commanded pose and judged there; at or below `critical_speed` the
+contact is `human_pushed` (the person moved the robot; not illegal), above
+it stays `human_critical` (the robot's own motion was too fast).
+
 Robot geoms never collide with each other in MuJoCo (collision_groups), so
 self-collision is judged geometrically by the task from the robot's capsule
 model (the one collision prevention uses), once per RL step.
@@ -32,8 +45,21 @@ import mujoco
 import numpy as np
 
 NONE, STATIC, ROBOT, OBJECT, HUMAN = range(5)
+# Contact types, in the order of the monitor's flags; new types go last, so
+# flags stored in older snapshots keep their positions.
 CONTACT_TYPES = ('static', 'human_allowed', 'human_critical', 'robot_object',
-                 'human_object')
+                 'human_object', 'human_pushed')
+TYPE_INDEX = {name: index for index, name in enumerate(CONTACT_TYPES)}
+# Contacts that cost the task's collision reward (with self-collisions).
+ILLEGAL_TYPES = ('static', 'human_critical')
+# Types decided by the pair of geom categories; robot-human contacts are
+# then split by speed (and push) into allowed, critical and pushed.
+_PAIR_TYPES = (((ROBOT, STATIC), 'static'), ((ROBOT, HUMAN), 'human_allowed'),
+               ((ROBOT, OBJECT), 'robot_object'),
+               ((HUMAN, OBJECT), 'human_object'))
+_ALLOWED = TYPE_INDEX['human_allowed']
+_CRITICAL = TYPE_INDEX['human_critical']
+_PUSHED = TYPE_INDEX['human_pushed']
 # SSM: the shield stops the robot before any contact, so a contact with the
 # robot moving is a violation. The reference's threshold (1 mm/s) is kept:
 # judged on the commanded velocity, which is exactly zero once the shield's
@@ -46,7 +72,10 @@ class ContactMonitor:
 
   def __init__(self, physics, static_geoms, robot_geoms, object_geoms=(),
                human_geoms=(), critical_speed=SSM_STOPPED_SPEED,
-               robot_dofs=None):
+               robot_dofs=None, robot_qpos=None):
+    """robot_dofs, robot_qpos: the robot's joints' dof and qpos addresses
+    (the order of dq and q commands); robot_dofs None: every dof. Judging
+    at a commanded configuration needs robot_qpos."""
     if not critical_speed >= 0:
       raise ValueError(f'critical_speed must be >= 0 m/s, got '
                        f'{critical_speed!r}')
@@ -60,12 +89,8 @@ class ContactMonitor:
     self._categories = categories
     # Pair code = 5 * category1 + category2, made symmetric.
     codes = np.full(25, -1, dtype=np.int8)
-    for index, (a, b) in enumerate(((ROBOT, STATIC), (ROBOT, HUMAN),
-                                    (ROBOT, HUMAN), (ROBOT, OBJECT),
-                                    (HUMAN, OBJECT))):
-      if index == 2:
-        continue   # human_critical is decided by speed, not by categories.
-      codes[5 * a + b] = codes[5 * b + a] = index
+    for (a, b), name in _PAIR_TYPES:
+      codes[5 * a + b] = codes[5 * b + a] = TYPE_INDEX[name]
     self._codes = codes
     self._model, self._data = model.ptr, physics.data.ptr
     self._geom_body = model.geom_bodyid.copy()
@@ -73,6 +98,12 @@ class ContactMonitor:
     self._jacobian = np.zeros((3, model.nv))
     self._dofs = (np.arange(model.nv) if robot_dofs is None
                   else np.asarray(robot_dofs, dtype=int))
+    self._qpos = (None if robot_qpos is None
+                  else np.asarray(robot_qpos, dtype=int))
+    if self._qpos is not None and self._qpos.shape != self._dofs.shape:
+      raise ValueError(f'robot_qpos ({self._qpos.size} addresses) and '
+                       f'robot_dofs ({self._dofs.size}) must match')
+    self._commanded = None   # MjData posed at a commanded configuration.
     self._flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
     self.max_human_contact_speed = 0.0
 
@@ -80,13 +111,51 @@ class ContactMonitor:
     """Starts a new interval for `max_human_contact_speed`."""
     self.max_human_contact_speed = 0.0
 
-  def commanded_speed(self, body, point, dq_command):
+  def commanded_speed(self, body, point, dq_command, q_command=None):
     """Speed (m/s) of the point (world) rigidly attached to `body` when the
-    robot's joints move at dq_command (one entry per robot dof)."""
-    mujoco.mj_jac(self._model, self._data, self._jacobian, None,
-                  np.asarray(point, dtype=np.float64), int(body))
+    robot's joints move at dq_command (one entry per robot dof).
+
+    q_command: None to judge the robot where it is; else joint positions
+    (robot_qpos order) at which to judge it: the point is carried with
+    `body` from its measured pose to its pose at q_command (the rest of
+    the model as measured).
+    """
+    posed = None if q_command is None else self._posed(q_command)
+    return self._speed(int(body), np.asarray(point, dtype=np.float64),
+                       dq_command, posed)
+
+  def _speed(self, body, point, dq_command, posed):
+    """commanded_speed with the posed MjData (None: the measured one)."""
+    data = self._data
+    if posed is not None:
+      local = (point - data.xpos[body]) @ data.xmat[body].reshape(3, 3)
+      point = posed.xpos[body] + posed.xmat[body].reshape(3, 3) @ local
+      data = posed
+    mujoco.mj_jac(self._model, data, self._jacobian, None, point, body)
     velocity = self._jacobian[:, self._dofs] @ dq_command
     return float(np.sqrt(velocity @ velocity))
+
+  def _posed(self, q_command):
+    """A scratch MjData with the measured state and the robot at q_command
+    (kinematics and the Jacobians' inputs computed)."""
+    if self._qpos is None:
+      raise ValueError('judging at a commanded configuration needs the '
+                       "robot's qpos addresses (robot_qpos)")
+    q_command = np.asarray(q_command, dtype=np.float64)
+    if q_command.shape != self._qpos.shape or not np.all(
+        np.isfinite(q_command)):
+      raise ValueError(f'q_command: expected {self._qpos.size} finite joint '
+                       f'positions, got {q_command.tolist()}')
+    if self._commanded is None:
+      self._commanded = mujoco.MjData(self._model)
+    posed = self._commanded
+    posed.qpos[:] = self._data.qpos
+    posed.qpos[self._qpos] = q_command
+    posed.mocap_pos[:] = self._data.mocap_pos
+    posed.mocap_quat[:] = self._data.mocap_quat
+    mujoco.mj_kinematics(self._model, posed)
+    mujoco.mj_comPos(self._model, posed)
+    return posed
 
   def surface_speed(self, body, point):
     """Measured speed (m/s) of the point (world) rigidly attached to
@@ -98,10 +167,16 @@ class ContactMonitor:
     offset = point - data.xpos[body]
     return float(np.linalg.norm(linear + np.cross(angular, offset)))
 
-  def update(self, dq_command):
+  def update(self, dq_command, q_command=None):
     """Classifies the current contacts, the robot's joints commanded at
     dq_command; returns flags (len(CONTACT_TYPES),) of the types present
-    now (an array reused by the next call)."""
+    now (an array reused by the next call).
+
+    q_command: None while the robot tracks its command; else the
+    configuration the command puts the robot in, the person having pushed
+    it away: robot-human contacts are judged there and are `human_pushed`
+    at or below critical_speed, `human_critical` above.
+    """
     data = self._data
     flags = self._flags
     flags[:] = False
@@ -116,14 +191,17 @@ class ContactMonitor:
     if not present.any():
       return flags
     flags[codes[present]] = True
-    human = np.flatnonzero(codes == 1)
+    human = np.flatnonzero(codes == _ALLOWED)
     if human.size:
-      flags[1] = False
+      flags[_ALLOWED] = False
+      slow, posed = _ALLOWED, None
+      if q_command is not None:
+        slow, posed = _PUSHED, self._posed(q_command)
       for i in human:
         robot_geom = geom1[i] if cat1[i] == ROBOT else geom2[i]
-        speed = self.commanded_speed(self._geom_body[robot_geom],
-                                     contact.pos[i], dq_command)
+        speed = self._speed(int(self._geom_body[robot_geom]), contact.pos[i],
+                            dq_command, posed)
         self.max_human_contact_speed = max(self.max_human_contact_speed,
                                            speed)
-        flags[2 if speed > self.critical_speed else 1] = True
+        flags[_CRITICAL if speed > self.critical_speed else slow] = True
     return flags

@@ -14,9 +14,16 @@ from hrc_suite.tasks import contacts
 # Counters every task reports; tasks add their own (e.g. handovers).
 # * shield_interventions: RL steps in which the shield overrode the intended
 #   motion in at least one physics step.
-# * contacts_<type>: physics steps with at least one contact of that type;
+# * contacts_<type>: physics steps with at least one contact of that type
+#   (contacts.CONTACT_TYPES; human_pushed: the person had pushed the robot
+#   off its command and the command itself was slow enough);
 #   self_collisions: RL steps whose final configuration self-collides (robot
 #   capsule model).
+# * shield_resyncs: physics steps after which the robot was farther from the
+#   shield's command than its tracking tolerance (pushed), so the shield
+#   restarted from the measured pose (docs/safety.md, "Pushed robots").
+# * physics_errors: 1 if a MuJoCo physics error ended the episode (its last
+#   RL step; docs/safety.md, "Physics errors").
 # * action_replacements: actions replaced by collision prevention.
 # * ik_failures: Cartesian actions whose IK failed (the goal was kept).
 # * goals_reached: RL steps at which the task's goal was reached.
@@ -25,11 +32,16 @@ from hrc_suite.tasks import contacts
 #   outside the safety guarantee, tasks/motions.check_motions).
 # Besides: success (0/1, reached at least once), return, steps,
 # min_human_distance (m, robot capsules at the shield's command to the human
-# body capsules, the minimum over RL step ends) and max_human_contact_speed
-# (m/s, the robot's fastest surface point in a human contact).
+# body capsules, the minimum over RL step ends), max_human_contact_speed
+# (m/s, the robot's fastest commanded surface point in a human contact) and
+# max_tracking_error (m, bound on the robot's distance from where the
+# shield's command puts it, the maximum over physics steps).
 COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
              'self_collisions', 'goals_reached', 'steps_outside_human_model')
-            + tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES))
+            + tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES)
+            + ('shield_resyncs', 'physics_errors'))
+# Episode maxima of step maxima.
+MAXIMA = ('max_human_contact_speed', 'max_tracking_error')
 
 
 class EpisodeMetrics:
@@ -44,8 +56,8 @@ class EpisodeMetrics:
   def reset(self):
     self.episode = {name: 0 for name in self.counters}
     self.episode.update({'success': 0.0, 'return': 0.0, 'steps': 0,
-                         'min_human_distance': float('inf'),
-                         'max_human_contact_speed': 0.0})
+                         'min_human_distance': float('inf')})
+    self.episode.update({name: 0.0 for name in MAXIMA})
     self.step = {}
 
   def record(self, step):
@@ -62,16 +74,19 @@ class EpisodeMetrics:
     if distance is not None:
       episode['min_human_distance'] = min(episode['min_human_distance'],
                                           float(distance))
-    speed = step.get('max_human_contact_speed')
-    if speed is not None:
-      episode['max_human_contact_speed'] = max(
-          episode['max_human_contact_speed'], float(speed))
+    for name in MAXIMA:
+      value = step.get(name)
+      if value is not None:
+        episode[name] = max(episode[name], float(value))
 
   def state(self):
     return {'episode': dict(self.episode), 'step': dict(self.step)}
 
   def set_state(self, state):
-    self.episode = dict(state['episode'])
+    """Restores `state()`; metrics a snapshot from an older version lacks
+    start from their initial values."""
+    self.reset()
+    self.episode.update(state['episode'])
     self.step = dict(state['step'])
 
 

@@ -12,6 +12,7 @@ from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite.human import keypoints
+from hrc_suite.tasks import contacts
 
 # Human keypoints observed relative to the end effector (paper: head, hands).
 OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
@@ -23,9 +24,16 @@ def in_frame(physics, site, points):
   return (points - frame.xpos) @ frame.xmat.reshape(3, 3)
 
 
+def _flag(contact_flags, *names):
+  """Observable callable: (1,) float, 1 if any of the contact types `names`
+  occurred in the last RL step."""
+  indices = np.array([contacts.TYPE_INDEX[name] for name in names])
+  return lambda physics: np.array([float(contact_flags[indices].any())])
+
+
 def shared_observables(robot, gripper, human, contact_flags):
-  """name -> observable; contact_flags: the task's (static, human allowed,
-  human critical, ...) flags of the last RL step (an array it updates)."""
+  """name -> observable; contact_flags: the task's flags of the last RL
+  step, one per contacts.CONTACT_TYPES (an array it updates)."""
   tcp = robot.tcp_site
   observed = np.array(keypoints.index(OBSERVED_HUMAN_KEYPOINTS))
 
@@ -45,11 +53,13 @@ def shared_observables(robot, gripper, human, contact_flags):
   obs['human_distances'] = observable.Generic(
       lambda physics: np.linalg.norm(human_in_eef(physics), axis=-1))
   obs['static_collision'] = observable.Generic(
-      lambda physics: contact_flags[0:1].astype(np.float64))
+      _flag(contact_flags, 'static'))
+  # Safe: the robot's own motion was slow, whether or not the person had
+  # pushed it (human_pushed; contacts.py).
   obs['safe_contact'] = observable.Generic(
-      lambda physics: contact_flags[1:2].astype(np.float64))
+      _flag(contact_flags, 'human_allowed', 'human_pushed'))
   obs['critical_contact'] = observable.Generic(
-      lambda physics: contact_flags[2:3].astype(np.float64))
+      _flag(contact_flags, 'human_critical'))
   return obs
 
 

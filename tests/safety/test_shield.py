@@ -1,5 +1,6 @@
 """Shield step: construction, read-outs, slices, plan adoption, modes."""
 
+import json
 import math
 
 import numpy as np
@@ -264,3 +265,144 @@ def test_benchmark_runs_and_the_close_scene_intervenes():
   for _, _, median, p95, _, cpu_median, cpu_p95 in rows:
     assert 0 < median <= p95 and 0 < cpu_median <= cpu_p95
   assert scenes['close'][4] > 0 and scenes['far'][4] == 0
+
+
+# ------------------------------------------------- tracking and resync
+
+
+def _moving(description, cycles=60):
+  """A shield moving towards a goal (no human), and its next cycle time."""
+  shield = _shield(description)
+  shield.new_goal(_goal(description))
+  for i in range(cycles):
+    shield.step(None, i * CYCLE)
+  assert np.abs(shield.dq).max() > 0.1
+  return shield, cycles * CYCLE
+
+
+def test_tracking_tolerance_is_the_secure_radius(panda):
+  shield = _shield(panda)
+  assert shield.tracking_tolerance == shield.robot.secure_radius == 0.02
+  assert shield.tracking_error(shield.q) == 0.0
+  assert shield.tracking_bound(shield.q) == 0.0
+  for check in (shield.tracking_error, shield.tracking_bound):
+    with pytest.raises(ValueError, match=r'7 joint positions'):
+      check(np.zeros(6))
+    with pytest.raises(ValueError, match=r'7 joint positions'):
+      check(shield.q, np.zeros(3))
+
+
+def _axis_points(shield, q, count=11):
+  """Points along every capsule axis (links and tool) at q, (L * count, 3)."""
+  p1, p2, _ = shield.robot.capsules(q)
+  t = np.linspace(0.0, 1.0, count)[:, None, None]
+  return ((1.0 - t) * p1 + t * p2).reshape(-1, 3)
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_tracking_error_and_its_bound(name):
+  """tracking_error is how far the capsule axes moved (their ends move
+  farthest), tracking_bound is never below it, for random poses and joint
+  errors up to 0.3 rad; the bound is within a factor 2 for some pose of
+  each joint (not vacuous)."""
+  description = robot_description.load(name)
+  shield = _shield(description)
+  rng = np.random.RandomState(0)
+  limits = description.limits
+  for _ in range(200):
+    q = rng.uniform(limits.q_min, limits.q_max)
+    error = rng.uniform(-0.3, 0.3, description.dof) * (
+        rng.uniform(size=description.dof) < 0.5)
+    moved = np.linalg.norm(_axis_points(shield, q + error)
+                           - _axis_points(shield, q), axis=1).max()
+    exact = shield.tracking_error(q + error, q)
+    assert exact == pytest.approx(moved, rel=1e-12, abs=1e-15)
+    assert exact <= shield.tracking_bound(q + error, q) + 1e-12
+  # Every joint but the last (the tool turns about its own axis).
+  best = np.zeros(description.dof - 1)
+  for _ in range(100):
+    q = rng.uniform(limits.q_min, limits.q_max)
+    for joint in range(description.dof - 1):
+      error = np.zeros(description.dof)
+      error[joint] = 0.01
+      best[joint] = max(best[joint], shield.tracking_error(q + error, q)
+                        / shield.tracking_bound(q + error, q))
+  assert np.all(best >= 0.5), best
+
+
+def test_resync_restarts_at_rest_at_the_measured_pose(panda):
+  """A person pushed the moving robot 0.3 rad off its command: the shield
+  stands still where the robot is, keeps the goal and resumes from there,
+  not from the stale command."""
+  shield, t = _moving(panda)
+  stale = shield.q.copy()
+  goal = shield.goal.copy()
+  measured = stale + np.array([0.0, 0.3, 0.0, -0.2, 0.0, 0.0, 0.0])
+  assert shield.tracking_error(measured) > shield.tracking_tolerance
+  shield.resync(measured)
+  np.testing.assert_array_equal(shield.q, measured)
+  assert not shield.dq.any() and not shield.ddq.any()
+  np.testing.assert_array_equal(shield.goal, goal)
+  assert shield.goal_pending
+  assert shield.s_dot == 0.0 and shield.max_cartesian_speed == 0.0
+  # The next command starts at the measured pose (one cycle from rest).
+  q, dq, _ = shield.step(None, t)
+  assert np.abs(q - measured).max() < 1e-4
+  assert np.abs(q - stale).max() > 0.29
+  for i in range(1, 1500):
+    shield.step(None, t + i * CYCLE)
+  np.testing.assert_allclose(shield.q, goal, atol=1e-9)   # Goal reached.
+  assert not shield.dq.any()
+
+
+def test_resync_with_a_person_in_contact_keeps_the_robot_still(panda):
+  shield, t = _moving(panda)
+  blocking = _blocking_human(shield)
+  measured = shield.q + 0.2
+  shield.resync(measured)
+  for i in range(50):
+    q, dq, _ = shield.step(blocking, t + i * CYCLE)
+    np.testing.assert_array_equal(q, measured)
+    assert not dq.any() and not shield.is_safe
+
+
+def test_resync_clips_to_the_limits_and_checks_its_input(panda):
+  shield = _shield(panda)
+  outside = panda.q_home.copy()
+  outside[0] = panda.limits.q_max[0] + 0.05
+  shield.resync(outside)
+  assert shield.q[0] == panda.limits.q_max[0]
+  assert not shield.goal_pending   # No goal was given: none to keep.
+  with pytest.raises(ValueError, match=r'7 finite joint positions'):
+    shield.resync(np.zeros(6))
+  bad = panda.q_home.copy()
+  bad[2] = np.nan
+  with pytest.raises(ValueError, match=r'7 finite joint positions'):
+    shield.resync(bad)
+
+
+@pytest.mark.parametrize('mode', ['ssm', 'pfl', 'off'])
+def test_resync_snapshots_continue_bit_for_bit(panda, mode):
+  """A snapshot taken right after a resync (through JSON) restores a shield
+  whose commands and verdicts continue exactly."""
+  shield = _shield(panda, mode=mode)
+  shield.new_goal(_goal(panda))
+  human = harness.walk_in(speed=1.0, stop_x=0.6)
+  for i in range(40):
+    shield.step(human(i * CYCLE), i * CYCLE)
+  shield.resync(shield.q + 0.05)
+  state = shield.get_state()
+  restored = _shield(panda, mode=mode)
+  restored.set_state(json.loads(json.dumps(
+      {k: v.tolist() if isinstance(v, np.ndarray) else v
+       for k, v in state.items()})))
+  for i in range(40, 120):
+    t = i * CYCLE
+    if i == 80:
+      for s in (shield, restored):
+        s.new_goal(_goal(panda, -0.5))
+    outputs = [s.step(human(t), t) for s in (shield, restored)]
+    for a, b in zip(*outputs):
+      np.testing.assert_array_equal(a, b)
+    assert shield.is_safe == restored.is_safe
+    assert shield.intervened == restored.intervened

@@ -97,3 +97,14 @@ def assert_snapshot_restores(env, make_fresh=None, replay=6, diverge=4,
     fresh.task.set_state(fresh.physics, state)
     assert_same(first, rollout(fresh, actions))
   return state
+
+
+def torso_in_base_sweep(task):
+  """A torso position on the circle the TCP sweeps when the base joint
+  turns from home towards +y, 90 degrees on: a robot turning its base runs
+  into a person standing there."""
+  q_home = task.robot.description.q_home
+  tcp = task.kinematics.tcp_pose(q_home)[:3, 3]
+  radius = np.linalg.norm(tcp[:2])
+  angle = np.arctan2(tcp[1], tcp[0]) + np.pi / 2
+  return np.array([radius * np.cos(angle), radius * np.sin(angle), tcp[2]])

@@ -14,6 +14,8 @@ from hrc_suite.tasks import contacts
 from hrc_suite.tasks import metrics
 from hrc_suite.tasks import reach
 
+import checks    # tests/tasks/checks.py
+
 
 def _env(seed=0, **task_kwargs):
   task_kwargs.setdefault('time_limit', 1.0)
@@ -330,13 +332,7 @@ def _clip_with_keypoint_at(task, point, keypoint):
 
 def _human_in_robot_env(shield, seed=0):
   probe = reach.Reach(robot='panda')
-  q_home = probe.robot.description.q_home
-  # The torso on the circle the TCP sweeps when the base joint turns from
-  # home towards +y, 90 degrees on: the robot sweeps into the person.
-  tcp = probe.kinematics.tcp_pose(q_home)[:3, 3]
-  radius = np.linalg.norm(tcp[:2])
-  angle = np.arctan2(tcp[1], tcp[0]) + np.pi / 2
-  torso = np.array([radius * np.cos(angle), radius * np.sin(angle), tcp[2]])
+  torso = checks.torso_in_base_sweep(probe)   # the robot sweeps into it
   clip = _clip_with_keypoint_at(probe, torso, 'torso')
   return suite.load('reach', 'dense', task_kwargs={
       'robot': 'panda', 'shield': shield, 'motions': [clip],
