@@ -36,6 +36,11 @@ INSPECTION_FROM_HEAD = np.array([0.63, 0.0, -0.33])
 # How far onto the table (m) a point the robot brings an object to lies at
 # least: the synthetic library's nearest inspection point is 0.33 m on.
 OVER_TABLE = 0.3
+# Stacking: a hand sets its cube down at its lowest point within this time
+# of its farthest reach (the reference's recordings: 0.25-0.75 s); a pick is
+# at least this far from the place (two cube sizes).
+PLACE_SEARCH_S = 1.0
+PICK_DISTANCE = 2 * CUBE_SIZE
 # Blows of a hammering hand: its lowest points at least this far apart (s).
 MIN_BLOW_PERIOD = 0.3
 
@@ -148,18 +153,45 @@ def _hammering(positions, fps, fields, source):
   return fields, {'strike_grip': grip, 'nail': nail}
 
 
-def _placing_point(positions, hand, start, end):
-  """Frame where `hand` is farthest forward in [start, end]."""
-  x = _hand(positions, hand)[start:end + 1, 0]
-  return start + int(np.argmax(x))
+def _placing_frame(positions, hand, start, end, search):
+  """Frame where `hand` sets a cube down in [start, end]: its lowest point
+  over the table within `search` frames of where it reaches farthest forward
+  (the hand goes down onto the stack and back up; the farthest point may
+  lie on the way back)."""
+  path = _hand(positions, hand)
+  farthest = start + int(np.argmax(path[start:end + 1, 0]))
+  lo, hi = max(start, farthest - search), min(end, farthest + search)
+  frames = lo + np.flatnonzero(path[lo:hi + 1, 0] > TABLE_EDGE_X + CUBE_SIZE)
+  if len(frames) == 0:
+    return farthest
+  return int(frames[np.argmin(path[frames, 2])])
+
+
+def _pick(positions, hand, start, place_frame, table_level):
+  """Where `hand` picks its cube before `place_frame`: its lowest point
+  over the table at least PICK_DISTANCE from the place and no higher than
+  `table_level` + CUBE_SIZE / 2 (a cube lifted off the table). None when
+  there is none: the person brought the cube in hand (the reference's
+  recordings; its environment welds both cubes to the hands at reset)."""
+  path = _hand(positions, hand)[start:place_frame + 1]
+  place = _hand(positions, hand)[place_frame]
+  candidates = np.flatnonzero(
+      (path[:, 0] > TABLE_EDGE_X + CUBE_SIZE)
+      & (np.linalg.norm(path[:, :2] - place[:2], axis=1) >= PICK_DISTANCE)
+      & (path[:, 2] <= table_level + CUBE_SIZE / 2))
+  if len(candidates) == 0:
+    return None
+  lowest = path[candidates[np.argmin(path[candidates, 2])]]
+  return np.array([lowest[0], lowest[1], TABLE_Z + CUBE_SIZE / 2])
 
 
 def _stacking(positions, fps, fields, source):
-  """Cube 1 is placed by the first placing hand where it reaches farthest
-  forward before the robot's turn (keyframes 0 to 2), cube 3 by the hand
-  that reaches farthest between keyframes 2 and 4. A cube is picked where
-  its hand is lowest over the table before placing it."""
-  del fps
+  """Cube 1 is set down by the first placing hand (keyframes 0 to 2), cube
+  3 by the hand that reaches farthest between keyframes 2 and 4, each
+  where that hand is lowest near its farthest reach (`_placing_frame`). A
+  cube is picked where its hand goes down to the table before placing it
+  (`_pick`), or, where it never does, is carried in: its pick is where the
+  hand holds it at the first frame (the task then starts it in hand)."""
   first = fields.get('placing_hand')
   if first not in clip_lib.HANDS:
     _fail(source, 'cube_1_place', f'the clip names no first placing hand '
@@ -167,18 +199,23 @@ def _stacking(positions, fps, fields, source):
   targets = {}
   windows = ((1, _window(fields, 0, 2, len(positions)), [first]),
              (3, _window(fields, 2, 4, len(positions)), clip_lib.HANDS))
+  search = int(round(PLACE_SEARCH_S * fps))
+  table_level, picks_from = None, 0
   for cube, (start, end), hands in windows:
-    frames = {h: _placing_point(positions, h, start, end) for h in hands}
-    hand = max(hands, key=lambda h: _hand(positions, h)[frames[h], 0])
-    place = _hand(positions, hand)[frames[hand]] - [0, 0, GRIP_ABOVE_CENTRE]
+    hand = max(hands, key=lambda h: _hand(positions, h)[start:end + 1, 0]
+               .max())
+    frame = _placing_frame(positions, hand, start, end, search)
+    place = _hand(positions, hand)[frame] - [0, 0, GRIP_ABOVE_CENTRE]
     if place[0] <= TABLE_EDGE_X:
       _fail(source, f'cube_{cube}_place', f'the {hand} hand reaches at most '
             f'x = {place[0]:.2f} m between frames {start} and {end}, not '
             f'over the table (edge at {TABLE_EDGE_X:.2f} m)')
-    path = _hand(positions, hand)[start:frames[hand] + 1]
-    over = np.flatnonzero(path[:, 0] > TABLE_EDGE_X + CUBE_SIZE)
-    lowest = path[over[np.argmin(path[over, 2])]] if len(over) else place
-    pick = np.array([lowest[0], lowest[1], TABLE_Z + CUBE_SIZE / 2])
+    if table_level is None:   # Cube 1 is set down on the table.
+      table_level = _hand(positions, hand)[frame, 2]
+    pick = _pick(positions, hand, picks_from, frame, table_level)
+    picks_from = frame
+    if pick is None:
+      pick = _hand(positions, hand)[0] - [0, 0, GRIP_ABOVE_CENTRE]
     targets[f'cube_{cube}_pick'] = pick
     targets[f'cube_{cube}_place'] = place
   base = targets['cube_1_place']

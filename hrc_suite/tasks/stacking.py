@@ -193,6 +193,20 @@ class Stacking(base.HrcTask):
     for i, cube in enumerate(self._cubes):
       cube.set_pose(physics, self._picks[i], identity)
       cube.set_velocity(physics, np.zeros(3), np.zeros(3))
+    self._start_in_hand(physics)
+
+  def _start_in_hand(self, physics):
+    """A human cube whose pick is where a hand holds it at the clip's start
+    (recordings: the person carries both cubes in, human/task_targets.py)
+    starts in that hand."""
+    physics.forward()
+    hands = self._human.keypoint_positions(physics)[_HAND_KEYPOINTS]
+    for i in HUMAN_CUBES:
+      distances = np.linalg.norm(hands - (self._picks[i] + _GRIP), axis=1)
+      hand = int(np.argmin(distances))
+      if distances[hand] < HAND_TOLERANCE:
+        self._grab(physics, i, hand, hands[hand])
+    physics.forward()
 
   # ------------------------------------------------------------ progress
 
@@ -214,31 +228,46 @@ class Stacking(base.HrcTask):
           self._grab(physics, i, hand, hands[hand])
           changed = True
       elif state == HELD:
-        centre = physics.bind(self._cubes[i].body).xpos
+        centre = np.array(physics.bind(self._cubes[i].body).xpos)
         offset = centre - self._places[i]
+        # Where the cube comes to rest: its place, or the surface under it
+        # where that is higher (a recording's place may lie in our table).
+        offset[2] = centre[2] - max(self._places[i, 2],
+                                     self._support(i, centre)[2])
         rising = centre[2] > self._held_height[i]
         self._held_height[i] = centre[2]
         if (np.linalg.norm(offset[:2]) < RELEASE_REACH
             and (abs(offset[2]) < RELEASE_HEIGHT
                  or (rising and abs(offset[2]) < RELEASE_DROP))):
           self._release(physics, self._cubes[i].body)
-          self._set_down_level(physics, i, centre)
+          self._set_down(physics, i, centre)
           self._human_state[i], self._holding_hand[i] = RELEASED, None
           changed = True
-          if i == 0:   # The stack stands where the base cube was put.
-            self._slots[0] = centre[0], centre[1], self._slots[0, 2]
     return changed
 
-  def _set_down_level(self, physics, i, centre):
-    """The person sets cube i down upright and at rest where it is (the
-    welded cube turns with the hand's wrist, up to ~13 degrees, and one let
-    go tilted and moving tipped cube 3 off the stack: Panda seeds 0, 7, 9
-    of 10, without the robot touching anything)."""
+  def _support(self, i, centre):
+    """Where cube i rests when the person sets it down: cube 1 on the table
+    under it; cube 3 on top of the robot's cube 2 once that is in its slot
+    (as the reference: the recorded hands hold cube 3 0.1-0.3 m beside the
+    stack, docs/tasks.md), else on the table."""
+    if i == HUMAN_CUBES[1] and self._in_slot[ROBOT_CUBES[0]]:
+      return self._slots[i].copy()
+    return np.array([centre[0], centre[1], layout.TABLE_TOP_Z
+                     + self._size / 2])
+
+  def _set_down(self, physics, i, centre):
+    """The person sets cube i down on its support (`_support`) upright and
+    at rest (the welded cube turns with the hand's wrist, up to ~13
+    degrees, and one let go tilted and moving tipped cube 3 off the stack:
+    Panda seeds 0, 7, 9 of 10, without the robot touching anything)."""
+    rest = self._support(i, centre)
     w, x, y, z = physics.bind(self._cubes[i].body).xquat
     yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    self._cubes[i].set_pose(physics, centre, np.array(
+    self._cubes[i].set_pose(physics, rest, np.array(
         [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]))
     self._cubes[i].set_velocity(physics, np.zeros(3), np.zeros(3))
+    if i == HUMAN_CUBES[0]:   # The stack stands where the base cube is.
+      self._slots[0] = rest
 
   def _grab(self, physics, i, hand, palm):
     """Welds cube i to `hand` with its centre GRIP_ABOVE_CENTRE under the

@@ -16,6 +16,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import placement
 from hrc_suite.human import recording_cache
+from hrc_suite.human import task_targets
 from hrc_suite.safety import human_reach
 from hrc_suite.tasks import motions as motions_lib
 
@@ -112,6 +113,24 @@ def test_targets_follow_the_motion(task_clips):
       np.testing.assert_allclose(clip.positions[first, I[f'{side}_hand']],
                                  clip.targets[f'board_grasp_{side}'],
                                  atol=1e-3)
+
+
+def test_stacking_recordings_carry_their_cubes_in(task_clips):
+  """The reference's stacking people walk in with both cubes: each pick is
+  where a hand holds its cube at the first frame (the task starts it in
+  hand), the places are over the table, cube 3 above cube 1, the stack
+  under cube 1."""
+  _, clips = task_clips['CollaborativeStacking']
+  grip = np.array([0.0, 0.0, task_targets.GRIP_ABOVE_CENTRE])
+  for clip in clips:
+    t = clip.targets
+    hands = clip.positions[0, [I['left_hand'], I['right_hand']]]
+    for cube in (1, 3):
+      held = np.linalg.norm(hands - grip - t[f'cube_{cube}_pick'], axis=1)
+      assert held.min() < 1e-3, (clip.name, cube, held)
+      assert t[f'cube_{cube}_place'][0] > task_targets.TABLE_EDGE_X
+    assert t['cube_3_place'][2] > t['cube_1_place'][2]
+    np.testing.assert_allclose(t['stack_base'][:2], t['cube_1_place'][:2])
 
 
 def test_cache_is_reused_and_keyed_by_content(tmp_path, monkeypatch):

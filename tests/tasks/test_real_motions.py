@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from hrc_suite import experts
+from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import recording_cache
+from hrc_suite.tasks import stacking
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
@@ -74,6 +76,30 @@ def test_fast_recordings_are_refused_by_default():
     if outside:
       break
   assert outside > 0
+
+
+def test_stacking_people_bring_their_cubes_and_set_them_down():
+  """Both human cubes start in the recorded person's hands and travel with
+  them; cube 1 is let go over the table and set down on it, upright."""
+  env = _load('CollaborativeStacking', 'panda', seed=2)
+  env.reset()
+  task = env.task
+  held = [task.cubes[i] for i in stacking.HUMAN_CUBES]
+  start = [env.physics.bind(c.body).xpos.copy() for c in held]
+  assert [task._human_state[i] for i in stacking.HUMAN_CUBES] == [
+      stacking.HELD] * 2
+  for _ in range(60):   # 6 s: the person walks in and puts cube 1 down.
+    env.step(np.zeros(env.action_spec().shape))
+    if task._human_state[0] == stacking.RELEASED:
+      break
+  assert task._human_state[0] == stacking.RELEASED
+  moved = [np.linalg.norm(env.physics.bind(c.body).xpos - p)
+           for c, p in zip(held, start)]
+  assert min(moved) > 0.5, moved
+  cube = env.physics.bind(held[0].body)
+  assert cube.xpos[2] == pytest.approx(
+      layout.TABLE_TOP_Z + held[0].size / 2, abs=2e-3)
+  assert task.stacked[0]
 
 
 @pytest.mark.slow
