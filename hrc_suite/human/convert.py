@@ -65,22 +65,6 @@ def convert(src, dst, task=None, units=None, up_axis='y', out=sys.stdout,
   return failures
 
 
-def load_clips(folder, task=None):
-  """Clips from a folder of saved clips, or of BVH files imported on the fly.
-
-  Lets a task play real recordings instead of the shipped library.
-  """
-  folder = pathlib.Path(folder)
-  if folder.is_dir() and any(p.suffix == '.json' and not p.stem.endswith(
-      '_info') for p in folder.iterdir()):
-    return clip_lib.load_folder(folder)
-  files = recording_cache.bvh_files(folder) if folder.is_dir() else []
-  if not files:
-    raise clip_lib.ClipError(f'{folder}: neither clips (<name>.json + .npz) '
-                             f'nor .bvh files')
-  return [bvh_import.import_clip(f, task=task) for f in files]
-
-
 def main(argv=None):
   parser = argparse.ArgumentParser(
       prog='python -m hrc_suite.human.convert',

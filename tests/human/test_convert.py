@@ -11,6 +11,7 @@ import pytest
 
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import convert
+from hrc_suite.human import recording_cache
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
@@ -87,19 +88,20 @@ def test_bad_info_is_named(recordings, tmp_path):
   assert f"{info}: field 'keyframes'" in err.getvalue()
 
 
-def test_flat_folder_with_task_flag_and_load_clips(recordings, tmp_path):
+def test_flat_folder_with_task_flag_loads_as_the_task_loads_it(recordings, tmp_path):
   folder = recordings / 'ObjectInspection'
   assert convert.main([str(folder), str(tmp_path / 'flat'),
                        '--task=inspection', '--units=mm']) == 0
   names = sorted(p.name for p in (tmp_path / 'flat').iterdir())
   assert names == ['ObjectInspection_0.json', 'ObjectInspection_0.npz',
                    'ObjectInspection_1.json', 'ObjectInspection_1.npz']
-  saved = convert.load_clips(tmp_path / 'flat')
-  direct = convert.load_clips(folder, task='inspection')
+  saved = recording_cache.load_task_folder(tmp_path / 'flat', 'inspection')
+  direct = recording_cache.load_task_folder(folder, 'inspection',
+                                            use_cache=False)
   assert [c.name for c in saved] == [c.name for c in direct]
   assert (saved[0].positions == direct[0].positions).all()
-  with pytest.raises(clip_lib.ClipError, match='neither clips'):
-    convert.load_clips(tmp_path)
+  with pytest.raises(clip_lib.ClipError, match='no clips or .bvh files'):
+    recording_cache.load_task_folder(tmp_path, 'inspection')
 
 
 def test_command_line(recordings, tmp_path):
