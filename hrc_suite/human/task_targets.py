@@ -137,7 +137,9 @@ def _hammering(positions, fps, fields, source):
   """The striking hand's lowest points while the person hammers (between
   the first and last keyframe): 'strike_grip' their median, the nail
   HAMMER_REACH ahead of it along the facing and HAMMER_FACE_BELOW_PALM
-  lower. The striking hand moves most up and down there."""
+  lower. The striking hand moves most up and down there. The reference's
+  recordings hold no blows (its robot hammers): there the rule finds the
+  hand resting on the board (docs/tasks.md, hammering)."""
   start, end = _window(fields, 0, -1, len(positions))
   sides = clip_lib.HANDS
   vertical = [np.std(_hand(positions, s)[start:end + 1, 2]) for s in sides]

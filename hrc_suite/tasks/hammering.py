@@ -29,6 +29,9 @@ drives its nail in (reference-benchmark.md, paper Table I).
 * Reach: the clips put the nail 0.22-0.42 m above the table, 0.49-0.62 m in
   front of the robot: within gripper-down reach of the 7-joint robots and
   the UR5e, above the Schunk's gripper-down workspace (<= 0.2 m).
+* The reference's recordings cannot succeed: their person never strikes
+  (the reference's robot hammers) and the nail lies 0.03-0.10 m above the
+  table, where the resting hammer face is (docs/tasks.md).
 """
 
 from dm_control.composer.observation import observable
