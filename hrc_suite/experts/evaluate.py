@@ -1,26 +1,50 @@
-r"""The expert baseline table: every expert (and noisy expert) per task.
+r"""Baseline tables: experts, noisy experts and a random policy per task.
 
   python -m hrc_suite.experts.evaluate --episodes=50 --robots=schunk,panda \
       --workers=2
   python -m hrc_suite.experts.evaluate \
       --pairs=schunk:expert,schunk:noisy_expert,panda:expert --workers=2
+  python -m hrc_suite.experts.evaluate --policies=random --shield=default,off \
+      --motions=../shared/motions/human-robot-animations --motions_label=real \
+      --episodes=10 --out=docs/results/safety_real.md
 
 Runs episodes with seeds 0..N-1 of each registered expert's task on each
-robot and policy, or on the given robot:policy pairs (shield and action
-space: the task's defaults unless given) and writes docs/results/experts.md (one row per task, robot and
-policy: success rate with a 95 % bootstrap confidence interval, return,
-episode length, shield interventions and contacts by type per episode,
-wall time) and the raw per-episode results as docs/results/experts.json.
+robot and policy, or on the given robot:policy pairs, with each --shield
+(the task's default unless given; action space: the task's default unless
+given) and writes docs/results/experts.md (one row per task, robot,
+policy, people and shield: success rate with a 95 % bootstrap confidence
+interval, return, episode length, shield interventions, contacts by type,
+steps outside the shield's human model, shield resyncs and physics errors
+per episode, wall time) and the raw per-episode results as
+docs/results/experts.json.
+
+People: the shipped synthetic library, or with --motions=DIR the task's
+motions from DIR (task_kwargs['motions']; the reference's layout, one
+sub-folder per task: hrc_suite/human/recording_cache.py), played with
+outside_human_model='allow' (recordings may move faster than the shield's
+human model; steps_outside_human_model counts those RL steps). Tasks
+without motions in DIR are listed as not evaluated. Rows name their
+people by --motions_label (default: DIR's name).
+
+The bar (listed under "Rows below the bar"): an expert succeeds in at
+least 80 % of its episodes (issue 6); no policy has a critical human
+contact with the shield on, which for the random policy is the whole bar
+(issue 15). Rows with the shield off have no safety bar: their critical
+contacts show the check can fail, and the table counts their episodes.
+
 Finished episodes are logged to <json>.partial.jsonl as they come: a
 killed run started again with the same flags skips them (the file is
 removed once the table is written; delete it to start afresh).
 With --update the episodes of the rows this run produces replace those
 rows in the existing JSON (other rows stay), e.g. after a fix to one task:
 the table then names every run (command, date, commit) and its rows.
+--rewrite_only writes the table again from the JSON without running
+episodes (after a change of the table's format).
 Episode `seed` runs in an environment whose random_state is seeded `seed`;
 the noisy expert uses the noise of episode `seed` of NoisyExpert(seed=0),
-as a dataset collected with --seed=0 does. Experts whose module does not
-import yet are listed as not evaluated.
+as a dataset collected with --seed=0 does; the random policy draws from
+np.random.default_rng(seed). Experts whose module does not import yet are
+listed as not evaluated.
 """
 
 import collections
@@ -34,6 +58,7 @@ import shlex
 import subprocess
 import sys
 import time
+import traceback
 
 from absl import app
 from absl import flags
@@ -43,19 +68,36 @@ from hrc_suite import statistics
 from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
-POLICIES = ('expert', 'noisy_expert')
+EXPERT_POLICIES = ('expert', 'noisy_expert')
+POLICIES = EXPERT_POLICIES + ('random',)
+# --shield values: the task's default (DEFAULT_SHIELD) or a mode of
+# hrc_suite/safety/shield.py.
+DEFAULT_SHIELD = 'default'
+SHIELDS = (DEFAULT_SHIELD,) + shield_lib.MODES
+# The people of rows run without --motions: the shipped library.
+SYNTHETIC = 'synthetic'
 # The bar every expert must reach (issue 6): success in at least 80 % of
 # the episodes of its task, with no critical human contact.
 SUCCESS_BAR = 0.8
 # Seed of every row's bootstrap resampling (rows are reproducible alone).
 BOOTSTRAP_SEED = 0
-# Per-episode metrics reported as means per episode, in table order.
+# Per-episode metrics reported as means per episode, in table order
+# (hrc_suite/tasks/metrics.py).
 CONTACT_COLUMNS = (('static', 'contacts_static'), ('self', 'self_collisions'),
                    ('human safe', 'contacts_human_allowed'),
                    ('human critical', 'contacts_human_critical'),
                    ('human pushed', 'contacts_human_pushed'))
+SAFETY_COLUMNS = (('steps outside human model', 'steps_outside_human_model'),
+                  ('shield resyncs', 'shield_resyncs'),
+                  ('physics errors', 'physics_errors'))
+# Innermost frames of an episode's exception kept in its result.
+TRACEBACK_FRAMES = 8
+# A mean of a metric no episode of the row recorded (run before it existed).
+MISSING = '—'
 _REPOSITORY = pathlib.Path(__file__).resolve().parents[2]
 
 
@@ -79,27 +121,87 @@ def available_tasks(tasks=None):
   return tuple(ok), missing
 
 
+def _motions_kwargs(motions):
+  """task_kwargs of people `motions` ((label, folder) or None)."""
+  if motions is None:
+    return {}
+  return {'motions': motions[1], 'outside_human_model': 'allow'}
+
+
+def tasks_with_motions(tasks, motions, robot):
+  """(tasks that build with `motions` = (label, folder), {task: reason}
+  of those that do not, e.g. no sub-folder of theirs in the folder).
+  Building each task once also converts its recordings into the cache
+  before workers start."""
+  ok, missing = [], {}
+  for domain, task in tasks:
+    try:
+      suite.build_task(domain, task, dict(_motions_kwargs(motions),
+                                          robot=robot))
+    except clip_lib.ClipError as e:
+      missing[(domain, task)] = f'skipped: {type(e).__name__}: {e}'
+    else:
+      ok.append((domain, task))
+  return tuple(ok), missing
+
+
+# ------------------------------------------------------------- policies
+
+
+class RandomPolicy:
+  """Uniform actions in the action spec's bounds. Episode `seed` draws from
+  its own generator, np.random.default_rng(seed) (`set_episode`), never
+  from numpy's global state."""
+
+  def __init__(self, action_spec):
+    low = np.broadcast_to(action_spec.minimum, action_spec.shape)
+    high = np.broadcast_to(action_spec.maximum, action_spec.shape)
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+      raise ValueError(f'{action_spec}: a uniform action needs finite '
+                       'bounds')
+    self._low, self._high = low.astype(float), high.astype(float)
+    self._dtype = action_spec.dtype
+    self._rng = None
+    self.set_episode(0)
+
+  def set_episode(self, seed):
+    self._rng = np.random.default_rng(seed)
+
+  def __call__(self, timestep):
+    del timestep
+    return self._rng.uniform(self._low, self._high).astype(self._dtype)
+
+
 # ------------------------------------------------------------- episodes
 
 _ENV_CACHE = {}   # job key -> (env, policy); one per process, the last.
 
 
-def _environment(domain, task, robot, action_space, policy, time_limit):
-  key = (domain, task, robot, action_space, policy, time_limit)
+def _environment(domain, task, robot, action_space, policy, time_limit,
+                 motions=None, shield=None):
+  motions = None if motions is None else tuple(motions)
+  key = (domain, task, robot, action_space, policy, time_limit, motions,
+         shield)
   if key not in _ENV_CACHE:
     _ENV_CACHE.clear()
-    task_kwargs = {'robot': robot}
+    task_kwargs = dict(_motions_kwargs(motions), robot=robot)
     if action_space is not None:
       task_kwargs['action_space'] = action_space
     if time_limit is not None:
       task_kwargs['time_limit'] = time_limit
+    if shield is not None:
+      task_kwargs['shield'] = shield
     env = suite.load(domain, task, task_kwargs=task_kwargs,
                      environment_kwargs={'random_state': 0})
-    noise = None
-    if policy == 'noisy_expert':
-      noise = noise_lib.OrnsteinUhlenbeckNoise.reference(
-          env.action_spec().shape[0], env.task.action_space_name)
-    _ENV_CACHE[key] = (env, experts.make(env, noise=noise))
+    if policy == 'random':
+      agent = RandomPolicy(env.action_spec())
+    else:
+      noise = None
+      if policy == 'noisy_expert':
+        noise = noise_lib.OrnsteinUhlenbeckNoise.reference(
+            env.action_spec().shape[0], env.task.action_space_name)
+      agent = experts.make(env, noise=noise)
+    _ENV_CACHE[key] = (env, agent)
   return _ENV_CACHE[key]
 
 
@@ -108,20 +210,39 @@ def _json_number(value):
   return value if np.isfinite(value) else None
 
 
+def job_fields(job):
+  """(domain, task, robot, action_space, policy, time_limit, seed, motions,
+  shield) of a job; jobs of files written before people and shields were
+  choices lack the last two (None: synthetic people, default shield)."""
+  job = list(job)
+  return tuple(job + [None] * (9 - len(job)))
+
+
+def people(result):
+  """The label of an episode's people: SYNTHETIC or --motions_label."""
+  motions = job_fields(result.get('job', ()))[7]
+  return SYNTHETIC if motions is None else motions[0]
+
+
 def run_job(job):
   """One episode: job = (domain, task, robot, action_space, policy,
-  time_limit, seed). Returns its result dict (JSON-able). An exception in
-  the expert or the task does not stop the run: the episode's result then
-  carries 'error' (the exception) and counts as a failure."""
-  domain, task, robot, action_space, policy_name, time_limit, seed = job
+  time_limit, seed, motions, shield); motions: None (the shipped library)
+  or (label, folder); shield: None (the task's default) or a mode.
+  Returns its result dict (JSON-able). An exception in the policy or the
+  task does not stop the run: the episode's result then carries 'error'
+  (the exception) and 'traceback' (its innermost frames) and counts as a
+  failure."""
+  (domain, task, robot, action_space, policy_name, time_limit, seed,
+   motions, shield) = job_fields(job)
   result = {'job': list(job), 'domain': domain, 'task': task, 'robot': robot,
             'action_space': action_space, 'shield': None,
             'policy': policy_name, 'seed': seed, 'control_timestep': None,
             'wall_time': 0.0, 'metrics': None, 'error': None}
+  result['people'] = people(result)
   start = time.perf_counter()
   try:
     env, policy = _environment(domain, task, robot, action_space,
-                               policy_name, time_limit)
+                               policy_name, time_limit, motions, shield)
     result.update(action_space=env.task.action_space_name,
                   shield=env.task.shield_mode,
                   control_timestep=env.task.control_timestep)
@@ -135,19 +256,24 @@ def run_job(job):
   except Exception as e:   # pylint: disable=broad-except
     _ENV_CACHE.clear()   # Its state is unknown now.
     result['error'] = f'{type(e).__name__}: {e}'
+    result['traceback'] = traceback.format_exc(limit=-TRACEBACK_FRAMES)
   result['wall_time'] = time.perf_counter() - start
   return result
 
 
 def jobs(tasks, robots, policies, episodes, action_spaces=(None,),
-         time_limit=None, pairs=None):
+         time_limit=None, pairs=None, motions=None, shields=(None,)):
   """Every episode to run, grouped by environment: robots x policies, or
-  the (robot, policy) `pairs` when given."""
+  the (robot, policy) `pairs` when given, x shields (None: the task's
+  default) x action spaces; motions: None or (label, folder)."""
   pairs = pairs or [(robot, policy) for robot in robots
                     for policy in policies]
-  return [(domain, task, robot, space, policy, time_limit, seed)
+  motions = None if motions is None else list(motions)
+  return [(domain, task, robot, space, policy, time_limit, seed, motions,
+           shield)
           for domain, task in tasks for robot, policy in pairs
-          for space in action_spaces for seed in range(episodes)]
+          for shield in shields for space in action_spaces
+          for seed in range(episodes)]
 
 
 def _job_key(job):
@@ -229,21 +355,34 @@ def success_ci(successes, seed=BOOTSTRAP_SEED):
                                  np.random.RandomState(seed))
 
 
-def _mean(results, name):
+def _values(results, name):
   values = [r['metrics'].get(name) for r in results if r['metrics']]
-  values = [v for v in values if v is not None]
+  return [v for v in values if v is not None]
+
+
+def _mean(results, name):
+  values = _values(results, name)
   return float(np.mean(values)) if values else float('nan')
 
 
+def _episodes_with(results, name):
+  """How many episodes have a nonzero `name`; None if none recorded it."""
+  values = _values(results, name)
+  return sum(1 for v in values if v) if values else None
+
+
 def summarise(results):
-  """One row per (task, robot, action space, policy), in first-seen order."""
+  """One row per (task, robot, action space, policy, people, shield), in
+  first-seen order."""
   groups = collections.OrderedDict()
   for result in results:
+    choice = job_fields(result.get('job', ()))[8]
     key = (result['domain'], result['task'], result['robot'],
-           result['action_space'], result['policy'])
+           result['action_space'], result['policy'], people(result), choice)
     groups.setdefault(key, []).append(result)
   rows = []
-  for (domain, task, robot, space, policy), group in groups.items():
+  for (domain, task, robot, space, policy, who, choice), group in (
+      groups.items()):
     done = [r for r in group if r['metrics']]
     errors = [r for r in group if not r['metrics']]
     # An episode that raised counts as a failure.
@@ -252,10 +391,12 @@ def summarise(results):
     rate, low, high = success_ci(success)
     steps = _mean(group, 'steps')
     timestep = next((r['control_timestep'] for r in done), float('nan'))
+    distances = _values(group, 'min_human_distance')
     row = {
         'domain': domain, 'task': task, 'robot': robot,
-        'action_space': space, 'policy': policy,
-        'shield': done[0]['shield'] if done else None,
+        'action_space': space, 'policy': policy, 'people': who,
+        'shield': done[0]['shield'] if done else choice,
+        'shield_choice': choice or DEFAULT_SHIELD,
         'episodes': len(group), 'errors': len(errors),
         'first_error': errors[0]['error'] if errors else None,
         'success': rate, 'success_low': low, 'success_high': high,
@@ -264,25 +405,68 @@ def summarise(results):
         'shield_interventions': _mean(group, 'shield_interventions'),
         'critical_episodes': sum(
             1 for r in done if r['metrics']['contacts_human_critical']),
+        'pushed_episodes': _episodes_with(group, 'contacts_human_pushed'),
+        'physics_error_episodes': _episodes_with(group, 'physics_errors'),
+        # m, robot capsules at the command to the person's, over episodes.
+        'min_human_distance': min(distances) if distances else float('nan'),
         'wall_time': float(np.mean([r['wall_time'] for r in group])),
     }
-    for _, name in CONTACT_COLUMNS:
+    for _, name in CONTACT_COLUMNS + SAFETY_COLUMNS:
       row[name] = _mean(group, name)
     rows.append(row)
   return rows
 
 
 def below_bar(row):
-  """Reasons a row misses the bar (empty if it passes)."""
+  """Reasons a row misses the bar (empty if it passes): experts must
+  succeed (SUCCESS_BAR); with the shield on no policy may touch the person
+  critically; no episode may raise."""
   reasons = []
-  if row['success'] < SUCCESS_BAR:
+  if row['policy'] in EXPERT_POLICIES and row['success'] < SUCCESS_BAR:
     reasons.append(f'success {row["success"]:.2f} < {SUCCESS_BAR:.2f}')
-  if row['critical_episodes']:
+  if row['shield'] != 'off' and row['critical_episodes']:
     reasons.append(f'critical human contacts in {row["critical_episodes"]} '
                    f'of {row["episodes"]} episodes')
   if row['errors']:
     reasons.append(f'{row["errors"]} episodes raised ({row["first_error"]})')
   return reasons
+
+
+def bar_text(rows):
+  """The bar of `rows`' policies, in words."""
+  policies = {row['policy'] for row in rows}
+  parts = []
+  if policies & set(EXPERT_POLICIES):
+    parts.append(f'experts: success >= {SUCCESS_BAR:.0%} and no critical '
+                  'human contact with the shield on')
+  if 'random' in policies:
+    parts.append('random policy: zero critical human contacts with the '
+                 'shield on')
+  return '; '.join(parts)
+
+
+def title(rows):
+  """The table's title: its policies and, if not synthetic, its people."""
+  policies = {row['policy'] for row in rows}
+  if policies <= set(EXPERT_POLICIES):
+    text = 'Expert baseline'
+  elif policies == {'random'}:
+    text = 'Random-policy safety check'
+  else:
+    text = 'Expert baseline and random-policy safety check'
+  who = list(dict.fromkeys(row['people'] for row in rows))
+  if who and who != [SYNTHETIC]:
+    text += f' (people: {", ".join(who)})'
+  return text
+
+
+def row_name(row):
+  """'domain/task robot policy', with its people and shield unless they
+  are the synthetic library and the task's default."""
+  name = f'{row["domain"]}/{row["task"]} {row["robot"]} {row["policy"]}'
+  if row['people'] != SYNTHETIC or row['shield_choice'] != DEFAULT_SHIELD:
+    name += f' ({row["people"]} people, shield {row["shield"]})'
+  return name
 
 
 def _cpu_model():
@@ -312,18 +496,33 @@ def _git_commit():
   return out.stdout.strip() or None
 
 
-HEADER = ('| task | robot | policy | action space | episodes | success '
-          '[95 % CI] | return | length (steps) | length (s) | shield '
-          'interventions | ' + ' | '.join(f'contacts {label}' for label, _ in
-                                          CONTACT_COLUMNS)
+HEADER = ('| task | robot | policy | people | shield | action space | '
+          'episodes | success [95 % CI] | return | length (steps) | '
+          'length (s) | shield interventions | '
+          + ' | '.join(f'contacts {label}' for label, _ in CONTACT_COLUMNS)
+          + ' | ' + ' | '.join(label for label, _ in SAFETY_COLUMNS)
           + ' | wall time / episode (s) |')
 
 
 def row_key(result):
   """The table row an episode belongs to: 'domain/task robot policy
-  action_space' (job's action space: None = the task's default)."""
-  domain, task, robot, space, policy = result['job'][:5]
-  return f'{domain}/{task} {robot} {policy} {space or "default"}'
+  action_space' (job's action space: None = the task's default), then
+  ' people=<label>' unless synthetic and ' shield=<mode>' if chosen."""
+  domain, task, robot, space, policy, _, _, motions, shield = job_fields(
+      result['job'])
+  key = f'{domain}/{task} {robot} {policy} {space or "default"}'
+  if motions is not None:
+    key += f' people={motions[0]}'
+  if shield is not None:
+    key += f' shield={shield}'
+  return key
+
+
+def task_key(domain, task, motions=None):
+  """The key of a task not evaluated: 'domain/task', then ' people=<label>'
+  with motions (label, folder)."""
+  key = f'{domain}/{task}'
+  return key if motions is None else f'{key} people={motions[0]}'
 
 
 def merge(old, new):
@@ -359,13 +558,29 @@ def merge_runs(old_runs, run):
   return kept + [run]
 
 
+def merge_not_evaluated(old, new, results):
+  """{task key: reason}: `old` less the tasks (with their people) that
+  `results` evaluated, then `new`."""
+  done = {task_key(r['domain'], r['task'], job_fields(r['job'])[7])
+          for r in results}
+  merged = {key: reason for key, reason in old.items() if key not in done}
+  merged.update(new)
+  return dict(sorted(merged.items()))
+
+
 def load_previous(path):
   """(episodes, runs) of an existing results JSON, ([], []) if none. A
   file written before runs were recorded (one 'info') counts as one run
   of all its rows."""
+  return load_results(path)[:2]
+
+
+def load_results(path):
+  """(episodes, runs, {task key: reason not evaluated}, notes or None) of
+  a results JSON; ([], [], {}, None) if there is none."""
   path = pathlib.Path(path)
   if not path.exists():
-    return [], []
+    return [], [], {}, None
   try:
     payload = json.loads(path.read_text())
     episodes = payload['episodes']
@@ -373,10 +588,11 @@ def load_previous(path):
     if runs is None:
       rows = list(dict.fromkeys(row_key(e) for e in episodes))
       runs = [dict(payload['info'], rows=rows)]
-  except (ValueError, KeyError, TypeError) as e:
+    not_evaluated = dict(payload.get('not_evaluated') or {})
+  except (ValueError, KeyError, TypeError, AttributeError) as e:
     raise ValueError(f'{path}: not a results file of this command ({e}); '
                      'run without --update to write it afresh') from e
-  return episodes, runs
+  return episodes, runs, not_evaluated, payload.get('notes')
 
 
 def _run_line(run):
@@ -387,67 +603,160 @@ def _run_line(run):
           f'{len(run["rows"])} rows of {tasks}')
 
 
-def markdown(rows, runs, not_evaluated=()):
-  """The table and its provenance (`runs`, oldest first) as Markdown."""
+def _cell(value, digits=2):
+  return MISSING if not np.isfinite(value) else f'{value:.{digits}f}'
+
+
+def _people_lines(results):
+  """What each label of `results`' people is."""
+  folders = {}
+  for result in results:
+    motions = job_fields(result.get('job', ()))[7]
+    if motions is not None:
+      folders.setdefault(motions[0], motions[1])
+  lines = []
+  if any(people(r) == SYNTHETIC for r in results):
+    lines.append(f'{SYNTHETIC}: the shipped motion library')
+  lines += [f'{label}: the task\'s motions in `{folder}` (its sub-folder '
+            "there), played with outside_human_model='allow'"
+            for label, folder in folders.items()]
+  return lines
+
+
+def _policy_lines(rows):
+  policies = {row['policy'] for row in rows}
+  lines = []
+  if 'noisy_expert' in policies:
+    lines.append('noisy expert: reference Ornstein-Uhlenbeck noise '
+                 '(hrc_suite/experts/noise.py)')
+  if 'random' in policies:
+    lines.append('random: uniform actions in the action spec, drawn from '
+                 'np.random.default_rng(seed)')
+  return lines
+
+
+def _shield_off_lines(rows):
+  """The rows with the shield off and their critical contacts."""
+  lines = []
+  for row in rows:
+    if row['shield'] != 'off':
+      continue
+    closest = _cell(row['min_human_distance'], 3)
+    if row['critical_episodes']:
+      found = (f'critical human contacts in {row["critical_episodes"]} of '
+               f'{row["episodes"]} episodes '
+               f'({row["contacts_human_critical"]:.1f} physics steps per '
+               'episode)')
+    else:
+      found = (f'NO critical human contact in {row["episodes"]} episodes '
+               '(the check did not fail here)')
+    lines.append(f'* {row_name(row)}: {found}; closest approach '
+                 f'{closest} m')
+  return lines
+
+
+def markdown(rows, runs, not_evaluated=(), results=(), notes=None):
+  """The table and its provenance (`runs`, oldest first) as Markdown;
+  not_evaluated: {task key: reason}; results: the episodes (to name the
+  people's folders); notes: Markdown put under "Notes"."""
   latest = runs[-1]
+  described = [f'Episodes: seeds 0..N-1 per row; shield and action '
+               "space: the task's defaults unless the row says otherwise"]
+  described += _policy_lines(rows)
+  people_lines = _people_lines(results)
   lines = [
-      '# Expert baseline', '',
+      f'# {title(rows)}', '',
       'Generated by `python -m hrc_suite.experts.evaluate` '
       '(hrc_suite/experts/evaluate.py); do not edit by hand.', '',
       *[_run_line(run) for run in runs],
       f'* Machine: {latest["machine"]["cpus"]} CPUs, '
       f'{latest["machine"]["processor"]}, {latest["machine"]["platform"]}, '
       f'Python {latest["machine"]["python"]}',
-      f'* Episodes: seeds 0..N-1 per row; shield and action space: '
-      "the task's defaults unless the row says otherwise; noisy expert: "
-      'reference Ornstein-Uhlenbeck noise (hrc_suite/experts/noise.py).',
+      f'* {"; ".join(described)}.',
+      *([f'* People: {"; ".join(people_lines)}.'] if people_lines else []),
       '* Success: the goal reached at least once; CI: 95 % percentile '
       f'bootstrap over episodes, 10^4 resamples, seed {BOOTSTRAP_SEED}. '
       'Shield interventions: RL steps per episode in which the shield '
       'overrode the motion. Contacts: physics steps per episode with a '
-      'contact of the type (self: RL steps ending self-colliding).',
+      'contact of the type (self: RL steps ending self-colliding; human '
+      'pushed: the person had pushed the robot off its command, '
+      'docs/safety.md "Pushed robots"). Steps outside human model: RL '
+      "steps per episode in which the person moved faster than the shield's "
+      'human model (outside its guarantee). Shield resyncs: physics steps '
+      'per episode after which the shield restarted at the pushed '
+      "robot's pose. Physics errors: the share of episodes a MuJoCo "
+      'physics error ended (docs/safety.md "Physics errors"). '
+      f'{MISSING}: not recorded (episodes run before the metric existed).',
       '', HEADER,
       '|' + '---|' * (HEADER.count('|') - 1),
   ]
   for row in rows:
-    contacts = ' | '.join(f'{row[name]:.2f}' for _, name in CONTACT_COLUMNS)
+    counts = ' | '.join(_cell(row[name]) for _, name in
+                        CONTACT_COLUMNS + SAFETY_COLUMNS)
     lines.append(
         f'| {row["domain"]}/{row["task"]} | {row["robot"]} | '
-        f'{row["policy"]} | {row["action_space"]} | {row["episodes"]} | '
+        f'{row["policy"]} | {row["people"]} | {row["shield"]} | '
+        f'{row["action_space"]} | {row["episodes"]} | '
         f'{row["success"]:.2f} [{row["success_low"]:.2f}, '
         f'{row["success_high"]:.2f}] | {row["return"]:.1f} | '
         f'{row["steps"]:.1f} | {row["seconds"]:.1f} | '
-        f'{row["shield_interventions"]:.1f} | {contacts} | '
+        f'{row["shield_interventions"]:.1f} | {counts} | '
         f'{row["wall_time"]:.1f} |')
-  lines += ['', f'## Rows below the bar (success >= {SUCCESS_BAR:.0%}, no '
-            'critical human contact)', '']
+  lines += ['', f'## Rows below the bar ({bar_text(rows)})', '']
   failing = [(row, below_bar(row)) for row in rows if below_bar(row)]
   for row, reasons in failing:
-    lines.append(f'* BELOW THE BAR: {row["domain"]}/{row["task"]} '
-                 f'{row["robot"]} {row["policy"]}: {"; ".join(reasons)}')
+    lines.append(f'* BELOW THE BAR: {row_name(row)}: {"; ".join(reasons)}')
   if not failing:
     lines.append('* None: every row reaches the bar.')
+  off = _shield_off_lines(rows)
+  if off:
+    lines += [
+        '', '## Shield off: the check can fail', '',
+        'Without the shield nothing slows the robot down near the person, '
+        'so critical human contacts are expected: these rows show that the '
+        'contact check reports them (they have no safety bar). Closest '
+        "approach: the least distance of the robot's capsules at its "
+        "command to the person's over the row's episodes (m; below 0: "
+        'overlapping).', '', *off]
+  if notes:
+    lines += ['', '## Notes', '', notes.strip()]
   if not_evaluated:
     lines += ['', '## Not evaluated', '']
-    lines += [f'* {domain}/{task}: {error}'
-              for (domain, task), error in sorted(not_evaluated.items())]
+    for key, reason in sorted(dict(not_evaluated).items()):
+      task, _, who = key.partition(' people=')
+      name = f'{task} ({who} people)' if who else task
+      lines.append(f'* {name}: {reason}')
   return '\n'.join(lines) + '\n'
 
 
-def write(results, out, json_out, runs, not_evaluated=()):
-  """Writes the Markdown table and the JSON results; returns the rows."""
+def write(results, out, json_out, runs, not_evaluated=(), notes=None):
+  """Writes the Markdown table and the JSON results; returns the rows.
+  not_evaluated: {task key (`task_key`): reason}."""
   rows = summarise(results)
+  not_evaluated = dict(sorted(dict(not_evaluated).items()))
   out, json_out = pathlib.Path(out), pathlib.Path(json_out)
   for path in (out, json_out):
     path.parent.mkdir(parents=True, exist_ok=True)
-  out.write_text(markdown(rows, runs, not_evaluated))
+  out.write_text(markdown(rows, runs, not_evaluated, results, notes))
   finite = [{k: _json_number(v) if isinstance(v, float) else v
              for k, v in row.items()} for row in rows]
   payload = {'runs': runs, 'rows': finite, 'episodes': results,
-             'not_evaluated': {f'{d}/{t}': error for (d, t), error in
-                               sorted(dict(not_evaluated).items())}}
+             'not_evaluated': not_evaluated}
+  if notes:
+    payload['notes'] = notes
   json_out.write_text(json.dumps(payload, indent=1, allow_nan=False) + '\n')
   return rows
+
+
+def rewrite(out, json_out, notes=None):
+  """Writes the table of an existing results JSON again (and the JSON, in
+  the current format) without running episodes; `notes` replace its
+  notes if given. Returns the rows."""
+  episodes, runs, not_evaluated, old_notes = load_results(json_out)
+  if not runs:
+    raise ValueError(f'{json_out}: no results to rewrite')
+  return write(episodes, out, json_out, runs, not_evaluated,
+               old_notes if notes is None else notes)
 
 
 # -------------------------------------------------------------------- main
@@ -457,15 +766,27 @@ def define_flags(flag_values=flags.FLAGS):
   module can be imported next to other binaries)."""
   fv = flag_values
   flags.DEFINE_integer('episodes', 50, 'Episodes (seeds 0..N-1) per task, '
-                       'robot and policy.', lower_bound=1, flag_values=fv)
+                       'robot, policy and shield.', lower_bound=1,
+                       flag_values=fv)
   flags.DEFINE_list('robots', ['schunk', 'panda'], 'Robots.', flag_values=fv)
   flags.DEFINE_list('pairs', [], 'robot:policy pairs to run instead of '
                     '--robots x --policies, e.g. schunk:expert,'
                     'schunk:noisy_expert,panda:expert.', flag_values=fv)
   flags.DEFINE_list('tasks', [], 'domain/task names (default: every '
                     'registered expert).', flag_values=fv)
-  flags.DEFINE_list('policies', list(POLICIES),
-                    'expert and/or noisy_expert.', flag_values=fv)
+  flags.DEFINE_list('policies', list(EXPERT_POLICIES),
+                    f'Some of {", ".join(POLICIES)}.', flag_values=fv)
+  flags.DEFINE_list('shield', [DEFAULT_SHIELD], 'Shield modes, each a row: '
+                    f'some of {", ".join(SHIELDS)} ({DEFAULT_SHIELD}: the '
+                    "task's own).", flag_values=fv)
+  flags.DEFINE_string('motions', None, 'A folder of motions for every task '
+                      "(task_kwargs['motions'], e.g. ../shared/motions/"
+                      'human-robot-animations; played with '
+                      "outside_human_model='allow'). Default: the shipped "
+                      'synthetic library.', flag_values=fv)
+  flags.DEFINE_string('motions_label', None, "The people column's name for "
+                      "--motions (default: the folder's name).",
+                      flag_values=fv)
   flags.DEFINE_list('action_spaces', [], 'cartesian and/or joint (default: '
                     "each task's default).", flag_values=fv)
   flags.DEFINE_float('time_limit', None, 'Episode length in s (default: '
@@ -480,29 +801,28 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_bool('update', False, 'Replace only the rows this run '
                     'produces in the existing --json_out (and table); '
                     'other rows stay.', flag_values=fv)
+  flags.DEFINE_bool('rewrite_only', False, 'Run nothing: write the table '
+                    'of the existing --json_out again (and the JSON in the '
+                    'current format).', flag_values=fv)
+  flags.DEFINE_string('notes', None, 'A Markdown file whose text goes under '
+                      '"Notes" (kept in the JSON; default: the notes '
+                      'already there with --update or --rewrite_only).',
+                      flag_values=fv)
   flags.DEFINE_bool('progress', True, 'Show a progress bar.', flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
-  f = flag_values
-  if len(argv) > 1:
-    raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
+def _print_below_bar(rows):
+  for row in rows:
+    for reason in below_bar(row):
+      print(f'BELOW THE BAR: {row_name(row)}: {reason}')
+
+
+def _policies(f):
+  """(policies, [(robot, policy)] pairs) of the flags."""
   unknown = [p for p in f.policies if p not in POLICIES]
   if unknown:
     raise app.UsageError(f'Unknown policies {unknown}: expected some of '
                          f'{", ".join(POLICIES)}')
-  try:
-    requested = [_parse_task(t) for t in f.tasks] or None
-  except ValueError as e:
-    raise app.UsageError(str(e)) from e
-  registered = set(experts.registered())
-  for task in requested or ():
-    if task not in registered:
-      valid = ', '.join(sorted('/'.join(t) for t in registered))
-      raise app.UsageError(f'No expert for {"/".join(task)}: experts exist '
-                           f'for {valid}')
-  tasks, not_evaluated = available_tasks(requested)
-  spaces = tuple(f.action_spaces) or (None,)
   pairs = []
   for pair in f.pairs:
     robot, _, policy = pair.partition(':')
@@ -510,17 +830,87 @@ def main(argv, flag_values=flags.FLAGS):
       raise app.UsageError(f'--pairs entry {pair!r}: expected robot:policy '
                            f'with policy one of {", ".join(POLICIES)}')
     pairs.append((robot, policy))
-  job_list = jobs(tasks, f.robots, f.policies, f.episodes,
-                  spaces, f.time_limit, pairs)
-  json_out = f.json_out or str(pathlib.Path(f.out).with_suffix(
-      '.json'))
+  return ([policy for _, policy in pairs] if pairs else f.policies), pairs
+
+
+def _tasks(f, policies, motions):
+  """(tasks to run, {task key: reason} of those not evaluated)."""
   try:
-    previous, runs = (load_previous(json_out) if f.update else ([], []))
+    requested = [_parse_task(t) for t in f.tasks] or None
+  except ValueError as e:
+    raise app.UsageError(str(e)) from e
+  need_expert = any(p in EXPERT_POLICIES for p in policies)
+  known = set(experts.registered() if need_expert else suite.all_tasks())
+  for task in requested or ():
+    if task not in known:
+      valid = ', '.join(sorted('/'.join(t) for t in known))
+      what = 'expert' if need_expert else 'task'
+      raise app.UsageError(f'No {what} for {"/".join(task)}: {what}s exist '
+                           f'for {valid}')
+  if need_expert:
+    tasks, missing = available_tasks(requested)
+  else:
+    tasks, missing = tuple(requested or experts.registered()), {}
+  if motions is not None:
+    robot = f.pairs[0].partition(':')[0] if f.pairs else f.robots[0]
+    tasks, no_motions = tasks_with_motions(tasks, motions, robot)
+    missing.update(no_motions)
+  return tasks, {task_key(*task, motions): reason
+                 for task, reason in missing.items()}
+
+
+def _read_notes(path):
+  if path is None:
+    return None
+  try:
+    return pathlib.Path(path).read_text()
+  except OSError as e:
+    raise app.UsageError(f'--notes: {e}') from e
+
+
+def main(argv, flag_values=flags.FLAGS):
+  f = flag_values
+  if len(argv) > 1:
+    raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
+  json_out = f.json_out or str(pathlib.Path(f.out).with_suffix('.json'))
+  notes = _read_notes(f.notes)
+  if f.rewrite_only:
+    try:
+      rows = rewrite(f.out, json_out, notes)
+    except ValueError as e:
+      raise app.UsageError(str(e)) from e
+    print(f'Wrote {f.out} ({len(rows)} rows) and {json_out} from '
+          f'{json_out}')
+    _print_below_bar(rows)
+    return
+  policies, pairs = _policies(f)
+  unknown = [s for s in f.shield if s not in SHIELDS]
+  if unknown or not f.shield:
+    raise app.UsageError(f'--shield {f.shield}: expected some of '
+                         f'{", ".join(SHIELDS)}')
+  shields = [None if s == DEFAULT_SHIELD else s for s in f.shield]
+  motions = None
+  if f.motions is not None:
+    folder = pathlib.Path(f.motions)
+    if not folder.is_dir():
+      raise app.UsageError(f'--motions {f.motions}: not a folder')
+    motions = (f.motions_label or folder.resolve().name, f.motions)
+  tasks, not_evaluated = _tasks(f, policies, motions)
+  spaces = tuple(f.action_spaces) or (None,)
+  job_list = jobs(tasks, f.robots, f.policies, f.episodes, spaces,
+                  f.time_limit, pairs, motions, shields)
+  if not job_list:
+    raise app.UsageError('Nothing to run: ' + '; '.join(
+        f'{key}: {reason}' for key, reason in not_evaluated.items()))
+  try:
+    previous, runs, old_missing, old_notes = (
+        load_results(json_out) if f.update else ([], [], {}, None))
   except ValueError as e:
     raise app.UsageError(str(e)) from e
   partial = pathlib.Path(json_out + '.partial.jsonl')
   partial.parent.mkdir(parents=True, exist_ok=True)
   start = time.perf_counter()
+  commit = _git_commit()   # The code this run loads.
   results = run(job_list, workers=f.workers, progress=f.progress,
                 partial=partial)
   run_info = {
@@ -530,18 +920,17 @@ def main(argv, flag_values=flags.FLAGS):
       'date': datetime.datetime.now(datetime.timezone.utc).strftime(
           '%Y-%m-%d %H:%M UTC'),
       'machine': machine(), 'workers': f.workers,
-      'wall_time': time.perf_counter() - start, 'commit': _git_commit(),
+      'wall_time': time.perf_counter() - start, 'commit': commit,
       'rows': list(dict.fromkeys(row_key(r) for r in results)),
   }
+  not_evaluated = merge_not_evaluated(old_missing, not_evaluated, results)
   results = merge(previous, results)
   runs = merge_runs(runs, run_info)
-  rows = write(results, f.out, json_out, runs, not_evaluated)
+  rows = write(results, f.out, json_out, runs, not_evaluated,
+               old_notes if notes is None else notes)
   partial.unlink()
   print(f'Wrote {f.out} ({len(rows)} rows) and {json_out}')
-  for row in rows:
-    for reason in below_bar(row):
-      print(f'BELOW THE BAR: {row["domain"]}/{row["task"]} {row["robot"]} '
-            f'{row["policy"]}: {reason}')
+  _print_below_bar(rows)
 
 
 if __name__ == '__main__':

@@ -1,13 +1,19 @@
-"""The expert evaluation command: bootstrap CI, table, JSON."""
+"""The evaluation command: bootstrap CI, table, JSON, people, shields."""
 
 import json
+import pathlib
 
 from absl import flags
+from dm_env import specs
 import numpy as np
 import pytest
 
 from hrc_suite import experts
 from hrc_suite.experts import evaluate
+from hrc_suite.human import recording_cache
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
 
 
 @pytest.fixture(autouse=True)
@@ -23,6 +29,7 @@ def _flags(**values):
   for name, value in values.items():
     setattr(flag_values, name, value)
   return flag_values
+
 
 def test_success_ci_known_cases():
   assert evaluate.success_ci([1.0] * 20) == (1.0, 1.0, 1.0)
@@ -40,15 +47,20 @@ def test_success_ci_known_cases():
   assert rate == 0.9 and 0.6 <= low < 0.9 and high == 1.0
 
 
-def _result(success, critical=0, seed=0, policy='expert'):
+def _result(success, critical=0, seed=0, policy='expert', shield='ssm',
+            job=None):
   metrics = {'success': success, 'return': 2.0 * seed, 'steps': 10.0 + seed,
              'shield_interventions': 1.0, 'contacts_static': 0.0,
              'self_collisions': 0.0, 'contacts_human_allowed': 3.0,
-             'contacts_human_critical': float(critical)}
-  return {'domain': 'reach', 'task': 'dense', 'robot': 'schunk',
-          'action_space': 'joint', 'shield': 'ssm', 'policy': policy,
-          'seed': seed, 'control_timestep': 0.1, 'wall_time': 1.5,
-          'metrics': metrics}
+             'contacts_human_critical': float(critical),
+             'min_human_distance': 0.1 - 0.1 * critical}
+  result = {'domain': 'reach', 'task': 'dense', 'robot': 'schunk',
+            'action_space': 'joint', 'shield': shield, 'policy': policy,
+            'seed': seed, 'control_timestep': 0.1, 'wall_time': 1.5,
+            'metrics': metrics}
+  if job is not None:
+    result['job'] = job
+  return result
 
 
 def test_summary_and_bar():
@@ -96,8 +108,9 @@ def test_tiny_run_writes_a_well_formed_table(tmp_path):
   for row, policy in zip(rows, ('expert', 'noisy_expert')):
     cells = [c.strip() for c in row.strip('|').split('|')]
     assert len(cells) == columns
-    assert cells[:5] == ['reach/dense', 'schunk', policy, 'joint', '1']
-    assert cells[7:9] == ['5.0', '0.5']   # 5 RL steps of 0.1 s
+    assert cells[:7] == ['reach/dense', 'schunk', policy, 'synthetic',
+                         'ssm', 'joint', '1']
+    assert cells[9:11] == ['5.0', '0.5']   # 5 RL steps of 0.1 s
   assert '* Command: `python -m hrc_suite.experts.evaluate' in text
   assert f'{evaluate.machine()["cpus"]} CPUs' in text
   # One line per row below the bar (one episode of 0.5 s does not reach
@@ -140,7 +153,7 @@ def test_update_replaces_only_the_rows_it_reruns(tmp_path):
   # keeps its episode, and the first run (only the expert row) is gone.
   payload = run('expert', 2, update=True)
   cells = _row_cells(out.read_text())
-  assert [(c[2], c[4]) for c in cells] == [('expert', '2'),
+  assert [(c[2], c[6]) for c in cells] == [('expert', '2'),
                                           ('noisy_expert', '1')]
   assert [run['rows'] for run in payload['runs']] == [
       ['reach/dense schunk noisy_expert default'],
@@ -172,8 +185,11 @@ def test_unknown_task_or_policy_is_a_usage_error():
   flag_values = _flags(tasks=['reach/far'], progress=False)
   with pytest.raises(Exception, match='No expert for reach/far'):
     evaluate.main(['evaluate'], flag_values)
-  flag_values = _flags(policies=['random'], progress=False)
-  with pytest.raises(Exception, match=r"Unknown policies \['random'\]"):
+  flag_values = _flags(policies=['greedy'], progress=False)
+  with pytest.raises(Exception, match=r"Unknown policies \['greedy'\]"):
+    evaluate.main(['evaluate'], flag_values)
+  flag_values = _flags(shield=['default', 'on'], progress=False)
+  with pytest.raises(Exception, match='--shield'):
     evaluate.main(['evaluate'], flag_values)
 
 
@@ -241,3 +257,195 @@ def test_pairs_choose_robot_and_policy_combinations():
   with pytest.raises(Exception, match='robot:policy'):
     evaluate.main(['evaluate'], _flags(pairs=['schunk-expert'],
                                        progress=False))
+
+
+def test_random_policy_is_uniform_and_seeded_per_episode():
+  spec = specs.BoundedArray((3,), np.float32, minimum=[-1.0, 0.0, -2.0],
+                            maximum=[1.0, 0.5, 2.0])
+  policy = evaluate.RandomPolicy(spec)
+
+  def episode(seed, steps=200):
+    policy.set_episode(seed)
+    return np.array([policy(None) for _ in range(steps)])
+
+  actions = episode(3)
+  assert actions.dtype == np.float32
+  assert np.all(actions >= spec.minimum) and np.all(actions <= spec.maximum)
+  # Uniform: the means are near the middle (std of a mean of 200 uniform
+  # draws on [a, b]: (b - a) / sqrt(12 * 200) = 0.02 (b - a); 5 std).
+  width = spec.maximum - spec.minimum
+  assert np.all(np.abs(actions.mean(axis=0) - [0.0, 0.25, 0.0])
+                < 0.1 * width)
+  # The episode's seed alone decides: numpy's global state does not.
+  np.random.seed(0)
+  again = episode(3)
+  np.random.seed(1)
+  np.testing.assert_array_equal(episode(3), again)
+  np.testing.assert_array_equal(actions, again)
+  assert not np.array_equal(episode(4), actions)
+  with pytest.raises(ValueError, match='finite bounds'):
+    evaluate.RandomPolicy(specs.BoundedArray((2,), float, -np.inf, 1.0))
+
+
+def test_jobs_and_row_keys_name_people_and_shield():
+  real = ('real', '/data/motions')
+  job_list = evaluate.jobs([('lifting', 'default')], ['panda'], ['random'],
+                           2, motions=real, shields=(None, 'off'))
+  assert [job[-1] for job in job_list] == [None, None, 'off', 'off']
+  assert job_list[0][7] == list(real)   # As it reads back from JSON.
+  keys = [evaluate.row_key({'job': job}) for job in job_list]
+  assert keys[0] == 'lifting/default panda random default people=real'
+  assert keys[2] == keys[0] + ' shield=off'
+  # A job of a file written before people and shields: synthetic people
+  # and the task's shield, its row key unchanged.
+  old = ['reach', 'dense', 'schunk', None, 'expert', None, 0]
+  assert evaluate.job_fields(old)[7:] == (None, None)
+  assert evaluate.row_key({'job': old}) == 'reach/dense schunk expert default'
+  assert evaluate.people({'job': old}) == 'synthetic'
+  assert evaluate.people({'job': job_list[0]}) == 'real'
+
+
+def _run(rows):
+  return {'command': 'python -m hrc_suite.experts.evaluate', 'date': 'd',
+          'commit': 'abc', 'workers': 1, 'wall_time': 1.0,
+          'machine': evaluate.machine(),
+          'rows': [evaluate.row_key(r) for r in rows]}
+
+
+def test_random_rows_have_the_safety_bar_and_shield_off_has_none():
+  real = ['real', '/data']
+
+  def random(seed, shield, critical):
+    job = ['reach', 'dense', 'schunk', None, 'random', None, seed, real,
+           None if shield == 'ssm' else shield]
+    return dict(_result(0.0, critical, seed, 'random', shield, job),
+                people='real')
+
+  results = ([random(s, 'ssm', 0) for s in range(3)]
+             + [random(s, 'off', 2 * (s > 0)) for s in range(3)])
+  on, off = evaluate.summarise(results)
+  assert (on['people'], on['shield'], on['shield_choice']) == (
+      'real', 'ssm', 'default')
+  assert (off['shield'], off['critical_episodes']) == ('off', 2)
+  assert off['min_human_distance'] == pytest.approx(-0.1)
+  # No success bar for a random policy; no safety bar with the shield off.
+  assert evaluate.below_bar(on) == [] and evaluate.below_bar(off) == []
+  with_contact = evaluate.summarise([random(0, 'ssm', 1)])[0]
+  assert evaluate.below_bar(with_contact) == [
+      'critical human contacts in 1 of 1 episodes']
+  text = evaluate.markdown([on, off], [_run(results)], results=results)
+  assert text.startswith('# Random-policy safety check (people: real)\n')
+  assert ('## Rows below the bar (random policy: zero critical human '
+          'contacts with the shield on)') in text
+  assert ('* reach/dense schunk random (real people, shield off): critical '
+          'human contacts in 2 of 3 episodes (1.3 physics steps per '
+          'episode); closest approach -0.100 m') in text
+  assert "real: the task's motions in `/data`" in text
+  # A shield-off row without critical contacts says so.
+  quiet = [random(0, 'off', 0)]
+  assert 'NO critical human contact in 1 episodes' in evaluate.markdown(
+      evaluate.summarise(quiet), [_run(quiet)])
+
+
+def test_metrics_older_episodes_lack_show_as_missing():
+  row, = evaluate.summarise([_result(1.0)])   # No pushed contacts etc.
+  text = evaluate.markdown([row], [_run([])])
+  cells = _row_cells(text)[0]
+  header = [c.strip() for c in _table_rows(text)[0].strip('|').split('|')]
+  assert len(cells) == len(header)
+  values = dict(zip(header, cells))
+  assert values['contacts human critical'] == '0.00'
+  for name in ('contacts human pushed', 'steps outside human model',
+               'shield resyncs', 'physics errors'):
+    assert values[name] == evaluate.MISSING
+
+
+def _old_file(path):
+  """A results file as the command wrote it before people and shields."""
+  episode = dict(_result(1.0), job=['reach', 'dense', 'schunk', None,
+                                    'expert', None, 0])
+  path.write_text(json.dumps({
+      'runs': [dict(_run([episode]), command='old command')],
+      'rows': [], 'episodes': [episode], 'not_evaluated': {}}))
+  return episode
+
+
+def test_rewrite_only_writes_the_table_without_running(tmp_path,
+                                                       monkeypatch):
+  out, json_out = tmp_path / 't.md', tmp_path / 't.json'
+  episode = _old_file(json_out)
+  monkeypatch.setattr(evaluate, 'run_job', lambda job: pytest.fail('ran'))
+  notes = tmp_path / 'notes.md'
+  notes.write_text('Hand-written note.\n')
+  evaluate.main(['evaluate'], _flags(rewrite_only=True, out=str(out),
+                                     json_out=str(json_out),
+                                     notes=str(notes)))
+  text = out.read_text()
+  cells, = _row_cells(text)
+  assert cells[:7] == ['reach/dense', 'schunk', 'expert', 'synthetic', 'ssm',
+                       'joint', '1']
+  assert '* Command: `old command`' in text
+  assert '## Notes\n\nHand-written note.\n' in text
+  payload = json.loads(json_out.read_text())
+  assert payload['episodes'] == [episode] and payload['notes']
+  # Again without --notes: the notes stay, the table is the same.
+  evaluate.main(['evaluate'], _flags(rewrite_only=True, out=str(out),
+                                     json_out=str(json_out)))
+  assert out.read_text() == text
+  with pytest.raises(Exception, match='no results to rewrite'):
+    evaluate.main(['evaluate'], _flags(rewrite_only=True,
+                                       out=str(tmp_path / 'none.md')))
+
+
+@pytest.fixture
+def real_motions(tmp_path_factory, monkeypatch):
+  """The reference recordings (skipped when absent), converted into a
+  cache shared by this session's tests."""
+  monkeypatch.setenv(recording_cache.CACHE_ENV,
+                     str(tmp_path_factory.getbasetemp() / 'recordings'))
+  if not MOTIONS.is_dir():
+    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
+  return MOTIONS
+
+
+def test_random_policy_on_real_recordings_with_and_without_shield(
+    tmp_path, real_motions):
+  out, json_out = tmp_path / 'safety.md', tmp_path / 'safety.json'
+  old = _old_file(json_out)
+  evaluate.main(['evaluate'], _flags(
+      episodes=1, tasks=['reach/dense', 'pick_place/close'],
+      robots=['panda'], policies=['random'], shield=['default', 'off'],
+      motions=str(real_motions), motions_label='real', time_limit=0.3,
+      out=str(out), json_out=str(json_out), progress=False, update=True))
+  text = out.read_text()
+  cells = _row_cells(text)
+  # The old synthetic row stays; reach has no recordings: not evaluated.
+  assert [c[:7] for c in cells] == [
+      ['reach/dense', 'schunk', 'expert', 'synthetic', 'ssm', 'joint', '1'],
+      ['pick_place/close', 'panda', 'random', 'real', 'ssm', 'cartesian',
+       '1'],
+      ['pick_place/close', 'panda', 'random', 'real', 'off', 'cartesian',
+       '1']]
+  assert cells[1][10] == '0.3'   # s
+  assert text.startswith('# Expert baseline and random-policy safety check')
+  assert '## Shield off: the check can fail' in text
+  assert ("* reach/dense (real people): skipped: ClipError: "
+          in text) and "no sub-folder for task 'reach'" in text
+  payload = json.loads(json_out.read_text())
+  assert payload['episodes'][0] == old
+  assert [r['people'] for r in payload['rows']] == [
+      'synthetic', 'real', 'real']
+  assert list(payload['not_evaluated']) == ['reach/dense people=real']
+  assert payload['runs'][-1]['rows'] == [
+      'pick_place/close panda random default people=real',
+      'pick_place/close panda random default people=real shield=off']
+  metrics = payload['episodes'][1]['metrics']
+  for name in ('steps_outside_human_model', 'contacts_human_pushed',
+               'shield_resyncs', 'physics_errors'):
+    assert metrics[name] is not None
+  # Every task without recordings: nothing to run.
+  with pytest.raises(Exception, match='Nothing to run: reach/dense'):
+    evaluate.main(['evaluate'], _flags(
+        episodes=1, tasks=['reach/dense'], policies=['random'],
+        motions=str(real_motions), out=str(tmp_path / 'x.md'),
+        progress=False))
