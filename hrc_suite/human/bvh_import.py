@@ -183,6 +183,14 @@ PHASE_RULES = {
     'reach': (),
 }
 
+# Tasks whose person holds the holding hand out to the robot at the first
+# wait (the handovers): placed with that hand at least HANDOVER_REACH ahead
+# of the station (placement.place_at_station's `reach`), the median of the
+# shipped synthetic clips' handover points (0.50-0.67 m ahead, median 0.57
+# robot-to-human and 0.61 human-to-robot).
+REACH_TASKS = ('handover_robot_to_human', 'handover_human_to_robot')
+HANDOVER_REACH = 0.58   # m
+
 
 def _points(spec, fk_pos, skeleton):
   """(F, 3) positions of one mapping spec, file axes, metres."""
@@ -448,8 +456,12 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
           if 'orientation_quat' in info else 0.0)
   phases = fields['idle_phases']
   anchor = fields['keyframes'][phases[0].keyframe] if phases else None
+  reach = None
+  hand = fields.get('holding_hand')
+  if task in REACH_TASKS and anchor is not None and hand in clip_lib.HANDS:
+    reach = (keypoints.KEYPOINT_INDEX[f'{hand}_hand'], HANDOVER_REACH)
   positions, facts['placement'] = placement.place_at_station(
-      positions, turn, anchor)
+      positions, turn, anchor, reach)
   fields['idle_phases'] = tuple(_calm_idle_phase(p)
                                 for p in fields['idle_phases'])
   fields, targets = task_targets.derive(task, positions, motion.fps, fields,

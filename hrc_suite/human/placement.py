@@ -21,6 +21,12 @@ is placed by where it ends up, not where it starts:
   back and step in later: the pelvis may then pass the station by at most
   LEAN_ALLOWANCE, so it stays at least 0.10 m behind the table's edge, as
   close as the synthetic people come.
+* reaching out (`reach`, the handovers: bvh_import.REACH_TASKS): a person
+  who holds a hand out to the robot at the anchor steps up until that hand
+  is at least a given distance ahead of the station (the synthetic people's
+  handover points), again at most LEAN_ALLOWANCE past it. Recorded people
+  stand upright and hold the hand 0.43-0.58 m ahead of the pelvis, the
+  synthetic ones lean in and reach 0.50-0.67 m.
 * sideways: the pelvis at the anchor frame lands on the station's line.
 
 Only horizontal placement changes; heights stay as imported (floor at 0).
@@ -56,13 +62,15 @@ def snapped_turn(estimated_yaw_deg):
   return snapped - estimated
 
 
-def place_at_station(positions, turn=0.0, anchor=None):
+def place_at_station(positions, turn=0.0, anchor=None, reach=None):
   """(positions, facts) with the clip placed by the module's rule.
 
   `positions` (F, K, 3) are in a clip frame facing +x (floor at z = 0);
   `turn` (rad) first turns them about the vertical through the origin (the
   facing correction). `anchor` is the frame where the person waits for the
-  robot (None: the closest approach).
+  robot (None: the closest approach). `reach` (keypoint index, distance m)
+  or None: that keypoint at the anchor frame lies at least `distance`
+  ahead of the station where LEAN_ALLOWANCE allows.
   """
   positions = np.asarray(positions, dtype=np.float64)
   # Turning by `turn` moves the facing direction; turning the points by
@@ -72,11 +80,18 @@ def place_at_station(positions, turn=0.0, anchor=None):
   pelvis = placed[:, _PELVIS]
   closest = int(np.argmax(pelvis[:, 0]))
   frame = closest if anchor is None else int(anchor)
-  forward = min(-pelvis[frame, 0], LEAN_ALLOWANCE - pelvis[closest, 0])
+  limit = LEAN_ALLOWANCE - pelvis[closest, 0]
+  forward = min(-pelvis[frame, 0], limit)
+  rule = ('anchor pelvis at the station, closest approach at most '
+          f'{LEAN_ALLOWANCE:.2f} m past it')
+  if reach is not None:
+    point, distance = reach
+    short = distance - (placed[frame, point, 0] + forward)
+    forward = max(forward, min(forward + short, limit))
+    rule += f'; keypoint {point} at least {distance:.2f} m ahead of it'
   shift = np.array([forward, -pelvis[frame, 1], 0.0])
   placed = placed + shift
-  facts = {'rule': 'anchor pelvis at the station, closest approach at most '
-                   f'{LEAN_ALLOWANCE:.2f} m past it',
+  facts = {'rule': rule,
            'facing_turn_deg': round(math.degrees(turn), 3),
            'anchor_frame': frame, 'closest_frame': closest,
            'shift_m': [round(float(v), 4) for v in shift[:2]]}

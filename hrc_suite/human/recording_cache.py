@@ -26,7 +26,7 @@ from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
 
 # Bump when the importer's output changes (placement, targets, phases).
-CONVERTER_VERSION = 3
+CONVERTER_VERSION = 4
 CACHE_ENV = 'HRC_SUITE_CACHE'
 
 

@@ -96,6 +96,24 @@ def test_placement_keeps_people_out_of_the_table(task_clips, folder):
                                               clip.targets[name])
 
 
+def test_handover_people_reach_out_over_the_table(task_clips):
+  """The handovers' people step up until the holding hand is
+  HANDOVER_REACH ahead of the station at the wait, as far as
+  LEAN_ALLOWANCE lets them (bvh_import.REACH_TASKS)."""
+  for folder in ('RobotHumanHandover', 'HumanRobotHandover'):
+    _, clips = task_clips[folder]
+    for clip in clips:
+      p = clip.positions.astype(np.float64)
+      frame = clip.keyframes[clip.idle_phases[0].keyframe]
+      hand = p[frame, I[f'{clip.holding_hand}_hand'], 0]
+      stepped = p[frame, I['pelvis'], 0] > 1e-5
+      at_limit = p[:, I['pelvis'], 0].max() > placement.LEAN_ALLOWANCE - 1e-5
+      assert hand > bvh_import.HANDOVER_REACH - 1e-5 or at_limit, (
+          clip.name, hand)
+      if stepped:
+        assert abs(hand - bvh_import.HANDOVER_REACH) < 1e-5 or at_limit
+
+
 def test_targets_follow_the_motion(task_clips):
   """Targets come from the hands: the holding hand is at the handover
   point at the presentation keyframe, the board grasps at the hands when
