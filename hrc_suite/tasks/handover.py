@@ -14,7 +14,10 @@ Human to robot (`HumanToRobot`): the hammer lies where the clip picks it up
 ('object_pick'). At the clip's first keyframe the human holds it and, until
 the presentation keyframe, turns it in the hand to the presenting grip
 (handle along the hand, head forward, lying on its side so a gripper-down
-grasp at `Hammer.grip_site` works). While the human waits for 'object_taken'
+grasp at `Hammer.grip_site` works; tilted down no further than keeps it
+PRESENT_CLEARANCE above the table, `presenting_grip`). Collision prevention
+lets the fingertips down to TABLE_CLEARANCE above the table, as pick and
+place: people may present it low. While the human waits for 'object_taken'
 a robot grasp (both fingers touch it, gripper commanded closed) makes the
 human let go and fires the event; the robot places it within
 SUCCESS_DISTANCE of a target on the table ('object_placed' fires once it lies
@@ -84,6 +87,18 @@ REGION_Y = (0.2, 0.8)
 TARGET_RGBA = (0.1, 0.8, 0.2, 0.4)
 # The human picks the hammer if the palm is this close to its grip point.
 PICK_DISTANCE = 0.15                     # m
+# Human to robot: the tool capsule may dip into the table so that the
+# fingertips stay this far above it (pick_place.TABLE_CLEARANCE, the same
+# gripper): a person may present the hammer a few centimetres above the
+# table (recordings: palm 0.05 m above it).
+TABLE_CLEARANCE = 0.018                  # m
+# A presented hammer's head axis stays this far above the table: its face
+# (radius 0.0125 m) clear, and the grip point high enough for fingertips
+# 0.01 m below the TCP and TABLE_CLEARANCE above the table.
+PRESENT_CLEARANCE = 0.04                 # m
+# A hand whose axis has less than this horizontal part (sin of its angle to
+# the vertical) presents the hammer along the person's facing instead.
+MIN_HEADING = 0.3
 
 
 def _lying_quaternion(yaw):
@@ -318,6 +333,7 @@ class HumanToRobot(_Handover):
 
   MOTIONS = 'handover_human_to_robot'
   EVENT = 'object_placed'
+  FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
   TASK_STATE = _Handover.TASK_STATE + ('_picked', '_pick_grip',
                                        '_at_target', '_turn')
 
@@ -332,16 +348,61 @@ class HumanToRobot(_Handover):
     self._pick_grip = None
     self._turn = 0.0
 
-  @staticmethod
-  def presenting_grip(hand_half_length):
-    """(position, quaternion) of the hammer in the hand capsule's frame when
-    presented: handle along the hand (z), head forward, body y along the
-    hand frame's y (up for a forward-pointing hand), `human_grip_site` at
-    the capsule's distal end."""
-    # Columns: hammer x = hand z, hammer y = hand y, hammer z = -hand x.
-    rotation = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
-    position = np.array([0.0, 0.0, hand_half_length + props.HAMMER_HUMAN_GRIP])
+  def presenting_grip(self, physics):
+    """(position, quaternion) of the hammer in the holding hand's capsule
+    frame when presented: along the hand's axis (head forward), lying on
+    its side (body y in the vertical plane through the handle, upwards),
+    `human_grip_site` at the capsule's distal end; never pointing up, and
+    tilted down at most so far that its head's axis stays PRESENT_CLEARANCE
+    above the table (level if the palm is lower). The capsule hand has no
+    wrist: a recording's hand continues its forearm, which points 15-35
+    degrees down while presenting; held along it, a palm 0.05 m above the
+    table put the hammer into the table. The hand's frame is read from its
+    mocap pose (this physics step's keypoints)."""
+    names = [seg[0] for seg in human_lib.SEGMENTS]
+    segment = names.index(f'{self._hand()}_hand')
+    half = physics.bind(self._human.geoms[segment]).size[1]
+    mocap = physics.bind(self._human.segment_bodies[segment]).mocapid
+    centre = physics.data.mocap_pos[mocap]
+    r_hand = np.empty(9)
+    mujoco.mju_quat2Mat(r_hand, physics.data.mocap_quat[mocap])
+    r_hand = r_hand.reshape(3, 3)
+    axis = r_hand[:, 2]
+    heading = axis * (1.0, 1.0, 0.0)
+    if np.linalg.norm(heading) < MIN_HEADING:
+      # A hand pointing straight up or down: the person's facing.
+      yaw = self._player.placement[2]
+      heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    heading /= np.linalg.norm(heading)
+    end = centre + half * axis
+    lowest = (layout.TABLE_TOP_Z + PRESENT_CLEARANCE - end[2]) / (
+        props.HAMMER_HUMAN_GRIP)
+    sine = min(max(axis[2], min(lowest, 0.0), -1.0), 0.0)
+    cosine = math.sqrt(1.0 - sine * sine)
+    up = np.array([0.0, 0.0, 1.0])
+    x = cosine * heading + sine * up
+    y = cosine * up - sine * heading
+    r_world = np.stack([x, y, np.cross(x, y)], axis=1)
+    origin = end + props.HAMMER_HUMAN_GRIP * x
+    position = r_hand.T @ (origin - centre)
+    rotation = r_hand.T @ r_world
     return position, human_lib.matrix_to_quaternion(rotation[None])[0]
+
+  def _presenting(self):
+    """The person holds the hammer in the presenting grip (turned)."""
+    return (self._holder() is not None and self._pick_grip is None
+            and self._turn >= 1.0)
+
+  def before_substep(self, physics, action, random_state):
+    super().before_substep(physics, action, random_state)
+    if self._presenting():
+      # The presenting grip at every physics step: a fixed weld to the
+      # hand's frame would also turn the hammer with the frame's roll about
+      # the hand's axis (arbitrary for a capsule; it jumps where the
+      # shoulder line that fixes it nears the hand's axis,
+      # Human.set_keypoints) and with the hand's pitch into the table.
+      self._human.set_grip(physics, self._hammer.body,
+                           *self.presenting_grip(physics))
 
   def _initialize_task(self, physics, random_state):
     self._reset_flags()
@@ -367,22 +428,11 @@ class HumanToRobot(_Handover):
     """A clip whose pick keyframe is its first frame (recordings: the
     person walks in carrying the object, human/task_targets.py) starts with
     the hammer in the presenting grip of the holding hand."""
-    hand = self._holding_hand
-    names = [seg[0] for seg in human_lib.SEGMENTS]
-    half = physics.bind(self._human.geoms[names.index(
-        f'{hand}_hand')]).size[1]
-    position, quaternion = self.presenting_grip(half)
-    hand_body = physics.bind(self._human.segment_bodies[
-        names.index(f'{hand}_hand')])
-    rotation = hand_body.xmat.reshape(3, 3)
-    world = hand_body.xpos + rotation @ position
-    world_quat = np.empty(4)
-    mujoco.mju_mulQuat(world_quat, hand_body.xquat, quaternion)
-    self._hammer.set_pose(physics, world, world_quat)
-    self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
-    self._hold(physics, self._hammer.body, hand, (position, quaternion))
-    self._picked, self._turn = True, 1.0
+    self._hold(physics, self._hammer.body, self._holding_hand,
+               self.presenting_grip(physics))
     physics.forward()
+    self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
+    self._picked, self._turn = True, 1.0
 
   def _target(self, physics):
     return physics.bind(self._target_body).mocap_pos.copy()
@@ -412,15 +462,13 @@ class HumanToRobot(_Handover):
       self._picked = True
     if self._holder() is not None and self._pick_grip is not None:
       # Turning the hammer in the hand from the picking to the presenting
-      # grip between the two keyframes (the capsule hand has no wrist).
+      # grip between the two keyframes (the capsule hand has no wrist);
+      # then `before_substep` holds it in the presenting grip.
       # Monotone: a backward warp while presenting keeps the presenting grip.
       s = min(max((clip_time - t_pick) / (t_present - t_pick), 0.0), 1.0)
       self._turn = max(self._turn, s * s * (3.0 - 2.0 * s))
       s = self._turn
-      names = [seg[0] for seg in human_lib.SEGMENTS]
-      half = physics.bind(self._human.geoms[names.index(
-          f'{hand}_hand')]).size[1]
-      end_pos, end_quat = self.presenting_grip(half)
+      end_pos, end_quat = self.presenting_grip(physics)
       position = (1 - s) * self._pick_grip[0] + s * end_pos
       self._human.set_grip(physics, self._hammer.body, position,
                            _slerp(self._pick_grip[1], end_quat, s))

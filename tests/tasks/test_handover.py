@@ -1,19 +1,26 @@
 """The handover tasks: specs, rewards, the human's hold/release events,
 determinism, snapshots, and success reached by privileged scripted oracles."""
 
+import pathlib
 import unittest
 
 from dm_env import test_utils
 import numpy as np
 import pytest
 
+from hrc_suite import layout
 from hrc_suite import suite
+from hrc_suite.entities import human as human_lib
 from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import recording_cache
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import handover
 
 import checks   # tests/tasks/checks.py
 
+# The reference's recordings (test data, ../shared/motions).
+MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
+           / 'motions' / 'human-robot-animations')
 ROBOTS = ('panda', 'schunk')
 SPACES = ('joint', 'cartesian')
 TASKS = ('robot_to_human', 'human_to_robot')
@@ -347,3 +354,77 @@ def test_joint_space_oracle_hands_over_with_every_robot(robot):
   assert metrics['success'] == 1.0 and timestep.reward == 1.0
   assert metrics['handovers'] == 1
   assert metrics['contacts_human_critical'] == 0
+
+
+# ------------------------------------------------------ presenting grip
+
+
+def _recorded_clip(name, tmp_path, monkeypatch):
+  if not MOTIONS.is_dir():
+    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
+  monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path))
+  clips = recording_cache.load_task_folder(MOTIONS, handover.HumanToRobot
+                                           .MOTIONS)
+  return [c for c in clips if c.name == name]
+
+
+def _hand_axis(env):
+  task = env.task
+  names = [seg[0] for seg in human_lib.SEGMENTS]
+  body = env.physics.bind(task.human.segment_bodies[
+      names.index(f'{task.player.clip.holding_hand}_hand')])
+  return body.xmat.reshape(3, 3)[:, 2]
+
+
+def _present(env, steps):
+  """Steps with the gripper open while the person presents; yields the
+  hammer's rotation at each step."""
+  env.reset()
+  task = env.task
+  for _ in range(steps):
+    env.step(np.array([0.0, 0.0, 0.0, -1.0]))
+    if (task.player.waiting_for == 'object_taken'
+        and task.human.holding(task.hammer.body) is not None):
+      yield env.physics.bind(task.hammer.body).xmat.reshape(3, 3).copy()
+
+
+def test_presented_hammer_lies_along_the_hand_on_its_side():
+  """Synthetic people present well above the table: the hammer points
+  along the hand's axis (head forward), body y upwards in the vertical
+  plane through the handle."""
+  env = _env('human_to_robot', seed=0)
+  seen = 0
+  for rotation in _present(env, 120):
+    axis = _hand_axis(env)
+    if axis[2] > 0.0:
+      continue
+    # (The weld is soft and the hand moves within the RL step: ~3 deg.)
+    np.testing.assert_allclose(rotation[:, 0], axis, atol=0.06)
+    assert abs(rotation[2, 2]) < 0.01     # body z horizontal: on its side
+    assert rotation[2, 1] > 0.0
+    seen += 1
+  assert seen > 10
+
+
+def test_low_presentation_keeps_the_hammer_above_the_table(tmp_path,
+                                                           monkeypatch):
+  """A recorded person presents with the palm 0.05 m above the table and
+  the forearm 35 degrees down: the hammer tilts only so far that its head
+  stays PRESENT_CLEARANCE above the table, and it does not jump with the
+  hand frame's roll (it did by 15 degrees for one RL step)."""
+  clips = _recorded_clip('HumanRobotHandover_3', tmp_path, monkeypatch)
+  env = _env('human_to_robot', seed=0, motions=clips,
+             outside_human_model='allow')
+  previous, seen = None, 0
+  for rotation in _present(env, 80):
+    head = env.physics.bind(env.task.hammer.body).xpos
+    assert head[2] > (layout.TABLE_TOP_Z + handover.PRESENT_CLEARANCE
+                      - 0.005), head
+    assert _hand_axis(env)[2] < -0.4    # the hand points down
+    assert rotation[2, 1] > 0.99        # the hammer nearly level
+    if previous is not None:
+      turn = np.arccos(np.clip((np.trace(previous.T @ rotation) - 1) / 2,
+                               -1.0, 1.0))
+      assert np.degrees(turn) < 5.0
+    previous, seen = rotation, seen + 1
+  assert seen > 20
