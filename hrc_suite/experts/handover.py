@@ -5,23 +5,26 @@ end of the handle (where a person holds a hammer) to the palm of the
 person's holding hand; when the person holds the hammer, open and, once the
 fingers are clear, go back home. Cartesian: the TCP moves by the palm-to-
 handle-end difference (gripper down); joint space: the same aim through one
-gripper-down IK step (or a shorter one). Beyond the gripper-down reach the
-arm waits at its limit: the person's hand sways while they wait (the idle
-phase) and comes to the handle.
+gripper-down IK step (or a shorter one). A palm beyond the gripper-down
+reach: the aim moves back along the handle to the nearest point IK
+reaches, so the handle still points along the palm's line and reaches as
+far towards it as the arm can, and the arm waits there (the person's hand
+sways while they wait and comes to the handle).
 
 Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
-table, still) come down on its grip point inside a cone (the reference's
-pick-and-place approach) and close; once the person lets go, carry it over
-the table target, lower it as far as the tool may go (the handovers let no
-tool capsule into the table) and open: it drops the last centimetres. Then
-go home. A hammer lying on the table (before the person's pick, placed, or
-dropped) is left alone: the gripper cannot reach down to it.
+table, still; held low, still for a second) come down on the handle inside
+a cone (the reference's pick-and-place approach), slide the open pads
+along it to the grip point and close; once the person lets go, carry it
+over the table target, lower it to RELEASE_HEIGHT and open: it drops the
+last centimetres. Then go home. A hammer lying on the table (before the
+person's pick, placed, or dropped) is left alone.
 
 Both derive their phase from the observed state every step (which hand
 holds the hammer, gripper aperture, where the hammer is). The human-to-robot
-expert also remembers the previous grip point (the hammer's speed) and the
-last presented one (where to wait while the person sways back); both are
+expert also remembers the previous grip point (the hammer's speed), for
+how long it has been held still, the last presented one (where to wait
+while the person sways back) and its last gripper command; all are
 forgotten at reset, so it can take over from any state.
 """
 
@@ -60,6 +63,13 @@ CONE_SLOPE = 3.0
 # weight turned the hammer in the pads until the head wedged them open and
 # it fell (Panda, noisy, seed 6).
 GRASP_ALONG = (-0.008, 0.012)            # m
+# The cone's apex is the stretch of handle between the head and the hand
+# holding it (COM 0.18 m from the person's grip, hand radius 0.045 m): the
+# open pads may come down over it anywhere there and then slide along it
+# to the grip point. A person's hand that drifts along the handle's line
+# (a recording's wait replays the reach, 1-13 mm per RL step) outruns a
+# robot slowed near them, which then hung in the cone above the hammer.
+DESCEND_ALONG = (-0.02, 0.08)            # m
 GRASP_ACROSS = 0.015                     # m
 GRASP_Z = 0.008                          # m
 KEEP_CLOSING = 0.035                     # m
@@ -69,10 +79,15 @@ KEEP_CLOSING = 0.035                     # m
 PRESENTED_UPRIGHT = 0.8                  # cosine of body y to world z
 PRESENTED_HEIGHT = 0.12                  # m above the table top
 PRESENTED_SPEED = 0.02                   # m per RL step
+# Presented low (recordings: palms 0.05 m above the table; the task lets
+# the fingertips down to handover.TABLE_CLEARANCE): at least this high and
+# held still this many RL steps (a person who has just picked the hammer
+# up holds it 0.3-0.6 s before lifting it: task_motions).
+LOW_PRESENTED_HEIGHT = 0.03              # m above the table top
+PRESENTED_DWELL = 10                     # RL steps
 # Carry: the grip point this high above the table target while moving to
-# it, then lowered to RELEASE_HEIGHT above it and let go (the handovers let
-# no tool capsule into the table: with the Panda's 0.064 m capsule radius
-# the TCP stays ~0.08 m above the top; the hammer drops the rest).
+# it, then lowered to RELEASE_HEIGHT above it and let go (the hammer drops
+# the rest).
 CARRY_HEIGHT = 0.15                      # m
 # At most this far per RL step while carrying (0.5 m/s): full 0.1 m steps
 # pried a grasp near the end of the Schunk's reach open (joint seed 6).
@@ -109,6 +124,11 @@ READY_SIDE = 0.25                        # m
 # holding at the limit, the swaying palm comes to the handle.
 STEP_FRACTIONS = (1.0, 0.5, 0.25)
 RETRACT = 0.03                           # m
+# Robot to human, a palm beyond the reach: aim at the nearest reachable
+# point at most PULL_BACK back along the handle from the aim (the handle
+# stays on the palm's line and reaches along it), found to REACH_TOLERANCE.
+PULL_BACK = 0.3                          # m
+REACH_TOLERANCE = 0.005                  # m
 
 
 def _rotation(quaternion):
@@ -130,6 +150,7 @@ class _HammerExpert(base.Expert):
 
   def __init__(self, env):
     super().__init__(env)
+    self._last_close = None    # the last gripper command closed (memory)
     self._steer = steering.Steering(self._task)
     self._kinematics = self._task.kinematics
     self._q_home = np.asarray(self._kinematics.description.q_home, float)
@@ -205,12 +226,15 @@ class _HammerExpert(base.Expert):
     along_axis /= max(np.linalg.norm(along_axis), 1e-9)
     across_axis = np.array([-along_axis[1], along_axis[0], 0.0])
     along, across = offset @ along_axis, offset @ across_axis
-    excess = np.hypot(
-        max(along - GRASP_ALONG[1], GRASP_ALONG[0] - along, 0.0),
-        max(abs(across) - GRASP_ACROSS, 0.0))
-    height = min(HOVER_HEIGHT, CONE_SLOPE * excess)
-    close = excess == 0.0 and abs(offset[2]) < GRASP_Z
-    closing = obs['gripper_aperture'][0] < CLOSING_APERTURE
+    def excess(bounds):
+      return np.hypot(max(along - bounds[1], bounds[0] - along, 0.0),
+                      max(abs(across) - GRASP_ACROSS, 0.0))
+    height = min(HOVER_HEIGHT, CONE_SLOPE * excess(DESCEND_ALONG))
+    close = excess(GRASP_ALONG) == 0.0 and abs(offset[2]) < GRASP_Z
+    # Closing: the aperture dropped after a close command (the last one,
+    # where known: open pads pushed in by the person's hand are not).
+    closing = (obs['gripper_aperture'][0] < CLOSING_APERTURE
+               and self._last_close is not False)
     if closing and np.linalg.norm(offset) < KEEP_CLOSING:
       close = True
     return self._step(obs, grip + (0.0, 0.0, height) - tcp,
@@ -246,17 +270,54 @@ class RobotToHumanExpert(_HammerExpert):
     end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
     palm = obs['target_position'].copy()
     palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
+    # Beyond the reach: the reachable aim nearest along the handle; at
+    # the reach's edge already (no nearer point), hold still.
+    target = tcp + palm - end
+    aim = self._within_reach(target, -rotation[:, 0],
+                             obs['joint_positions'])
+    if aim is None or (np.linalg.norm(aim - target) > np.linalg.norm(
+        tcp - target) - REACH_TOLERANCE):
+      return self._hold_still(obs, 1.0)
     if self._steer.space == 'cartesian':
-      # Straight at it; beyond the reach the action space keeps its goal.
-      return self._steer.action(tcp + palm - end, tcp,
-                                obs['joint_positions'], 1.0)
-    return self._step(obs, palm - end, 1.0, slide=False)
+      return self._steer.action(aim, tcp, obs['joint_positions'], 1.0)
+    return self._step(obs, aim - tcp, 1.0, slide=False)
+
+  def _reachable(self, target, q):
+    """Gripper-down IK reaches `target` from q at the current yaw."""
+    result = self._steer.ik.solve(target, q, self._steer.yaw)
+    rotation = self._kinematics.tcp_pose(q)[:3, :3]
+    yaw_now = np.arctan2(rotation[1, 0], rotation[0, 0])
+    turn = (result.yaw - yaw_now + np.pi) % (2 * np.pi) - np.pi
+    return bool(result.success and abs(turn) < np.pi / 2)
+
+  def _within_reach(self, aim, towards_end, q):
+    """`aim` if reachable, else the nearest reachable point on the line
+    back from it along the handle (the handle then still reaches along
+    the palm's line; a palm beyond the reach sways or waits there), at
+    most PULL_BACK back (to REACH_TOLERANCE); None if none is."""
+    aim = np.clip(aim, self._box[0], self._box[1])
+    if self._reachable(aim, q):
+      return aim
+    back = -np.asarray(towards_end, float) * (1.0, 1.0, 0.0)
+    back /= max(np.linalg.norm(back), 1e-9)
+    near, far = PULL_BACK, 0.0     # reachable, not reachable
+    if not self._reachable(aim + near * back, q):
+      return None
+    while near - far > REACH_TOLERANCE:
+      middle = 0.5 * (near + far)
+      if self._reachable(aim + middle * back, q):
+        near = middle
+      else:
+        far = middle
+    return aim + near * back
 
 class HumanToRobotExpert(_HammerExpert):
   """Takes the presented hammer and places it on the table target.
 
-  Memory: the previous grip point (the hammer's speed) and the last grip
-  point seen presented (where to wait when the person sways it back).
+  Memory: the previous grip point (the hammer's speed) and for how many
+  steps it has been held still, the last grip point seen presented (where
+  to wait when the person sways it back) and whether the last gripper
+  command closed (`_grasp`).
   """
 
   TASKS = (('handover', 'human_to_robot'),)
@@ -268,18 +329,31 @@ class HumanToRobotExpert(_HammerExpert):
   def reset(self):
     self._previous_grip = None
     self._last_presented = None
+    self._last_close = None
+    self._still_steps = 0
+
+  def action(self, obs):
+    action = self._action(obs)
+    self._last_close = bool(action[-1] > 0.0)
+    return action
 
   def _placed(self, obs):
     offset = obs['object_position'] - obs['target_position']
     return bool(np.linalg.norm(offset) <= handover.SUCCESS_DISTANCE)
 
   def _presented(self, obs):
-    """Held by the person on its side, high above the table."""
+    """Held by the person on its side, high above the table; or low above
+    it, held there PRESENTED_DWELL steps, by a person who has not presented
+    it high (one who has is lowering it while swaying back)."""
     rotation = _rotation(obs['object_quaternion'])
+    height = obs['object_position'][2] - layout.TABLE_TOP_Z
+    presented_low = self._last_presented is None or (
+        self._last_presented[2] - layout.TABLE_TOP_Z <= PRESENTED_HEIGHT)
     return bool(obs['object_held_by_human'][0] > 0.5
                 and rotation[2, 1] > PRESENTED_UPRIGHT
-                and obs['object_position'][2]
-                > layout.TABLE_TOP_Z + PRESENTED_HEIGHT)
+                and (height > PRESENTED_HEIGHT or (
+                    height > LOW_PRESENTED_HEIGHT and presented_low
+                    and self._still_steps >= PRESENTED_DWELL)))
 
   def _ready_point(self, grip):
     """Where to wait for the presentation."""
@@ -310,12 +384,14 @@ class HumanToRobotExpert(_HammerExpert):
       shift *= CARRY_STEP / norm
     return self._step(obs, shift, gripper, slide=False)
 
-  def action(self, obs):
+  def _action(self, obs):
     grip = obs['object_position']
     speed = (0.0 if self._previous_grip is None
              else float(np.linalg.norm(grip - self._previous_grip)))
     self._previous_grip = grip.copy()
     held = obs['object_held_by_human'][0] > 0.5
+    still = held and speed < PRESENTED_SPEED
+    self._still_steps = self._still_steps + 1 if still else 0
     if held and obs['object_gripped'][0] > 0.5:
       # Both fingers on it and the person still holds it: they are not
       # waiting to let go yet (they let go of a grasp at once when they

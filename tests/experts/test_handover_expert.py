@@ -3,6 +3,8 @@ place it (human to robot) with the Schunk and the Panda in both action
 spaces, deterministically, without critical human contacts, and take over
 from a snapshot state."""
 
+import pathlib
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,11 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import handover as handover_experts
 from hrc_suite.experts import noise as noise_lib
+from hrc_suite.human import recording_cache
+
+# The reference's recordings (test data, ../shared/motions).
+MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
+           / 'motions' / 'human-robot-animations')
 
 
 def _env(task, robot='schunk', space='cartesian', seed=0, **kwargs):
@@ -141,3 +148,38 @@ def test_expert_completes_the_task_on_the_schunk(task, space):
 @pytest.mark.parametrize('task', ('robot_to_human', 'human_to_robot'))
 def test_noisy_expert_completes_the_task_on_the_panda(task):
   assert _successes(task, 'panda', 'cartesian', range(3), noisy=True) >= 2
+
+
+@pytest.fixture(scope='module')
+def recordings(tmp_path_factory):
+  """{clip name: clip} of both handover folders (converted into a test
+  cache)."""
+  if not MOTIONS.is_dir():
+    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
+  with pytest.MonkeyPatch.context() as patch:
+    patch.setenv(recording_cache.CACHE_ENV,
+                 str(tmp_path_factory.mktemp('recordings')))
+    return {c.name: c for task in ('handover_robot_to_human',
+                                   'handover_human_to_robot')
+            for c in recording_cache.load_task_folder(MOTIONS, task)}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('task, clip, robot, seed', [
+    # The person stands 0.17 m to the side: their right palm is beyond the
+    # Schunk's gripper-down reach plus the handle (robot to human).
+    ('robot_to_human', 'RobotHumanHandover_0', 'schunk', 1),
+    # Presented 0.05 m above the table, forearm 35 degrees down.
+    ('human_to_robot', 'HumanRobotHandover_3', 'panda', 0),
+    ('human_to_robot', 'HumanRobotHandover_3', 'schunk', 0),
+    # The arm drifts along the handle's line while waiting.
+    ('human_to_robot', 'HumanRobotHandover_6', 'panda', 0),
+])
+def test_expert_hands_over_with_recorded_people(recordings, task, clip,
+                                               robot, seed):
+  env = _env(task, robot, seed=seed, motions=[recordings[clip]],
+             outside_human_model='allow')
+  timestep = _run(env, experts.make(env))
+  metrics = env.task.episode_metrics
+  assert metrics['success'] == 1.0 and timestep.reward == 1.0
+  assert metrics['contacts_human_critical'] == 0
