@@ -42,6 +42,7 @@ penetrate deeper until it is free (see `paths_free`).
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import geometry
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
@@ -85,8 +86,15 @@ class CollisionPrevention:
 
   def __init__(self, description, base_pose=None, tool_capsule=None,
                extra_boxes=(), floor=True, tool_table_allowance=0.0,
-               max_step=DEFAULT_MAX_STEP, exclusion_samples=2000, seed=0):
+               max_step=DEFAULT_MAX_STEP, exclusion_samples=2000, seed=0,
+               compiled=True):
     self.description = description
+    # Compiled collision tests (`cp_kernels`); False runs the NumPy
+    # reference (`_colliding_reference`), which the kernel is tested
+    # against.
+    self.compiled = bool(compiled)
+    if self.compiled:
+      cp_kernels.warm_up()   # Once per process, not mid-run.
     self.reach = robot_reach.RobotReach(description, base_pose=base_pose,
                                         tool_capsule=tool_capsule,
                                         secure_radius=0.0)
@@ -172,6 +180,11 @@ class CollisionPrevention:
     frames = self.reach.frame_index
     after = (np.arange(self.dof)[:, None] > frames[self.pairs[:, 0]][None])
     self._pair_levers = self.levers[:, self.pairs[:, 1]] * after   # (dof, P)
+    # Contiguous arguments of the compiled check (`cp_kernels.colliding`).
+    self._kernel_pairs = np.ascontiguousarray(self.pairs, dtype=np.int64)
+    self._kernel_radii = np.ascontiguousarray(self.reach.radii, dtype=float)
+    self._no_box_mask = np.zeros((0, 0, 0), dtype=bool)
+    self._no_pair_mask = np.zeros((0, 0), dtype=bool)
 
   # -- Checks ---------------------------------------------------------------
 
@@ -181,6 +194,32 @@ class CollisionPrevention:
     inflated by capsule_margin (N, L) against boxes, and pairs need a
     clearance of pair_margin (N, P) (both default 0). ignore_boxes (N, Bx,
     L) and ignore_pairs (N, P) leave elements out (escape, `paths_free`)."""
+    if not self.compiled:
+      return self._colliding_reference(q, capsule_margin, pair_margin,
+                                       ignore_boxes, ignore_pairs)
+    count = q.shape[0]
+    pairs = (count, len(self.pairs))
+    def margin(x, shape):
+      if x is None:
+        return np.zeros(shape)
+      # Writeable C arrays: one kernel signature (broadcast views are
+      # read-only).
+      return np.require(np.broadcast_to(x, shape), float, ('C', 'W'))
+    def mask(x, empty):
+      # An empty mask stands for "none" (the kernel's convention).
+      return empty if x is None else np.require(x, bool, ('C', 'W'))
+    return cp_kernels.colliding(
+        np.ascontiguousarray(q, dtype=float), *self.reach._kernel_model,
+        self.reach._kernel_frames, self._kernel_radii,
+        margin(capsule_margin, (count, self.num_capsules)),
+        margin(pair_margin, pairs), self.box_min, self.box_max,
+        self._box_checked, self._box_allowance, self._kernel_pairs,
+        mask(ignore_boxes, self._no_box_mask),
+        mask(ignore_pairs, self._no_pair_mask))
+
+  def _colliding_reference(self, q, capsule_margin=None, pair_margin=None,
+                           ignore_boxes=None, ignore_pairs=None):
+    """NumPy reference of `_colliding` (same arguments)."""
     p1, p2, r = self.reach.capsules(q)                             # (N, L, 3)
     radius = (np.broadcast_to(r, q.shape[:1] + r.shape) if capsule_margin is
               None else r + capsule_margin)

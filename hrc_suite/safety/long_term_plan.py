@@ -15,9 +15,12 @@ long-term-planning limits (a_max_ltt, j_max_ltt, v_max; spec section 2.1),
 and samples it exactly (piecewise constant jerk) every cycle.
 """
 
+import collections
+
 import numpy as np
 import ruckig
 
+from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import kernels
 
 # Goals are kept this far inside the joint limits (rad; spec 2.1, the
@@ -242,7 +245,20 @@ class LongTermPlan:
                      self._coefficients[indices])
 
   def state(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
-    """One path state (scalars) -> (5, dof): q, dq, ddq, dddq, v_nominal.
+    """One path state (scalars) -> (5, dof): q, dq, ddq, dddq, v_nominal
+    (`state_reference`, computed by a compiled kernel that the compiled
+    shield cycles share: cycle_kernels.plan_state)."""
+    k = int((s - self.start_time) * self._inverse_cycle // 1.0)
+    k = 0 if k < 0 else (self._last if k > self._last else k)
+    if k >= self._filled:
+      self._fill(k)
+    return cycle_kernels.plan_state(
+        self._coefficients, self.start_time, self._inverse_cycle,
+        self.cycle_time, float(s), float(s_dot), float(s_ddot), float(jerk),
+        np.empty((5, self._coefficients.shape[2])))
+
+  def state_reference(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
+    """NumPy reference of `state`.
 
     Chain rule of spec 2.2 with the Taylor expansion folded into one 5x4
     matrix: dq = v s_dot, ddq = v s_ddot + a s_dot^2,
@@ -365,6 +381,40 @@ class _Solver:
 _RUCKIG_ERRORS = (RuntimeError, getattr(ruckig, 'RuckigError', RuntimeError))
 
 
+class _RecentPlans:
+  """The last few plans by their inputs: collision prevention checks a new
+  goal's plan from the shield's command, and the shield makes the same plan
+  in its next cycle (Ruckig is deterministic, so a plan from the same
+  inputs is the same plan; plans are read-only once sampled)."""
+
+  SIZE = 32
+
+  def __init__(self):
+    self._plans = collections.OrderedDict()
+
+  @staticmethod
+  def key(arrays, limits, cycle_time, start_time):
+    return (b''.join(np.ascontiguousarray(a, dtype=float).tobytes()
+                     for a in arrays + (limits.v_max, limits.a_max_ltt,
+                                        limits.j_max_ltt, limits.q_min,
+                                        limits.q_max)),
+            float(cycle_time), float(start_time))
+
+  def get(self, key):
+    plan = self._plans.get(key)
+    if plan is not None:
+      self._plans.move_to_end(key)
+    return plan
+
+  def put(self, key, plan):
+    self._plans[key] = plan
+    if len(self._plans) > self.SIZE:
+      self._plans.popitem(last=False)
+
+
+_RECENT = _RecentPlans()
+
+
 def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   """Time-optimal jerk-limited synchronised plan to rest at q_goal.
 
@@ -391,6 +441,17 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   check_start_state(q0, dq0, ddq0, limits)
   if not cycle_time > 0:
     raise ValueError(f'cycle_time must be positive, got {cycle_time}')
+  key = _RECENT.key((q0, dq0, ddq0, goal), limits, cycle_time, start_time)
+  plan = _RECENT.get(key)
+  if plan is None:
+    plan = _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time)
+    _RECENT.put(key, plan)
+  return plan
+
+
+def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
+  """plan_to_goal's plan, computed (arguments checked, goal clamped)."""
+  dof = len(limits.q_min)
 
   otg, request, trajectory = _Solver.get(dof)
   request.current_position = q0.tolist()

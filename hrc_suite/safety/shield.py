@@ -44,6 +44,7 @@ import numpy as np
 
 from hrc_suite import robot_description as robot_description_lib
 from hrc_suite.human import keypoints
+from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import kernels
@@ -88,6 +89,7 @@ class Shield:
     if isinstance(robot_description, str):
       robot_description = robot_description_lib.load(robot_description)
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
+    cycle_kernels.warm_up()
     if mode not in MODES:
       raise ValueError(f'mode: expected one of {MODES}, got {mode!r}')
     if not cycle_time > 0:

@@ -16,7 +16,12 @@ step is exactly L shield cycles.
   player is advanced through the RL step's substeps at the end of
   before_step and its poses are played back substep by substep
   (`human_playback`: events only change between RL steps, so this is the
-  same motion, computed with one vectorised call per RL step).
+  same motion, computed with one vectorised call per RL step). On the
+  fast path (fast_path=True, the default) the shield's cycles of the whole
+  RL step run at its first substep in one call (`safety.batch.step_many`:
+  the playback's frames are known in advance) and each substep hands the
+  controller its precomputed, verified set-point; the same commands as
+  `Shield.step` every substep (fast_path=False, the reference).
 * after_substep: the tracking check, then the contact monitor
   (`contacts`). The measured joints are compared with where the shield's
   command puts them; farther than the shield's tracking tolerance (its
@@ -26,7 +31,9 @@ step is exactly L shield cycles.
   robot-human contacts of that physics step are judged at the commanded
   configuration (`human_pushed` or `human_critical`) and the shield is
   re-synchronised to the measured pose (`Shield.resync`; docs/safety.md,
-  "Pushed robots").
+  "Pushed robots"). On the fast path the shield is first rewound to that
+  physics step (a checkpoint and a replay of the precomputed cycles) and
+  the rest of the RL step's set-points are computed again after resync.
 * after_step: self-collision check (capsule model), the task's own logic
   (`_update_task`, `_human_events`), reward (with optional delay and the
   collision penalty), termination, metrics (`metrics`).
@@ -77,6 +84,7 @@ from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
+from hrc_suite.safety import batch
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import geometry
 from hrc_suite.safety import shield as shield_lib
@@ -155,7 +163,7 @@ class HrcTask(composer.Task):
                camera_size=DEFAULT_CAMERA_SIZE, v_safe=DEFAULT_V_SAFE,
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD,
-               outside_human_model='refuse'):
+               outside_human_model='refuse', fast_path=True):
     """Builds the scene; every argument is checked, errors list valid values.
 
     Args:
@@ -196,6 +204,13 @@ class HrcTask(composer.Task):
         critical (None: v_safe with PFL, contacts.SSM_STOPPED_SPEED else).
       collision_reward: <= 0, added at RL steps with a static, self or
         critical human contact.
+      fast_path: run an RL step's shield cycles at its start in one call
+        (`safety.batch.step_many`, compiled where it can) and hand the
+        controller the verified set-points, and check new goals with
+        compiled capsule tests (`safety.cp_kernels`); False runs
+        `Shield.step` every physics step and the NumPy collision checks
+        (the readable reference; the two agree,
+        tests/tasks/test_fast_path.py).
     """
     _choice('robot', robot, robot_lib.ROBOTS)
     action_space = _choice('action_space',
@@ -243,6 +258,10 @@ class HrcTask(composer.Task):
       raise ValueError('collision_reward must be a finite number <= 0, got '
                        f'{collision_reward!r}')
     self.collision_reward = float(collision_reward)
+    if not isinstance(fast_path, bool):
+      raise ValueError(f'fast_path must be True or False, got '
+                       f'{fast_path!r}')
+    self.fast_path = fast_path
     self.shield_mode = shield
     self.shield_substeps = shield_substeps
     self.critical_speed = critical_speed
@@ -277,7 +296,7 @@ class HrcTask(composer.Task):
       self.tool_table_allowance = radius - self.FINGERTIP_TABLE_CLEARANCE
     self._collision_checker = cp_lib.CollisionPrevention(
         description, base_pose=base_pose, tool_capsule=tool_capsule,
-        tool_table_allowance=self.tool_table_allowance)
+        tool_table_allowance=self.tool_table_allowance, compiled=fast_path)
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     # The shipped library's documented fast phases (hammer blows,
@@ -523,6 +542,7 @@ class HrcTask(composer.Task):
     self._command_dq[:] = 0.0
     self._cp_random = np.random.RandomState(0)
     self._step_info = {}
+    self._forget_setpoints()
     self._clip_index = 0
     self._clip_ended = False
 
@@ -618,6 +638,7 @@ class HrcTask(composer.Task):
     self._completed_substeps = 0
     self._resyncs = 0
     self._max_tracking_error = 0.0
+    self._forget_setpoints()
     self._playback.advance(self._dt)
     self._outside_model = self._faster_than_model()
 
@@ -630,14 +651,54 @@ class HrcTask(composer.Task):
     speeds = np.linalg.norm(np.diff(frames, axis=0), axis=-1) / self._dt
     return bool(np.any(speeds > self._human_v_max))
 
+  def _forget_setpoints(self):
+    """No precomputed shield set-points (a new RL step, or a resync)."""
+    self._setpoints = None
+    self._setpoint_flags = None
+    self._setpoints_from = 0
+    self._shield_checkpoint = None
+
+  def _shield_command(self, k, positions):
+    """The shield's command for substep k: precomputed for the rest of
+    the RL step at its first substep (or after a resync) on the fast
+    path, else one Shield.step."""
+    if not self.fast_path:
+      command = self._shield.step(positions, self._time)
+      self._intervened |= self._shield.intervened
+      return command
+    if self._setpoints is None:
+      self._shield_checkpoint = batch.checkpoint(self._shield)
+      self._setpoints_from = k
+      self._setpoints, self._setpoint_flags = batch.step_many(
+          self._shield, self._playback.positions[k:],
+          self._playback.times[k:])
+    i = k - self._setpoints_from
+    self._intervened |= bool(self._setpoint_flags[i])
+    return self._setpoints[i]
+
+  def _rewind_shield(self, k):
+    """The shield back at the end of cycle k (its state when substep k's
+    physics step ran), from the checkpoint and a replay of the
+    precomputed cycles (deterministic: checked)."""
+    if self._setpoints is None:
+      return
+    start = self._setpoints_from
+    batch.restore(self._shield, self._shield_checkpoint)
+    replay, _ = batch.step_many(self._shield,
+                                self._playback.positions[start:k + 1],
+                                self._playback.times[start:k + 1])
+    if not np.array_equal(replay, self._setpoints[:k + 1 - start]):
+      raise RuntimeError('The shield replay differs from its set-points: '
+                         'Shield cycles are not deterministic')
+    self._forget_setpoints()
+
   def before_substep(self, physics, action, random_state):
     del action, random_state
     k = self._substep
     self._substep = k + 1
     positions = self._playback.apply(physics, k)
     self._time = self._playback.times[k]
-    q, dq, ddq = self._shield.step(positions, self._time)
-    self._intervened |= self._shield.intervened
+    q, dq, ddq = self._shield_command(k, positions)
     self._command_dq[:] = dq
     # Where the command puts the joints after this physics step: the
     # controller drives the command's acceleration from the command's
@@ -673,6 +734,7 @@ class HrcTask(composer.Task):
     if pushed:
       # The robot is not where the shield believes: it plans from the
       # measured pose from the next physics step on.
+      self._rewind_shield(self._substep - 1)
       self._shield.resync(self._q_measured)
       self._resyncs += 1
 

@@ -361,3 +361,28 @@ def test_planned_check_agrees_with_dense_plan_samples(name):
       s = np.linspace(0.0, plan.end_time, 10 * plan.num_samples)
       assert not prevention.in_collision(plan.nominal(s)[0]).any()
   assert accepted > 5
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_compiled_checks_match_the_numpy_reference(name):
+  description, prevention = _prevention(name, tool_table_allowance=0.02)
+  rs = np.random.RandomState(0)
+  count = 3000
+  q = rs.uniform(description.limits.q_min, description.limits.q_max,
+                 (count, description.dof))
+  margins = (rs.uniform(0, 0.05, (count, prevention.num_capsules)),
+             rs.uniform(0, 0.05, (count, len(prevention.pairs))))
+  masks = (rs.rand(count, len(prevention.box_names),
+                   prevention.num_capsules) < 0.3,
+           rs.rand(count, len(prevention.pairs)) < 0.3)
+  for args in ((), margins, margins + masks, (None, None, masks[0], None)):
+    fast = prevention._colliding(q, *args)
+    assert np.array_equal(fast, prevention._colliding_reference(q, *args))
+    assert 0 < fast.sum() < count   # Both outcomes are exercised.
+  reference = collision_prevention.CollisionPrevention(
+      description, tool_capsule=_tool(description),
+      tool_table_allowance=0.02, compiled=False)
+  goals = rs.uniform(description.limits.q_min, description.limits.q_max,
+                     (40, description.dof))
+  assert np.array_equal(prevention.paths_free(description.q_home, goals),
+                        reference.paths_free(description.q_home, goals))

@@ -1,0 +1,186 @@
+"""Many shield cycles at once: `step_many`, checkpoints for a replay.
+
+`step_many(shield, frames, times)` is `Shield.step` for each cycle of a
+sequence whose human keypoints are known in advance (a task's RL step:
+the playback's frames for its L physics steps). With compiled=True the
+cycles the compiled kernel covers (`cycle_kernels.ssm_cycles`: SSM, no
+pending goal, the combined human model without Kalman filter, a measured
+human with a velocity) run in one call; every other cycle (a new goal's
+Ruckig plan, PFL, mode 'off', the first measurements) runs `Shield.step`,
+the readable reference. compiled=False runs the reference for all.
+
+`checkpoint(shield)` / `restore(shield, saved)` save and restore the
+shield's state between cycles cheaply (the reference replaces its arrays
+and paths instead of changing them in place, so shallow copies suffice;
+the one array changed in place, the human's extremity lengths, is
+copied). A task that precomputed an RL step's set-points and finds the
+robot pushed after physics step k restores the checkpoint and replays
+cycles 0..k (deterministic: the same set-points) before `Shield.resync`.
+
+This module is the shield's compiled twin: it reads and writes the
+shield's (and its HumanReach's) private state, as Shield.step does.
+"""
+
+import numpy as np
+
+from hrc_suite.safety import cycle_kernels as ck
+from hrc_suite.safety import human_reach as human_reach_lib
+from hrc_suite.safety import path as path_lib
+from hrc_suite.safety import shield as shield_lib
+
+# Plan samples computed ahead of a compiled call, beyond the cycles' own
+# reach and the longest failsafe (robot_description: max_s_stop); if one
+# is still missing the whole plan is sampled and the call repeated (so
+# which cycles run compiled never depends on how much of a plan was
+# sampled before: snapshots and replays give the same bits).
+_FILL_MARGIN_CYCLES = 8
+
+
+def checkpoint(shield):
+  """The shield's state now (for `restore`)."""
+  human = shield.human
+  return (dict(shield.__dict__), dict(human.__dict__),
+          human._extremity_lengths.copy())
+
+
+def restore(shield, saved):
+  """Returns the shield to a `checkpoint`."""
+  own, human, lengths = saved
+  shield.__dict__.clear()
+  shield.__dict__.update(own)
+  shield.human.__dict__.clear()
+  shield.human.__dict__.update(human)
+  shield.human._extremity_lengths = lengths.copy()
+
+
+def _constants(shield):
+  """The kernel's constant arguments for this shield (cached on it)."""
+  cached = shield.__dict__.get('_batch_constants')
+  if cached is not None:
+    return cached
+  params = np.zeros(ck.NUM_PARAMS)
+  config = shield.human.config
+  params[ck.CYCLE] = shield.cycle_time
+  params[ck.INTERVAL] = shield.interval
+  params[ck.WORKSPACE] = shield._workspace_radius
+  params[ck.ERROR_POS] = config.measurement_error_pos
+  params[ck.ERROR_VEL] = config.measurement_error_vel
+  params[ck.DELAY] = config.delay
+  params[ck.MIN_PERIOD] = human_reach_lib._MIN_SAMPLE_PERIOD
+  params[ck.SAME] = shield_lib._SAME_COMMAND
+  params[ck.SLACK] = shield_lib._BROAD_PHASE_SLACK
+  s = shield
+  limits = np.ascontiguousarray([
+      s._den_offset, s._acc_numerator, s._jerk_numerator, s._jerk_acc,
+      s._q_min, s._q_max], dtype=float)
+  robot, human = shield.robot, shield.human
+  cached = (params, limits, np.ascontiguousarray(s._clip, dtype=float),
+            *robot._kernel_model, robot._kernel_frames,
+            robot._kernel_alpha, robot._kernel_static,
+            human._kernel_v_max, human._kernel_a_max,
+            s._body_ends, human._kernel_ends,
+            np.ascontiguousarray(human._half_thickness, dtype=float),
+            np.ascontiguousarray(s._base, dtype=float))
+  shield.__dict__['_batch_constants'] = cached
+  return cached
+
+
+def compiled_eligible(shield):
+  """Whether the next cycle may run compiled (see the module)."""
+  human = shield.human
+  return (shield.mode == 'ssm' and not shield.goal_pending
+          and human.use_combined_model and not human.use_kalman_filter
+          and human.positions is not None and human.has_velocity)
+
+
+def _run_compiled(shield, frames, times, setpoints, intervened):
+  """Runs what the kernel covers of frames/times; returns cycles done."""
+  constants = _constants(shield)
+  plan = shield._plan
+  if plan._sampler is not None:
+    horizon = (len(times) + _FILL_MARGIN_CYCLES) * shield.cycle_time
+    needed = plan.sample_index(shield.s + horizon + shield.max_s_stop)
+    if needed >= plan._filled:
+      plan._fill(needed)
+  human = shield.human
+  command = np.array(shield._state)
+  previous_q = np.array(shield._previous_q, dtype=float)
+  verified = shield_lib._path_array(shield._verified)
+  intended_path = shield._intended
+  has_intended = np.array([intended_path is not None], dtype=np.int64)
+  intended = shield_lib._path_array(intended_path or path_lib.Path())
+  state = np.array([human.last_measurement_time, human._last_period,
+                    human.num_measurements], dtype=float)
+  positions = np.array(human.positions, dtype=float)
+  velocities = np.array(human.velocities, dtype=float)
+  total, check = 0, None
+  while total < len(times):
+    (done, points, flags, status, first, distance, s_edges, t_edges,
+     q_edges, missing) = ck.ssm_cycles(
+         constants[0], frames[total:], times[total:], command, previous_q,
+         verified, intended, has_intended, state, positions, velocities,
+         plan._coefficients, plan.start_time, plan._filled,
+         constants[1], *constants[2:])
+    setpoints[total:total + done] = points[:done]
+    intervened[total:total + done] = flags[:done]
+    if done:
+      total += done
+      check = (status, first, distance, s_edges, t_edges, q_edges)
+    if not missing or plan._filled > plan._last:
+      break
+    plan._all()
+  if not total:
+    return 0
+  status, first, distance, s_edges, t_edges, q_edges = check
+  shield._state = command
+  shield._previous_q = previous_q
+  shield._verified = shield_lib._path_from_array(verified)
+  shield._intended = (shield_lib._path_from_array(intended)
+                      if has_intended[0] else None)
+  shield.time = float(times[total - 1])
+  shield._lazy = {}
+  shield._pending_check = None
+  shield.intervened = bool(intervened[total - 1])
+  shield._is_safe = status == 1
+  shield._first_unsafe_interval = int(first)
+  shield._reach_distance = None if np.isnan(distance) else float(distance)
+  shield._reach_arguments = (None if status == 2 else (
+      plan, s_edges.tolist(), t_edges.tolist(), q_edges))
+  count = int(state[ck.COUNT])
+  if count != human.num_measurements:
+    # HumanReach.measure keeps the positions of the last velocity update
+    # for the POS model's lengths.
+    last = int(np.flatnonzero(times[:total] == state[ck.LAST_T])[-1])
+    human._length_positions = (positions if last == total - 1
+                               else np.array(frames[last], dtype=float))
+  human.positions = positions
+  human.velocities = velocities
+  human.last_measurement_time = float(state[ck.LAST_T])
+  human._last_period = float(state[ck.LAST_PERIOD])
+  human.num_measurements = count
+  return total
+
+
+def step_many(shield, frames, times, compiled=True):
+  """Shield.step for each cycle: frames (n, N_kp, 3) measured at times
+  (n,). Returns set-points (n, 3, dof) (q, dq, ddq of each cycle) and
+  the cycles' `intervened` flags (n,)."""
+  frames = np.ascontiguousarray(frames, dtype=float)
+  times = np.ascontiguousarray(times, dtype=float)
+  count = times.shape[0]
+  if frames.shape[0] != count or frames.ndim != 3:
+    raise ValueError(f'frames: expected shape ({count}, N_kp, 3) for '
+                     f'{count} times, got {frames.shape}')
+  setpoints = np.empty((count, 3, shield.dof))
+  intervened = np.empty(count, dtype=bool)
+  c = 0
+  while c < count:
+    if compiled and compiled_eligible(shield):
+      c += _run_compiled(shield, frames[c:], times[c:], setpoints[c:],
+                         intervened[c:])
+      if c >= count:
+        break
+    setpoints[c] = shield.step(frames[c], times[c])
+    intervened[c] = shield.intervened
+    c += 1
+  return setpoints, intervened

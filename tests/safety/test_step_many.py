@@ -1,0 +1,135 @@
+"""The compiled shield cycles (safety.batch, cycle_kernels, path_kernels)
+against the readable reference (Shield.step, path.Path)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hrc_suite import robot_description
+from hrc_suite.safety import batch
+from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety import path as path_lib
+from hrc_suite.safety import path_kernels
+from hrc_suite.safety import shield as shield_lib
+
+import shield_harness as harness
+
+L = 25   # Cycles per RL step (tasks.base.DEFAULT_SHIELD_SUBSTEPS).
+
+
+def _path_array(path):
+  return shield_lib._path_array(path)  # pylint: disable=protected-access
+
+
+def test_path_kernels_match_path():
+  rs = np.random.RandomState(0)
+  dt = 0.004
+  out = np.empty(path_kernels.PATH_SIZE)
+  pieces = np.empty((path_kernels.MAX_PIECES, 5))
+  for _ in range(3000):
+    s, v, a = rs.uniform(0, 3), rs.uniform(0, 1.2), rs.uniform(-3, 3)
+    target = rs.choice([0.0, 1.0, rs.uniform(0, 1)])
+    acc, jerk = rs.uniform(0, 6), rs.uniform(1e-3, 80)
+    reference = path_lib.plan_profile(s, v, a, target, acc, jerk, dt)
+    ok = path_kernels.plan_profile(out, s, v, a, target, acc, jerk, dt)
+    assert ok == (reference is not None)
+    if reference is None:
+      continue
+    assert np.array_equal(out, _path_array(reference))
+    count = path_kernels.segments(out, pieces)
+    expected = reference.segments()
+    assert np.array_equal(pieces[:count], np.array(expected))
+    for t in rs.uniform(0, reference.end_time() + 0.1, 5):
+      assert path_kernels.sample_s(pieces, count, t) == reference.sample(
+          [t])[0][0]
+    duration = rs.choice([dt, rs.uniform(0, 0.5)])
+    reference.advance(duration)
+    path_kernels.advance(out, duration)
+    assert np.array_equal(out, _path_array(reference))
+
+
+def _scenario(name, human, seconds, seed):
+  """Keypoints and times of `seconds` of cycles, goals every L cycles."""
+  description = robot_description.load(name)
+  make = lambda: shield_lib.Shield(
+      description, base_pose=harness.layout.robot_mount(name).base_pose(),
+      tool_capsule=harness.tool_capsule(description))
+  goal = harness.random_goals(description, np.random.RandomState(seed))
+  goals = [goal() for _ in range(int(round(seconds / 0.1)))]
+  times = np.arange(len(goals) * L) * 0.004
+  frames = np.array([human(t) for t in times])
+  return make, goals, frames, times
+
+
+def _run(make, goals, frames, times, compiled):
+  shield = make()
+  points, flags, states = [], [], []
+  for i, goal in enumerate(goals):
+    shield.new_goal(goal)
+    rows = slice(i * L, (i + 1) * L)
+    p, f = batch.step_many(shield, frames[rows], times[rows],
+                           compiled=compiled)
+    points.append(p)
+    flags.append(f)
+    states.append(shield.get_state())
+  return np.concatenate(points), np.concatenate(flags), states
+
+
+@pytest.mark.parametrize('name,human', [
+    ('schunk', 'attack'), ('panda', 'walk'), ('ur5e', 'far')])
+def test_compiled_cycles_match_the_reference(name, human):
+  motion = {'attack': harness.hand_attack((0.5, 0.1, 0.9)),
+            'walk': harness.walk_in_and_leave(),
+            'far': harness.far_away()}[human]
+  case = _scenario(name, motion, 3.0, seed=1)
+  fast, fast_flags, fast_states = _run(*case, compiled=True)
+  slow, slow_flags, slow_states = _run(*case, compiled=False)
+  # Bit for bit: the kernels perform the reference's operations in its
+  # order (tests/tasks/test_fast_path.py).
+  assert np.array_equal(fast, slow)
+  assert np.array_equal(fast_flags, slow_flags)
+  if human == 'attack':   # The scenario makes the shield intervene.
+    assert slow_flags.mean() > 0.05
+  for a, b in zip(fast_states, slow_states):
+    assert set(a) == set(b)
+    for key in a:
+      x, y = np.asarray(a[key]), np.asarray(b[key])
+      assert np.array_equal(x, y, equal_nan=x.dtype.kind == 'f'), key
+
+
+def test_checkpoint_replay_gives_the_same_set_points():
+  case = _scenario('schunk', harness.hand_attack((0.5, 0.1, 0.9)), 1.0, 2)
+  make, goals, frames, times = case
+  shield = make()
+  shield.new_goal(goals[0])
+  batch.step_many(shield, frames[:L], times[:L])
+  shield.new_goal(goals[1])
+  saved = batch.checkpoint(shield)
+  first, flags = batch.step_many(shield, frames[L:2 * L], times[L:2 * L])
+  end = shield.get_state()
+  batch.restore(shield, saved)
+  again, again_flags = batch.step_many(shield, frames[L:2 * L],
+                                       times[L:2 * L])
+  assert np.array_equal(first, again)
+  assert np.array_equal(flags, again_flags)
+  for key, value in shield.get_state().items():
+    assert np.array_equal(np.asarray(value), np.asarray(end[key])), key
+  assert math.isfinite(first.sum())
+
+
+def test_plan_state_kernel_matches_the_matrix_reference():
+  description = robot_description.load('panda')
+  limits = description.limits
+  rs = np.random.RandomState(4)
+  for _ in range(20):
+    q0 = rs.uniform(limits.q_min + 0.3, limits.q_max - 0.3)
+    goal = rs.uniform(limits.q_min + 0.3, limits.q_max - 0.3)
+    plan = ltp.plan_to_goal(q0, np.zeros_like(q0), np.zeros_like(q0), goal,
+                            limits, 0.004, rs.uniform(0, 5))
+    for _ in range(10):
+      s = plan.start_time + rs.uniform(-0.1, plan.end_time - plan.start_time
+                                       + 0.1)
+      args = (s, rs.uniform(0, 1), rs.uniform(-5, 5), rs.uniform(-50, 50))
+      assert np.allclose(plan.state(*args), plan.state_reference(*args),
+                         rtol=1e-12, atol=1e-12)
