@@ -5,8 +5,10 @@ workcell with robot, gripper and tracking controller, next to a bare
 `mujoco.mj_step` of the same model, so the overhead is a ratio; and the
 shield's cycle time with the human close, across the table and far; and the
 RL-step throughput of every task (random actions, shield on, human moving,
-L = 25) next to the same number of bare physics steps. Numbers are recorded
-in docs/benchmarks.md.
+L = 25) in CPU time (time.process_time: other processes on the machine do
+not inflate it) next to the same number of bare physics steps, on the fast
+path and (--reference) on the readable reference path (fast_path=False)
+in the same run. Numbers are recorded in docs/benchmarks.md.
 """
 
 import platform
@@ -29,6 +31,16 @@ _TASK_ROBOTS = flags.DEFINE_list('task_robots', ['schunk', 'panda'],
                                  'Robots of the RL-step throughput section.')
 _RL_STEPS = flags.DEFINE_integer('rl_steps', 300,
                                  'RL steps per task throughput measurement.')
+_REFERENCE = flags.DEFINE_boolean(
+    'reference', False, 'Also measure the reference path (fast_path=False).')
+_TASKS = flags.DEFINE_list('tasks', [], 'domain/task names of the '
+                           'throughput section (default: all).')
+_ACTION_SPACE = flags.DEFINE_string(
+    'action_space', None, "Action space of the throughput section ('joint' "
+    "or 'cartesian'; default: each task's own).")
+# The throughput is the best of this many equal windows of the RL steps
+# (the least disturbed by other processes sharing the cores).
+_WINDOWS = 3
 
 
 def machine_summary() -> str:
@@ -114,48 +126,81 @@ def run_shield(robots):
   shield_benchmark.main(['--robots', *robots])
 
 
-def rl_step_throughput(domain, task, robot, rl_steps, seed=0):
-  """(RL steps/s, s per RL step, s per same number of bare mj_steps).
+def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
+                       action_space=None):
+  """(RL steps/s, s per RL step, s per same number of bare mj_steps), CPU
+  time, each the best of _WINDOWS windows of rl_steps / _WINDOWS steps.
 
   Random actions, the task's default shield on, the human moving, L = 25.
-  Resets (at episode ends) are excluded from the time.
+  Resets (at episode ends) are excluded from the time. The bare mj_steps
+  run on a copy of the environment's MjData (same model, same scene).
   """
   from hrc_suite import suite
-  env = suite.load(domain, task, task_kwargs=dict(robot=robot, seed=seed))
+  kwargs = dict(robot=robot, seed=seed, fast_path=fast_path)
+  if action_space:
+    kwargs['action_space'] = action_space
+  env = suite.load(domain, task, task_kwargs=kwargs)
   spec = env.action_spec()
   rng = np.random.RandomState(seed)
   timestep = env.reset()
-  elapsed, done = 0.0, 0
-  while done < rl_steps:
-    if timestep.last():
-      timestep = env.reset()
-    action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
-    start = time.perf_counter()
-    timestep = env.step(action)
-    elapsed += time.perf_counter() - start
-    done += 1
+  window = max(1, rl_steps // _WINDOWS)
+  best = np.inf
+  for _ in range(_WINDOWS):
+    elapsed = 0.0
+    for _ in range(window):
+      if timestep.last():
+        timestep = env.reset()
+      action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
+      start = time.process_time()
+      timestep = env.step(action)
+      elapsed += time.process_time() - start
+    best = min(best, elapsed / window)
   substeps = env.task.shield_substeps
-  model, data = env.physics.model.ptr, env.physics.data.ptr
-  start = time.perf_counter()
-  for _ in range(rl_steps * substeps):
-    mujoco.mj_step(model, data)
-  bare = time.perf_counter() - start
+  model = env.physics.model.ptr
+  data = mujoco.MjData(model)
+  mujoco.mj_copyData(data, model, env.physics.data.ptr)
+  bare = np.inf
+  for _ in range(_WINDOWS):
+    start = time.process_time()
+    for _ in range(window * substeps):
+      mujoco.mj_step(model, data)
+    bare = min(bare, (time.process_time() - start) / window)
   env.close()
-  return rl_steps / elapsed, elapsed / rl_steps, bare / rl_steps
+  return 1.0 / best, best, bare
 
 
-def run_tasks(robots, rl_steps):
+def run_tasks(robots, rl_steps, tasks=(), reference=False,
+              action_space=None):
+  """The throughput table; tasks: 'domain/task' names (default: all)."""
   from hrc_suite import suite
-  print('\n## RL step throughput (random actions, shield on, human moving, '
-        'L = 25)\n')
-  print('| task | robot | RL steps/s | ms per RL step | ms of 25 bare '
-        'mj_step | ratio |')
-  print('|---|---|---|---|---|---|')
-  for domain, task in suite.ALL_TASKS:
+  names = [f'{d}/{t}' for d, t in suite.ALL_TASKS]
+  for name in tasks:
+    if name not in names:
+      raise app.UsageError(f'Unknown task {name!r}: expected some of '
+                           f'{", ".join(names)}')
+  print('\n## RL step throughput (CPU time; random actions, shield on, human '
+        f'moving, L = 25; actions: {action_space or "task default"})\n')
+  head = ('| task | robot | RL steps/s | ms per RL step | ms of 25 bare '
+          'mj_step | ratio |')
+  rule = '|---|---|---|---|---|---|'
+  if reference:
+    head += ' reference RL steps/s | reference ms | reference ratio |'
+    rule += '---|---|---|'
+  print(head)
+  print(rule)
+  for name in tasks or names:
+    domain, task = name.split('/')
     for robot in robots:
-      rate, per_step, bare = rl_step_throughput(domain, task, robot, rl_steps)
-      print(f'| {domain}/{task} | {robot} | {rate:.0f} | {1e3 * per_step:.2f} '
-            f'| {1e3 * bare:.2f} | {per_step / bare:.1f} |', flush=True)
+      rate, per_step, bare = rl_step_throughput(
+          domain, task, robot, rl_steps, action_space=action_space)
+      row = (f'| {name} | {robot} | {rate:.0f} | {1e3 * per_step:.2f} '
+             f'| {1e3 * bare:.2f} | {per_step / bare:.1f} |')
+      if reference:
+        rate, per_step, bare = rl_step_throughput(
+            domain, task, robot, rl_steps, fast_path=False,
+            action_space=action_space)
+        row += f' {rate:.0f} | {1e3 * per_step:.2f} | {per_step / bare:.1f} |'
+      print(row, flush=True)
 
 
 def main(argv):
@@ -176,7 +221,8 @@ def main(argv):
   if 'shield' in sections:
     run_shield(_ROBOTS.value)
   if 'tasks' in sections:
-    run_tasks(_TASK_ROBOTS.value, _RL_STEPS.value)
+    run_tasks(_TASK_ROBOTS.value, _RL_STEPS.value, _TASKS.value,
+              _REFERENCE.value, _ACTION_SPACE.value)
 
 
 if __name__ == '__main__':

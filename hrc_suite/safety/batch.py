@@ -3,11 +3,12 @@
 `step_many(shield, frames, times)` is `Shield.step` for each cycle of a
 sequence whose human keypoints are known in advance (a task's RL step:
 the playback's frames for its L physics steps). With compiled=True the
-cycles the compiled kernel covers (`cycle_kernels.ssm_cycles`: SSM, no
-pending goal, the combined human model without Kalman filter, a measured
-human with a velocity) run in one call; every other cycle (a new goal's
-Ruckig plan, PFL, mode 'off', the first measurements) runs `Shield.step`,
-the readable reference. compiled=False runs the reference for all.
+cycles the compiled kernel covers (`cycle_kernels.ssm_cycles`: SSM and
+PFL, the combined human model without Kalman filter, a measured human with a
+velocity; a pending goal's candidate plan made here beforehand, as
+Shield.step makes it) run in one call; every other cycle (a new Ruckig
+plan from a moved state, mode 'off', the first measurements) runs
+`Shield.step`, the readable reference. compiled=False runs the reference for all.
 
 `checkpoint(shield)` / `restore(shield, saved)` save and restore the
 shield's state between cycles cheaply (the reference replaces its arrays
@@ -69,10 +70,13 @@ def _constants(shield):
   params[ck.MIN_PERIOD] = human_reach_lib._MIN_SAMPLE_PERIOD
   params[ck.SAME] = shield_lib._SAME_COMMAND
   params[ck.SLACK] = shield_lib._BROAD_PHASE_SLACK
+  params[ck.PFL] = float(shield.mode == 'pfl')
+  params[ck.ALLOWED] = shield_lib.PFL_SPEED_MARGIN * shield.v_safe
+  params[ck.S_DOT_TOLERANCE] = shield_lib._S_DOT_TOLERANCE
   s = shield
   limits = np.ascontiguousarray([
       s._den_offset, s._acc_numerator, s._jerk_numerator, s._jerk_acc,
-      s._q_min, s._q_max], dtype=float)
+      s._q_min, s._q_max, s.limits.a_max_ltt], dtype=float)
   robot, human = shield.robot, shield.human
   cached = (params, limits, np.ascontiguousarray(s._clip, dtype=float),
             *robot._kernel_model, robot._kernel_frames,
@@ -88,55 +92,97 @@ def _constants(shield):
 def compiled_eligible(shield):
   """Whether the next cycle may run compiled (see the module)."""
   human = shield.human
-  return (shield.mode == 'ssm' and not shield.goal_pending
-          and human.use_combined_model and not human.use_kalman_filter
-          and human.positions is not None and human.has_velocity)
+  return (shield.mode in ('ssm', 'pfl') and human.use_combined_model
+          and not human.use_kalman_filter and human.positions is not None
+          and human.has_velocity)
+
+
+def _samples(plan, shield, count):
+  """The plan's samples for the kernel (writeable), computed up to the
+  reach of `count` cycles and a failsafe."""
+  if plan._sampler is not None:
+    horizon = (count + _FILL_MARGIN_CYCLES) * shield.cycle_time
+    needed = plan.sample_index(shield.s + horizon + shield.max_s_stop)
+    if needed >= plan._filled:
+      plan._fill(needed)
+  samples = plan._coefficients
+  return samples if samples.flags.writeable else np.array(samples)
+
+
+def _speed_tables(shield, plan):
+  """PFL's speed tables of a plan (Shield._plan_speeds; SSM: unused)."""
+  if shield.mode != 'pfl' or plan is None:
+    return _NO_TABLE, _NO_TABLE
+  return shield._plan_speeds(plan)
+
+
+_NO_TABLE = np.zeros(1)
 
 
 def _run_compiled(shield, frames, times, setpoints, intervened):
   """Runs what the kernel covers of frames/times; returns cycles done."""
   constants = _constants(shield)
+  if shield.goal_pending:
+    shield._candidate_plan()   # What Shield.step does first (cached).
   plan = shield._plan
-  if plan._sampler is not None:
-    horizon = (len(times) + _FILL_MARGIN_CYCLES) * shield.cycle_time
-    needed = plan.sample_index(shield.s + horizon + shield.max_s_stop)
-    if needed >= plan._filled:
-      plan._fill(needed)
+  candidate, key = shield._candidate or (None, (0.0, 0.0))
   human = shield.human
   command = np.array(shield._state)
   previous_q = np.array(shield._previous_q, dtype=float)
   verified = shield_lib._path_array(shield._verified)
   intended_path = shield._intended
-  has_intended = np.array([intended_path is not None], dtype=np.int64)
+  flags = np.array([intended_path is not None, shield.goal_pending,
+                    candidate is not None, -1], dtype=np.int64)
   intended = shield_lib._path_array(intended_path or path_lib.Path())
   state = np.array([human.last_measurement_time, human._last_period,
                     human.num_measurements], dtype=float)
   positions = np.array(human.positions, dtype=float)
   velocities = np.array(human.velocities, dtype=float)
-  total, check = 0, None
+  total, check, adopted = 0, None, False
   while total < len(times):
-    (done, points, flags, status, first, distance, s_edges, t_edges,
+    tables = _speed_tables(shield, plan) + _speed_tables(shield, candidate)
+    samples = _samples(plan, shield, len(times))
+    candidate_samples = samples
+    candidate_meta = np.zeros(4)
+    if candidate is not None:
+      candidate_samples = _samples(candidate, shield, len(times))
+      candidate_meta[:] = (candidate.start_time, candidate._filled) + key
+    (done, points, flags_out, status, first, distance, s_edges, t_edges,
      q_edges, missing) = ck.ssm_cycles(
          constants[0], frames[total:], times[total:], command, previous_q,
-         verified, intended, has_intended, state, positions, velocities,
-         plan._coefficients, plan.start_time, plan._filled,
-         constants[1], *constants[2:])
+         verified, intended, flags, state, positions, velocities, samples,
+         np.array([plan.start_time, plan._filled]), candidate_samples,
+         candidate_meta, constants[1], *constants[2:], *tables)
     setpoints[total:total + done] = points[:done]
-    intervened[total:total + done] = flags[:done]
+    intervened[total:total + done] = flags_out[:done]
     if done:
       total += done
       check = (status, first, distance, s_edges, t_edges, q_edges)
-    if not missing or plan._filled > plan._last:
+    if flags[3] >= 0:   # The candidate was adopted (Shield._adopt).
+      plan, candidate, adopted = candidate, None, True
+      flags[3] = -1
+    if not missing:
+      break
+    if plan._filled > plan._last and (candidate is None
+                                      or candidate._filled > candidate._last):
       break
     plan._all()
+    if candidate is not None:
+      candidate._all()
   if not total:
     return 0
   status, first, distance, s_edges, t_edges, q_edges = check
+  shield._plan = plan
+  if adopted:
+    shield._pfl_speeds = {}
+  shield._goal_pending = bool(flags[1])
+  if not flags[2]:
+    shield._candidate = None
   shield._state = command
   shield._previous_q = previous_q
   shield._verified = shield_lib._path_from_array(verified)
-  shield._intended = (shield_lib._path_from_array(intended)
-                      if has_intended[0] else None)
+  shield._intended = (shield_lib._path_from_array(intended) if flags[0]
+                      else None)
   shield.time = float(times[total - 1])
   shield._lazy = {}
   shield._pending_check = None

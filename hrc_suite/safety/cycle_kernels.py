@@ -9,10 +9,12 @@ verification (joint limits, the two broad phases, robot and human reach
 capsules and the SSM verdict: the `kernels` the Python cycle calls) and the
 command from the plan's samples (long_term_plan.LongTermPlan.state).
 
-A cycle the kernel does not cover stops the call before anything of it is
-changed, and the caller runs that cycle in Python: a pending goal (Ruckig
-planning), a plan sample not computed yet, a measurement the Python
-`measure` would refuse. Cycles are thus either wholly compiled or wholly
+A pending goal's candidate plan (Ruckig, made by the caller) is verified
+and adopted as Shield.step does while the verified path stays where it
+was planned from. A cycle the kernel does not cover stops the call before
+anything of it is changed, and the caller runs that cycle in Python: a
+candidate needed from a new state (Ruckig), a plan sample not computed
+yet, a measurement the Python `measure` would refuse. Cycles are thus either wholly compiled or wholly
 the reference, and the shield's state after each is the same
 (tests/safety/test_step_many.py).
 """
@@ -28,8 +30,8 @@ _jit = kernels._jit
 
 # Indices of `params` (float64 array of shield constants).
 CYCLE, INTERVAL, WORKSPACE, ERROR_POS, ERROR_VEL, DELAY, MIN_PERIOD, SAME, \
-    SLACK = range(9)
-NUM_PARAMS = 9
+    SLACK, PFL, ALLOWED, S_DOT_TOLERANCE = range(12)
+NUM_PARAMS = 12
 # Indices of `human` (float64): last measurement time, its period, count.
 LAST_T, LAST_PERIOD, COUNT = range(3)
 
@@ -91,11 +93,41 @@ def _path_limits(v_nominal, den_offset, acc_numerator, jerk_numerator,
 
 
 @_jit
-def _verify(params, plan, start, inverse, filled, current_s, previous_q,
-            failsafe, now, positions, velocities, last_t, last_period,
-            q_min, q_max, fixed, points, frame_index, alpha, static_radius,
-            v_max, a_max, body_ends, ends, half_thickness, base):
-  """Shield._verify (SSM, a measured human with a velocity). Returns
+def _sample_index(s, start, inverse, last):
+  """LongTermPlan.sample_index."""
+  k = int(math.floor((s - start) * inverse))
+  return 0 if k < 0 else (last if k > last else k)
+
+
+@_jit
+def _slow_enough(params, start, inverse, last, window, suffix, current_s_dot,
+                 failsafe, pieces, num, s_edges, first, count):
+  """Shield._slow_enough (PFL): the robot's surface speed stays below
+  v_safe from slice `first` on, and after the failsafe."""
+  interval = params[INTERVAL]
+  end = failsafe[6]
+  allowed = params[ALLOWED] * (1.0 + params[S_DOT_TOLERANCE])
+  for i in range(first, count + 1):
+    if i == 0:
+      s_dot = max(current_s_dot, failsafe[1])
+    else:
+      before = i * interval if i < count else end
+      s_dot = pk.max_s_dot(pieces, num, (i - 1) * interval, before)
+    if window[_sample_index(s_edges[i], start, inverse, last)] * s_dot > (
+        allowed):
+      return False
+  return (suffix[_sample_index(s_edges[count + 1], start, inverse, last)]
+          * pk.final_s_dot(failsafe) <= allowed)
+
+
+@_jit
+def _verify(params, plan, start, inverse, filled, current_s, current_s_dot,
+            previous_q, failsafe, now, positions, velocities, last_t,
+            last_period, q_min, q_max, fixed, points, frame_index, alpha,
+            static_radius, v_max, a_max, body_ends, ends, half_thickness,
+            base, window, suffix):
+  """Shield._verify (SSM or PFL, a measured human with a velocity; PFL's
+  speed tables window and suffix (N,) of the plan). Returns
   (status, first unsafe slice, reach distance (nan: not computed), s_edges,
   t_edges, q_edges); status 1 verified, 0 not, -1 a plan sample is missing
   (the cycle goes to Python)."""
@@ -148,20 +180,43 @@ def _verify(params, plan, start, inverse, filled, current_s, previous_q,
   first = kernels.ssm_first_unsafe(rc1, rc2, rr, hc1.reshape((1,) + hc1.shape),
                                    hc2.reshape((1,) + hc2.shape),
                                    hr.reshape((1,) + hr.shape))
-  return (1 if first < 0 else 0), first, np.nan, s_edges, t_edges, q_edges
+  safe = first < 0
+  if not safe and params[PFL] == 1.0:
+    # PFL: contact is possible from slice `first` on; from then on the
+    # robot must be slower than v_safe.
+    safe = _slow_enough(params, start, inverse, last, window, suffix,
+                        current_s_dot, failsafe, pieces, num, s_edges,
+                        first, count)
+  return (1 if safe else 0), first, np.nan, s_edges, t_edges, q_edges
+
+
+@_jit
+def _stop(c, setpoints, intervened, check, missing):
+  """ssm_cycles' result when it stops before cycle c."""
+  status, first, distance, s_edges, t_edges, q_edges = check
+  return (c, setpoints, intervened, status, first, distance, s_edges,
+          t_edges, q_edges, missing)
 
 
 @_jit
 def ssm_cycles(params, frames, times, command, previous_q, verified,
-               intended, has_intended, human, positions, velocities, plan,
-               plan_start, plan_filled, limits, clip, fixed, points,
-               frame_index, alpha, static_radius, v_max, a_max, body_ends,
-               ends, half_thickness, base):
+               intended, flags, human, positions, velocities, plan,
+               plan_meta, candidate, candidate_meta, limits, clip, fixed,
+               points, frame_index, alpha, static_radius, v_max, a_max,
+               body_ends, ends, half_thickness, base, plan_window,
+               plan_suffix, candidate_window, candidate_suffix):
   """Runs SSM cycles for keypoints frames (n, N_kp, 3) at times (n,),
-  updating the state arrays in place (command (5, dof), previous_q,
-  verified and intended (10,), has_intended (1,), human (3,), positions
-  and velocities (N_kp, 3)). limits (6, dof): den_offset, acc_numerator,
-  jerk_numerator, jerk_acc, q_min, q_max (Shield's per-joint terms).
+  updating the state arrays in place: command (5, dof), previous_q,
+  verified and intended (10,), flags (int64: has_intended, goal_pending,
+  has_candidate, the cycle at which the candidate was adopted or -1),
+  human (3,), positions and velocities (N_kp, 3). plan and candidate
+  (N, 4, dof) are the adopted plan's and the pending goal's candidate
+  plan's samples (writeable), plan_meta (start time, samples computed)
+  and candidate_meta (start time, samples computed, and the s, s_dot of
+  the verified path it was planned from: Shield._candidate_plan's key).
+  limits (7, dof): den_offset, acc_numerator, jerk_numerator, jerk_acc,
+  q_min, q_max (Shield's per-joint terms) and a_max_ltt. PFL
+  (params[PFL] == 1): the plans' speed tables (Shield._plan_speeds).
 
   Returns (cycles done, set-points (n, 3, dof), intervened (n,), the
   last cycle's check: status (1 verified, 0 not, 2 no monitored path),
@@ -175,10 +230,8 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
   inverse = 1.0 / dt
   setpoints = np.zeros((count, 3, dof))
   intervened = np.zeros(count, dtype=np.bool_)
-  status, first, distance = 2, 0, -np.inf
-  s_edges = np.zeros(0)
-  t_edges = np.zeros(0)
-  q_edges = np.zeros((0, dof))
+  check = (2, 0, -np.inf, np.zeros(0), np.zeros(0), np.zeros((0, dof)))
+  current = np.empty(pk.PATH_SIZE)
   new_intended = np.empty(pk.PATH_SIZE)
   failsafe = np.empty(pk.PATH_SIZE)
   moved = np.empty(pk.PATH_SIZE)
@@ -186,17 +239,43 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
   wanted = np.empty((5, dof))
   new_positions = np.empty_like(positions)
   new_velocities = np.empty_like(velocities)
+  plan_start, plan_filled = plan_meta[0], int(plan_meta[1])
   for c in range(count):
     # The measurement (HumanReach.measure without the Kalman filter).
     t = times[c]
     keypoints = frames[c]
     if not np.all(np.isfinite(keypoints)):
-      return c, setpoints, intervened, status, first, distance, s_edges, \
-          t_edges, q_edges, False
+      return _stop(c, setpoints, intervened, check, False)
     period = t - human[LAST_T]
     if period < 0.0:
-      return c, setpoints, intervened, status, first, distance, s_edges, \
-          t_edges, q_edges, False
+      return _stop(c, setpoints, intervened, check, False)
+    # Replanning (Shield._candidate_plan): the candidate made from this
+    # verified state, or none while braking harder than the plans allow.
+    use_candidate = False
+    drop_candidate = False
+    if flags[1] == 1:
+      braking = False
+      for d in range(dof):
+        if abs(command[2, d]) > limits[6, d]:
+          braking = True
+      same_key = (flags[2] == 1 and candidate_meta[2] == verified[0]
+                  and candidate_meta[3] == verified[1])
+      if same_key:
+        use_candidate = True
+      elif braking:
+        drop_candidate = True
+      else:
+        return _stop(c, setpoints, intervened, check, False)
+    if use_candidate:
+      now_plan, now_start = candidate, candidate_meta[0]
+      now_filled = int(candidate_meta[1])
+      now_window, now_suffix = candidate_window, candidate_suffix
+      pk.make(current, verified[0], 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+              0.0)
+    else:
+      now_plan, now_start, now_filled = plan, plan_start, plan_filled
+      now_window, now_suffix = plan_window, plan_suffix
+      current[:] = verified
     measured = period >= params[MIN_PERIOD]
     if measured:
       for n in range(keypoints.shape[0]):
@@ -210,36 +289,40 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
     # The monitored path: one intended step, then the failsafe.
     max_acc, max_jerk = _path_limits(command[4], limits[0], limits[1],
                                      limits[2], limits[3])
-    have = has_intended[0] == 1 and not (intended[6] <= pk._TIME_EPS
-                                         and intended[1] != 1.0)
+    have = (not use_candidate and flags[0] == 1
+            and not (intended[6] <= pk._TIME_EPS and intended[1] != 1.0))
     if have:
       new_intended[:] = intended
     else:
-      have = pk.plan_profile(new_intended, verified[0], verified[1],
-                             verified[2], 1.0, max_acc, max_jerk, dt)
+      have = pk.plan_profile(new_intended, current[0], current[1],
+                             current[2], 1.0, max_acc, max_jerk, dt)
     has_failsafe = False
     if have:
       pk.advance(new_intended, dt)
+      target = 0.0   # SSM: brake to rest.
+      if params[PFL] == 1.0:   # Shield._s_dot_limit.
+        remaining = now_suffix[_sample_index(
+            new_intended[0], now_start, inverse, now_plan.shape[0] - 1)]
+        target = (1.0 if remaining <= params[ALLOWED]
+                  else params[ALLOWED] / remaining)
       has_failsafe = pk.plan_profile(failsafe, new_intended[0],
-                                     new_intended[1], new_intended[2], 0.0,
-                                     max_acc, max_jerk, dt)
-    c_status, c_first, c_distance = 2, 0, -np.inf
-    c_s, c_t, c_q = s_edges, t_edges, q_edges
-    if not has_failsafe or new_intended[0] < verified[0]:
+                                     new_intended[1], new_intended[2],
+                                     target, max_acc, max_jerk, dt)
+    c_check = (2, 0, -np.inf, check[3], check[4], check[5])
+    if not has_failsafe or new_intended[0] < current[0]:
       safe = False
     else:
-      c_status, c_first, c_distance, c_s, c_t, c_q = _verify(
-          params, plan, plan_start, inverse, plan_filled, verified[0],
-          command[0], failsafe, t, new_positions, new_velocities, last_t,
-          last_period, limits[4], limits[5], fixed, points, frame_index,
-          alpha, static_radius, v_max, a_max, body_ends, ends,
-          half_thickness, base)
-      if c_status < 0:
-        return c, setpoints, intervened, status, first, distance, s_edges, \
-            t_edges, q_edges, True
-      safe = c_status == 1
+      c_check = _verify(
+          params, now_plan, now_start, inverse, now_filled, current[0],
+          current[1], command[0], failsafe, t, new_positions,
+          new_velocities, last_t, last_period, limits[4], limits[5], fixed,
+          points, frame_index, alpha, static_radius, v_max, a_max,
+          body_ends, ends, half_thickness, base, now_window, now_suffix)
+      if c_check[0] < 0:
+        return _stop(c, setpoints, intervened, check, True)
+      safe = c_check[0] == 1
     if safe:
-      ok = _plan_state(plan, plan_start, inverse, dt, plan_filled,
+      ok = _plan_state(now_plan, now_start, inverse, dt, now_filled,
                        new_intended[0], new_intended[1], new_intended[2],
                        new_intended[3], state)
       c_intervened = False
@@ -250,7 +333,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
                        moved[1], moved[2], moved[3], state)
       c_intervened = True
       if ok and have:
-        ok = _plan_state(plan, plan_start, inverse, dt, plan_filled,
+        ok = _plan_state(now_plan, now_start, inverse, dt, now_filled,
                          new_intended[0], new_intended[1], new_intended[2],
                          new_intended[3], wanted)
         same = True
@@ -263,8 +346,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
               same = False
         c_intervened = not same
     if not ok:
-      return c, setpoints, intervened, status, first, distance, s_edges, \
-          t_edges, q_edges, True
+      return _stop(c, setpoints, intervened, check, True)
     # Commit the cycle.
     positions[:] = new_positions
     velocities[:] = new_velocities
@@ -273,13 +355,21 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       human[LAST_PERIOD] = last_period
       human[COUNT] += 1.0
     previous_q[:] = command[0]
+    if drop_candidate:
+      flags[2] = 0
     if safe:
+      if use_candidate:   # Shield._adopt.
+        plan, plan_start, plan_filled = now_plan, now_start, now_filled
+        plan_window, plan_suffix = now_window, now_suffix
+        flags[1] = 0
+        flags[2] = 0
+        flags[3] = c
       verified[:] = failsafe
       intended[:] = new_intended
-      has_intended[0] = 1
+      flags[0] = 1
     else:
       verified[:] = moved
-      has_intended[0] = 0
+      flags[0] = 0
     for row in range(1, 4):
       for d in range(dof):
         state[row, d] = min(max(state[row, d], -clip[row - 1, d]),
@@ -288,10 +378,8 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
     for row in range(3):
       setpoints[c, row] = state[row]
     intervened[c] = c_intervened
-    status, first, distance = c_status, c_first, c_distance
-    s_edges, t_edges, q_edges = c_s, c_t, c_q
-  return count, setpoints, intervened, status, first, distance, s_edges, \
-      t_edges, q_edges, False
+    check = c_check
+  return _stop(count, setpoints, intervened, check, False)
 
 
 _warm = False
@@ -299,8 +387,8 @@ _warm = False
 
 def warm_up():
   """Compiles (or loads from the cache) the kernels for the argument types
-  the shield passes (plans with writeable and read-only samples), once
-  per process, so no cycle pays for it."""
+  the shield passes (plan_state: plans with writeable and read-only
+  samples), once per process, so no cycle pays for it."""
   global _warm
   if _warm:
     return
@@ -313,12 +401,14 @@ def warm_up():
     plan = floats(1, 4, dof)
     plan.flags.writeable = writeable
     plan_state(plan, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, floats(5, dof))
-    ssm_cycles(params, floats(0, count_n, 3), floats(0),
-               floats(5, dof), floats(dof), floats(pk.PATH_SIZE),
-               floats(pk.PATH_SIZE), ints(1), floats(3), floats(count_n, 3),
-               floats(count_n, 3), plan, 0.0, 1, floats(6, dof),
-               floats(3, dof), floats(dof, 3, 4), floats(count_l, 2, 4),
-               ints(count_l), floats(count_l), floats(count_l),
-               floats(count_n), floats(count_n), ints(2, count_b),
-               ints(2 * count_b), floats(count_b), floats(3))
+  plan = floats(1, 4, dof)
+  ssm_cycles(params, floats(0, count_n, 3), floats(0),
+             floats(5, dof), floats(dof), floats(pk.PATH_SIZE),
+             floats(pk.PATH_SIZE), ints(4), floats(3), floats(count_n, 3),
+             floats(count_n, 3), plan, floats(2), plan, floats(4),
+             floats(7, dof), floats(3, dof), floats(dof, 3, 4),
+             floats(count_l, 2, 4), ints(count_l), floats(count_l),
+             floats(count_l), floats(count_n), floats(count_n),
+             ints(2, count_b), ints(2 * count_b), floats(count_b), floats(3),
+             floats(1), floats(1), floats(1), floats(1))
   _warm = True

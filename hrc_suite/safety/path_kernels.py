@@ -163,6 +163,46 @@ def sample_s(pieces, count, t):
 
 
 @_jit
+def sample_s_dot(pieces, count, t):
+  """Path.sample's s_dot at one time t from now."""
+  i = count - 1
+  while i > 0 and pieces[i, 0] > t:
+    i -= 1
+  d = t - pieces[i, 0]
+  if d < 0.0:
+    d = 0.0
+  return pieces[i, 2] + d * (pieces[i, 3] + 0.5 * d * pieces[i, 4])
+
+
+@_jit
+def max_s_dot(pieces, count, after, before):
+  """Path.max_s_dot(after, before, pieces)."""
+  best = sample_s_dot(pieces, count, after)
+  best = max(best, sample_s_dot(pieces, count, before))
+  for i in range(count):
+    start, v, a, jerk = pieces[i, 0], pieces[i, 2], pieces[i, 3], pieces[i, 4]
+    end = pieces[i + 1, 0] if i + 1 < count else np.inf
+    if end <= after or start >= before:
+      continue
+    if start >= after:
+      best = max(best, v)
+    if a > 0.0 and jerk < 0.0:
+      t_peak = start - a / jerk
+      if after <= t_peak <= end and t_peak <= before:
+        best = max(best, v + a * (t_peak - start) + 0.5 * jerk
+                   * math.pow(t_peak - start, 2.0))
+  return best
+
+
+@_jit
+def final_s_dot(p):
+  """Path.final()'s s_dot."""
+  q = p.copy()
+  advance(q, p[6])
+  return q[1]
+
+
+@_jit
 def ceil_to_cycle(duration, cycle_time):
   """path.ceil_to_cycle."""
   cycles = math.ceil(duration / cycle_time - 1e-9)

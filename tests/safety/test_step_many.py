@@ -41,19 +41,25 @@ def test_path_kernels_match_path():
     expected = reference.segments()
     assert np.array_equal(pieces[:count], np.array(expected))
     for t in rs.uniform(0, reference.end_time() + 0.1, 5):
-      assert path_kernels.sample_s(pieces, count, t) == reference.sample(
-          [t])[0][0]
+      s_ref, v_ref = (x[0] for x in reference.sample([t])[:2])
+      assert path_kernels.sample_s(pieces, count, t) == s_ref
+      assert path_kernels.sample_s_dot(pieces, count, t) == v_ref
+      after = rs.uniform(0, t)
+      assert path_kernels.max_s_dot(pieces, count, after, t) == (
+          reference.max_s_dot(after, t))
+    assert path_kernels.final_s_dot(out) == reference.final()[1]
     duration = rs.choice([dt, rs.uniform(0, 0.5)])
     reference.advance(duration)
     path_kernels.advance(out, duration)
     assert np.array_equal(out, _path_array(reference))
 
 
-def _scenario(name, human, seconds, seed):
+def _scenario(name, human, seconds, seed, mode='ssm'):
   """Keypoints and times of `seconds` of cycles, goals every L cycles."""
   description = robot_description.load(name)
   make = lambda: shield_lib.Shield(
-      description, base_pose=harness.layout.robot_mount(name).base_pose(),
+      description, mode=mode,
+      base_pose=harness.layout.robot_mount(name).base_pose(),
       tool_capsule=harness.tool_capsule(description))
   goal = harness.random_goals(description, np.random.RandomState(seed))
   goals = [goal() for _ in range(int(round(seconds / 0.1)))]
@@ -76,20 +82,22 @@ def _run(make, goals, frames, times, compiled):
   return np.concatenate(points), np.concatenate(flags), states
 
 
-@pytest.mark.parametrize('name,human', [
-    ('schunk', 'attack'), ('panda', 'walk'), ('ur5e', 'far')])
-def test_compiled_cycles_match_the_reference(name, human):
+@pytest.mark.parametrize('name,human,mode', [
+    ('schunk', 'attack', 'ssm'), ('panda', 'walk', 'ssm'),
+    ('ur5e', 'far', 'ssm'), ('panda', 'attack', 'pfl'),
+    ('schunk', 'walk', 'pfl'), ('iiwa', 'attack', 'off')])
+def test_compiled_cycles_match_the_reference(name, human, mode):
   motion = {'attack': harness.hand_attack((0.5, 0.1, 0.9)),
             'walk': harness.walk_in_and_leave(),
             'far': harness.far_away()}[human]
-  case = _scenario(name, motion, 3.0, seed=1)
+  case = _scenario(name, motion, 3.0, seed=1, mode=mode)
   fast, fast_flags, fast_states = _run(*case, compiled=True)
   slow, slow_flags, slow_states = _run(*case, compiled=False)
   # Bit for bit: the kernels perform the reference's operations in its
   # order (tests/tasks/test_fast_path.py).
   assert np.array_equal(fast, slow)
   assert np.array_equal(fast_flags, slow_flags)
-  if human == 'attack':   # The scenario makes the shield intervene.
+  if human == 'attack' and mode != 'off':   # The shield intervenes.
     assert slow_flags.mean() > 0.05
   for a, b in zip(fast_states, slow_states):
     assert set(a) == set(b)
