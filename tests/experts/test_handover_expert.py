@@ -169,6 +169,9 @@ def recordings(tmp_path_factory):
     # The person stands 0.17 m to the side: their right palm is beyond the
     # Schunk's gripper-down reach plus the handle (robot to human).
     ('robot_to_human', 'RobotHumanHandover_0', 'schunk', 1),
+    # Left-handed people (object_holding_hand in their _info.json).
+    ('robot_to_human', 'RobotHumanHandover_5', 'panda', 7),
+    ('human_to_robot', 'HumanRobotHandover_5', 'schunk', 8),
     # Presented 0.05 m above the table, forearm 35 degrees down.
     ('human_to_robot', 'HumanRobotHandover_3', 'panda', 0),
     ('human_to_robot', 'HumanRobotHandover_3', 'schunk', 0),

@@ -12,6 +12,7 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.entities import human as human_lib
 from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import handover
@@ -359,13 +360,38 @@ def test_joint_space_oracle_hands_over_with_every_robot(robot):
 # ------------------------------------------------------ presenting grip
 
 
-def _recorded_clip(name, tmp_path, monkeypatch):
+def _recorded_clip(name, tmp_path, monkeypatch, task=handover.HumanToRobot):
   if not MOTIONS.is_dir():
     pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path))
-  clips = recording_cache.load_task_folder(MOTIONS, handover.HumanToRobot
-                                           .MOTIONS)
+  clips = recording_cache.load_task_folder(MOTIONS, task.MOTIONS)
   return [c for c in clips if c.name == name]
+
+
+@pytest.mark.parametrize('name, clip', [
+    ('robot_to_human', 'RobotHumanHandover_5'),
+    ('human_to_robot', 'HumanRobotHandover_5')])
+def test_recorded_left_handed_person_uses_the_left_hand(tmp_path,
+                                                        monkeypatch, name,
+                                                        clip):
+  """A recording whose _info.json names the left hand as the holding
+  hand: its palm is the robot-to-human target, and the human-to-robot
+  person walks in with the hammer in it."""
+  cls = {'robot_to_human': handover.RobotToHuman,
+         'human_to_robot': handover.HumanToRobot}[name]
+  clips = _recorded_clip(clip, tmp_path, monkeypatch, cls)
+  assert [c.holding_hand for c in clips] == ['left']
+  env = _env(name, seed=0, motions=clips, outside_human_model='allow')
+  env.reset()
+  task = env.task
+  points = task.human.keypoint_positions(env.physics)
+  left = points[keypoints.KEYPOINT_INDEX['left_hand']]
+  right = points[keypoints.KEYPOINT_INDEX['right_hand']]
+  assert np.linalg.norm(left - right) > 0.1
+  if isinstance(task, handover.RobotToHuman):
+    np.testing.assert_allclose(task.target(env.physics), left)
+  else:
+    assert task.human.holding(task.hammer.body) == 'left'
 
 
 def _hand_axis(env):
