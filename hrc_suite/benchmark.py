@@ -21,7 +21,7 @@ import numpy as np
 
 from hrc_suite import robot_description
 
-SECTIONS = ('physics', 'shield', 'tasks')
+SECTIONS = ('physics', 'shield', 'tasks', 'profile')
 _SECTIONS = flags.DEFINE_list(
     'section', list(SECTIONS), 'Which benchmarks to run: ' + ', '.join(SECTIONS))
 _ROBOTS = flags.DEFINE_list('robots', list(robot_description.ROBOT_NAMES),
@@ -203,6 +203,26 @@ def run_tasks(robots, rl_steps, tasks=(), reference=False,
       print(row, flush=True)
 
 
+# Tasks of the profile section: (domain, task, robot, action space).
+PROFILED = (('reach', 'dense', 'schunk', 'cartesian'),
+            ('handover', 'robot_to_human', 'schunk', None))
+
+
+def run_profile(rl_steps):
+  from hrc_suite import benchmark_profile
+  print('\n## Where the time of an RL step goes (CPU time, µs per RL step)\n')
+  tables = [benchmark_profile.profile(d, t, r, rl_steps, action_space=a)
+            for d, t, r, a in PROFILED]
+  names = [f'{d}/{t} {r} {a or "default"}' for d, t, r, a in PROFILED]
+  print('| part | ' + ' | '.join(names) + ' |')
+  print('|---|' + '---|' * len(names))
+  for label in tables[0]:
+    depth = (len(label) - len(label.lstrip())) // 2   # Nested parts.
+    shown = '· ' * depth + label.strip()
+    print(f'| {shown} | ' + ' | '.join(f'{table[label]:.0f}'
+                                      for table in tables) + ' |')
+
+
 def main(argv):
   del argv
   print(f'# hrc_suite benchmark, {time.strftime("%Y-%m-%d")}')
@@ -220,6 +240,8 @@ def main(argv):
     run_physics(_ROBOTS.value, _STEPS.value)
   if 'shield' in sections:
     run_shield(_ROBOTS.value)
+  if 'profile' in sections:
+    run_profile(_RL_STEPS.value)
   if 'tasks' in sections:
     run_tasks(_TASK_ROBOTS.value, _RL_STEPS.value, _TASKS.value,
               _REFERENCE.value, _ACTION_SPACE.value)

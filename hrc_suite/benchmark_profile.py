@@ -1,0 +1,103 @@
+"""Where the CPU time of an RL step goes: `python -m hrc_suite.benchmark
+--section=profile` (docs/benchmarks.md, "Where the time goes").
+
+Times the parts of the step loop by wrapping them (CPU time,
+time.process_time, summed per part and divided by the RL steps; the
+wrappers are removed afterwards). Parts nest: collision prevention holds
+the IK it calls, the task's hooks hold the shield, the person, the
+controller and the contact monitor; "composer and the rest" is the RL
+step's total minus the top-level parts (dm_control's environment loop,
+observables, the action spec check, numpy glue).
+"""
+
+import contextlib
+import time
+
+import numpy as np
+
+# (label, module, class or None, attribute, top level): top-level parts are
+# disjoint and add up to the measured step with "composer and the rest".
+PARTS = (
+    ('physics (dm_control physics.step, 25x)', 'dm_control.mujoco.engine',
+     'Physics', 'step', True),
+    ('task before_step (action, goal, shield.new_goal, playback)',
+     'hrc_suite.tasks.base', 'HrcTask', 'before_step', True),
+    ('  collision prevention (plan and capsule checks of the goal)',
+     'hrc_suite.safety.collision_prevention', 'CollisionPrevention',
+     'filter_action', False),
+    ('    IK (Cartesian actions)', 'hrc_suite.control.ik',
+     'InverseKinematics', 'solve', False),
+    ('  person: playback of the RL step (25 poses, segment frames)',
+     'hrc_suite.tasks.human_playback', 'HumanPlayback', 'advance', False),
+    ('task before_substep (25x)', 'hrc_suite.tasks.base', 'HrcTask',
+     'before_substep', True),
+    ('  shield: 25 cycles (safety.batch.step_many)', 'hrc_suite.safety.batch',
+     None, 'step_many', False),
+    ('  person: mocap of one pose (25x)', 'hrc_suite.tasks.human_playback',
+     'HumanPlayback', 'apply', False),
+    ('  controller (25x)', 'hrc_suite.control.controller',
+     'JointTrackingController', '__call__', False),
+    ('task after_substep: tracking, contacts (25x)', 'hrc_suite.tasks.base',
+     'HrcTask', 'after_substep', True),
+    ('  contact monitor (25x)', 'hrc_suite.tasks.contacts', 'ContactMonitor',
+     'update', False),
+    ('task after_step: self-collision, task logic, reward, metrics',
+     'hrc_suite.tasks.base', 'HrcTask', 'after_step', True),
+)
+
+
+@contextlib.contextmanager
+def _timed(totals):
+  """Wraps every part of PARTS, adding its CPU time to totals[label]."""
+  import importlib
+  restore = []
+  try:
+    for label, module_name, class_name, attribute, _ in PARTS:
+      module = importlib.import_module(module_name)
+      owner = module if class_name is None else getattr(module, class_name)
+      original = getattr(owner, attribute)
+      def wrapper(*args, _original=original, _label=label, **kwargs):
+        start = time.process_time()
+        try:
+          return _original(*args, **kwargs)
+        finally:
+          totals[_label] += time.process_time() - start
+      setattr(owner, attribute, wrapper)
+      restore.append((owner, attribute, original))
+    yield
+  finally:
+    for owner, attribute, original in reversed(restore):
+      setattr(owner, attribute, original)
+
+
+def profile(domain, task, robot, rl_steps, action_space=None, seed=0):
+  """{label: µs per RL step} of PARTS, 'composer and the rest' and
+  'total' for random actions (resets excluded)."""
+  from hrc_suite import suite
+  kwargs = dict(robot=robot, seed=seed)
+  if action_space:
+    kwargs['action_space'] = action_space
+  env = suite.load(domain, task, task_kwargs=kwargs)
+  spec = env.action_spec()
+  rng = np.random.RandomState(seed)
+  timestep = env.reset()
+  totals = {label: 0.0 for label, *_ in PARTS}
+  total = 0.0
+  with _timed(totals):
+    for step in range(rl_steps + 30):
+      if step == 30:   # Warm-up steps are not counted.
+        for label in totals:
+          totals[label] = 0.0
+        total = 0.0
+      if timestep.last():
+        timestep = env.reset()
+      action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
+      start = time.process_time()
+      timestep = env.step(action.astype(spec.dtype))
+      total += time.process_time() - start
+  env.close()
+  out = {label: 1e6 * value / rl_steps for label, value in totals.items()}
+  top = sum(out[label] for label, *_, is_top in PARTS if is_top)
+  out['composer and the rest'] = 1e6 * total / rl_steps - top
+  out['total'] = 1e6 * total / rl_steps
+  return out
