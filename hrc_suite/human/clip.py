@@ -24,7 +24,7 @@ from hrc_suite.human import keypoints
 
 MOTION_TASKS = ('reach', 'pick_place', 'inspection', 'lifting',
                 'handover_robot_to_human', 'handover_human_to_robot',
-                'hammering', 'stacking')
+                'hammering', 'stacking', 'hammering_board')
 CLIP_TASKS = MOTION_TASKS + ('other',)
 
 # Events that end idle phases, per task, in the order the phases occur. A
@@ -44,6 +44,9 @@ TASK_EVENTS = {
     'hammering': ('nail_hammered',),
     # The robot has placed the second cube; then the fourth cube.
     'stacking': ('second_cube_placed', 'fourth_cube_placed'),
+    # hammering/robot_hammers: the robot has driven the nail in the board
+    # the person brought.
+    'hammering_board': ('nail_hammered',),
 }
 HANDS = ('left', 'right')
 
@@ -62,8 +65,10 @@ TASK_TARGETS = {
     'hammering': ('nail', 'strike_grip'),
     'stacking': ('stack_base', 'cube_1_pick', 'cube_1_place', 'cube_3_pick',
                  'cube_3_place'),
+    'hammering_board': ('board_place',),
 }
-TASK_KEYFRAMES = {'lifting': 2, 'handover_human_to_robot': 2}
+TASK_KEYFRAMES = {'lifting': 2, 'handover_human_to_robot': 2,
+                  'hammering_board': 2}
 
 # The shield's human model bounds every keypoint speed by 2 m/s (SaRA
 # reachability, shield-spec.md; ISO/TS 15066 walking speed 1.6 m/s plus margin).

@@ -26,8 +26,14 @@ from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
 
 # Bump when the importer's output changes (placement, targets, phases).
-CONVERTER_VERSION = 4
+CONVERTER_VERSION = 5
 CACHE_ENV = 'HRC_SUITE_CACHE'
+# Reference folders a task also looks in besides its own
+# (bvh_import.REFERENCE_FOLDER_TASKS): hammering/default converts the
+# reference's hammering recordings too, so that a user who points it at
+# them learns why they do not fit (task_targets: no blows, the reference's
+# robot hammers) rather than that no folder was found.
+SHARED_FOLDERS = {'hammering': ('CollaborativeHammering',)}
 
 
 def cache_dir():
@@ -57,7 +63,7 @@ def task_folder(folder, task):
   if _has_clips(folder) or bvh_files(folder):
     return folder
   names = [name for name, t in bvh_import.REFERENCE_FOLDER_TASKS.items()
-           if t == task] + [task]
+           if t == task] + list(SHARED_FOLDERS.get(task, ())) + [task]
   for name in names:
     if (folder / name).is_dir():
       return folder / name

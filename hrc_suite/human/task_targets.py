@@ -43,6 +43,11 @@ PLACE_SEARCH_S = 1.0
 PICK_DISTANCE = 2 * CUBE_SIZE
 # Blows of a hammering hand: its lowest points at least this far apart (s).
 MIN_BLOW_PERIOD = 0.3
+# A hammering hand moves down at least this fast in a blow (m/s): the
+# synthetic strikes reach 2.5-3.7 m/s; the reference's recordings never
+# strike (its robot hammers): their hands move down at most 0.27 m/s
+# (docs/tasks.md, hammering). Slower clips are refused for hammering/default.
+MIN_BLOW_SPEED = 1.0
 
 
 def _fail(source, target, reason):
@@ -145,6 +150,13 @@ def _hammering(positions, fps, fields, source):
   vertical = [np.std(_hand(positions, s)[start:end + 1, 2]) for s in sides]
   hand = fields.get('holding_hand') or sides[int(np.argmax(vertical))]
   z = _hand(positions, hand)[start:end + 1, 2]
+  down = float(-np.min(np.diff(z), initial=0.0) * fps)
+  if down < MIN_BLOW_SPEED:
+    _fail(source, 'strike_grip', f'the person never strikes: the {hand} hand '
+          f'moves down at most {down:.2f} m/s between frames {start} and '
+          f'{end} (a blow: >= {MIN_BLOW_SPEED} m/s). The reference\'s '
+          'hammering recordings have the robot hammer and the person bring '
+          'the board: use hammering/robot_hammers')
   blows = _blow_points(z, fps)
   if len(blows) == 0:
     _fail(source, 'strike_grip', f'the {hand} hand has no lowest point '
@@ -153,6 +165,29 @@ def _hammering(positions, fps, fields, source):
   nail = grip + [HAMMER_REACH, 0.0, -HAMMER_FACE_BELOW_PALM]
   fields = dict(fields, holding_hand=hand)
   return fields, {'strike_grip': grip, 'nail': nail}
+
+
+def _hammering_board(positions, fps, fields, source):
+  """hammering/robot_hammers: the person sets the board down at the first
+  keyframe and takes it back at the last. Its handle lies under the hand
+  farther over the table then (the other hand, at the hip in the
+  reference's recordings, has let go): 'board_place' is that hand's point
+  on the table top."""
+  del fps
+  keys = fields['keyframes']
+  if len(keys) < 2:
+    _fail(source, 'board_place', f'needs set-down and take-back keyframes, '
+          f'the clip has {list(keys)}')
+  frame = int(keys[0])
+  hand = fields.get('holding_hand') or max(
+      clip_lib.HANDS, key=lambda s: _hand(positions, s)[frame, 0])
+  point = _hand(positions, hand)[frame]
+  if point[0] <= TABLE_EDGE_X:
+    _fail(source, 'board_place', f'the {hand} hand is at x = {point[0]:.2f} '
+          f'm at the set-down frame {frame}, not over the table (edge at '
+          f'{TABLE_EDGE_X:.2f} m)')
+  fields = dict(fields, holding_hand=hand)
+  return fields, {'board_place': np.array([point[0], point[1], TABLE_Z])}
 
 
 def _placing_frame(positions, hand, start, end, search):
@@ -238,6 +273,7 @@ RULES = {
     'handover_robot_to_human': _handover_robot_to_human,
     'handover_human_to_robot': _handover_human_to_robot,
     'hammering': _hammering,
+    'hammering_board': _hammering_board,
     'stacking': _stacking,
     'other': _no_targets,
 }
