@@ -16,7 +16,7 @@ from dm_control import composer
 # Modules whose import registers tasks (one per benchmark task).
 _TASK_MODULES = tuple(f'hrc_suite.tasks.{name}' for name in (
     'reach', 'pick_place', 'handover', 'inspection', 'lifting', 'hammering',
-    'stacking'))
+    'hammering_robot', 'stacking'))
 
 TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
         'assembly', 'dense', 'sparse', 'delayed', 'ssm', 'pfl')

@@ -63,7 +63,19 @@ NAIL_ARMATURE = 0.5          # kg
 class NailBoard(props.Prop):
   """A block with a handle and a nail on a slide joint."""
 
-  def _build(self, name='nail_board'):
+  def _build(self, name='nail_board', block_half_size=BLOCK_HALF_SIZE,
+             nail_x=NAIL_X):
+    """block_half_size: half extents (m) of the block (at least the nail's
+    length thick); nail_x: the nail's distance (m) from the block's centre
+    along +x (hammering/robot_hammers uses a longer plank)."""
+    block_half_size = np.asarray(block_half_size, float)
+    if (block_half_size.shape != (3,) or not np.all(block_half_size > 0)
+        or 2 * block_half_size[2] < NAIL_LENGTH
+        or not abs(nail_x) + NAIL_HEAD_RADIUS <= block_half_size[0]):
+      raise ValueError(
+          f'NailBoard needs 3 positive half sizes, at least {NAIL_LENGTH / 2} '
+          f'm half thick, with the nail (x = {nail_x!r} m) on the block; got '
+          f'{block_half_size.tolist()}')
     body = self._build_root(name)
     root = self._mjcf_root
     wood = root.asset.add('material', name='pine', rgba=(0.86, 0.72, 0.5, 1),
@@ -71,10 +83,10 @@ class NailBoard(props.Prop):
     steel = root.asset.add('material', name='steel',
                            rgba=(0.6, 0.61, 0.64, 1), specular=0.8,
                            shininess=0.8)
-    half_x, _, half_z = BLOCK_HALF_SIZE
+    half_x, _, half_z = block_half_size
     self._block = self._add_collision_geom(
-        name='block', type='box', size=BLOCK_HALF_SIZE, material=wood,
-        mass=props.WOOD_DENSITY * 8 * np.prod(BLOCK_HALF_SIZE))
+        name='block', type='box', size=block_half_size, material=wood,
+        mass=props.WOOD_DENSITY * 8 * np.prod(block_half_size))
     handle_x = -half_x + HANDLE_INSET + HANDLE_HALF_SIZE[0]
     handle_top = half_z + 2 * HANDLE_HALF_SIZE[2]
     self._handle = self._add_collision_geom(
@@ -89,7 +101,7 @@ class NailBoard(props.Prop):
     # The nail body's origin is the top of its head; the joint's axis points
     # into the wood, so its position is the depth driven since the start.
     head_top = half_z + NAIL_TRAVEL + 2 * NAIL_HEAD_HALF_THICKNESS
-    self._nail = body.add('body', name='nail', pos=(NAIL_X, 0, head_top),
+    self._nail = body.add('body', name='nail', pos=(nail_x, 0, head_top),
                           gravcomp=1)
     self._joint = self._nail.add(
         'joint', name='insertion', type='slide', axis=(0, 0, -1),

@@ -42,6 +42,7 @@ for _domain, _task, _path in (
     ('inspection', 'default', 'inspection:InspectionExpert'),
     ('lifting', 'default', 'lifting:LiftingExpert'),
     ('hammering', 'default', 'hammering:HammeringExpert'),
+    ('hammering', 'robot_hammers', 'hammering_robot:RobotHammersExpert'),
     ('stacking', 'default', 'stacking:StackingExpert')):
   register(_domain, _task, _path)
 

@@ -29,9 +29,9 @@ drives its nail in (reference-benchmark.md, paper Table I).
 * Reach: the clips put the nail 0.22-0.42 m above the table, 0.49-0.62 m in
   front of the robot: within gripper-down reach of the 7-joint robots and
   the UR5e, above the Schunk's gripper-down workspace (<= 0.2 m).
-* The reference's recordings cannot succeed: their person never strikes
-  (the reference's robot hammers) and the nail lies 0.03-0.10 m above the
-  table, where the resting hammer face is (docs/tasks.md).
+* The reference's recordings are refused (task_targets: no blows): their
+  person never strikes, the reference's robot hammers; they play in
+  hammering/robot_hammers (hammering_robot.py, docs/tasks.md).
 """
 
 from dm_control.composer.observation import observable
@@ -106,6 +106,27 @@ def place_in_gripper(physics, tcp_site, prop, grip_site, turned=False):
   position = tcp.xpos - rotation @ np.asarray(grip_site.pos, float)
   prop.set_pose(physics, position, matrix_to_quat(rotation))
   prop.set_velocity(physics, np.zeros(3), np.zeros(3))
+
+
+def turn_at_home(task, physics, ik, yaw):
+  """Turns `task`'s gripper about its axis to `yaw` at the home TCP (IK
+  from home, collision-checked); where the IK finds no such turn the robot
+  keeps its home pose and Cartesian actions the suite's yaw. Returns
+  whether it turned."""
+  home = task.robot.description.q_home
+  position = task.kinematics.tcp_pose(home)[:3, 3]
+  result = ik.solve(position, home, yaw)
+  turn = bool(result.success
+              and not task.collision_checker.in_collision(result.q))
+  # The task's own start state (qpos slice, goal, Cartesian yaw).
+  if turn:
+    physics.data.qpos[task._qpos_index] = result.q
+    task._q_goal = result.q.copy()
+    task.shield.reset(result.q, 0.0)
+    physics.forward()
+  if task.action_space_name == 'cartesian':
+    task._action_space.yaw = yaw if turn else actions.GRIPPER_YAW
+  return turn
 
 
 class Hammering(base.HrcTask):
@@ -200,22 +221,10 @@ class Hammering(base.HrcTask):
     physics.forward()
 
   def _hold_pose(self, physics):
-    """Turns the gripper about its axis (yaw HOLD_YAW) at the home TCP so
-    that the nail will point towards the human; where the IK finds no such
-    turn the robot keeps its home pose. Returns whether the board must be turned
-    half about the TCP axis to point the nail along +x."""
-    home = self._robot.description.q_home
-    position = self._kinematics.tcp_pose(home)[:3, 3]
-    result = self._hold_ik.solve(position, home, HOLD_YAW)
-    turn = bool(result.success
-                and not self._collision_checker.in_collision(result.q))
-    if turn:
-      physics.data.qpos[self._qpos_index] = result.q
-      self._q_goal = result.q.copy()
-      self._shield.reset(result.q, 0.0)
-      physics.forward()
-    if self._action_space.name == 'cartesian':
-      self._action_space.yaw = HOLD_YAW if turn else actions.GRIPPER_YAW
+    """Turns the gripper to HOLD_YAW at home (`turn_at_home`) so that the
+    nail will point towards the human. Returns whether the board must be
+    turned half about the TCP axis to point the nail along +x."""
+    turn_at_home(self, physics, self._hold_ik, HOLD_YAW)
     nail_axis = physics.bind(self._robot.tcp_site).xmat.reshape(3, 3)[:, 1]
     return bool(nail_axis[0] < 0.0)
 
