@@ -86,11 +86,11 @@ TABLE_CLEARANCE = 0.03
 CARRIED, PLACED, TAKEN = 'carried', 'placed', 'taken'
 # PFL, not the reference's SSM for hammering: the nail lies within the
 # standing person's reach (their arm's 0.825 m reach ball, shield human
-# model), and SSM held the arm still there for the whole wait (the expert
-# pre-positioned 3 cm over the nail head, 0.335 m from the hand: no blow
-# in 1000 RL steps, 94 % of steps shielded; docs/tasks.md). PFL lets it move at v_safe where
-# contact is possible, as in the handovers, where the robot works at the
-# person's hand.
+# model), and SSM held the arm still there for the whole wait (Panda, seed
+# 0, the expert waiting with the face 3 cm over the nail head: no blow in
+# 1000 RL steps, 958 of them shielded; docs/tasks.md). PFL lets it move at
+# v_safe where contact is possible, as in the handovers, where the robot
+# works at the person's hand.
 SHIELD = 'pfl'
 
 
