@@ -10,6 +10,11 @@ with a new random goal every 12 cycles (the reference's 20 Hz policy at a
 * across: the same person standing still across the table (1.45 m from
   the base, the tasks' usual station): the second broad phase settles it;
 * far: the same person 3.5 m away (the first broad phase settles it).
+
+--rl_step times what a task runs instead (issue 16): the 25 cycles of one
+RL step in one `batch.step_many` call, a new goal at each RL step's
+start, thread CPU time per RL step, compiled and (same scenes and goals)
+the reference loop of `Shield.step`.
 """
 
 import argparse
@@ -20,6 +25,7 @@ import numpy as np
 
 from hrc_suite import robot_description
 from hrc_suite.human import keypoints
+from hrc_suite.safety import batch
 from hrc_suite.safety import shield as shield_lib
 
 # Policy period in shield cycles: 20 Hz at 4 ms (spec 2.4).
@@ -97,13 +103,76 @@ def time_cycles(name, scene, cycles, seed=0, mode='ssm'):
   return times, cpu_times, interventions / cycles
 
 
+# Cycles per RL step (tasks.base.DEFAULT_SHIELD_SUBSTEPS).
+RL_STEP_CYCLES = 25
+
+
+def time_rl_steps(name, scene, rl_steps, seed=0, mode='ssm', compiled=True):
+  """Thread CPU times (s) of `rl_steps` RL steps' shield cycles
+  (batch.step_many of RL_STEP_CYCLES cycles, a new goal before each) and
+  the fraction of cycles with an intervention."""
+  description = robot_description.load(name)
+  shield = shield_lib.Shield(description, mode=mode)
+  rng = np.random.RandomState(seed)
+  limits = description.limits
+  _, p2, _ = shield.robot.capsules(description.q_home)
+  if scene == 'close':
+    human = reaching_person(p2[-1])
+  else:
+    body = standing_person(SCENE_DISTANCE[scene], 0.0, math.pi)
+    human = lambda t: body
+  cpu_times = np.empty(rl_steps)
+  interventions = 0
+  for i in range(rl_steps):
+    shield.new_goal(np.clip(description.q_home + rng.uniform(
+        -1.0, 1.0, description.dof), limits.q_min, limits.q_max))
+    times = (i * RL_STEP_CYCLES + np.arange(RL_STEP_CYCLES)) * (
+        shield.cycle_time)
+    frames = np.array([human(t) for t in times])
+    cpu_start = time.thread_time()
+    _, flags = batch.step_many(shield, frames, times, compiled=compiled)
+    cpu_times[i] = time.thread_time() - cpu_start
+    interventions += int(flags.sum())
+  return cpu_times, interventions / (rl_steps * RL_STEP_CYCLES)
+
+
+def main_rl_steps(args):
+  print(f'Shield ({args.mode}): CPU time of one RL step\'s '
+        f'{RL_STEP_CYCLES} cycles (ms), {args.rl_steps} RL steps per row, '
+        'a new goal per RL step; compiled (batch.step_many) and reference '
+        '(Shield.step)')
+  print('| robot | scene | median [ms] | p95 [ms] | reference median [ms] | '
+        'reference p95 [ms] | interventions |')
+  print('|---|---|---|---|---|---|---|')
+  rows = []
+  for name in args.robots:
+    for scene in SCENES:
+      row = [name, scene]
+      for compiled in (True, False):
+        cpu, interventions = time_rl_steps(name, scene, args.rl_steps,
+                                           mode=args.mode, compiled=compiled)
+        cpu = cpu[4:] * 1e3   # The first plans (warm-up).
+        row += [float(np.median(cpu)), float(np.percentile(cpu, 95))]
+      row.append(interventions)
+      rows.append(row)
+      print(f'| {name} | {scene} | {row[2]:.3f} | {row[3]:.3f} | '
+            f'{row[4]:.3f} | {row[5]:.3f} | {100 * interventions:.0f}% |',
+            flush=True)
+  return rows
+
+
 def main(argv=None):
   parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   parser.add_argument('--cycles', type=int, default=1500)
   parser.add_argument('--robots', nargs='*',
                       default=list(robot_description.ROBOT_NAMES))
   parser.add_argument('--mode', choices=shield_lib.MODES, default='ssm')
+  parser.add_argument('--rl_step', action='store_true',
+                      help='Time the RL step\'s cycles in one call.')
+  parser.add_argument('--rl_steps', type=int, default=200)
   args = parser.parse_args(argv)
+  if args.rl_step:
+    return main_rl_steps(args)
   print(f'Shield ({args.mode}) cycle time (us), {args.cycles} cycles per '
         f'row, new goal every {GOAL_EVERY} cycles; wall clock and thread CPU '
         'time (the latter is immune to preemption by other processes)')

@@ -141,3 +141,13 @@ def test_plan_state_kernel_matches_the_matrix_reference():
       args = (s, rs.uniform(0, 1), rs.uniform(-5, 5), rs.uniform(-50, 50))
       assert np.allclose(plan.state(*args), plan.state_reference(*args),
                          rtol=1e-12, atol=1e-12)
+
+
+def test_rl_step_benchmark_runs_both_paths():
+  from hrc_suite.safety import benchmark as shield_benchmark
+  rows = shield_benchmark.main(['--rl_step', '--robots', 'panda',
+                                '--rl_steps', '8'])
+  assert [row[1] for row in rows] == list(shield_benchmark.SCENES)
+  close = rows[0]
+  assert close[-1] > 0.0   # The close scene makes the shield intervene.
+  assert all(value > 0.0 for value in close[2:6])
