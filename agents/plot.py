@@ -72,11 +72,15 @@ def expert_return(config, experts_json=None):
     return None
   experts = checkpoints.read_json(experts_json)
   if 'rows' in experts:   # python -m hrc_suite.experts.evaluate
+    # Training runs meet the shipped synthetic people behind the task's
+    # default shield: rows on recordings or another shield do not compare.
     matches = {row['policy']: row['return'] for row in experts['rows']
                if (row['domain'], row['task'], row['robot'],
                    row['action_space']) == (
                        config['domain'], config['task'], config['robot'],
-                       config['action_space'])}
+                       config['action_space'])
+               and row.get('people', 'synthetic') == 'synthetic'
+               and row.get('shield_choice', 'default') == 'default'}
     # The deterministic expert; the noisy one if that is all there is.
     entry = matches.get('expert', matches.get('noisy_expert'))
   else:

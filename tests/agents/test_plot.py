@@ -83,14 +83,21 @@ def test_groups_by_configuration_and_experts_file(tmp_path):
   assert [c.label for c in curves] == ['sac (default)', 'air (default)']
   np.testing.assert_allclose(curves[0].returns[0], [0.4, 1.0])
   # The rows of hrc_suite.experts.evaluate: the deterministic expert of the
-  # same robot and action space.
+  # same robot and action space, on the synthetic people behind the
+  # task's default shield (as training runs meet them).
   rows = [{'domain': 'reach', 'task': 'dense', 'robot': robot,
-           'action_space': space, 'policy': policy, 'return': value}
-          for robot, space, policy, value in (
-              ('panda', 'cartesian', 'expert', -10.0),
-              ('schunk', 'joint', 'expert', -10.0),
-              ('schunk', 'cartesian', 'noisy_expert', -10.0),
-              ('schunk', 'cartesian', 'expert', -50.0))]
+           'action_space': space, 'policy': policy, 'return': value,
+           'people': people, 'shield_choice': shield}
+          for robot, space, policy, value, people, shield in (
+              ('panda', 'cartesian', 'expert', -10.0, 'synthetic',
+               'default'),
+              ('schunk', 'joint', 'expert', -10.0, 'synthetic', 'default'),
+              ('schunk', 'cartesian', 'noisy_expert', -10.0, 'synthetic',
+               'default'),
+              ('schunk', 'cartesian', 'expert', -50.0, 'synthetic',
+               'default'),
+              ('schunk', 'cartesian', 'expert', -10.0, 'real', 'default'),
+              ('schunk', 'cartesian', 'expert', -10.0, 'synthetic', 'off'))]
   experts.write_text(json.dumps({'info': {}, 'rows': rows}))
   from_rows = plot.learning_curves([str(tmp_path / 's0')],
                                    np.random.RandomState(0),
