@@ -1,4 +1,4 @@
-r"""Baseline tables: experts, noisy experts and a random policy per task.
+r"""Baseline tables: experts, noisy experts and test policies per task.
 
   python -m hrc_suite.experts.evaluate --episodes=50 --robots=schunk,panda \
       --workers=2
@@ -7,6 +7,9 @@ r"""Baseline tables: experts, noisy experts and a random policy per task.
   python -m hrc_suite.experts.evaluate --policies=random --shield=default,off \
       --motions=../shared/motions/human-robot-animations --motions_label=real \
       --episodes=10 --out=docs/results/safety_real.md
+  python -m hrc_suite.experts.evaluate --policies=random,chase \
+      --shield=default,off --motions=../shared/motions/human-robot-animations \
+      --motions_label=real --episodes=10 --out=docs/results/safety_real.md
 
 Runs episodes with seeds 0..N-1 of each registered expert's task on each
 robot and policy, or on the given robot:policy pairs, with each --shield
@@ -28,9 +31,11 @@ people by --motions_label (default: DIR's name).
 
 The bar (listed under "Rows below the bar"): an expert succeeds in at
 least 80 % of its episodes (issue 6); no policy has a critical human
-contact with the shield on, which for the random policy is the whole bar
-(issue 15). Rows with the shield off have no safety bar: their critical
-contacts show the check can fail, and the table counts their episodes.
+contact with the shield on, which for the test policies is the whole bar
+(issue 15): `random` (uniform actions) and `chase` (the TCP driven at the
+person's nearest keypoint at full speed, experts/adversary.py). Rows with
+the shield off have no safety bar: their critical contacts show the check
+can fail, and the table counts their episodes.
 
 Finished episodes are logged to <json>.partial.jsonl as they come: a
 killed run started again with the same flags skips them (the file is
@@ -43,8 +48,8 @@ episodes (after a change of the table's format).
 Episode `seed` runs in an environment whose random_state is seeded `seed`;
 the noisy expert uses the noise of episode `seed` of NoisyExpert(seed=0),
 as a dataset collected with --seed=0 does; the random policy draws from
-np.random.default_rng(seed). Experts whose module does not import yet are
-listed as not evaluated.
+np.random.default_rng(seed); the chaser is deterministic. Experts whose
+module does not import yet are listed as not evaluated.
 """
 
 import collections
@@ -67,13 +72,15 @@ import numpy as np
 from hrc_suite import statistics
 from hrc_suite import experts
 from hrc_suite import suite
+from hrc_suite.experts import adversary
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
 EXPERT_POLICIES = ('expert', 'noisy_expert')
-POLICIES = EXPERT_POLICIES + ('random',)
+TEST_POLICIES = ('random', 'chase')   # Safety checks, no success bar.
+POLICIES = EXPERT_POLICIES + TEST_POLICIES
 # --shield values: the task's default (DEFAULT_SHIELD) or a mode of
 # hrc_suite/safety/shield.py.
 DEFAULT_SHIELD = 'default'
@@ -195,6 +202,8 @@ def _environment(domain, task, robot, action_space, policy, time_limit,
                      environment_kwargs={'random_state': 0})
     if policy == 'random':
       agent = RandomPolicy(env.action_spec())
+    elif policy == 'chase':
+      agent = adversary.PersonChaser(env)
     else:
       noise = None
       if policy == 'noisy_expert':
@@ -439,9 +448,10 @@ def bar_text(rows):
   if policies & set(EXPERT_POLICIES):
     parts.append(f'experts: success >= {SUCCESS_BAR:.0%} and no critical '
                   'human contact with the shield on')
-  if 'random' in policies:
-    parts.append('random policy: zero critical human contacts with the '
-                 'shield on')
+  tests = sorted(policies & set(TEST_POLICIES))
+  if tests:
+    parts.append(f'{" and ".join(tests)} policy: zero critical human '
+                 'contacts with the shield on')
   return '; '.join(parts)
 
 
@@ -450,10 +460,10 @@ def title(rows):
   policies = {row['policy'] for row in rows}
   if policies <= set(EXPERT_POLICIES):
     text = 'Expert baseline'
-  elif policies == {'random'}:
-    text = 'Random-policy safety check'
+  elif policies <= set(TEST_POLICIES):
+    text = 'Test-policy safety check'
   else:
-    text = 'Expert baseline and random-policy safety check'
+    text = 'Expert baseline and test-policy safety check'
   who = list(dict.fromkeys(row['people'] for row in rows))
   if who and who != [SYNTHETIC]:
     text += f' (people: {", ".join(who)})'
@@ -632,6 +642,10 @@ def _policy_lines(rows):
   if 'random' in policies:
     lines.append('random: uniform actions in the action spec, drawn from '
                  'np.random.default_rng(seed)')
+  if 'chase' in policies:
+    lines.append('chase: the TCP driven at the person\'s nearest keypoint '
+                 'as fast as the action space allows, gripper closed '
+                 '(hrc_suite/experts/adversary.py)')
   return lines
 
 

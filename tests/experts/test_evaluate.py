@@ -334,7 +334,7 @@ def test_random_rows_have_the_safety_bar_and_shield_off_has_none():
   assert evaluate.below_bar(with_contact) == [
       'critical human contacts in 1 of 1 episodes']
   text = evaluate.markdown([on, off], [_run(results)], results=results)
-  assert text.startswith('# Random-policy safety check (people: real)\n')
+  assert text.startswith('# Test-policy safety check (people: real)\n')
   assert ('## Rows below the bar (random policy: zero critical human '
           'contacts with the shield on)') in text
   assert ('* reach/dense schunk random (real people, shield off): critical '
@@ -427,7 +427,7 @@ def test_random_policy_on_real_recordings_with_and_without_shield(
       ['pick_place/close', 'panda', 'random', 'real', 'off', 'cartesian',
        '1']]
   assert cells[1][10] == '0.3'   # s
-  assert text.startswith('# Expert baseline and random-policy safety check')
+  assert text.startswith('# Expert baseline and test-policy safety check')
   assert '## Shield off: the check can fail' in text
   assert ("* reach/dense (real people): skipped: ClipError: "
           in text) and "no sub-folder for task 'reach'" in text
