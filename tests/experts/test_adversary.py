@@ -53,3 +53,21 @@ def test_chaser_aims_at_the_nearest_keypoint():
   step = action[:3] / np.linalg.norm(action[:3])
   assert step @ direction == pytest.approx(1.0, abs=1e-6)
   assert action[3] == adversary.CLOSED
+
+
+def test_joint_chaser_brings_the_arm_to_the_person():
+  env = suite.load('pick_place', 'close', task_kwargs={
+      'robot': 'panda', 'shield': 'off', 'action_space': 'joint'},
+                   environment_kwargs={'random_state': 0})
+  policy = adversary.PersonChaser(env)
+  timestep = env.reset()
+
+  def distance():
+    observation = policy.observe()
+    return policy.distance(observation['joint_positions'],
+                           observation['human_keypoints'])
+
+  start = distance()
+  for _ in range(20):
+    timestep = env.step(policy(timestep))
+  assert distance() < start - 0.1, (start, distance())
