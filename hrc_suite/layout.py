@@ -75,3 +75,9 @@ def robot_mount(robot_name: str) -> RobotMount:
 # is authored with the person at the origin facing +x; yaw turns it.
 HUMAN_STATION_ACROSS = (1.45, 0.0, math.pi)         # facing the robot.
 HUMAN_STATION_BESIDE = (0.55, 1.05, -math.pi / 2)   # beside the workspace.
+# Stacking's person stands this much closer to the table (pelvis 0.18 m
+# from its edge), so the synthetic clips' stack, 0.55-0.65 m ahead of the
+# person, lies 0.68-0.79 m from the robot (tasks/stacking.py).
+STACKING_STATION_SHIFT = 0.12   # m
+HUMAN_STATION_STACKING = (HUMAN_STATION_ACROSS[0] - STACKING_STATION_SHIFT,
+                          *HUMAN_STATION_ACROSS[1:])

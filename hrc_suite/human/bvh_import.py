@@ -465,7 +465,7 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
   if task in REACH_TASKS and anchor is not None and hand in clip_lib.HANDS:
     reach = (keypoints.KEYPOINT_INDEX[f'{hand}_hand'], HANDOVER_REACH)
   positions, facts['placement'] = placement.place_at_station(
-      positions, turn, anchor, reach)
+      positions, turn, anchor, reach, placement.lean_allowance(task))
   fields['idle_phases'] = tuple(_calm_idle_phase(p)
                                 for p in fields['idle_phases'])
   fields, targets = task_targets.derive(task, positions, motion.fps, fields,

@@ -20,14 +20,20 @@ is placed by where it ends up, not where it starts:
   forward (the closest approach to the table). Some people wait a step
   back and step in later: the pelvis may then pass the station by at most
   LEAN_ALLOWANCE, so it stays at least 0.10 m behind the table's edge, as
-  close as the synthetic people come.
+  close as the synthetic people come (less for stations closer to the
+  edge, STATION_SHIFTS: stacking's).
 * reaching out (`reach`, the handovers: bvh_import.REACH_TASKS): a person
   who holds a hand out to the robot at the anchor steps up until that hand
   is at least a given distance ahead of the station (the synthetic people's
   handover points), again at most LEAN_ALLOWANCE past it. Recorded people
   stand upright and hold the hand 0.43-0.58 m ahead of the pelvis, the
   synthetic ones lean in and reach 0.50-0.67 m.
-* sideways: the pelvis at the anchor frame lands on the station's line.
+* sideways: the pelvis at the anchor frame lands on the station's line;
+  with `reach`, that keypoint does (recorded handover people hold the
+  hand 0.26-0.37 m beside the pelvis, which with the task's +-0.2 m
+  sideways randomisation put the hammer beyond the gripper-down reach:
+  human_to_robot seeds 0-9, 8/10 on the Schunk and the Panda; anchored on
+  the hand, 9/10 and 10/10, docs/tasks.md).
 
 Only horizontal placement changes; heights stay as imported (floor at 0).
 """
@@ -48,6 +54,14 @@ LAB_AXIS = math.pi / 2   # rad; the lab frame's axes are this far apart.
 # How far past the station the pelvis may come (m): the synthetic people's
 # closest approach leaves 0.10 m to the table's edge (docs/motion_library.md).
 LEAN_ALLOWANCE = TABLE_EDGE_CLEARANCE - 0.10
+# Clip tasks whose station stands closer to the table's edge than the
+# shared stations (m closer): their people may lean that much less.
+STATION_SHIFTS = {'stacking': layout.STACKING_STATION_SHIFT}
+
+
+def lean_allowance(task):
+  """How far past its station the pelvis of a `task` clip may come (m)."""
+  return LEAN_ALLOWANCE - STATION_SHIFTS.get(task, 0.0)
 
 
 def _yaw_matrix(yaw):
@@ -62,7 +76,8 @@ def snapped_turn(estimated_yaw_deg):
   return snapped - estimated
 
 
-def place_at_station(positions, turn=0.0, anchor=None, reach=None):
+def place_at_station(positions, turn=0.0, anchor=None, reach=None,
+                     lean=LEAN_ALLOWANCE):
   """(positions, facts) with the clip placed by the module's rule.
 
   `positions` (F, K, 3) are in a clip frame facing +x (floor at z = 0);
@@ -70,7 +85,9 @@ def place_at_station(positions, turn=0.0, anchor=None, reach=None):
   facing correction). `anchor` is the frame where the person waits for the
   robot (None: the closest approach). `reach` (keypoint index, distance m)
   or None: that keypoint at the anchor frame lies at least `distance`
-  ahead of the station where LEAN_ALLOWANCE allows.
+  ahead of the station where the lean allows, and on its line sideways.
+  `lean` (m): how far past the station the pelvis may come
+  (`lean_allowance` of the clip's task).
   """
   positions = np.asarray(positions, dtype=np.float64)
   # Turning by `turn` moves the facing direction; turning the points by
@@ -80,16 +97,19 @@ def place_at_station(positions, turn=0.0, anchor=None, reach=None):
   pelvis = placed[:, _PELVIS]
   closest = int(np.argmax(pelvis[:, 0]))
   frame = closest if anchor is None else int(anchor)
-  limit = LEAN_ALLOWANCE - pelvis[closest, 0]
+  limit = lean - pelvis[closest, 0]
   forward = min(-pelvis[frame, 0], limit)
   rule = ('anchor pelvis at the station, closest approach at most '
-          f'{LEAN_ALLOWANCE:.2f} m past it')
+          f'{lean:.2f} m past it')
   if reach is not None:
     point, distance = reach
     short = distance - (placed[frame, point, 0] + forward)
     forward = max(forward, min(forward + short, limit))
-    rule += f'; keypoint {point} at least {distance:.2f} m ahead of it'
-  shift = np.array([forward, -pelvis[frame, 1], 0.0])
+    rule += (f'; keypoint {point} at least {distance:.2f} m ahead of it '
+             'and on its line')
+  sideways = (pelvis[frame, 1] if reach is None
+              else placed[frame, reach[0], 1])
+  shift = np.array([forward, -sideways, 0.0])
   placed = placed + shift
   facts = {'rule': rule,
            'facing_turn_deg': round(math.degrees(turn), 3),

@@ -16,7 +16,8 @@ human 3, robot 4 (reference-benchmark.md, paper Table I).
   it. The human waits for 'second_cube_placed' and
   'fourth_cube_placed' (clip.TASK_EVENTS): the robot's cube in its slot,
   released, the TCP WITHDRAWN_DISTANCE away from it.
-* Station: across the table, STATION_SHIFT closer than the shared station
+* Station: across the table, layout.STACKING_STATION_SHIFT closer than the
+  shared station
   (pelvis 0.18 m from the table edge), placement +-(0.02 m, 0.1 m,
   0.1 rad). The clips' stack, 0.55-0.65 m ahead of the person, is then
   0.68-0.79 m in front of the robot (0.80-0.91 m unshifted: beyond the
@@ -56,9 +57,6 @@ REWARD_TOPPLED = -10.0
 REWARD_FOURTH_PLACED = 1.0
 REWARD_GRIPPING = 0.75
 REWARD_OTHERWISE = -1.0
-# The person stands this much closer to the table than the shared station
-# (layout.HUMAN_STATION_ACROSS), the pelvis 0.18 m from the table edge.
-STATION_SHIFT = 0.12           # m
 # Robot cubes: in front of the robot, either side of its centre line.
 ROBOT_CUBE_X = (0.40, 0.48)    # m ahead of the robot base
 ROBOT_CUBE_Y = (0.15, 0.28)    # m to either side
@@ -96,8 +94,7 @@ class Stacking(base.HrcTask):
   """Stack cubes 2 and 4 on the human's cubes 1 and 3."""
 
   MOTIONS = 'stacking'
-  HUMAN_STATION = (layout.HUMAN_STATION_ACROSS[0] - STATION_SHIFT,
-                   *layout.HUMAN_STATION_ACROSS[1:])
+  HUMAN_STATION = layout.HUMAN_STATION_STACKING
   HUMAN_PLACEMENT_RANGE = (0.02, 0.1, 0.1)   # reference
   DEFAULT_SHIELD = 'ssm'
   DEFAULT_ACTION_SPACE = 'cartesian'

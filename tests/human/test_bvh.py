@@ -461,23 +461,28 @@ def test_real_recordings_import(path):
   assert p[..., 2].min() > 0.0   # nothing below the floor.
   assert p[:, I['left_ankle'], 2].min() >= body.ankle_height - 1e-5
   # The pelvis is at the station (the origin, human/placement.py) at the
-  # anchor frame, or short of it, and never more than LEAN_ALLOWANCE past
+  # anchor frame, or short of it, and never more than its lean allowance past
   # it; the person starts facing +x, within 45 degrees (the lab's axis
   # nearest to their first half second's facing): left shoulder to +y.
   pelvis = p[:, I['pelvis']]
+  lean = placement.lean_allowance(clip.task)
   anchor = clip.metadata['import']['placement']['anchor_frame']
-  assert abs(pelvis[anchor, 1]) < 1e-5
+  if clip.task in bvh_import.REACH_TASKS:
+    # The holding hand, not the pelvis, on the station's line.
+    assert abs(p[anchor, I[f'{clip.holding_hand}_hand'], 1]) < 1e-5
+  else:
+    assert abs(pelvis[anchor, 1]) < 1e-5
   if clip.task in bvh_import.REACH_TASKS:
     # Or stepped up until the holding hand reaches HANDOVER_REACH.
     hand = p[anchor, I[f'{clip.holding_hand}_hand'], 0]
     assert (pelvis[anchor, 0] < 1e-5
             or abs(hand - bvh_import.HANDOVER_REACH) < 1e-5
-            or pelvis[:, 0].max() > placement.LEAN_ALLOWANCE - 1e-5)
+            or pelvis[:, 0].max() > lean - 1e-5)
   else:
     assert pelvis[anchor, 0] < 1e-5
-  assert pelvis[:, 0].max() <= placement.LEAN_ALLOWANCE + 1e-5
+  assert pelvis[:, 0].max() <= lean + 1e-5
   assert (pelvis[anchor, 0] > -1e-5
-          or pelvis[:, 0].max() > placement.LEAN_ALLOWANCE - 1e-5)
+          or pelvis[:, 0].max() > lean - 1e-5)
   window = slice(0, 50)
   lateral = (p[window, I['left_shoulder']] - p[window, I['right_shoulder']]
              ).mean(0)
