@@ -13,10 +13,18 @@ front of a person, who inspects it and leaves (reference-benchmark.md).
   until the cube is gripped and within SUCCESS_DISTANCE of the inspection
   target, then inspects it with the hands and retreats.
 * Inspection target: the clip's 'inspection_point' (in front of the person,
-  0.33-0.53 m above the table); where gripper-down IK cannot reach it (short
-  robots, e.g. the Schunk) or it lies outside the Cartesian action box, the
-  nearest point on the segment from it towards the robot's home TCP that
-  is inside the box and reached by IK. Computed once per clip.
+  0.33-0.53 m above the table); where a policy holding the cube cannot bring
+  its centre there (short robots, e.g. the Schunk; recorded people who hold
+  their hands high), the nearest point on the segment from it towards the
+  robot's home TCP where it can. Reachable means as Cartesian actions reach
+  it: local gripper-down IK steps (CARTESIAN_STEP) along the straight line
+  from the home TCP to the TCP over the cube, each from the last solution,
+  free of static and self-collision and inside the action box, for the TCP
+  GRASP_TCP_ABOVE_CENTRE above the cube's centre and up to SLIP_ALLOWANCE
+  higher (the cube slips down in the pads while carried). A target checked
+  for the TCP at the point itself with IK restarts from random postures lay
+  at the edge of the reach, 1-2 cm too high for the TCP over a held cube:
+  the Panda's expert stalled with every IK failing. Computed once per clip.
 * Success (delayed by the retreat): the clip ends after the event and the
   cube stayed within SUCCESS_DISTANCE of the target from the event on. The
   next clip (if the episode goes on) asks again.
@@ -59,7 +67,10 @@ TABLE_CLEARANCE = 0.005      # m, fingertips above the table (see doc)
 OBJECT_MAX_YAW = 0.3         # rad, cube heading about the fingers' axes
 # Candidates from the clip's inspection point towards the home TCP.
 TARGET_CANDIDATES = 21
-TARGET_IK_RESTARTS = 3
+# How far a gripped cube slides down in the pads while it is carried: the
+# TCP was 0.015-0.020 m above the centre of a carried cube (Panda, recorded
+# inspection clips; docs/tasks.md), 0.010-0.015 m below the grasp's.
+SLIP_ALLOWANCE = 0.02        # m
 TARGET_RADIUS = 0.02         # m, the visual marker
 TARGET_RGBA = (0.2, 0.4, 0.9, 0.4)
 
@@ -116,11 +127,28 @@ class Inspection(base.HrcTask):
   def target_position(self):
     return self._target.copy()
 
-  def _reachable(self, point, q_init, random_state):
-    result = self._ik.solve_with_restarts(point, q_init, random_state,
-                                          restarts=TARGET_IK_RESTARTS)
-    return result.success and not self._collision_checker.in_collision(
-        result.q)
+  def _reachable(self, point, q_home):
+    """Whether Cartesian actions from home bring a held cube's centre to
+    `point` (see the module doc)."""
+    home = self._kinematics.tcp_pose(q_home)[:3, 3]
+    grasp = np.asarray(point, dtype=float) + (0.0, 0.0,
+                                              GRASP_TCP_ABOVE_CENTRE)
+    slipped = grasp + (0.0, 0.0, SLIP_ALLOWANCE)
+    low, high = actions.workspace_box(self._kinematics)
+    if not all(np.all((p >= low) & (p <= high)) for p in (grasp, slipped)):
+      return False
+    steps = int(np.ceil(np.linalg.norm(slipped - home)
+                        / actions.CARTESIAN_STEP))
+    waypoints = [home + (slipped - home) * (k + 1) / max(steps, 1)
+                 for k in range(steps)] + [grasp]
+    q = q_home
+    for waypoint in waypoints:
+      result = self._ik.solve(waypoint, q, self.CARTESIAN_YAW)
+      if not result.success or self._collision_checker.in_collision(
+          result.q):
+        return False
+      q = result.q
+    return True
 
   def _clip_target(self):
     """The current clip's inspection target, moved into the robot's reach."""
@@ -129,14 +157,10 @@ class Inspection(base.HrcTask):
       point = np.asarray(self._player.targets_world['inspection_point'])
       q_home = self._robot.description.q_home
       home = self._kinematics.tcp_pose(q_home)[:3, 3]
-      # Seeded by the clip's name: the same clip gives the same target.
-      rs = np.random.RandomState(sum(map(ord, clip.name)))
       target = home
-      low, high = actions.workspace_box(self._kinematics)
       for s in np.linspace(0.0, 1.0, TARGET_CANDIDATES):
         candidate = point + s * (home - point)
-        inside = np.all((candidate >= low) & (candidate <= high))
-        if inside and self._reachable(candidate, q_home, rs):
+        if self._reachable(candidate, q_home):
           target = candidate
           break
       self._target_cache[clip.name] = target
