@@ -14,14 +14,25 @@ the board and after they put it down the TCP stays on the handle.
 * Steps are short (MAX_STEP): near the person the SSM shield stops a robot
   commanded far ahead (the Schunk in joint space stalls for seconds with
   0.1 m steps; measured, 6/10 -> 6/10 Cartesian, 4/10 -> 6/10 joint).
-* Out of gripper-down reach (IK from the current joints fails), the robot
-  end goes lower (REACH_DROPS): the board tilts but stays held.
+* Reach means gripper-down IK from the current joints succeeds and its
+  posture collides neither with the table nor with the robot itself (the
+  collision prevention would hold the robot still). Where the level
+  board's handle is out of reach (recorded people lift their end by up to
+  1 m), the aim is the handle of the least tilted board in reach (TILTS:
+  turned about the line through the hands, as the rigid board moves; going
+  straight down instead, the hold welds dragged the robot end towards the
+  person). Where the next step is out of reach, the robot end stays
+  further from the base (REACH_AWAY), then goes lower (REACH_DROPS).
+  Recorded people also pull their end towards the robot by up to 0.14 m
+  while they lift it: the Schunk's elbow folded against its upper arm, the
+  robot stood still and the board tipped over (docs/tasks.md).
 * Joint space turns the gripper with the board's heading (gripper-down IK at
   the grip yaw plus the heading); Cartesian actions keep the task's fixed
   grip yaw.
 
 Measured (docs/results/experts.md): 50 of 50 episodes on the Schunk
-(expert and noisy expert) and on the Panda (expert).
+(expert and noisy expert) and on the Panda (expert). Recorded people
+(docs/tasks.md, seeds 0-9): Schunk 9/10 (noisy 10/10), Panda 10/10.
 """
 
 import numpy as np
@@ -44,6 +55,15 @@ MAX_STEP = 0.03
 # lower (m, the first that IK reaches): the board tilts towards the robot
 # but stays held, and a lower TCP reaches further.
 REACH_DROPS = (0.03, 0.06, 0.1, 0.15, 0.2)
+# Board tilts tried, least first, where the level board's handle is out
+# of reach (rad; the task fails at lifting.MAX_TILT, ~37 deg): the robot
+# end on the circle about the person's hands that the rigid board allows
+# (straight down, the hold welds stretched and dragged the robot end
+# towards the person).
+TILTS = tuple(np.radians((0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)))
+# Before dropping, the robot end first stays this much further from the
+# base, horizontally (m): a fold that collides near the base opens there.
+REACH_AWAY = (0.02, 0.04, 0.06)
 GRIPPER_CLOSED = 1.0
 _MJ_EQ_WELD = 1   # mujoco.mjtEq.mjEQ_WELD
 
@@ -60,6 +80,13 @@ def rotation_from_quat(quat):
 def _yaw_rotation(angle):
   c, s = np.cos(angle), np.sin(angle)
   return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _axis_rotation(axis, angle):
+  """3x3 rotation by `angle` (rad) about the unit vector `axis`."""
+  k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                [-axis[1], axis[0], 0.0]])
+  return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
 
 
 def _wrap(angle):
@@ -87,6 +114,8 @@ class LiftingExpert(base.Expert):
         ('left_hand', 'right_hand')))
     self._ik = ik_lib.InverseKinematics(self._task.kinematics)
     self._box = actions.workspace_box(self._task.kinematics)
+    self._checker = self._task.collision_checker
+    self._base = self._task.kinematics.base_pose[:3, 3]
 
   def _anchors(self):
     """(2, 3) anchor points of the active hold welds on the board (board
@@ -106,10 +135,10 @@ class LiftingExpert(base.Expert):
     return np.stack([model.eq_data[hand_of[hand], 0:3]
                      for hand in ('left', 'right')])
 
-  def board_aim(self, observation):
-    """(world position of the handle on the board the person's hands want,
-    that board's heading: world yaw of its long axis, rad), or None when
-    nobody holds the board."""
+  def _wanted_board(self, observation):
+    """(middle of the hands, led by LOOKAHEAD; world vector from there to
+    the handle of the level board the hands want; that board's heading:
+    world yaw of its long axis, rad), or None when nobody holds it."""
     anchors = self._anchors()
     if anchors is None:
       return None
@@ -125,19 +154,53 @@ class LiftingExpert(base.Expert):
                     - np.arctan2(across_board[1], across_board[0]))
     velocity = self._task.player.velocities[self._hand_index].mean(axis=0)
     middle = hands.mean(axis=0) + LOOKAHEAD * velocity
-    aim = middle + _yaw_rotation(heading) @ (handle_local
-                                             - anchors.mean(axis=0))
-    return aim, heading
+    offset = _yaw_rotation(heading) @ (handle_local - anchors.mean(axis=0))
+    return middle, offset, heading
+
+  def board_aim(self, observation):
+    """(world position of the handle on the board the person's hands want,
+    that board's heading: world yaw of its long axis, rad), or None when
+    nobody holds the board."""
+    wanted = self._wanted_board(observation)
+    if wanted is None:
+      return None
+    middle, offset, heading = wanted
+    return middle + offset, heading
+
+  def _tilted_aim(self, middle, offset, grasp, q):
+    """The handle of the least tilted board (TILTS: the robot end lower,
+    turned about the horizontal line through the hands) whose TCP (handle
+    + `grasp`) gripper-down IK from q reaches free of collisions; the level
+    board's handle if none."""
+    axis = np.cross([0.0, 0.0, 1.0], offset)
+    axis /= max(np.linalg.norm(axis), 1e-9)
+    for tilt in TILTS:
+      turned = _axis_rotation(axis, tilt) @ offset
+      if turned[2] > offset[2]:   # The robot end must go down.
+        turned = _axis_rotation(axis, -tilt) @ offset
+      aim = middle + turned
+      if self._reaches(np.clip(aim + grasp, *self._box), q):
+        return aim
+    return middle + offset
+
+  def _away(self, point):
+    """`point`, then moved REACH_AWAY further from the base."""
+    away = point[:2] - self._base[:2]
+    away = np.append(away / max(np.linalg.norm(away), 1e-9), 0.0)
+    return [point] + [point + distance * away for distance in REACH_AWAY]
 
   def action(self, observation):
     tcp = observation['eef_position']
     q = observation['joint_positions']
     handle = observation['handle_position']
-    wanted = self.board_aim(observation)
+    wanted = self._wanted_board(observation)
     if wanted is None:   # Nobody holds the board: stay on the handle.
       rotation = rotation_from_quat(observation['board_quaternion'])
-      wanted = handle, float(np.arctan2(rotation[1, 0], rotation[0, 0]))
-    aim, heading = wanted
+      aim = handle
+      heading = float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+    else:
+      middle, offset, heading = wanted
+      aim = self._tilted_aim(middle, offset, tcp - handle, q)
     # Keep the TCP's offset from the handle (the grasp as it is).
     delta = aim + (tcp - handle) - tcp
     norm = np.linalg.norm(delta)
@@ -148,16 +211,26 @@ class LiftingExpert(base.Expert):
     aim = self._within_reach(tcp + delta, q)
     return self._steer.action(aim, tcp, q, GRIPPER_CLOSED)
 
+  def _reaches(self, aim, q):
+    """Whether gripper-down IK from q reaches `aim` without a collision."""
+    result = self._ik.solve(aim, q, self._steer.yaw)
+    return result.success and not self._checker.in_collision(result.q)
+
   def _within_reach(self, aim, q):
-    """`aim` (inside the Cartesian workspace box), or lower where
-    gripper-down IK from q does not reach it."""
+    """`aim` (inside the Cartesian workspace box), or, where gripper-down IK
+    from q does not reach it free of collisions, the first that does of
+    the aim further from the base (REACH_AWAY), then lower (REACH_DROPS)."""
     aim = np.clip(aim, *self._box)
-    if self._ik.solve(aim, q, self._steer.yaw).success:
+    if self._reaches(aim, q):
       return aim
+    for further in self._away(aim)[1:]:
+      further = np.clip(further, *self._box)
+      if self._reaches(further, q):
+        return further
     for drop in REACH_DROPS:
       lower = aim - [0.0, 0.0, drop]
       if lower[2] < self._box[0][2]:
         break
-      if self._ik.solve(lower, q, self._steer.yaw).success:
+      if self._reaches(lower, q):
         return lower
     return aim
