@@ -96,6 +96,7 @@ def task_stations():
   """
   # Imported here: the tasks pull in MuJoCo and dm_control.
   from hrc_suite.tasks import hammering
+  from hrc_suite.tasks import hammering_robot
   from hrc_suite.tasks import handover
   from hrc_suite.tasks import inspection
   from hrc_suite.tasks import lifting
@@ -104,7 +105,8 @@ def task_stations():
   from hrc_suite.tasks import stacking
   classes = (reach.Reach, pick_place.PickPlaceClose, inspection.Inspection,
              lifting.Lifting, handover.RobotToHuman, handover.HumanToRobot,
-             hammering.Hammering, stacking.Stacking)
+             hammering.Hammering, hammering_robot.RobotHammers,
+             stacking.Stacking)
   return {c.MOTIONS: tuple(c.HUMAN_STATION) for c in classes}
 
 
