@@ -1,4 +1,4 @@
-"""A safety-test policy that drives the TCP at the person's nearest point.
+"""A safety-test policy that drives the robot at the person.
 
 Uniform random actions seldom reach the person: on the real recordings,
 with the shield off, they touched the person critically only in pick and
@@ -30,7 +30,7 @@ GRADIENT_STEP = 1e-4
 
 
 class PersonChaser(base.Expert):
-  """Aims the TCP at the person's nearest keypoint (see module doc).
+  """Drives the robot at the person as fast as it can (see module doc).
 
   Privileged: none (the task's own observables, noise-free)."""
 
