@@ -5,11 +5,14 @@ r"""Baseline tables: experts, noisy experts and test policies per task.
   python -m hrc_suite.experts.evaluate \
       --pairs=schunk:expert,schunk:noisy_expert,panda:expert --workers=2
   python -m hrc_suite.experts.evaluate --policies=random --shield=default,off \
-      --motions=../shared/motions/human-robot-animations --motions_label=real \
-      --episodes=10 --out=docs/results/safety_real.md
-  python -m hrc_suite.experts.evaluate --policies=random,chase \
-      --shield=default,off --motions=../shared/motions/human-robot-animations \
-      --motions_label=real --episodes=10 --out=docs/results/safety_real.md
+      --motions=DIR --motions_label=real --episodes=10 \
+      --out=docs/results/safety_real.md
+  python -m hrc_suite.experts.evaluate --policies=chase --action_spaces=joint \
+      --shield=default,off --motions=DIR --motions_label=real --episodes=5 \
+      --out=docs/results/safety_real.md --update
+
+(DIR: a folder of recordings, e.g. the reference's human-robot-animations
+folder as it is.)
 
 Runs episodes with seeds 0..N-1 of each registered expert's task on each
 robot and policy, or on the given robot:policy pairs, with each --shield
@@ -794,8 +797,8 @@ def define_flags(flag_values=flags.FLAGS):
                     f'some of {", ".join(SHIELDS)} ({DEFAULT_SHIELD}: the '
                     "task's own).", flag_values=fv)
   flags.DEFINE_string('motions', None, 'A folder of motions for every task '
-                      "(task_kwargs['motions'], e.g. ../shared/motions/"
-                      'human-robot-animations; played with '
+                      "(task_kwargs['motions'], e.g. the reference's "
+                      'human-robot-animations folder; played with '
                       "outside_human_model='allow'). Default: the shipped "
                       'synthetic library.', flag_values=fv)
   flags.DEFINE_string('motions_label', None, "The people column's name for "
