@@ -73,19 +73,23 @@ def reaching_person(target, x=1.3, period=1.5):
   return at
 
 
+def _scene(name, mode, scene):
+  """(description, shield, human(t) -> keypoints) of one timing row."""
+  description = robot_description.load(name)
+  shield = shield_lib.Shield(description, mode=mode)
+  _, p2, _ = shield.robot.capsules(description.q_home)
+  if scene == 'close':
+    return description, shield, reaching_person(p2[-1])
+  body = standing_person(SCENE_DISTANCE[scene], 0.0, math.pi)
+  return description, shield, lambda t: body
+
+
 def time_cycles(name, scene, cycles, seed=0, mode='ssm'):
   """Per-cycle wall and thread CPU times (s) of `cycles` shield steps for one
   robot and scene, and the fraction of cycles with an intervention."""
-  description = robot_description.load(name)
-  shield = shield_lib.Shield(description, mode=mode)
+  description, shield, human = _scene(name, mode, scene)
   rng = np.random.RandomState(seed)
   limits = description.limits
-  _, p2, _ = shield.robot.capsules(description.q_home)
-  if scene == 'close':
-    human = reaching_person(p2[-1])
-  else:
-    body = standing_person(SCENE_DISTANCE[scene], 0.0, math.pi)
-    human = lambda t: body
   times = np.empty(cycles)
   cpu_times = np.empty(cycles)
   interventions = 0
@@ -111,16 +115,9 @@ def time_rl_steps(name, scene, rl_steps, seed=0, mode='ssm', compiled=True):
   """Thread CPU times (s) of `rl_steps` RL steps' shield cycles
   (batch.step_many of RL_STEP_CYCLES cycles, a new goal before each) and
   the fraction of cycles with an intervention."""
-  description = robot_description.load(name)
-  shield = shield_lib.Shield(description, mode=mode)
+  description, shield, human = _scene(name, mode, scene)
   rng = np.random.RandomState(seed)
   limits = description.limits
-  _, p2, _ = shield.robot.capsules(description.q_home)
-  if scene == 'close':
-    human = reaching_person(p2[-1])
-  else:
-    body = standing_person(SCENE_DISTANCE[scene], 0.0, math.pi)
-    human = lambda t: body
   cpu_times = np.empty(rl_steps)
   interventions = 0
   for i in range(rl_steps):
