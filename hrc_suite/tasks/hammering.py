@@ -129,7 +129,45 @@ def turn_at_home(task, physics, ik, yaw):
   return turn
 
 
-class Hammering(base.HrcTask):
+class NailOutcome:
+  """Outcome of a hammering task, whoever holds the hammer: blows, the
+  nail's progress, success when the nail is in and the clip has ended,
+  failure when the robot's held object is out of the gripper for more
+  than DROP_STEPS RL steps; sparse +1/-1 (docs/tasks.md)."""
+
+  def _nail_outcome(self, physics, held_body):
+    """Updates the outcome for this RL step (the robot holds
+    `held_body`); returns the step's metrics."""
+    progress = self._board.progress(physics)
+    self._blow = progress - self._progress > BLOW_PROGRESS
+    self._progress = progress
+    self._gripped = self._gripper.is_grasping(physics, held_body)
+    self._free_steps = 0 if self._gripped else self._free_steps + 1
+    # The nail was in when the human's clip (with the retreat) ended.
+    self._success = self._nailed and self.clip_ended
+    self._nailed = progress > SUCCESS_PROGRESS
+    return {'success': float(self._success), 'nail_progress': progress,
+            'nail_blows': int(self._blow),
+            'object_gripped': float(self._gripped)}
+
+  def _human_events(self, physics):
+    del physics
+    # The task's one event ('nail_hammered', clip.TASK_EVENTS).
+    return clip_lib.TASK_EVENTS[self.MOTIONS] if self._nailed else ()
+
+  def _failed(self, physics):
+    del physics
+    return self._free_steps > DROP_STEPS
+
+  def _task_reward(self, physics):
+    del physics
+    return 1.0 if self._success else -1.0
+
+  def _task_reward_range(self):
+    return (-1.0, 1.0)
+
+
+class Hammering(NailOutcome, base.HrcTask):
   """Hold the nail board under the human's hammer until the nail is in."""
 
   MOTIONS = 'hammering'
@@ -295,32 +333,7 @@ class Hammering(base.HrcTask):
   # ------------------------------------------------------------ progress
 
   def _update_task(self, physics):
-    progress = self._board.progress(physics)
-    self._blow = progress - self._progress > BLOW_PROGRESS
-    self._progress = progress
-    self._gripped = self._gripper.is_grasping(physics, self._board.body)
-    self._free_steps = 0 if self._gripped else self._free_steps + 1
-    # The nail was in when the human's clip (with the retreat) ended.
-    self._success = self._nailed and self.clip_ended
-    self._nailed = progress > SUCCESS_PROGRESS
-    return {'success': float(self._success), 'nail_progress': progress,
-            'nail_blows': int(self._blow),
-            'object_gripped': float(self._gripped)}
-
-  def _human_events(self, physics):
-    del physics
-    return (EVENT,) if self._nailed else ()
-
-  def _failed(self, physics):
-    del physics
-    return self._free_steps > DROP_STEPS
-
-  def _task_reward(self, physics):
-    del physics
-    return 1.0 if self._success else -1.0
-
-  def _task_reward_range(self):
-    return (-1.0, 1.0)
+    return self._nail_outcome(physics, self._board.body)
 
   # -------------------------------------------------------- observables
 

@@ -48,7 +48,9 @@ from hrc_suite.tasks import hammering
 
 SUCCESS_PROGRESS = hammering.SUCCESS_PROGRESS
 BLOW_PROGRESS = hammering.BLOW_PROGRESS
-DROP_STEPS = 5                 # RL steps without the hammer before failure
+# RL steps without the hammer before failure: as hammering/default's
+# (hammering.NailOutcome).
+DROP_STEPS = hammering.DROP_STEPS
 EVENT = clip_lib.TASK_EVENTS['hammering_board'][0]
 # The nail plank: 30 x 10 x 4 cm of pine (0.8 kg with its handle), the
 # handle at its person end (-x), the nail 5 cm from its robot end: the
@@ -108,7 +110,7 @@ def _yaw_matrix(yaw):
   return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-class RobotHammers(base.HrcTask):
+class RobotHammers(hammering.NailOutcome, base.HrcTask):
   """Drive the nail of the plank the person brings with the held hammer."""
 
   MOTIONS = 'hammering_board'
@@ -296,34 +298,10 @@ class RobotHammers(base.HrcTask):
       self._model_changed()
 
   def _update_task(self, physics):
-    progress = self._board.progress(physics)
-    self._blow = progress - self._progress > BLOW_PROGRESS
-    self._progress = progress
-    self._gripped = self._gripper.is_grasping(physics, self._hammer.body)
-    self._free_steps = 0 if self._gripped else self._free_steps + 1
-    # The nail was in when the person's clip (with the leaving) ended.
-    self._success = self._nailed and self.clip_ended
-    self._nailed = progress > SUCCESS_PROGRESS
+    metrics = self._nail_outcome(physics, self._hammer.body)
     self._update_phase(physics)
-    return {'success': float(self._success), 'nail_progress': progress,
-            'nail_blows': int(self._blow),
-            'object_gripped': float(self._gripped),
-            'board_placed': float(self._phase == PLACED)}
-
-  def _human_events(self, physics):
-    del physics
-    return (EVENT,) if self._nailed else ()
-
-  def _failed(self, physics):
-    del physics
-    return self._free_steps > DROP_STEPS
-
-  def _task_reward(self, physics):
-    del physics
-    return 1.0 if self._success else -1.0
-
-  def _task_reward_range(self):
-    return (-1.0, 1.0)
+    metrics['board_placed'] = float(self._phase == PLACED)
+    return metrics
 
   # -------------------------------------------------------- observables
 
