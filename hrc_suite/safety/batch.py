@@ -69,6 +69,7 @@ def _constants(shield):
   params[ck.DELAY] = config.delay
   params[ck.MIN_PERIOD] = human_reach_lib._MIN_SAMPLE_PERIOD
   params[ck.SAME] = shield_lib._SAME_COMMAND
+  params[ck.REST] = shield_lib.REST_TOLERANCE
   params[ck.SLACK] = shield_lib._BROAD_PHASE_SLACK
   params[ck.PFL] = float(shield.mode == 'pfl')
   params[ck.ALLOWED] = shield_lib.PFL_SPEED_MARGIN * shield.v_safe

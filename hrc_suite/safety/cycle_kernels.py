@@ -30,8 +30,8 @@ _jit = kernels._jit
 
 # Indices of `params` (float64 array of shield constants).
 CYCLE, INTERVAL, WORKSPACE, ERROR_POS, ERROR_VEL, DELAY, MIN_PERIOD, SAME, \
-    SLACK, PFL, ALLOWED, S_DOT_TOLERANCE = range(12)
-NUM_PARAMS = 12
+    SLACK, PFL, ALLOWED, S_DOT_TOLERANCE, REST = range(13)
+NUM_PARAMS = 13
 # Indices of `human` (float64): last measurement time, its period, count.
 LAST_T, LAST_PERIOD, COUNT = range(3)
 
@@ -233,6 +233,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
   check = (2, 0, -np.inf, np.zeros(0), np.zeros(0), np.zeros((0, dof)))
   current = np.empty(pk.PATH_SIZE)
   new_intended = np.empty(pk.PATH_SIZE)
+  nominal = np.empty(pk.PATH_SIZE)
   failsafe = np.empty(pk.PATH_SIZE)
   moved = np.empty(pk.PATH_SIZE)
   state = np.empty((5, dof))
@@ -286,41 +287,62 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       new_velocities[:] = velocities
       last_t, last_period = human[LAST_T], human[LAST_PERIOD]
     new_positions[:] = keypoints
-    # The monitored path: one intended step, then the failsafe.
+    # The monitored path: one intended step, then the failsafe; a
+    # candidate from rest that does not verify at path velocity 1 tries 0
+    # (Shield.step).
     max_acc, max_jerk = _path_limits(command[4], limits[0], limits[1],
                                      limits[2], limits[3])
-    have = (not use_candidate and flags[0] == 1
-            and not (intended[6] <= pk._TIME_EPS and intended[1] != 1.0))
-    if have:
-      new_intended[:] = intended
-    else:
-      have = pk.plan_profile(new_intended, current[0], current[1],
-                             current[2], 1.0, max_acc, max_jerk, dt)
-    has_failsafe = False
-    if have:
-      pk.advance(new_intended, dt)
-      target = 0.0   # SSM: brake to rest.
-      if params[PFL] == 1.0:   # Shield._s_dot_limit.
-        remaining = now_suffix[_sample_index(
-            new_intended[0], now_start, inverse, now_plan.shape[0] - 1)]
-        target = (1.0 if remaining <= params[ALLOWED]
-                  else params[ALLOWED] / remaining)
-      has_failsafe = pk.plan_profile(failsafe, new_intended[0],
-                                     new_intended[1], new_intended[2],
-                                     target, max_acc, max_jerk, dt)
+    attempts = 1
+    if use_candidate:
+      attempts = 2
+      for d in range(dof):
+        if (abs(command[1, d]) > params[REST]
+            or abs(command[2, d]) > params[REST]):
+          attempts = 1
+    have_nominal = False
+    safe = False
     c_check = (2, 0, -np.inf, check[3], check[4], check[5])
-    if not has_failsafe or new_intended[0] < current[0]:
-      safe = False
-    else:
-      c_check = _verify(
-          params, now_plan, now_start, inverse, now_filled, current[0],
-          current[1], command[0], failsafe, t, new_positions,
-          new_velocities, last_t, last_period, limits[4], limits[5], fixed,
-          points, frame_index, alpha, static_radius, v_max, a_max,
-          body_ends, ends, half_thickness, base, now_window, now_suffix)
-      if c_check[0] < 0:
-        return _stop(c, setpoints, intervened, check, True)
-      safe = c_check[0] == 1
+    for attempt in range(attempts):
+      if attempt == 1:
+        pk.make(current, verified[0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0, 0.0)
+      have = (not use_candidate and flags[0] == 1
+              and not (intended[6] <= pk._TIME_EPS and intended[1] != 1.0))
+      if have:
+        new_intended[:] = intended
+      else:
+        have = pk.plan_profile(new_intended, current[0], current[1],
+                               current[2], 1.0, max_acc, max_jerk, dt)
+      has_failsafe = False
+      if have:
+        pk.advance(new_intended, dt)
+        target = 0.0   # SSM: brake to rest.
+        if params[PFL] == 1.0:   # Shield._s_dot_limit.
+          remaining = now_suffix[_sample_index(
+              new_intended[0], now_start, inverse, now_plan.shape[0] - 1)]
+          target = (1.0 if remaining <= params[ALLOWED]
+                    else params[ALLOWED] / remaining)
+        has_failsafe = pk.plan_profile(failsafe, new_intended[0],
+                                       new_intended[1], new_intended[2],
+                                       target, max_acc, max_jerk, dt)
+      if attempt == 0:   # What was wanted (Shield.step's `nominal`).
+        nominal[:] = new_intended
+        have_nominal = have
+      c_check = (2, 0, -np.inf, check[3], check[4], check[5])
+      if not has_failsafe or new_intended[0] < current[0]:
+        safe = False
+      else:
+        c_check = _verify(
+            params, now_plan, now_start, inverse, now_filled, current[0],
+            current[1], command[0], failsafe, t, new_positions,
+            new_velocities, last_t, last_period, limits[4], limits[5],
+            fixed, points, frame_index, alpha, static_radius, v_max, a_max,
+            body_ends, ends, half_thickness, base, now_window, now_suffix)
+        if c_check[0] < 0:
+          return _stop(c, setpoints, intervened, check, True)
+        safe = c_check[0] == 1
+      if safe:
+        break
     if safe:
       ok = _plan_state(now_plan, now_start, inverse, dt, now_filled,
                        new_intended[0], new_intended[1], new_intended[2],
@@ -332,10 +354,10 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       ok = _plan_state(plan, plan_start, inverse, dt, plan_filled, moved[0],
                        moved[1], moved[2], moved[3], state)
       c_intervened = True
-      if ok and have:
+      if ok and have_nominal:
         ok = _plan_state(now_plan, now_start, inverse, dt, now_filled,
-                         new_intended[0], new_intended[1], new_intended[2],
-                         new_intended[3], wanted)
+                         nominal[0], nominal[1], nominal[2], nominal[3],
+                         wanted)
         same = True
         for d in range(dof):
           if not (abs(wanted[0, d] - state[0, d]) <= params[SAME]):

@@ -72,6 +72,10 @@ _S_DOT_TOLERANCE = 1e-9
 _BROAD_PHASE_SLACK = 1e-6
 # Joint-space differences below this count as "the same command" (rad, rad/s).
 _SAME_COMMAND = 1e-9
+# The command is at rest when every joint's velocity (rad/s) and
+# acceleration (rad/s^2) is within this of zero (braking ends at exactly
+# zero; this only absorbs round-off).
+REST_TOLERANCE = 1e-12
 
 
 def _joint_list(values):
@@ -505,42 +509,29 @@ class Shield:
     dt = self.cycle_time
 
     # Replanning: a candidate plan starts at the current command with path
-    # velocity 1 (its first sample is the commanded q, dq, ddq).
+    # velocity 1 (its first sample is the commanded q, dq, ddq). From rest
+    # every path velocity matches the command (the plan starts at rest):
+    # a candidate that does not verify at 1 may start at 0 and accelerate
+    # along the path as a stopped robot resumes its plan, so a robot
+    # stopped next to a person can start again (docs/safety.md,
+    # "Starting from rest").
     plan, current = self._plan, self._verified
     candidate = self._candidate_plan()
+    starts = (None,)
     if candidate is not None:
       plan = candidate
-      current = path_lib.Path(self._verified.s, 1.0, 0.0, 0.0)
-
-    # The monitored path: one intended step, then the failsafe.
-    max_acc, max_jerk = self._path_limits(self._state[4])
-    intended = None
-    if candidate is None and self._intended is not None and not (
-        self._intended.is_finished() and self._intended.s_dot != 1.0):
-      intended = self._intended
-    if intended is None:
-      intended = path_lib.plan_profile(
-          current.s, current.s_dot, current.s_ddot, 1.0, max_acc, max_jerk, dt)
-    failsafe, s_dot_limit = None, None
-    if intended is not None:
-      intended = intended.copy()
-      intended.advance(dt)
-      s_dot_limit = self._s_dot_limit(plan, intended.s)
-      failsafe = path_lib.plan_profile(
-          intended.s, intended.s_dot, intended.s_ddot,
-          0.0 if s_dot_limit is None else s_dot_limit, max_acc, max_jerk, dt)
-    if failsafe is None or intended.s < current.s:
-      safe = False   # No monitored path: keep braking on the verified one.
-      self._reach_arguments = None
-      self._first_unsafe_interval, self._reach_distance = 0, -np.inf
-    elif self.mode == 'off':
-      # Unshielded: the check only feeds read-outs; run it when one is
-      # read (its inputs do not change until the next step).
-      safe = None
-      self._reach_arguments = None
-      self._pending_check = (plan, current, failsafe, s_dot_limit)
-    else:
-      safe = self._verify(plan, current, failsafe, s_dot_limit)
+      starts = (1.0, 0.0) if self._at_rest() else (1.0,)
+    nominal = None   # The first start's intended step: what was wanted.
+    for start in starts:
+      self._lazy = {}   # Reach capsules are those of this start's check.
+      if start is not None:
+        current = path_lib.Path(self._verified.s, start, 0.0, 0.0)
+      intended, failsafe, s_dot_limit = self._monitored(plan, current,
+                                                        candidate)
+      nominal = intended if start != 0.0 else nominal
+      safe = self._check(plan, current, intended, failsafe, s_dot_limit)
+      if safe is not False:
+        break
     self._is_safe = safe
 
     follow = failsafe is not None and (safe or self.mode == 'off')
@@ -558,11 +549,11 @@ class Shield:
       self._intended = None
       v = self._verified
       state = self._plan.state(v.s, v.s_dot, v.s_ddot, v.jerk)
-      if intended is None:
+      if nominal is None:
         self.intervened = True
       else:
-        wanted = plan.state(intended.s, intended.s_dot, intended.s_ddot,
-                            intended.jerk)
+        wanted = plan.state(nominal.s, nominal.s_dot, nominal.s_ddot,
+                            nominal.jerk)
         self.intervened = not (
             np.abs(wanted[0] - state[0]).max() <= _SAME_COMMAND and
             np.abs(wanted[1] - state[1]).max() <= _SAME_COMMAND)
@@ -573,6 +564,49 @@ class Shield:
     return state[0], state[1], state[2]
 
   # -------------------------------------------------------------- internals
+
+  def _at_rest(self):
+    """Whether the command is at rest (velocity and acceleration zero)."""
+    rates = self._state[1:3]
+    return bool(np.all(np.abs(rates) <= REST_TOLERANCE))
+
+  def _monitored(self, plan, current, candidate):
+    """The monitored path from `current` on `plan`: (intended step,
+    failsafe, PFL final path velocity); None for what does not exist."""
+    dt = self.cycle_time
+    max_acc, max_jerk = self._path_limits(self._state[4])
+    intended = None
+    if candidate is None and self._intended is not None and not (
+        self._intended.is_finished() and self._intended.s_dot != 1.0):
+      intended = self._intended
+    if intended is None:
+      intended = path_lib.plan_profile(
+          current.s, current.s_dot, current.s_ddot, 1.0, max_acc, max_jerk, dt)
+    failsafe, s_dot_limit = None, None
+    if intended is not None:
+      intended = intended.copy()
+      intended.advance(dt)
+      s_dot_limit = self._s_dot_limit(plan, intended.s)
+      failsafe = path_lib.plan_profile(
+          intended.s, intended.s_dot, intended.s_ddot,
+          0.0 if s_dot_limit is None else s_dot_limit, max_acc, max_jerk, dt)
+    return intended, failsafe, s_dot_limit
+
+  def _check(self, plan, current, intended, failsafe, s_dot_limit):
+    """Verifies the monitored path: True, False, or None (mode 'off': the
+    check runs when a read-out needs it)."""
+    if failsafe is None or intended.s < current.s:
+      # No monitored path: keep braking on the verified one.
+      self._reach_arguments = None
+      self._first_unsafe_interval, self._reach_distance = 0, -np.inf
+      return False
+    if self.mode == 'off':
+      # Unshielded: the check only feeds read-outs; run it when one is
+      # read (its inputs do not change until the next step).
+      self._reach_arguments = None
+      self._pending_check = (plan, current, failsafe, s_dot_limit)
+      return None
+    return self._verify(plan, current, failsafe, s_dot_limit)
 
   def _path_limits(self, v_nominal):
     """path.path_limits for this robot with precomputed per-joint terms."""

@@ -179,6 +179,33 @@ def test_new_plan_waits_for_verification_b4(panda):
   np.testing.assert_allclose(shield.plan.goal, new_goal)
 
 
+def test_a_robot_stopped_next_to_a_person_starts_again(panda,
+                                                       monkeypatch):
+  """A new plan from rest that does not verify at path velocity 1 (its
+  braking horizon reaches the person's reachable set) starts at 0 and
+  accelerates along the path, as a stopped plan resumes; without that the
+  robot never moves away from a person standing 0.1 m from the gripper."""
+  def run(rest_start):
+    shield = _shield(panda)
+    _, p2, _ = shield.robot.capsules(shield.q)
+    body = harness.place(harness.STANDING, 0.0, 0.0, math.pi)
+    hand = keypoints.KEYPOINT_INDEX['right_hand']
+    person = body + (p2[-1] + np.array([0.3, 0.0, 0.0]) - body[hand])
+    goal = panda.q_home.copy()
+    goal[1] -= 0.4   # Back, away from the person.
+    with monkeypatch.context() as patch:
+      if not rest_start:
+        patch.setattr(shield_lib.Shield, '_at_rest', lambda self: False)
+      return harness.simulate(shield, lambda t: person, 1.0,
+                              first_goal=goal)
+  stuck, started = run(False), run(True)
+  assert 0.05 < stuck.min_clearance < 0.15
+  assert not stuck.safe.any() and np.abs(stuck.q - stuck.q[0]).max() == 0
+  assert started.safe.any()
+  assert np.abs(started.q[-1] - started.q[0]).max() > 0.05   # rad
+  assert not started.violations
+
+
 def test_off_mode_follows_the_plan_and_reports(panda):
   shield = _shield(panda, mode='off')
   shield.new_goal(_goal(panda))
