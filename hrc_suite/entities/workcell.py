@@ -43,8 +43,12 @@ def look_at_xyaxes(position, target):
 class Workcell(composer.Arena):
   """A table with the robot's pedestal at its near edge."""
 
-  def _build(self, name='workcell'):
+  def _build(self, name='workcell', table=layout.DEFAULT_TABLE):
+    """`table`: the task's table (layout.Table)."""
+    if not isinstance(table, layout.Table):
+      raise TypeError(f'table must be a layout.Table, got {table!r}')
     super()._build(name=name)
+    self._table_extent = table
     root = self._mjcf_root
     root.option.timestep = PHYSICS_TIMESTEP
     root.visual.quality.shadowsize = 2048
@@ -89,8 +93,8 @@ class Workcell(composer.Arena):
 
     top_z = layout.TABLE_TOP_Z
     half_thickness = layout.TABLE_THICKNESS / 2
-    x0, x1 = layout.TABLE_X
-    y0, y1 = layout.TABLE_Y
+    x0, x1 = table.x
+    y0, y1 = table.y
     self._table_top = worldbody.add(
         'geom', name='table_top', type='box',
         size=((x1 - x0) / 2, (y1 - y0) / 2, half_thickness),
@@ -129,6 +133,11 @@ class Workcell(composer.Arena):
   def table(self):
     """The table top geom (its top face is at layout.TABLE_TOP_Z)."""
     return self._table_top
+
+  @property
+  def table_extent(self):
+    """The table's extent (layout.Table)."""
+    return self._table_extent
 
   @property
   def table_legs(self):

@@ -92,6 +92,7 @@ DROPPED_RADIUS = 0.15        # m
 # Wait with the cube this far from the stack towards the robot base while
 # the person places theirs (m, horizontally).
 PARK_BACK = 0.25             # m
+PARK_BACKS = (PARK_BACK, 0.2, 0.15)   # as REST_BACKS
 # The person's hands must be this far from the stack's axis (horizontally)
 # before the robot carries a cube over it.
 HANDS_CLEAR = 0.3            # m
@@ -103,6 +104,11 @@ RISE_CLEARANCE = 0.05        # m
 OPEN_APERTURE = 0.8
 # Rest point at the end: this far back from the stack and above its top.
 REST_BACK = 0.3              # m
+# Where a robot cannot reach (or folds into itself at) a point that far
+# back towards its base (the raised Schunk, whose base stands 0.35 m from
+# the stack), the nearest of these (m from the stack) it reaches; the last
+# keeps the TCP further than stacking.WITHDRAWN_DISTANCE from the stack.
+REST_BACKS = (REST_BACK, 0.25, 0.2)
 REST_ABOVE = 0.1             # m
 # Speed limits, as a fraction of a full Cartesian step (0.1 m per RL step):
 # near the stack's slot (precise placing) and near the person. The speed
@@ -199,12 +205,17 @@ class StackingExpert(base.Expert):
         if np.dot(away, self._base[:2] - axis) < 0.0:
           away = -away
         aim = tcp + np.append(2 * NEAR_STACK * away, 0.01)
+        if not self._can_reach(aim, obs['joint_positions']):
+          # The raised Schunk folds into itself towards its base: rise.
+          aim = tcp + [0.0, 0.0, 2 * NEAR_STACK]
       gripper, speed = OPEN, PLACE_SPEED
     elif not todo:
       self.phase, gripper = 'rest', OPEN
-      aim = self._back_from_stack(axis, REST_BACK, slots[3, 2] + REST_ABOVE)
+      aim = self._back_from_stack(axis, REST_BACKS, slots[3, 2] + REST_ABOVE,
+                                  obs['joint_positions'])
     elif held is None:
-      aim, gripper = self._fetch(tcp, cubes[todo[0]], aperture)
+      aim, gripper = self._fetch(tcp, cubes[todo[0]], aperture,
+                                 obs['joint_positions'])
     elif held != todo[0]:
       # Holding a cube that is not next (cube 4 while cube 3 lies on the
       # table): set it down on the table where it is and let go.
@@ -240,14 +251,26 @@ class StackingExpert(base.Expert):
     count = int(np.argmin(np.append(stacked, False)))
     return float(cubes[count - 1, 2] + self._size / 2)
 
-  def _back_from_stack(self, axis, distance, height):
-    """A point `distance` from the stack's axis towards the robot base."""
+  def _back_from_stack(self, axis, distances, height, q, offset=None):
+    """TCP aim: a point the first of `distances` from the stack's axis
+    towards the robot base, at `height`, plus `offset` (the TCP from a held
+    cube), that the robot reaches from q (`_can_reach`); else above the
+    TCP at HOVER over that height where it reaches that; else the last
+    point."""
     direction = self._base[:2] - axis
     direction /= max(np.linalg.norm(direction), 1e-9)
-    return np.append(axis + distance * direction, height)
+    offset = np.zeros(3) if offset is None else offset
+    for distance in distances:
+      aim = np.append(axis + distance * direction, height) + offset
+      if self._can_reach(aim, q):
+        return aim
+    up = self._task.kinematics.tcp_pose(q)[:3, 3]
+    up[2] = height + offset[2] + HOVER
+    return up if self._can_reach(up, q) else aim
 
-  def _fetch(self, tcp, cube, aperture):
-    """Aim and gripper command to grasp `cube` (centre) from above."""
+  def _fetch(self, tcp, cube, aperture, q):
+    """Aim and gripper command to grasp `cube` (centre) from above; q: the
+    joint positions."""
     grasp = cube + [0.0, 0.0, GRIP_HEIGHT]
     error = np.linalg.norm(tcp[:2] - grasp[:2])
     height = tcp[2] - grasp[2]
@@ -258,14 +281,37 @@ class StackingExpert(base.Expert):
       return grasp, CLOSED
     self.phase = 'fetch'
     aim = grasp + [0.0, 0.0, min(HOVER, CONE_SLOPE * error)]
-    if error > LIFT_REACH and height < HOVER - LIFT_SLACK:
+    rise = np.append(tcp[:2], grasp[2] + HOVER + LIFT_SLACK)
+    if (error > LIFT_REACH and height < HOVER - LIFT_SLACK
+        and self._can_reach(rise, q)):
       # Rise first (a little above the hover height: the arm's path may
-      # sag on the way across).
-      aim = np.append(tcp[:2], grasp[2] + HOVER + LIFT_SLACK)
+      # sag on the way across), where the arm can: the Schunk, withdrawn
+      # from the stack towards its raised base, folds into itself rising
+      # there (stacking, seed 1 on the recordings) and goes across instead.
+      aim = rise
       self.phase = 'rise'
     if aperture < CLOSING_APERTURE[1] and height < HOVER / 2:
       aim = tcp.copy()   # A failed grasp: open before moving on.
     return aim, OPEN
+
+  def _can_reach(self, aim, q):
+    """Gripper-down IK reaches `aim` from q without self or static
+    collision, and the task's collision prevention lets the first
+    Cartesian step towards it through (a straight joint path)."""
+    checker, ik, yaw = (self._task.collision_checker, self._steer.ik,
+                        self._steer.yaw)
+    result = ik.solve(aim, q, yaw)
+    if not result.success or checker.in_collision(result.q):
+      return False
+    tcp = self._task.kinematics.tcp_pose(q)[:3, 3]
+    delta = aim - tcp
+    norm = np.linalg.norm(delta)
+    if norm > actions.CARTESIAN_STEP:
+      first = ik.solve(tcp + delta * (actions.CARTESIAN_STEP / norm), q, yaw)
+      if not first.success:
+        return False
+      return checker.is_safe(q, first.q)
+    return checker.is_safe(q, result.q)
 
   def _carry(self, obs, tcp, cubes, slots, stacked, held):
     """Aim, gripper command and speed with cube `held` in the gripper."""
@@ -284,8 +330,9 @@ class StackingExpert(base.Expert):
       return np.append(tcp[:2], carry_z + offset[2]), CLOSED, 1.0
     if not below_ready or (clear < HANDS_CLEAR and error > LIFT_REACH):
       self.phase = 'park'
-      park = self._back_from_stack(slot[:2], PARK_BACK, carry_z)
-      return park + offset, CLOSED, 1.0
+      park = self._back_from_stack(slot[:2], PARK_BACKS, carry_z,
+                                   obs['joint_positions'], offset)
+      return park, CLOSED, 1.0
     self.phase = 'place'
     goal = slot + [0.0, 0.0, min(CARRY_CLEARANCE, CONE_SLOPE * error)]
     speed = PLACE_SPEED if np.linalg.norm(goal - cube) < PLACE_ZONE else 1.0

@@ -46,10 +46,10 @@ from hrc_suite import layout
 from hrc_suite.human import keypoints
 
 _PELVIS = keypoints.KEYPOINT_INDEX['pelvis']
-# Station to the table's edge, the same for both stations
+# Station to the table's edge, the same for both shared stations
 # (layout.HUMAN_STATION_ACROSS: x 1.45 m, edge 1.15 m; HUMAN_STATION_BESIDE:
 # y 1.05 m, edge 0.75 m).
-TABLE_EDGE_CLEARANCE = layout.HUMAN_STATION_ACROSS[0] - layout.TABLE_X[1]
+TABLE_EDGE_CLEARANCE = layout.STATION_EDGE_CLEARANCE
 LAB_AXIS = math.pi / 2   # rad; the lab frame's axes are this far apart.
 # How far past the station the pelvis may come (m): the synthetic people's
 # closest approach leaves 0.10 m to the table's edge (docs/motion_library.md).

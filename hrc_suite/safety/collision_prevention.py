@@ -65,12 +65,14 @@ _ESCAPE_SLACK = 1e-9
 _ALWAYS_FRACTION = 1.0
 
 
-def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT):
+def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT,
+                   table=layout.DEFAULT_TABLE):
   """Named static boxes (min, max) of the workcell, world frame (layout),
-  with the pedestal of `mount` (layout.RobotMount)."""
-  table_min = (layout.TABLE_X[0], layout.TABLE_Y[0],
+  with the pedestal of `mount` (layout.RobotMount) and `table`
+  (layout.Table)."""
+  table_min = (table.x[0], table.y[0],
                layout.TABLE_TOP_Z - layout.TABLE_THICKNESS)
-  table_max = (layout.TABLE_X[1], layout.TABLE_Y[1], layout.TABLE_TOP_Z)
+  table_max = (table.x[1], table.y[1], layout.TABLE_TOP_Z)
   cx, cy = mount.pedestal_center_xy
   hx, hy = mount.pedestal_half_size
   base_z = mount.base_position[2]
@@ -87,7 +89,7 @@ class CollisionPrevention:
   def __init__(self, description, base_pose=None, tool_capsule=None,
                extra_boxes=(), floor=True, tool_table_allowance=0.0,
                max_step=DEFAULT_MAX_STEP, exclusion_samples=2000, seed=0,
-               compiled=True):
+               compiled=True, table=layout.DEFAULT_TABLE):
     self.description = description
     # Compiled collision tests (`cp_kernels`); False runs the NumPy
     # reference (`_colliding_reference`), which the kernel is tested
@@ -103,7 +105,8 @@ class CollisionPrevention:
     if not max_step > 0:
       raise ValueError(f'max_step: expected > 0, got {max_step}')
     self.max_step = float(max_step)
-    self._setup_boxes(extra_boxes, floor, float(tool_table_allowance))
+    self._setup_boxes(extra_boxes, floor, float(tool_table_allowance),
+                      table)
     self._setup_levers()
     self._setup_pairs(int(exclusion_samples), seed)
     self.num_checks = 0
@@ -111,8 +114,9 @@ class CollisionPrevention:
 
   # -- Construction ---------------------------------------------------------
 
-  def _setup_boxes(self, extra_boxes, floor, tool_table_allowance):
-    boxes = workcell_boxes(floor, layout.robot_mount(self.description.name))
+  def _setup_boxes(self, extra_boxes, floor, tool_table_allowance, table):
+    boxes = workcell_boxes(floor, layout.robot_mount(self.description.name),
+                           table)
     for i, box in enumerate(extra_boxes):
       try:
         lo, hi = (np.asarray(x, dtype=float) for x in box)

@@ -134,6 +134,7 @@ class HrcTask(composer.Task):
   # Task facts (reference-benchmark.md); subclasses override.
   MOTIONS = 'reach'                          # shipped library name
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
+  TABLE = layout.DEFAULT_TABLE               # layout.Table
   HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)    # uniform +- (x, y, yaw)
   DEFAULT_SHIELD = 'ssm'
   DEFAULT_ACTION_SPACE = 'cartesian'
@@ -267,7 +268,7 @@ class HrcTask(composer.Task):
     self.critical_speed = critical_speed
 
     # Scene.
-    self._arena = workcell_lib.Workcell()
+    self._arena = workcell_lib.Workcell(table=self.TABLE)
     self._robot = robot_lib.make_robot(robot)
     self._gripper = self._robot.attach_gripper(
         gripper_lib.ParallelGripper(grip_force=self.GRIP_FORCE))
@@ -296,7 +297,8 @@ class HrcTask(composer.Task):
       self.tool_table_allowance = radius - self.FINGERTIP_TABLE_CLEARANCE
     self._collision_checker = cp_lib.CollisionPrevention(
         description, base_pose=base_pose, tool_capsule=tool_capsule,
-        tool_table_allowance=self.tool_table_allowance, compiled=fast_path)
+        tool_table_allowance=self.tool_table_allowance, compiled=fast_path,
+        table=self.TABLE)
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     # The shipped library's documented fast phases (hammer blows,

@@ -57,9 +57,18 @@ REWARD_TOPPLED = -10.0
 REWARD_FOURTH_PLACED = 1.0
 REWARD_GRIPPING = 0.75
 REWARD_OTHERWISE = -1.0
-# Robot cubes: in front of the robot, either side of its centre line.
-ROBOT_CUBE_X = (0.40, 0.48)    # m ahead of the robot base
-ROBOT_CUBE_Y = (0.15, 0.28)    # m to either side
+# Robot cubes: on the robot's half of the table, to the sides (world, m),
+# where every robot on its mount reaches them gripper-down
+# (layout.STACKING_TABLE's note; docs/tasks.md), each at least
+# STACK_CLEARANCE (horizontally) from the clip's stack, whose place the
+# clip knows at reset (recorded people put it up to 0.33 m to a side), and
+# CUBE_SPACING from the other: drawn on a random side, the other side
+# where that side has no room (ROBOT_CUBE_DRAWS tries).
+ROBOT_CUBE_X = (0.40, 0.55)    # m, world
+ROBOT_CUBE_Y = (0.22, 0.36)    # m to either side of the centre line
+STACK_CLEARANCE = 0.15         # m: fingers and the person's hands
+CUBE_SPACING = 0.1             # m
+ROBOT_CUBE_DRAWS = 50
 # The human's palm within this of a cube's grip point grabs it (the clips'
 # hands stop up to ~2.5 cm short of a pick at full reach).
 HAND_TOLERANCE = 0.035         # m
@@ -95,6 +104,7 @@ class Stacking(base.HrcTask):
 
   MOTIONS = 'stacking'
   HUMAN_STATION = layout.HUMAN_STATION_STACKING
+  TABLE = layout.STACKING_TABLE
   HUMAN_PLACEMENT_RANGE = (0.02, 0.1, 0.1)   # reference
   DEFAULT_SHIELD = 'ssm'
   DEFAULT_ACTION_SPACE = 'cartesian'
@@ -179,18 +189,31 @@ class Stacking(base.HrcTask):
       self._picks[i] = targets[f'cube_{i + 1}_pick']
       self._places[i] = targets[f'cube_{i + 1}_place']
     side = random_state.choice([-1.0, 1.0])
-    robot_base = self._kinematics.base_pose[:3, 3].copy()
-    robot_base[2] = layout.TABLE_TOP_Z   # On the table in front of the base.
+    taken = [base_point[:2]]
     for k, i in enumerate(ROBOT_CUBES):
-      sign = side if k == 0 else -side
-      self._picks[i] = robot_base + [random_state.uniform(*ROBOT_CUBE_X),
-                                     sign * random_state.uniform(
-                                         *ROBOT_CUBE_Y), self._size / 2]
+      self._picks[i] = self._robot_cube_spot(
+          random_state, side if k == 0 else -side, taken)
+      taken.append(self._picks[i, :2])
     identity = np.array([1.0, 0.0, 0.0, 0.0])
     for i, cube in enumerate(self._cubes):
       cube.set_pose(physics, self._picks[i], identity)
       cube.set_velocity(physics, np.zeros(3), np.zeros(3))
     self._start_in_hand(physics)
+
+  def _robot_cube_spot(self, random_state, side, taken):
+    """Where a robot cube starts: uniform in the region on `side` (+-1),
+    else the other side, clear of the `taken` points (the stack first)."""
+    for sign in (side, -side):
+      for _ in range(ROBOT_CUBE_DRAWS):
+        spot = np.array([random_state.uniform(*ROBOT_CUBE_X),
+                         sign * random_state.uniform(*ROBOT_CUBE_Y)])
+        gaps = np.linalg.norm(np.asarray(taken) - spot, axis=1)
+        if gaps[0] >= STACK_CLEARANCE and np.all(gaps[1:] >= CUBE_SPACING):
+          return np.append(spot, layout.TABLE_TOP_Z + self._size / 2)
+    raise ValueError(
+        f'stacking: no room for a robot cube in x {ROBOT_CUBE_X}, |y| '
+        f'{ROBOT_CUBE_Y} m at least {STACK_CLEARANCE} m from the stack at '
+        f'{np.round(taken[0], 3).tolist()} m (the clip\'s stack_base)')
 
   def _start_in_hand(self, physics):
     """A human cube whose pick is where a hand holds it at the clip's start

@@ -86,8 +86,13 @@ def test_cubes_start_where_the_human_and_the_robot_take_them(robot):
                            actions.GRIPPER_YAW)
       assert grasp.success
       assert not task.collision_checker.in_collision(grasp.q)
-    # The robot's cubes are on opposite sides of its centre line.
-    assert positions[1][1] * positions[3][1] < 0
+    # The robot's cubes lie clear of the stack and of each other.
+    stack = targets['stack_base'][:2]
+    for i in stacking.ROBOT_CUBES:
+      assert np.linalg.norm(positions[i][:2] - stack) >= (
+          stacking.STACK_CLEARANCE)
+    assert np.linalg.norm(positions[1][:2] - positions[3][:2]) >= (
+        stacking.CUBE_SPACING)
 
 
 def _human_puts_down_cube_1(env, steps=150):
