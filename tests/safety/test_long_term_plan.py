@@ -198,3 +198,17 @@ def test_a_ruckig_synchronisation_failure_is_a_planning_error():
     assert 'Ruckig failed' in str(e)
   else:   # A Ruckig that solves it must reach the goal at rest.
     np.testing.assert_allclose(plan.q[-1], goal, atol=1e-6)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_compiled_sampling_is_the_numpy_reference_bit_for_bit(panda, seed):
+  """plan_kernels.sample_pieces against sample_pieces_reference: every
+  sample of random plans (moving starts), in chunks and past the end."""
+  rng = np.random.RandomState(10 + seed)
+  plan = _random_plan(panda, rng)[-1]
+  count = plan.num_samples
+  for first, stop in ((0, count), (3, min(count, 70)), (count - 1, count + 5)):
+    fast = ltp.plan_kernels.sample_pieces(*plan._pieces, first, stop)
+    reference = ltp.sample_pieces_reference(*plan._pieces, first, stop)
+    assert np.array_equal(fast, reference)
+  assert np.all(reference[-5:, 0] == plan.goal)   # At rest at the goal.
