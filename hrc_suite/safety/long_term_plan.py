@@ -319,13 +319,10 @@ def clamp_goal(q_goal, limits):
 def check_start_state(q0, dq0, ddq0, limits):
   """Raises PlanningError if the plan cannot start here (spec 2.1)."""
   v_max, a_max, j_max = limits.v_max, limits.a_max_ltt, limits.j_max_ltt
-  ramped = np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max))
-  if (np.all(q0 >= limits.q_min - _LIMIT_SLACK) and
-      np.all(q0 <= limits.q_max + _LIMIT_SLACK) and
-      np.all(np.abs(dq0) <= v_max + _LIMIT_SLACK) and
-      np.all(np.abs(ddq0) <= a_max + _LIMIT_SLACK) and
-      np.all(ramped <= v_max + _LIMIT_SLACK)):
+  if plan_kernels.start_state_ok(q0, dq0, ddq0, limits.q_min, limits.q_max,
+                                 v_max, a_max, j_max, _LIMIT_SLACK):
     return
+  ramped = np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max))
   checks = (
       ('q0 below q_min', q0 < limits.q_min - _LIMIT_SLACK),
       ('q0 above q_max', q0 > limits.q_max + _LIMIT_SLACK),

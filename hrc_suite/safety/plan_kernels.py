@@ -57,3 +57,19 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
       out[n, 2, i] = a + d * j
       out[n, 3, i] = j
   return out
+
+
+@_jit
+def start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
+                   slack):
+  """Whether a plan may start at (q0, dq0, ddq0) (dof,): the conditions of
+  long_term_plan.check_start_state, element by element (its fast path;
+  it names the failing condition itself)."""
+  for i in range(q0.shape[0]):
+    ramped = abs(dq0[i] + ddq0[i] * abs(ddq0[i]) / (2.0 * j_max[i]))
+    if not (q0[i] >= q_min[i] - slack and q0[i] <= q_max[i] + slack and
+            abs(dq0[i]) <= v_max[i] + slack and
+            abs(ddq0[i]) <= a_max[i] + slack and
+            ramped <= v_max[i] + slack):
+      return False
+  return True
