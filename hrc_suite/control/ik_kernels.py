@@ -168,7 +168,7 @@ def _solve_spd(matrix, rhs, active, out):
 @_jit
 def _step(q, error, jacobian, cost, q_min, q_max, base_damping, max_step,
           step):
-  """The damped least-squares step into `step` (ik._step_reference)."""
+  """The damped least-squares step into `step` (InverseKinematics._step)."""
   dof = q.shape[0]
   gradient = np.zeros(dof)
   hessian = np.zeros((dof, dof))
