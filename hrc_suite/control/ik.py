@@ -18,6 +18,11 @@ so by default the TCP x axis may point along yaw or yaw + pi: the solver aims
 for the one nearer the seed's TCP x axis and tries the other if that fails.
 This matters for robots whose wrist joints cannot turn a full circle (the
 Schunk LWA 4P cannot point its gripper down at yaw 0 in front of it).
+
+The iteration runs compiled (`ik_kernels.solve`, compiled=True, the
+default); compiled=False runs the readable reference (`_solve_reference`:
+pinocchio kinematics, NumPy linear algebra), which the kernel is tested
+against (tests/control/test_ik_kernels.py: same outcome, q to round-off).
 """
 
 import dataclasses
@@ -26,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from hrc_suite import layout
+from hrc_suite.control import ik_kernels
 from hrc_suite.control import kinematics
 
 # Reference benchmark IK: residual 1e-3, at most 50 iterations
@@ -81,7 +87,7 @@ class InverseKinematics:
                orientation_weight: float = DEFAULT_ORIENTATION_WEIGHT,
                base_damping: float = DEFAULT_BASE_DAMPING,
                max_step: float = DEFAULT_MAX_STEP,
-               half_turn_symmetric: bool = True):
+               half_turn_symmetric: bool = True, compiled: bool = True):
     if not isinstance(model, kinematics.KinematicModel):
       raise TypeError(f'model must be a KinematicModel, got {type(model)!r}')
     if int(max_iterations) != max_iterations or max_iterations < 1:
@@ -103,6 +109,14 @@ class InverseKinematics:
     self._max_step = float(max_step)
     self._identity = np.eye(model.dof)
     self.half_turn_symmetric = bool(half_turn_symmetric)
+    self.compiled = bool(compiled)
+    # The kernel's chain: joint placements (base folded into the first)
+    # and the TCP in the last joint's frame, from the pinocchio model.
+    pin_model = model.pin_model
+    self._placements = np.ascontiguousarray(
+        [p.homogeneous[:3] for p in pin_model.jointPlacements[1:]])
+    self._tcp = np.ascontiguousarray(
+        pin_model.frames[model.tcp_frame_id].placement.homogeneous[:3])
 
   @property
   def model(self) -> kinematics.KinematicModel:
@@ -135,7 +149,8 @@ class InverseKinematics:
                 self._model.q_max)
     if not self.half_turn_symmetric:
       return self._solve(target, q, float(yaw))
-    seed_x_axis = self._model.tcp_pose(q)[:2, 0]
+    seed_x_axis = (ik_kernels.tcp_pose(q, self._placements, self._tcp)
+                   if self.compiled else self._model.tcp_pose(q))[:2, 0]
     seed_yaw = np.arctan2(seed_x_axis[1], seed_x_axis[0])
     nearer = float(yaw)
     if abs(_wrap(seed_yaw - yaw)) > np.pi / 2:
@@ -151,7 +166,20 @@ class InverseKinematics:
         result, iterations=other.iterations + result.iterations)
 
   def _solve(self, target, q, yaw):
-    """One LM run for a fixed target rotation."""
+    """One LM run for a fixed target rotation (compiled or reference)."""
+    if not self.compiled:
+      return self._solve_reference(target, q, yaw)
+    q, success, position_error, angle_error, iterations = ik_kernels.solve(
+        q, target, gripper_down_rotation(yaw), self._placements, self._tcp,
+        self._model.q_min, self._model.q_max, self._weights,
+        self._base_damping, self._max_step, self.max_iterations,
+        self.position_tolerance, self.orientation_tolerance,
+        STALL_ITERATIONS, STALL_PROGRESS)
+    return IkResult(q, bool(success), float(position_error),
+                    float(angle_error), int(iterations), yaw)
+
+  def _solve_reference(self, target, q, yaw):
+    """One LM run for a fixed target rotation (NumPy, pinocchio)."""
     q_min, q_max = self._model.q_min, self._model.q_max
     rotation = gripper_down_rotation(yaw)
     best, last_progress = None, 0

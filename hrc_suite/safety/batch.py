@@ -6,9 +6,11 @@ the playback's frames for its L physics steps). With compiled=True the
 cycles the compiled kernel covers (`cycle_kernels.ssm_cycles`: SSM and
 PFL, the combined human model without Kalman filter, a measured human with a
 velocity; a pending goal's candidate plan made here beforehand, as
-Shield.step makes it) run in one call; every other cycle (a new Ruckig
-plan from a moved state, mode 'off', the first measurements) runs
-`Shield.step`, the readable reference. compiled=False runs the reference for all.
+Shield.step makes it) run in one call; a call that stops for a candidate
+plan from a moved state is followed by one that makes it (Ruckig, in
+Python) and goes on; every other cycle (no candidate can be made, mode
+'off', the first measurements) runs `Shield.step`, the readable
+reference. compiled=False runs the reference for all.
 
 `checkpoint(shield)` / `restore(shield, saved)` save and restore the
 shield's state between cycles cheaply (the reference replaces its arrays
@@ -223,10 +225,15 @@ def step_many(shield, frames, times, compiled=True):
   c = 0
   while c < count:
     if compiled and compiled_eligible(shield):
-      c += _run_compiled(shield, frames[c:], times[c:], setpoints[c:],
-                         intervened[c:])
+      done = _run_compiled(shield, frames[c:], times[c:], setpoints[c:],
+                           intervened[c:])
+      c += done
       if c >= count:
         break
+      if done:
+        # Most stops need a candidate plan from the moved state: the next
+        # call makes it (as Shield.step would) and runs that cycle.
+        continue
     setpoints[c] = shield.step(frames[c], times[c])
     intervened[c] = shield.intervened
     c += 1

@@ -37,6 +37,12 @@ on the shield's own per-cycle polynomial, with margins from its
 derivatives. Escape rule (both kinds): a start already in collision does
 not reject every path; an element in collision at the start may not
 penetrate deeper until it is free (see `paths_free`).
+
+Compiled (compiled=True): the capsule tests run in `cp_kernels`, and a
+plan from a free start is swept in one call
+(`cp_kernels.planned_path_collides`); compiled=False runs the NumPy
+reference (`_colliding_reference`, `_planned_sweep`). Both make the same
+decisions (the same operations in the same order; tests on random goals).
 """
 
 import numpy as np
@@ -57,6 +63,8 @@ DEFAULT_MAX_STEP = 0.01
 # sample and levels (inflation 5 mm -> 1.25 -> 0.31 -> 0.08 mm).
 REFINE = 4
 REFINE_LEVELS = 3
+# Sub-sample positions in (-1, 1), in half widths of the refined sample.
+_REFINE_OFFSETS = (2.0 * np.arange(REFINE) + 1.0) / REFINE - 1.0
 # Escape rule: a penetration may grow this much (m) from sample to sample
 # (round-off of sliding along a surface) and still count as not increasing.
 _ESCAPE_SLACK = 1e-9
@@ -81,6 +89,16 @@ def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT,
   if floor:  # The floor as a thick slab below z = 0.
     boxes['floor'] = ((-10.0, -10.0, -1.0), (10.0, 10.0, 0.0))
   return boxes
+
+
+def _lever_sum(x, levers):
+  """x (N, dof) @ levers (dof, M), summed joint by joint in order (the
+  compiled sweep's order, cp_kernels._lever_sum; a BLAS product may sum
+  in another, and a margin one ulp off can flip a decision)."""
+  total = x[:, :1] * levers[0]
+  for k in range(1, levers.shape[0]):
+    total = total + x[:, k:k + 1] * levers[k]
+  return total
 
 
 class CollisionPrevention:
@@ -187,6 +205,7 @@ class CollisionPrevention:
     # Contiguous arguments of the compiled check (`cp_kernels.colliding`).
     self._kernel_pairs = np.ascontiguousarray(self.pairs, dtype=np.int64)
     self._kernel_radii = np.ascontiguousarray(self.reach.radii, dtype=float)
+    self._kernel_pair_levers = np.ascontiguousarray(self._pair_levers)
     self._no_box_mask = np.zeros((0, 0, 0), dtype=bool)
     self._no_pair_mask = np.zeros((0, 0), dtype=bool)
 
@@ -365,7 +384,7 @@ class CollisionPrevention:
       collided, free_box, free_pair = self._escape(
           num_paths, owner, param, half, evaluate, boxes[0], pairs[0],
           start_boxes, start_pairs)
-    offsets = (2.0 * np.arange(REFINE) + 1.0) / REFINE - 1.0   # In (-1, 1).
+    offsets = _REFINE_OFFSETS
     for level in range(REFINE_LEVELS + 1):
       keep = ~collided[owner]
       owner, param, half = owner[keep], param[keep], half[keep]
@@ -463,6 +482,29 @@ class CollisionPrevention:
         feasible[g] = True
       except ltp.PlanningError:
         plans.append(None)
+    if self.compiled and not self._colliding(q0[None])[0]:
+      collided = np.array([plan is not None and self._plan_collides(plan)
+                           for plan in plans], dtype=bool)
+    else:
+      collided = self._planned_sweep(q0, plans, cycle)
+    self.num_checks += len(q_goals)
+    return self._within(q_goals) & feasible & ~collided
+
+  def _plan_collides(self, plan):
+    """Whether a plan collides (start not in collision): the compiled
+    sweep of `_planned_sweep` (cp_kernels.planned_path_collides)."""
+    cycle = plan.cycle_time
+    return cp_kernels.planned_path_collides(
+        plan._all(), plan.start_time, plan._inverse_cycle, cycle,
+        cycle ** 2, cycle ** 3, plan.num_samples - 1, self.levers,
+        self._kernel_pair_levers, self.max_step, _REFINE_OFFSETS,
+        REFINE_LEVELS, *self.reach._kernel_model, self.reach._kernel_frames,
+        self._kernel_radii, self.box_min, self.box_max, self._box_checked,
+        self._box_allowance, self._kernel_pairs)
+
+  def _planned_sweep(self, q0, plans, cycle):
+    """Collision flags of plans (None: not made, not flagged) from q0, by
+    `_sweep` (the reference, and the escape rule)."""
     owners, params, halves = [], [], []
     for g, plan in enumerate(plans):
       if plan is None:
@@ -472,8 +514,9 @@ class CollisionPrevention:
       c = np.abs(plan.nominal(plan.start_time + cycle * np.arange(
           plan.num_samples))[1:])          # v, a, j at the samples.
       travel = c[0] * cycle + c[1] * cycle ** 2 / 2 + c[2] * cycle ** 3 / 6
-      pieces = np.maximum(1, np.ceil((travel @ self.levers).max(axis=-1)
-                                     / self.max_step)).astype(int)
+      pieces = np.maximum(1, np.ceil(
+          _lever_sum(travel, self.levers).max(axis=-1) / self.max_step))
+      pieces = pieces.astype(int)
       cycle_index = np.repeat(np.arange(plan.num_samples), pieces)
       within = (np.arange(cycle_index.size)
                 - np.repeat(np.cumsum(pieces) - pieces, pieces))
@@ -482,23 +525,23 @@ class CollisionPrevention:
                     + (within + 0.5) * width)
       halves.append(0.5 * width)
       owners.append(np.full(cycle_index.size, g))
-    collided = np.zeros(len(q_goals), dtype=bool)
-    if owners:
-      def evaluate(owner, param, half):
-        q = np.empty((owner.size, self.dof))
-        reach = np.empty((owner.size, self.dof))
-        for g in np.unique(owner):
-          rows = owner == g
-          q[rows], v, a, j = plans[g].nominal(param[rows])
-          h = half[rows][:, None]
-          reach[rows] = h * (np.abs(v) + h * (np.abs(a) / 2
-                                              + h * np.abs(j) / 6))
-        return q, reach @ self.levers, reach @ self._pair_levers
-      collided = self._sweep(q0, len(q_goals), np.concatenate(owners),
-                             np.concatenate(params), np.concatenate(halves),
-                             evaluate)
-    self.num_checks += len(q_goals)
-    return self._within(q_goals) & feasible & ~collided
+    if not owners:
+      return np.zeros(len(plans), dtype=bool)
+
+    def evaluate(owner, param, half):
+      q = np.empty((owner.size, self.dof))
+      reach = np.empty((owner.size, self.dof))
+      for g in np.unique(owner):
+        rows = owner == g
+        q[rows], v, a, j = plans[g].nominal(param[rows])
+        h = half[rows][:, None]
+        reach[rows] = h * (np.abs(v) + h * (np.abs(a) / 2
+                                            + h * np.abs(j) / 6))
+      return (q, _lever_sum(reach, self.levers),
+              _lever_sum(reach, self._pair_levers))
+    return self._sweep(q0, len(plans), np.concatenate(owners),
+                       np.concatenate(params), np.concatenate(halves),
+                       evaluate)
 
   def is_safe(self, q_start, q_goal):
     """True iff q_goal is within the joint limits and the straight path to

@@ -22,6 +22,7 @@ import ruckig
 
 from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import kernels
+from hrc_suite.safety import plan_kernels
 
 # Goals are kept this far inside the joint limits (rad; spec 2.1, the
 # original's planning tolerance).
@@ -318,13 +319,10 @@ def clamp_goal(q_goal, limits):
 def check_start_state(q0, dq0, ddq0, limits):
   """Raises PlanningError if the plan cannot start here (spec 2.1)."""
   v_max, a_max, j_max = limits.v_max, limits.a_max_ltt, limits.j_max_ltt
-  ramped = np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max))
-  if (np.all(q0 >= limits.q_min - _LIMIT_SLACK) and
-      np.all(q0 <= limits.q_max + _LIMIT_SLACK) and
-      np.all(np.abs(dq0) <= v_max + _LIMIT_SLACK) and
-      np.all(np.abs(ddq0) <= a_max + _LIMIT_SLACK) and
-      np.all(ramped <= v_max + _LIMIT_SLACK)):
+  if plan_kernels.start_state_ok(q0, dq0, ddq0, limits.q_min, limits.q_max,
+                                 v_max, a_max, j_max, _LIMIT_SLACK):
     return
+  ramped = np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * j_max))
   checks = (
       ('q0 below q_min', q0 < limits.q_min - _LIMIT_SLACK),
       ('q0 above q_max', q0 > limits.q_max + _LIMIT_SLACK),
@@ -497,25 +495,35 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
     raise PlanningError(f'The motion to {goal.tolist()} would leave the joint '
                         f'limits on joints {np.nonzero(outside)[0].tolist()}')
 
+  pieces = (table, starts, np.ascontiguousarray(joint_shift), goal,
+            float(cycle_time), float(duration))
+
   def sampler(first, stop):
-    times = np.arange(first, stop) * cycle_time
-    index = np.searchsorted(starts, times[:, None] + joint_shift,
-                            side='right') - 1
-    rows = table[index]                                    # (n, dof, 5)
-    d = times[:, None] - rows[..., 0]
-    p, v, a, j = rows[..., 1], rows[..., 2], rows[..., 3], rows[..., 4]
-    samples = np.empty((len(times), 4, dof))
-    samples[:, 0] = p + d * (v + d * (0.5 * a + d * j / 6.0))
-    samples[:, 1] = v + d * (a + 0.5 * d * j)
-    samples[:, 2] = a + d * j
-    samples[:, 3] = j
-    # The goal at rest from the end of the motion on (held afterwards).
-    end = times >= duration
-    samples[end, 0] = goal
-    samples[end, 1:] = 0.0
-    return samples
+    return plan_kernels.sample_pieces(*pieces, first, stop)
 
   plan = LongTermPlan._lazy(num, dof, sampler, cycle_time, start_time)
+  plan._pieces = pieces   # sampler's arguments (tests: the reference)
   plan._goal = goal
   plan._inputs = np.stack([q0, dq0, ddq0, goal])
   return plan
+
+
+def sample_pieces_reference(table, starts, joint_shift, goal, cycle_time,
+                            duration, first, stop):
+  """NumPy reference of plan_kernels.sample_pieces (same arguments)."""
+  times = np.arange(first, stop) * cycle_time
+  index = np.searchsorted(starts, times[:, None] + joint_shift,
+                          side='right') - 1
+  rows = table[index]                                      # (n, dof, 5)
+  d = times[:, None] - rows[..., 0]
+  p, v, a, j = rows[..., 1], rows[..., 2], rows[..., 3], rows[..., 4]
+  samples = np.empty((len(times), 4, len(joint_shift)))
+  samples[:, 0] = p + d * (v + d * (0.5 * a + d * j / 6.0))
+  samples[:, 1] = v + d * (a + 0.5 * d * j)
+  samples[:, 2] = a + d * j
+  samples[:, 3] = j
+  # The goal at rest from the end of the motion on (held afterwards).
+  end = times >= duration
+  samples[end, 0] = goal
+  samples[end, 1:] = 0.0
+  return samples

@@ -386,3 +386,62 @@ def test_compiled_checks_match_the_numpy_reference(name):
                      (40, description.dof))
   assert np.array_equal(prevention.paths_free(description.q_home, goals),
                         reference.paths_free(description.q_home, goals))
+
+
+@pytest.mark.parametrize('name', ['panda', 'schunk', 'ur5e', 'kinova3'])
+def test_compiled_planned_check_decides_as_the_numpy_reference(name):
+  """The compiled sweep of planned paths (cp_kernels.planned_path_collides)
+  rejects exactly the goals the reference rejects: random moving starts
+  (free ones, and a few in collision: the escape rule's route) and goals
+  around them; both outcomes occur."""
+  description, prevention = _prevention(name)
+  reference = collision_prevention.CollisionPrevention(
+      description, tool_capsule=_tool(description), compiled=False)
+  limits = description.limits
+  rs = np.random.RandomState(5)
+  decisions = {False: [], True: []}    # By start in collision.
+  for _ in range(40):
+    q = np.clip(description.q_home + rs.uniform(-0.8, 0.8, description.dof),
+                limits.q_min + 0.05, limits.q_max - 0.05)
+    start_hit = bool(prevention.in_collision(q))
+    if start_hit and len(decisions[True]) >= 6:
+      continue
+    moving = _moving(q, rs.uniform(-0.5, 0.5) * limits.v_max, description)
+    goals = np.clip(q + rs.uniform(-0.7, 0.7, (3, description.dof)),
+                    limits.q_min, limits.q_max)
+    fast = prevention.planned_paths_free(goals, moving)
+    assert np.array_equal(fast, reference.planned_paths_free(goals, moving))
+    decisions[start_hit].extend(fast.tolist())
+  assert set(decisions[False]) == {True, False}
+  assert len(decisions[False]) >= 45
+
+
+def test_compiled_planned_check_refines_as_the_reference(monkeypatch):
+  """Plans grazing the table (the Panda's tool 1 cm above it; 20 ms
+  cycles and 5 cm steps make the margins large): many samples hit only
+  with their margins, so the refinement decides (without it decisions
+  change), and the compiled sweep decides as the reference."""
+  description, _, q = _panda_near_table(-0.01)
+  kwargs = dict(tool_capsule=_tool(description), max_step=0.05)
+  prevention = collision_prevention.CollisionPrevention(description,
+                                                        **kwargs)
+  reference = collision_prevention.CollisionPrevention(
+      description, compiled=False, **kwargs)
+  limits = description.limits
+  rs = np.random.RandomState(0)
+  scale = np.array([1.0, 0.1, 1.0, 0.3, 1.0, 0.3, 1.0])
+  cases = []
+  for _ in range(20):
+    goals = np.clip(q + rs.uniform(-0.3, 0.3, (4, 7)) * scale, limits.q_min,
+                    limits.q_max)
+    moving = _moving(q, rs.uniform(-0.2, 0.2, 7), description)
+    moving.cycle_time = 0.02
+    cases.append((goals, moving))
+  decided = [prevention.planned_paths_free(*case) for case in cases]
+  for case, fast in zip(cases, decided):
+    assert np.array_equal(fast, reference.planned_paths_free(*case))
+  assert set(np.concatenate(decided).tolist()) == {True, False}
+  monkeypatch.setattr(collision_prevention, 'REFINE_LEVELS', 0)
+  unrefined = [prevention.planned_paths_free(*case) for case in cases]
+  assert not np.array_equal(np.concatenate(unrefined),
+                            np.concatenate(decided))

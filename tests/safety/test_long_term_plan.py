@@ -198,3 +198,53 @@ def test_a_ruckig_synchronisation_failure_is_a_planning_error():
     assert 'Ruckig failed' in str(e)
   else:   # A Ruckig that solves it must reach the goal at rest.
     np.testing.assert_allclose(plan.q[-1], goal, atol=1e-6)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_compiled_sampling_is_the_numpy_reference_bit_for_bit(panda, seed):
+  """plan_kernels.sample_pieces against sample_pieces_reference: every
+  sample of random plans (moving starts), in chunks and past the end."""
+  rng = np.random.RandomState(10 + seed)
+  plan = _random_plan(panda, rng)[-1]
+  count = plan.num_samples
+  for first, stop in ((0, count), (3, min(count, 70)), (count - 1, count + 5)):
+    fast = ltp.plan_kernels.sample_pieces(*plan._pieces, first, stop)
+    reference = ltp.sample_pieces_reference(*plan._pieces, first, stop)
+    assert np.array_equal(fast, reference)
+  assert np.all(reference[-5:, 0] == plan.goal)   # At rest at the goal.
+
+
+def test_compiled_start_check_agrees_with_the_numpy_conditions(panda):
+  """plan_kernels.start_state_ok (check_start_state's fast path) against
+  spec 2.1's conditions in NumPy, and check_start_state raises exactly
+  where they fail: random states at and beyond every limit."""
+  limits = panda.limits
+  slack = ltp._LIMIT_SLACK
+  rng = np.random.RandomState(4)
+  outcomes = []
+  for _ in range(400):
+    q0 = rng.uniform(limits.q_min - 0.05, limits.q_max + 0.05)
+    dq0 = rng.uniform(-1.1, 1.1, panda.dof) * limits.v_max
+    ddq0 = rng.uniform(-1.1, 1.1, panda.dof) * limits.a_max_ltt
+    keep = rng.rand(3, panda.dof) < 0.8    # Mostly within: both outcomes.
+    q0 = np.where(keep[0], np.clip(q0, limits.q_min, limits.q_max), q0)
+    dq0, ddq0 = np.where(keep[1], 0.3 * dq0, dq0), np.where(keep[2], 0.0,
+                                                             ddq0)
+    ramped = np.abs(dq0 + ddq0 * np.abs(ddq0) / (2.0 * limits.j_max_ltt))
+    expected = bool(np.all(q0 >= limits.q_min - slack) and
+                    np.all(q0 <= limits.q_max + slack) and
+                    np.all(np.abs(dq0) <= limits.v_max + slack) and
+                    np.all(np.abs(ddq0) <= limits.a_max_ltt + slack) and
+                    np.all(ramped <= limits.v_max + slack))
+    ok = ltp.plan_kernels.start_state_ok(
+        q0, dq0, ddq0, limits.q_min, limits.q_max, limits.v_max,
+        limits.a_max_ltt, limits.j_max_ltt, slack)
+    assert ok == expected
+    try:
+      ltp.check_start_state(q0, dq0, ddq0, limits)
+      raised = False
+    except ltp.PlanningError:
+      raised = True
+    assert raised == (not expected)
+    outcomes.append(ok)
+  assert set(outcomes) == {True, False}

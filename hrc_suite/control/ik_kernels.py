@@ -1,0 +1,253 @@
+"""Compiled (numba) gripper-down IK: ik.InverseKinematics' iteration.
+
+`solve` runs one Levenberg-Marquardt run of ik.InverseKinematics
+(`_solve_reference`: pinocchio kinematics, NumPy linear algebra) in one
+call: the same error, damping, active set, step limit, clipping and stall
+rule, with forward kinematics and the TCP Jacobian of the revolute-z chain
+computed here (`forward`) from the pinocchio model's own joint and TCP
+placements, the rotation error by the rotation's logarithm (`log3`) and
+the damped normal equations by Cholesky. The results agree with the
+reference to round-off (tests/control/test_ik_kernels.py), not bit for
+bit. Same compilation settings as the shield's kernels (cache, IEEE
+arithmetic).
+"""
+
+import math
+
+import numba
+import numpy as np
+
+_jit = numba.njit(cache=True, fastmath=False, nogil=True)
+
+# Rotation angles (rad) within this of pi take the logarithm's axis from
+# the rotation's symmetric part (the antisymmetric part vanishes there).
+_NEAR_PI = 1e-3
+# Below this angle (rad) the logarithm is half the antisymmetric part
+# (theta / (2 sin theta) = 1/2 to double precision below ~1e-8).
+_SMALL_ANGLE = 1e-8
+
+
+@_jit
+def forward(q, placements, tcp, frames, pose):
+  """Joint frames (dof, 3, 4) and TCP pose (3, 4) (top rows of the 4x4
+  transforms, world) for q (dof,), written into `frames` and `pose`.
+  placements (dof, 3, 4): joint i's placement in joint i-1's frame (the
+  first one in the world); tcp (3, 4): the TCP in the last joint's frame.
+  Joint i turns about its frame's z axis."""
+  dof = q.shape[0]
+  local = np.empty((3, 4))
+  for i in range(dof):
+    c = math.cos(q[i])
+    s = math.sin(q[i])
+    a = placements[i]
+    for r in range(3):   # placement times the rotation about z.
+      local[r, 0] = c * a[r, 0] + s * a[r, 1]
+      local[r, 1] = c * a[r, 1] - s * a[r, 0]
+      local[r, 2] = a[r, 2]
+      local[r, 3] = a[r, 3]
+    if i == 0:
+      frames[0, :, :] = local
+    else:
+      _compose(frames[i - 1], local, frames[i])
+  _compose(frames[dof - 1], tcp, pose)
+
+
+@_jit
+def _compose(a, b, out):
+  """out = a b for affine 3x4 transforms (top rows)."""
+  for r in range(3):
+    for c in range(4):
+      value = a[r, 0] * b[0, c] + a[r, 1] * b[1, c] + a[r, 2] * b[2, c]
+      out[r, c] = value + a[r, 3] if c == 3 else value
+
+
+@_jit
+def log3(m, out):
+  """Rotation vector (3,) of rotation matrix m (3, 3): axis times angle
+  in [0, pi], into `out`."""
+  v0 = m[2, 1] - m[1, 2]
+  v1 = m[0, 2] - m[2, 0]
+  v2 = m[1, 0] - m[0, 1]
+  cos = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)
+  sin = 0.5 * math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+  theta = math.atan2(sin, cos)
+  if theta < _SMALL_ANGLE:
+    out[0], out[1], out[2] = 0.5 * v0, 0.5 * v1, 0.5 * v2
+  elif theta < math.pi - _NEAR_PI:
+    scale = theta / (2.0 * sin)
+    out[0], out[1], out[2] = scale * v0, scale * v1, scale * v2
+  else:
+    # m = cos I + sin [n]x + (1 - cos) n n^T: n from the symmetric part,
+    # its largest component first, the sign from the antisymmetric part.
+    k = 0
+    for i in range(1, 3):
+      if m[i, i] > m[k, k]:
+        k = i
+    big = math.sqrt(max((m[k, k] - cos) / (1.0 - cos), 0.0))
+    n = np.empty(3)
+    for i in range(3):
+      n[i] = big if i == k else (0.5 * (m[i, k] + m[k, i])
+                                 / ((1.0 - cos) * big))
+    if n[0] * v0 + n[1] * v1 + n[2] * v2 < 0.0:
+      for i in range(3):
+        n[i] = -n[i]
+    for i in range(3):
+      out[i] = theta * n[i]
+
+
+@_jit
+def _error(q, target, rotation, placements, tcp, weights, frames, pose,
+           error, jacobian):
+  """Weighted error (6,) and Jacobian (6, dof) into `error`, `jacobian`;
+  returns (position error, angle error) (unweighted norms)."""
+  dof = q.shape[0]
+  forward(q, placements, tcp, frames, pose)
+  relative = np.empty((3, 3))
+  for r in range(3):
+    for c in range(3):   # target rotation times the TCP rotation's inverse
+      relative[r, c] = (rotation[r, 0] * pose[c, 0]
+                        + rotation[r, 1] * pose[c, 1]
+                        + rotation[r, 2] * pose[c, 2])
+  angle = np.empty(3)
+  log3(relative, angle)
+  for r in range(3):
+    error[r] = target[r] - pose[r, 3]
+    error[3 + r] = angle[r]
+  position_error = math.sqrt(error[0] * error[0] + error[1] * error[1]
+                             + error[2] * error[2])
+  angle_error = math.sqrt(angle[0] * angle[0] + angle[1] * angle[1]
+                          + angle[2] * angle[2])
+  for i in range(dof):
+    z0, z1, z2 = frames[i, 0, 2], frames[i, 1, 2], frames[i, 2, 2]
+    d0 = pose[0, 3] - frames[i, 0, 3]
+    d1 = pose[1, 3] - frames[i, 1, 3]
+    d2 = pose[2, 3] - frames[i, 2, 3]
+    jacobian[0, i] = z1 * d2 - z2 * d1
+    jacobian[1, i] = z2 * d0 - z0 * d2
+    jacobian[2, i] = z0 * d1 - z1 * d0
+    jacobian[3, i] = z0
+    jacobian[4, i] = z1
+    jacobian[5, i] = z2
+  for r in range(6):
+    error[r] *= weights[r]
+    for i in range(dof):
+      jacobian[r, i] *= weights[r]
+  return position_error, angle_error
+
+
+@_jit
+def _solve_spd(matrix, rhs, active, out):
+  """out[active] = solution of the symmetric positive definite system
+  restricted to the active entries (Cholesky); 0 elsewhere."""
+  index = np.flatnonzero(active)
+  count = index.shape[0]
+  low = np.zeros((count, count))
+  for i in range(count):
+    for j in range(i + 1):
+      total = matrix[index[i], index[j]]
+      for k in range(j):
+        total -= low[i, k] * low[j, k]
+      if i == j:
+        low[i, i] = math.sqrt(total)
+      else:
+        low[i, j] = total / low[j, j]
+  y = np.empty(count)
+  for i in range(count):
+    total = rhs[index[i]]
+    for k in range(i):
+      total -= low[i, k] * y[k]
+    y[i] = total / low[i, i]
+  out[:] = 0.0
+  for i in range(count - 1, -1, -1):
+    total = y[i]
+    for k in range(i + 1, count):
+      total -= low[k, i] * out[index[k]]
+    out[index[i]] = total / low[i, i]
+
+
+@_jit
+def _step(q, error, jacobian, cost, q_min, q_max, base_damping, max_step,
+          step):
+  """The damped least-squares step into `step` (InverseKinematics._step)."""
+  dof = q.shape[0]
+  gradient = np.zeros(dof)
+  hessian = np.zeros((dof, dof))
+  for i in range(dof):
+    for r in range(6):
+      gradient[i] += jacobian[r, i] * error[r]
+    for j in range(dof):
+      for r in range(6):
+        hessian[i, j] += jacobian[r, i] * jacobian[r, j]
+  damping = 0.5 * cost + base_damping
+  for i in range(dof):
+    hessian[i, i] += damping
+  active = np.ones(dof, dtype=np.bool_)
+  _solve_spd(hessian, gradient, active, step)
+  frozen = False
+  for i in range(dof):
+    if ((q[i] <= q_min[i] and step[i] < 0.0) or
+        (q[i] >= q_max[i] and step[i] > 0.0)):
+      active[i] = False
+      frozen = True
+  if frozen:
+    _solve_spd(hessian, gradient, active, step)
+  largest = 0.0
+  for i in range(dof):
+    largest = max(largest, abs(step[i]))
+  if largest > max_step:
+    scale = max_step / largest
+    for i in range(dof):
+      step[i] *= scale
+
+
+@_jit
+def solve(q_init, target, rotation, placements, tcp, q_min, q_max, weights,
+          base_damping, max_step, max_iterations, position_tolerance,
+          orientation_tolerance, stall_iterations, stall_progress):
+  """One LM run (ik.InverseKinematics._solve_reference) from q_init (within
+  the limits) to the TCP at target (3,) with rotation (3, 3). Returns (q,
+  success, position error, angle error, iterations): the first iterate
+  within tolerance, else the lowest-cost one."""
+  dof = q_init.shape[0]
+  q = q_init.copy()
+  frames = np.empty((dof, 3, 4))
+  pose = np.empty((3, 4))
+  error = np.empty(6)
+  jacobian = np.empty((6, dof))
+  step = np.empty(dof)
+  best_q = q.copy()
+  best_cost, best_position, best_angle = np.inf, 0.0, 0.0
+  last_progress = 0
+  iteration = 0
+  for iteration in range(max_iterations + 1):
+    position_error, angle_error = _error(
+        q, target, rotation, placements, tcp, weights, frames, pose, error,
+        jacobian)
+    cost = 0.0
+    for r in range(6):
+      cost += error[r] * error[r]
+    if (position_error <= position_tolerance and
+        angle_error <= orientation_tolerance):
+      return q, True, position_error, angle_error, iteration
+    if cost < best_cost:
+      if cost < (1.0 - stall_progress) * best_cost:
+        last_progress = iteration
+      best_cost, best_position, best_angle = cost, position_error, angle_error
+      best_q[:] = q
+    if (iteration == max_iterations or
+        iteration - last_progress >= stall_iterations):
+      break
+    _step(q, error, jacobian, cost, q_min, q_max, base_damping, max_step,
+          step)
+    for i in range(dof):
+      q[i] = min(max(q[i] + step[i], q_min[i]), q_max[i])
+  return best_q, False, best_position, best_angle, iteration
+
+
+@_jit
+def tcp_pose(q, placements, tcp):
+  """TCP pose (3, 4) (top rows of the 4x4 transform, world) at q."""
+  frames = np.empty((q.shape[0], 3, 4))
+  pose = np.empty((3, 4))
+  forward(q, placements, tcp, frames, pose)
+  return pose

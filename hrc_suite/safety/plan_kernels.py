@@ -1,0 +1,75 @@
+"""Compiled (numba) sampling of a Ruckig plan's constant-jerk pieces.
+
+`sample_pieces` computes what long_term_plan's NumPy reference
+(`long_term_plan.sample_pieces_reference`) computes, the same operations
+in the same order (bit for bit, tests/safety/test_long_term_plan.py): the
+plan's samples one cycle apart from the table of each joint's pieces.
+Same compilation settings as the shield's kernels (cache, IEEE
+arithmetic).
+"""
+
+import numpy as np
+
+from hrc_suite.safety import kernels
+
+_jit = kernels._jit
+
+
+@_jit
+def _last_at_or_before(sorted_values, x):
+  """The last index with sorted_values[index] <= x (-1 if none):
+  np.searchsorted(sorted_values, x, side='right') - 1."""
+  low, high = 0, sorted_values.shape[0]
+  while low < high:
+    middle = (low + high) // 2
+    if sorted_values[middle] <= x:
+      low = middle + 1
+    else:
+      high = middle
+  return low - 1
+
+
+@_jit
+def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
+                  first, stop):
+  """Samples (stop - first, 4, dof) (q and its three derivatives) at plan
+  times first..stop - 1 cycles. table (dof * P, 5): rows (start time, p,
+  v, a, j) of constant-jerk pieces, joint i's P rows from i * P; starts:
+  the rows' start times shifted by joint_shift (dof,) per joint (sorted);
+  from `duration` on the goal (dof,) at rest."""
+  dof = joint_shift.shape[0]
+  out = np.empty((stop - first, 4, dof))
+  for n in range(stop - first):
+    time = (first + n) * cycle_time
+    if time >= duration:
+      for i in range(dof):
+        out[n, 0, i] = goal[i]
+        out[n, 1, i] = 0.0
+        out[n, 2, i] = 0.0
+        out[n, 3, i] = 0.0
+      continue
+    for i in range(dof):
+      row = _last_at_or_before(starts, time + joint_shift[i])
+      d = time - table[row, 0]
+      p, v, a, j = table[row, 1], table[row, 2], table[row, 3], table[row, 4]
+      out[n, 0, i] = p + d * (v + d * (0.5 * a + d * j / 6.0))
+      out[n, 1, i] = v + d * (a + 0.5 * d * j)
+      out[n, 2, i] = a + d * j
+      out[n, 3, i] = j
+  return out
+
+
+@_jit
+def start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
+                   slack):
+  """Whether a plan may start at (q0, dq0, ddq0) (dof,): the conditions of
+  long_term_plan.check_start_state, element by element (its fast path;
+  it names the failing condition itself)."""
+  for i in range(q0.shape[0]):
+    ramped = abs(dq0[i] + ddq0[i] * abs(ddq0[i]) / (2.0 * j_max[i]))
+    if not (q0[i] >= q_min[i] - slack and q0[i] <= q_max[i] + slack and
+            abs(dq0[i]) <= v_max[i] + slack and
+            abs(ddq0[i]) <= a_max[i] + slack and
+            ramped <= v_max[i] + slack):
+      return False
+  return True
