@@ -31,7 +31,10 @@ def _episode(domain, task, robot, fast_path):
     action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
     timestep = env.step(action.astype(spec.dtype))
     qpos.append(env.physics.data.qpos.copy())
-    metrics.append(dict(env.task.episode_metrics))
+    metrics.append(dict(env.task.episode_metrics,
+                        reward=timestep.reward, discount=timestep.discount,
+                        observation={name: value.tolist() for name, value
+                                     in timestep.observation.items()}))
     if timestep.last():
       break
   env.close()
