@@ -216,9 +216,10 @@ class HrcTask(composer.Task):
       fast_path: run an RL step's shield cycles at its start in one call
         (`safety.batch.step_many`, compiled where it can) and hand the
         controller the verified set-points, check new goals with
-        compiled capsule tests (`safety.cp_kernels`) and, in environments
-        of `suite.load`, run the RL step's physics steps in one composer
-        substep (`substeps`); False runs
+        compiled capsule tests (`safety.cp_kernels`), compute the
+        controller's torques in compiled kernels (the same bit for bit)
+        and, in environments of `suite.load`, run the RL step's physics
+        steps in one composer substep (`substeps`); False runs
         `Shield.step` every physics step and the NumPy collision checks
         (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
@@ -570,7 +571,7 @@ class HrcTask(composer.Task):
     self._physics_steps.bind(physics, self._arena)
     self._playback.bind(physics)
     self._controller = controller_lib.JointTrackingController(
-        physics, self._robot)
+        physics, self._robot, compiled=self.fast_path)
     static = list(self._arena.static_geoms)
     robot_geoms = list(self._robot.link_geoms) + list(self._gripper.geoms)
     joints = physics.bind(self._robot.joints)
