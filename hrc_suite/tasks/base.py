@@ -217,11 +217,12 @@ class HrcTask(composer.Task):
         (`safety.batch.step_many`, compiled where it can) and hand the
         controller the verified set-points, check new goals with
         compiled capsule tests (`safety.cp_kernels`), compute the
-        controller's torques in compiled kernels (the same bit for bit)
-        and, in environments of `suite.load`, run the RL step's physics
-        steps in one composer substep (`substeps`); False runs
-        `Shield.step` every physics step and the NumPy collision checks
-        (the readable reference; the two agree,
+        controller's torques and classify contacts in compiled kernels
+        (the same bit for bit) and, in environments of `suite.load`, run
+        the RL step's physics steps in one composer substep (`substeps`);
+        False runs `Shield.step` every physics step, NumPy collision
+        checks, controller and contact classification and composer's
+        substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
     _choice('robot', robot, robot_lib.ROBOTS)
@@ -578,7 +579,8 @@ class HrcTask(composer.Task):
     self._monitor = contacts.ContactMonitor(
         physics, static, robot_geoms, self._object_geoms,
         self._human.geoms, critical_speed=self.critical_speed,
-        robot_dofs=joints.dofadr, robot_qpos=joints.qposadr)
+        robot_dofs=joints.dofadr, robot_qpos=joints.qposadr,
+        compiled=self.fast_path)
     self._qpos_index = np.array(joints.qposadr)
     # A view of the arm's joint positions (consecutive: the controller
     # requires it), read every physics step without a copy.
