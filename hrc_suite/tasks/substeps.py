@@ -81,8 +81,6 @@ class PhysicsSteps:
                             if getattr(type(entity), name) is not trivial]
     self._model, self._data = physics.model.ptr, physics.data.ptr
     self._warnings = physics.data.warning.number   # a view into MjData
-    self._warnings_before = np.empty_like(self._warnings)
-    self._new_warnings = np.empty(self._warnings.shape, dtype=bool)
     # dm_control's legacy step (mj_step2, then mj_step1) with Euler-type
     # integrators; else its own Physics.step.
     self._raw = bool(physics.legacy_step) and (
@@ -95,16 +93,21 @@ class PhysicsSteps:
       hook(physics, random_state)
     self.last_before(physics, action, random_state)
     if self._raw:
-      np.copyto(self._warnings_before, self._warnings)
+      before = self._warnings.tobytes()   # cheaper than a copy and compare
       mujoco.mj_step2(self._model, self._data)
       mujoco.mj_step1(self._model, self._data)
-      np.greater(self._warnings, self._warnings_before,
-                 out=self._new_warnings)
-      if self._new_warnings.any():
-        raise rl_control.PhysicsError(_INVALID_STATE.format(
-            ', '.join(np.compress(self._new_warnings, _WARNING_NAMES))))
+      if self._warnings.tobytes() != before:
+        self._check_warnings(before)
     else:
       physics.step()
+
+  def _check_warnings(self, before):
+    """dm_control's check: an error if a warning counter went up."""
+    before = np.frombuffer(before, dtype=self._warnings.dtype)
+    raised = self._warnings > before
+    if raised.any():
+      raise rl_control.PhysicsError(_INVALID_STATE.format(
+          ', '.join(np.compress(raised, _WARNING_NAMES))))
 
   def after(self, physics, random_state):
     """The entity and extra after_substep hooks of a physics step."""
