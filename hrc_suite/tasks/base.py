@@ -737,11 +737,11 @@ class HrcTask(composer.Task):
     enabled observable needs reading between physics steps (call before
     the environment is built); returns whether it is used."""
     self._one_substep = self.fast_path and not (
-        substeps_lib.default_schedule(self.observables))
+        substeps_lib.read_between_steps(self.observables))
     return self._one_substep
 
   def _check_one_substep(self):
-    names = substeps_lib.default_schedule(self.observables)
+    names = substeps_lib.read_between_steps(self.observables)
     if names:
       raise ValueError(
           f'Observables {", ".join(names)} need reading between physics '

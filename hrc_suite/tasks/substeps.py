@@ -13,8 +13,8 @@ then the after hooks in the same order; composer runs the last one.
 
 composer's contracts, and how they are kept:
 
-* Entity substep hooks run every physics step (collected as composer
-  does: those an entity overrides).
+* Entity substep hooks run every physics step (every hook an entity
+  overrides; composer leaves out those with an empty body, a no-op).
 * Extra substep hooks (`env.add_extra_hook`) run every physics step:
   `suite.Environment` hands them to the task (`add_extra_hook` here);
   for the last physics step composer calls `last_before` / `last_after`,
@@ -23,8 +23,9 @@ composer's contracts, and how they are kept:
   if it has a delay, a buffer of more than one value or an update
   interval other than one physics step; otherwise once per RL step after
   after_step, as it does with one substep. The one-substep mode is only
-  used when every enabled observable has those defaults (`default_schedule`)
-  and an episode refuses to start if one stopped having them.
+  used when no enabled observable is read between physics steps
+  (`read_between_steps`), and an episode refuses to start if one is
+  later.
 * Physics errors: a PhysicsError with dm_control's message is raised right
   after the physics step that raised a MuJoCo warning counter (as
   `Physics.check_invalid_state`), inside the substep, where composer
@@ -43,7 +44,7 @@ _INVALID_STATE = 'Physics state is invalid. Warning(s) raised: {}'
 _WARNING_NAMES = list(mujoco.mjtWarning.__members__)
 
 
-def default_schedule(observables):
+def read_between_steps(observables):
   """Names of enabled observables that composer must read between
   physics steps (a delay, a buffer or an update interval); () if none."""
   names = []
