@@ -5,9 +5,13 @@ Times the parts of the step loop by wrapping them (CPU time,
 time.process_time, summed per part and divided by the RL steps; the
 wrappers are removed afterwards). Parts nest: collision prevention holds
 the IK it calls, the task's hooks hold the shield, the person, the
-controller and the contact monitor; "composer and the rest" is the RL
-step's total minus the top-level parts (dm_control's environment loop,
-observables, the action spec check, numpy glue).
+controller and the contact monitor. Top-level parts count their own time
+without the top-level parts they call: on the fast path the task's
+before_substep runs the RL step's physics steps and after_substep hooks
+(tasks/substeps.py), which count as physics and after_substep. "composer
+and the rest" is the RL step's total minus the top-level parts
+(dm_control's environment loop, observables, the action spec check,
+numpy glue).
 """
 
 import contextlib
@@ -18,8 +22,10 @@ import numpy as np
 # (label, module, class or None, attribute, top level): top-level parts are
 # disjoint and add up to the measured step with "composer and the rest".
 PARTS = (
-    ('physics (dm_control physics.step, 25x)', 'dm_control.mujoco.engine',
-     'Physics', 'step', True),
+    ('physics (25x: mj_step2, mj_step1, warnings, entity hooks)',
+     'dm_control.mujoco.engine', 'Physics', 'step', True),
+    ('physics (25x: mj_step2, mj_step1, warnings, entity hooks)',
+     'hrc_suite.tasks.substeps', 'PhysicsSteps', 'step', True),
     ('task before_step (action, goal, shield.new_goal, playback)',
      'hrc_suite.tasks.base', 'HrcTask', 'before_step', True),
     ('  collision prevention (plan and capsule checks of the goal)',
@@ -29,8 +35,8 @@ PARTS = (
      'InverseKinematics', 'solve', False),
     ('  person: playback of the RL step (25 poses, segment frames)',
      'hrc_suite.tasks.human_playback', 'HumanPlayback', 'advance', False),
-    ('task before_substep (25x)', 'hrc_suite.tasks.base', 'HrcTask',
-     'before_substep', True),
+    ('task before_substep: the loop, before each physics step (25x)',
+     'hrc_suite.tasks.base', 'HrcTask', 'before_substep', True),
     ('  shield: 25 cycles (safety.batch.step_many)', 'hrc_suite.safety.batch',
      None, 'step_many', False),
     ('  person: mocap of one pose (25x)', 'hrc_suite.tasks.human_playback',
@@ -48,20 +54,31 @@ PARTS = (
 
 @contextlib.contextmanager
 def _timed(totals):
-  """Wraps every part of PARTS, adding its CPU time to totals[label]."""
+  """Wraps every part of PARTS, adding its CPU time to totals[label]
+  (a top-level part's without the top-level parts inside it)."""
   import importlib
   restore = []
+  inner = []   # Per active top-level part: time of top-level parts inside.
   try:
-    for label, module_name, class_name, attribute, _ in PARTS:
+    for label, module_name, class_name, attribute, top in PARTS:
       module = importlib.import_module(module_name)
       owner = module if class_name is None else getattr(module, class_name)
       original = getattr(owner, attribute)
-      def wrapper(*args, _original=original, _label=label, **kwargs):
+      def wrapper(*args, _original=original, _label=label, _top=top,
+                  **kwargs):
+        if _top:
+          inner.append(0.0)
         start = time.process_time()
         try:
           return _original(*args, **kwargs)
         finally:
-          totals[_label] += time.process_time() - start
+          elapsed = time.process_time() - start
+          if _top:
+            totals[_label] += elapsed - inner.pop()
+            if inner:
+              inner[-1] += elapsed
+          else:
+            totals[_label] += elapsed
       setattr(owner, attribute, wrapper)
       restore.append((owner, attribute, original))
     yield
@@ -97,7 +114,8 @@ def profile(domain, task, robot, rl_steps, action_space=None, seed=0):
       total += time.process_time() - start
   env.close()
   out = {label: 1e6 * value / rl_steps for label, value in totals.items()}
-  top = sum(out[label] for label, *_, is_top in PARTS if is_top)
+  top = sum(out[label] for label in {label for label, *_, is_top in PARTS
+                                     if is_top})
   out['composer and the rest'] = 1e6 * total / rl_steps - top
   out['total'] = 1e6 * total / rl_steps
   return out

@@ -13,6 +13,8 @@ import importlib
 
 from dm_control import composer
 
+from hrc_suite.tasks import substeps
+
 # Modules whose import registers tasks (one per benchmark task).
 _TASK_MODULES = tuple(f'hrc_suite.tasks.{name}' for name in (
     'reach', 'pick_place', 'handover', 'inspection', 'lifting', 'hammering',
@@ -29,6 +31,27 @@ _LOADED = False
 # episode anew from the continuing random_state). A few, because one
 # failure is already rare (docs/safety.md, "Physics errors").
 MAX_RESET_ATTEMPTS = 3
+
+
+class Environment(composer.Environment):
+  """composer.Environment in which a fast-path task runs an RL step's
+  physics steps in one composer substep (tasks/substeps.py); extra
+  substep hooks then go to the task, which runs them every physics step.
+  """
+
+  def __init__(self, task, **kwargs):
+    task.use_one_substep()   # Before composer reads the substep count.
+    super().__init__(task, **kwargs)
+    if task.one_substep:
+      steps = task.physics_steps
+      super().add_extra_hook('before_substep', steps.last_before)
+      super().add_extra_hook('after_substep', steps.last_after)
+
+  def add_extra_hook(self, hook_name, hook_callable):
+    if self.task.one_substep and hook_name in substeps.HOOKS:
+      self.task.physics_steps.add_extra_hook(hook_name, hook_callable)
+    else:
+      super().add_extra_hook(hook_name, hook_callable)
 
 
 def register(domain, task, tags=()):
@@ -105,7 +128,7 @@ def build_task(domain, task, task_kwargs=None):
 
 
 def load(domain, task, task_kwargs=None, environment_kwargs=None):
-  """A composer.Environment of the task.
+  """An `Environment` (a composer.Environment) of the task.
 
   task_kwargs go to the task (see `hrc_suite.tasks.base.HrcTask`), except
   'seed', which seeds the environment's random_state unless
@@ -137,5 +160,4 @@ def load(domain, task, task_kwargs=None, environment_kwargs=None):
   # the model is compiled once instead of at every reset (~0.1-0.2 s each).
   environment_kwargs.setdefault('recompile_mjcf_every_episode', False)
   time_limit = (hrc_task.horizon - 0.5) * hrc_task.control_timestep
-  return composer.Environment(hrc_task, time_limit=time_limit,
-                              **environment_kwargs)
+  return Environment(hrc_task, time_limit=time_limit, **environment_kwargs)

@@ -201,10 +201,62 @@ class Player:
 
   def advance(self, dt):
     """Moves episode time forward by dt seconds (dt >= 0)."""
+    self._check_advance(dt)
+    self._advance_time(dt)
+    self._update_outputs()
+
+  def advance_many(self, dt, positions, times, clips):
+    """advance(dt) once per row of `positions` (n, NUM_KEYPOINTS, 3),
+    writing after each the keypoints there, the episode time in times[k]
+    and the clip in clips[k]: the same values as n advance calls (the
+    same operations, with one array operation per clip instead of one
+    per step). Afterwards the player is as after the n calls."""
+    self._check_advance(dt)
+    n = len(positions)
+    if len(times) < n or len(clips) < n:
+      raise ValueError(f'times and clips need {n} entries, got '
+                       f'{len(times)} and {len(clips)}')
+    frames = {}     # prepared clip -> (rows, frame index, fraction)
+    blends = []     # (rows, weights, from, delta, clip number) per blend
+    for k in range(n):
+      self._advance_time(dt)
+      times[k] = self._episode_time
+      clips[k] = self._current.clip
+      if self._transition is not None:
+        elapsed, duration = self._transition
+        if not blends or blends[-1][4] != self._k:   # a new blend
+          blends.append(([], [], self._from.copy(), self._delta.copy(),
+                         self._k))
+        blends[-1][0].append(k)
+        blends[-1][1].append(_min_jerk(elapsed / duration)[0])
+        continue
+      prepared = self._current
+      frame = self._clip_time_and_rate()[0] * prepared.fps
+      i = min(int(frame), prepared.last)
+      rows, index, fraction = frames.setdefault(prepared, ([], [], []))
+      rows.append(k)
+      index.append(i)
+      fraction.append(frame - i)
+    for prepared, (rows, index, fraction) in frames.items():
+      local = prepared.steps[index] * np.array(fraction)[:, None, None]
+      local += prepared.positions[index]
+      placed = np.matmul(local, self._rot_t)
+      placed += self._trans
+      positions[rows] = placed
+    for rows, weights, start, delta, _ in blends:
+      blended = delta * np.array(weights)[:, None, None]
+      blended += start
+      positions[rows] = blended
+    self._update_outputs()
+
+  def _check_advance(self, dt):
     if not self._ready:
       raise RuntimeError('Player.advance before reset(random_state)')
     if not dt >= 0:
       raise ValueError(f'dt must be >= 0, got {dt!r}')
+
+  def _advance_time(self, dt):
+    """advance's clock: episode, clip and blend times (no outputs)."""
     self._episode_time += dt
     remaining = dt
     while not self._finished:
@@ -233,7 +285,6 @@ class Player:
         break
       remaining = t - prepared.duration
       self._next_clip()
-    self._update_outputs()
 
   def _next_clip(self):
     """Ends the current clip: the next one, after a blend, or the end."""

@@ -14,14 +14,22 @@ step is exactly L shield cycles.
   so nothing relies on entity hooks): player.advance(dt) ->
   human.set_keypoints -> shield.step(keypoints, t) -> controller. The
   player is advanced through the RL step's substeps at the end of
-  before_step and its poses are played back substep by substep
+  before_step (one `Player.advance_many` call) and its poses are played
+  back substep by substep
   (`human_playback`: events only change between RL steps, so this is the
   same motion, computed with one vectorised call per RL step). On the
   fast path (fast_path=True, the default) the shield's cycles of the whole
   RL step run at its first substep in one call (`safety.batch.step_many`:
   the playback's frames are known in advance) and each substep hands the
   controller its precomputed, verified set-point; the same commands as
-  `Shield.step` every substep (fast_path=False, the reference).
+  `Shield.step` every substep (fast_path=False, the reference). Subclasses
+  add their own work before each physics step in `_before_physics_step`.
+* One composer substep per RL step (fast path, environments of
+  `suite.load`; `substeps`): composer sees one substep, and before_substep
+  runs the RL step's first L - 1 physics steps itself, each with the same
+  hooks in composer's order (this task's, the entities', the extra ones),
+  mj_step2 and mj_step1 as dm_control's physics.step, and after_substep;
+  composer runs the last.
 * after_substep: the tracking check, then the contact monitor
   (`contacts`). The measured joints are compared with where the shield's
   command puts them; farther than the shield's tracking tolerance (its
@@ -95,6 +103,7 @@ from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
+from hrc_suite.tasks import substeps as substeps_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
 DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
@@ -207,10 +216,14 @@ class HrcTask(composer.Task):
         critical human contact.
       fast_path: run an RL step's shield cycles at its start in one call
         (`safety.batch.step_many`, compiled where it can) and hand the
-        controller the verified set-points, and check new goals with
-        compiled capsule tests (`safety.cp_kernels`); False runs
-        `Shield.step` every physics step and the NumPy collision checks
-        (the readable reference; the two agree,
+        controller the verified set-points, check new goals with
+        compiled capsule tests (`safety.cp_kernels`), compute the
+        controller's torques and classify contacts in compiled kernels
+        (the same bit for bit) and, in environments of `suite.load`, run
+        the RL step's physics steps in one composer substep (`substeps`);
+        False runs `Shield.step` every physics step, NumPy collision
+        checks, controller and contact classification and composer's
+        substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
     _choice('robot', robot, robot_lib.ROBOTS)
@@ -322,6 +335,8 @@ class HrcTask(composer.Task):
     self.set_timesteps(control_timestep, physics_timestep)
     self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
     self._physics_ptr = None
+    self._one_substep = False
+    self._physics_steps = substeps_lib.PhysicsSteps()
     self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
     self._command_dq = np.zeros(self._robot.dof)
     # Tracking check (after_substep): where the command puts the joints
@@ -556,16 +571,18 @@ class HrcTask(composer.Task):
     """Caches controller, monitor and views for a compiled physics."""
     self._physics_ptr = physics.data.ptr
     self._dt = float(physics.model.opt.timestep)
+    self._physics_steps.bind(physics, self._arena)
     self._playback.bind(physics)
     self._controller = controller_lib.JointTrackingController(
-        physics, self._robot)
+        physics, self._robot, compiled=self.fast_path)
     static = list(self._arena.static_geoms)
     robot_geoms = list(self._robot.link_geoms) + list(self._gripper.geoms)
     joints = physics.bind(self._robot.joints)
     self._monitor = contacts.ContactMonitor(
         physics, static, robot_geoms, self._object_geoms,
         self._human.geoms, critical_speed=self.critical_speed,
-        robot_dofs=joints.dofadr, robot_qpos=joints.qposadr)
+        robot_dofs=joints.dofadr, robot_qpos=joints.qposadr,
+        compiled=self.fast_path)
     self._qpos_index = np.array(joints.qposadr)
     # A view of the arm's joint positions (consecutive: the controller
     # requires it), read every physics step without a copy.
@@ -587,6 +604,8 @@ class HrcTask(composer.Task):
   def _initialize_episode(self, physics, random_state):
     if physics.data.ptr is not self._physics_ptr:
       self._bind(physics)
+    if self._one_substep:
+      self._check_one_substep()
     self._init_episode_state()
     data = physics.data
     q_home = self._robot.description.q_home
@@ -694,8 +713,57 @@ class HrcTask(composer.Task):
                          'Shield cycles are not deterministic')
     self._forget_setpoints()
 
+  # One composer substep per RL step (tasks/substeps.py, the fast path).
+
+  @property
+  def physics_steps_per_control_step(self):
+    """Composer's substeps per RL step: shield_substeps, or 1 when the
+    task runs the RL step's physics steps itself (`one_substep`)."""
+    if self._one_substep:
+      return 1
+    return super().physics_steps_per_control_step
+
+  @property
+  def one_substep(self):
+    """Whether before_substep runs the RL step's first L - 1 physics steps
+    (composer the last): set by `suite.Environment` on the fast path."""
+    return self._one_substep
+
+  @property
+  def physics_steps(self):
+    """The hooks of every physics step (`substeps.PhysicsSteps`)."""
+    return self._physics_steps
+
+  def use_one_substep(self):
+    """One composer substep per RL step if the fast path is on and no
+    enabled observable needs reading between physics steps (call before
+    the environment is built); returns whether it is used."""
+    self._one_substep = self.fast_path and not (
+        substeps_lib.read_between_steps(self.observables))
+    return self._one_substep
+
+  def _check_one_substep(self):
+    names = substeps_lib.read_between_steps(self.observables)
+    if names:
+      raise ValueError(
+          f'Observables {", ".join(names)} need reading between physics '
+          'steps (a delay, a buffer or an update interval), which this '
+          'environment runs in one composer substep per RL step: set them '
+          'before suite.load (observation_delay) or use fast_path=False')
+
   def before_substep(self, physics, action, random_state):
-    del action, random_state
+    if self._one_substep:
+      steps = self._physics_steps
+      for _ in range(self.shield_substeps - 1):
+        self._prepare_physics_step(physics)
+        steps.step(physics, action, random_state)
+        self.after_substep(physics, random_state)
+        steps.after(physics, random_state)
+    self._prepare_physics_step(physics)
+
+  def _prepare_physics_step(self, physics):
+    """Before a physics step: the person's pose, the shield's command, the
+    controller, then the task's `_before_physics_step`."""
     k = self._substep
     self._substep = k + 1
     positions = self._playback.apply(physics, k)
@@ -713,6 +781,10 @@ class HrcTask(composer.Task):
     expected *= self._dt
     expected += q
     self._controller(physics, q, dq, ddq)
+    self._before_physics_step(physics)
+
+  def _before_physics_step(self, physics):
+    """A task's own work before every physics step (e.g. a grip)."""
 
   def after_substep(self, physics, random_state):
     del physics, random_state

@@ -39,9 +39,15 @@ it stays `human_critical` (the robot's own motion was too fast).
 Robot geoms never collide with each other in MuJoCo (collision_groups), so
 self-collision is judged geometrically by the task from the robot's capsule
 model (the one collision prevention uses), once per RL step.
+
+compiled=True (the tasks' fast path) classifies the contacts' geom pairs
+in one numba call over a table of every pair's type instead of a dozen
+NumPy calls; robot-human contacts are then judged as above (the same
+flags, tests/tasks/test_base.py).
 """
 
 import mujoco
+import numba
 import numpy as np
 
 NONE, STATIC, ROBOT, OBJECT, HUMAN = range(5)
@@ -67,15 +73,29 @@ _PUSHED = TYPE_INDEX['human_pushed']
 SSM_STOPPED_SPEED = 0.001   # m/s
 
 
+@numba.njit(cache=True, nogil=True)
+def _classify(geom, pair_types, flags):
+  """flags[type] for each contact's geom pair (geom (ncon, 2)); returns
+  whether one is a robot-human pair (flagged human_allowed)."""
+  human = False
+  for i in range(geom.shape[0]):
+    kind = pair_types[geom[i, 0], geom[i, 1]]
+    if kind >= 0:
+      flags[kind] = True
+      human |= kind == _ALLOWED
+  return human
+
+
 class ContactMonitor:
   """Counts contacts by type for one compiled physics."""
 
   def __init__(self, physics, static_geoms, robot_geoms, object_geoms=(),
                human_geoms=(), critical_speed=SSM_STOPPED_SPEED,
-               robot_dofs=None, robot_qpos=None):
+               robot_dofs=None, robot_qpos=None, compiled=False):
     """robot_dofs, robot_qpos: the robot's joints' dof and qpos addresses
     (the order of dq and q commands); robot_dofs None: every dof. Judging
-    at a commanded configuration needs robot_qpos."""
+    at a commanded configuration needs robot_qpos. compiled: classify
+    with the numba kernel (module doc)."""
     if not critical_speed >= 0:
       raise ValueError(f'critical_speed must be >= 0 m/s, got '
                        f'{critical_speed!r}')
@@ -92,6 +112,9 @@ class ContactMonitor:
     for (a, b), name in _PAIR_TYPES:
       codes[5 * a + b] = codes[5 * b + a] = TYPE_INDEX[name]
     self._codes = codes
+    self._compiled = bool(compiled)
+    # Type of every geom pair (-1: none), for the compiled classification.
+    self._pair_types = codes[5 * categories[:, None] + categories[None, :]]
     self._model, self._data = model.ptr, physics.data.ptr
     self._geom_body = model.geom_bodyid.copy()
     self._velocity = np.zeros(6)
@@ -184,6 +207,9 @@ class ContactMonitor:
     if ncon == 0:
       return flags
     contact = data.contact
+    if self._compiled and not _classify(contact.geom, self._pair_types,
+                                        flags):
+      return flags   # No robot-human contact to judge by speed.
     geom1, geom2 = contact.geom1[:ncon], contact.geom2[:ncon]
     cat1, cat2 = self._categories[geom1], self._categories[geom2]
     codes = self._codes[5 * cat1 + cat2]

@@ -301,8 +301,7 @@ class Hammering(NailOutcome, base.HrcTask):
                          tool_hold.CompliantHold(physics, self._hammer.body))
     return self._tool_hold[1]
 
-  def before_substep(self, physics, action, random_state):
-    super().before_substep(physics, action, random_state)
+  def _before_physics_step(self, physics):
     hold = self._hammer_hold(physics)
     if AIM_AT_NAIL:
       hold.aim(physics.bind(self._board.nail_head_site).xpos)

@@ -261,8 +261,7 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     physics.model.geom_contype[geoms] = contype if on else 0
     physics.model.geom_conaffinity[geoms] = conaffinity if on else 0
 
-  def before_substep(self, physics, action, random_state):
-    super().before_substep(physics, action, random_state)
+  def _before_physics_step(self, physics):
     if self._phase != PLACED:
       self._carry_board(physics, self._playback.positions[self._substep - 1])
 

@@ -393,8 +393,7 @@ class HumanToRobot(_Handover):
     return (self._holder() is not None and self._pick_grip is None
             and self._turn >= 1.0)
 
-  def before_substep(self, physics, action, random_state):
-    super().before_substep(physics, action, random_state)
+  def _before_physics_step(self, physics):
     if self._presenting():
       # The presenting grip at every physics step: a fixed weld to the
       # hand's frame would also turn the hammer with the frame's roll about
@@ -463,7 +462,7 @@ class HumanToRobot(_Handover):
     if self._holder() is not None and self._pick_grip is not None:
       # Turning the hammer in the hand from the picking to the presenting
       # grip between the two keyframes (the capsule hand has no wrist);
-      # then `before_substep` holds it in the presenting grip.
+      # then `_before_physics_step` holds it in the presenting grip.
       # Monotone: a backward warp while presenting keeps the presenting grip.
       s = min(max((clip_time - t_pick) / (t_present - t_pick), 0.0), 1.0)
       self._turn = max(self._turn, s * s * (3.0 - 2.0 * s))

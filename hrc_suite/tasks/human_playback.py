@@ -2,10 +2,10 @@
 
 The player's motion depends on the task only through events, which tasks
 trigger between RL steps (after_step). So at the start of an RL step the
-player can be advanced through all L substeps at once, keeping the keypoints
-of each substep; the capsule frames of all L x S segments then come from one
-vectorised `human.segment_frames` call instead of L calls (it dominates the
-human's per-substep cost). Each substep only copies its rows into MuJoCo's
+player is advanced through all L substeps in one call
+(`Player.advance_many`: the keypoints of each substep, one array operation
+per clip), and the capsule frames of all L x S segments come from one
+vectorised `human.segment_frames` call instead of L calls. Each substep only copies its rows into MuJoCo's
 mocap arrays and hands its keypoints to the shield, exactly as if the player
 had been advanced in that substep.
 
@@ -98,12 +98,7 @@ class HumanPlayback:
 
   def advance(self, dt):
     """Advances the player through the RL step's substeps."""
-    player = self._player
-    for k in range(self.substeps):
-      player.advance(dt)
-      self.positions[k] = player.positions
-      self.times[k] = player.episode_time
-      self.clips[k] = player.clip
+    self._player.advance_many(dt, self.positions, self.times, self.clips)
     reference = self._reference
     left, right = self._shoulders
     reference[:, self._shoulder_line] = (self.positions[:, left]

@@ -240,3 +240,29 @@ def test_bad_gains_raise():
   with pytest.raises(ValueError, match='natural_frequency'):
     controller_lib.JointTrackingController(physics, robot,
                                            natural_frequency=0)
+
+
+@pytest.mark.parametrize('name', ['panda', 'schunk', 'ur5e'])
+def test_compiled_torques_equal_the_numpy_ones_bit_for_bit(name):
+  """The kernels (compiled=True) against the NumPy arithmetic on random
+  states and commands, some far enough for the torque limits to clip."""
+  _, robot, _, physics = _scene(name)
+  reference = controller_lib.JointTrackingController(physics, robot)
+  compiled = controller_lib.JointTrackingController(physics, robot,
+                                                    compiled=True)
+  rng = np.random.RandomState(0)
+  dof = robot.description.dof
+  joints = physics.bind(robot.joints)
+  clipped = 0
+  for _ in range(50):
+    physics.data.qpos[joints.qposadr] = rng.uniform(-2, 2, dof)
+    physics.data.qvel[joints.dofadr] = rng.uniform(-1, 1, dof)
+    physics.forward()
+    q_d = robot.joint_positions(physics) + rng.uniform(-0.5, 0.5, dof)
+    dq_d, ddq_d = rng.uniform(-2, 2, dof), rng.uniform(-10, 10, dof)
+    expected = reference(physics, q_d, dq_d, ddq_d).copy()
+    torque = compiled(physics, q_d, dq_d, ddq_d)
+    np.testing.assert_array_equal(torque, expected)
+    np.testing.assert_array_equal(physics.bind(robot.actuators).ctrl, torque)
+    clipped += np.sum(np.abs(expected) == robot.description.limits.torque)
+  assert clipped > 0

@@ -302,3 +302,45 @@ def test_real_recordings_have_no_jump_at_events_and_switches():
           LIMIT_STEP)
     previous, name = player.positions.copy(), player.clip.name
   assert events == 6 and switches > 0
+
+
+@pytest.mark.parametrize('seed', [0, 3, 11])
+def test_advance_many_equals_advance_steps(seed):
+  """advance_many writes, bit for bit, what advance step by step gives,
+  through idle phases, events, clip switches and blends."""
+  def make():
+    clips = [ramp_clip('a', seconds=0.5, phases=(phase(0, 'go'),),
+                       keyframes=(5, 15)),
+             ramp_clip('b', seconds=0.3, start=(0.4, 0.3)),
+             ramp_clip('c', seconds=0.2)]
+    player = player_lib.Player(clips, station=(1.0, 0.0, 3.0),
+                               placement_range=(0.1, 0.1, 0.2),
+                               transition_speed=5.0)
+    player.reset(np.random.RandomState(seed))
+    return player
+  single, batched = make(), make()
+  n, blends = 25, 0
+  positions, times, clips = np.zeros((n, K, 3)), np.zeros(n), [None] * n
+  for block in range(60):
+    expected = []
+    for _ in range(n):
+      single.advance(DT)
+      blends += single.in_transition
+      expected.append((single.positions.copy(), single.episode_time,
+                       single.clip))
+    batched.advance_many(DT, positions, times, clips)
+    np.testing.assert_array_equal(positions, [e[0] for e in expected])
+    assert list(times) == [e[1] for e in expected]
+    assert [c.name for c in clips] == [e[2].name for e in expected]
+    np.testing.assert_array_equal(batched.velocities, single.velocities)
+    assert batched.get_state() == single.get_state()
+    if block % 3 == 0 and single.waiting_for:
+      assert single.trigger('go') and batched.trigger('go')
+  assert blends > 0 and single.clip_index > 3
+
+
+def test_advance_many_needs_room_for_every_step():
+  player = player_lib.Player([ramp_clip()])
+  player.reset(np.random.RandomState(0))
+  with pytest.raises(ValueError, match='times and clips need 4'):
+    player.advance_many(DT, np.zeros((4, K, 3)), np.zeros(3), [None] * 4)

@@ -356,6 +356,41 @@ def test_monitor_sees_human_contacts_without_shield():
   assert result['max_human_contact_speed'] > contacts.SSM_STOPPED_SPEED
 
 
+def test_compiled_contact_classification_agrees_with_numpy():
+  """Both monitors of the same physics see the same flags at every
+  physics step of an unshielded push into the person."""
+  env = _human_in_robot_env('off')
+  env.reset()
+  task, physics = env.task, env.physics
+  joints = physics.bind(task.robot.joints)
+  dofs, qpos = np.array(joints.dofadr), np.array(joints.qposadr)
+  monitors = [contacts.ContactMonitor(
+      physics, list(task.arena.static_geoms),
+      list(task.robot.link_geoms) + list(task.gripper.geoms), [],
+      task.human.geoms, robot_dofs=dofs, robot_qpos=qpos,
+      compiled=compiled) for compiled in (False, True)]
+  seen = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
+
+  def compare(physics, random_state):
+    del random_state
+    dq = physics.data.qvel[dofs]
+    off_pose = physics.data.qpos[qpos] + 0.01   # judged there if pushed
+    for pushed in (None, off_pose):
+      expected = monitors[0].update(dq, pushed).copy()
+      np.testing.assert_array_equal(monitors[1].update(dq, pushed),
+                                    expected)
+      seen[:] += expected
+
+  env.add_extra_hook('after_substep', compare)
+  action = np.zeros(7)
+  action[0] = 1.0     # Base joint turns the arm towards +y (the hand).
+  for _ in range(30):
+    env.step(action)
+  assert seen[contacts.TYPE_INDEX['human_critical']] > 0
+  assert (monitors[0].max_human_contact_speed
+          == monitors[1].max_human_contact_speed > 0)
+
+
 def test_shield_prevents_critical_contacts_with_the_same_human():
   result = _push_towards_human(_human_in_robot_env('ssm'))
   assert result['contacts_human_critical'] == 0

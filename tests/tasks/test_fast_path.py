@@ -1,9 +1,11 @@
-"""The fast path (fast_path=True: batched, compiled shield cycles and
-compiled collision checks) against the readable reference (fast_path=False)
-on every task: same seed, same random actions, 100 RL steps (the person
-comes close: the shield intervenes in most tasks).
+"""The fast path (fast_path=True: batched, compiled shield cycles,
+compiled collision checks, controller and contact classification, the RL
+step's physics steps in one composer substep) against the readable
+reference (fast_path=False) on every task: same seed, same random actions,
+100 RL steps (the person comes close: the shield intervenes in most tasks).
 
-They agree bit for bit (joint states, every metric), stricter than the
+They agree bit for bit (joint states, every metric, rewards, discounts and
+observations), stricter than the
 issue's 1e-9: the compiled cycle performs the reference's operations in
 its order, and the one step whose order NumPy leaves to BLAS (the plan's
 Taylor step, LongTermPlan.state) is one kernel both paths share. (With
@@ -31,7 +33,10 @@ def _episode(domain, task, robot, fast_path):
     action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
     timestep = env.step(action.astype(spec.dtype))
     qpos.append(env.physics.data.qpos.copy())
-    metrics.append(dict(env.task.episode_metrics))
+    metrics.append(dict(env.task.episode_metrics,
+                        reward=timestep.reward, discount=timestep.discount,
+                        observation={name: value.tolist() for name, value
+                                     in timestep.observation.items()}))
     if timestep.last():
       break
   env.close()
