@@ -1,13 +1,15 @@
 """Collaborative stacking: four cubes stacked in turns, human 1, robot 2,
 human 3, robot 4 (reference-benchmark.md, paper Table I).
 
-* Scene: four 5 cm cubes (`props.make_stacking_cubes`). Cubes 1 and 3 start
-  at the clip's 'cube_1_pick' / 'cube_3_pick' targets; the human holds each
-  (`Human.hold`, a weld to the nearer hand) once that hand reaches it (one
-  cube at a time: cube 3 after cube 1 is down) and releases it on the
-  clip's 'cube_i_place' target, setting it down upright and at rest. Cubes 2 and 4 start on
-  the robot's side of the table (x ROBOT_CUBE_X, |y| in ROBOT_CUBE_Y, on
-  opposite sides), where every robot reaches them gripper-down.
+* Scene: four 5 cm cubes (`props.make_stacking_cubes`) on a shallower
+  table than the other tasks' (layout.STACKING_TABLE). Cubes 1 and 3
+  start at the clip's 'cube_1_pick' / 'cube_3_pick' targets; the human
+  holds each (`Human.hold`, a weld to the nearer hand) once that hand
+  reaches it (one cube at a time: cube 3 after cube 1 is down) and
+  releases it on the clip's 'cube_i_place' target, setting it down
+  upright and at rest. Cubes 2 and 4 start on the robot's side of the
+  table (x ROBOT_CUBE_X, |y| ROBOT_CUBE_Y, on a random side each, clear of
+  the clip's stack), where every robot reaches them gripper-down.
 * Slots: cube 1's is the clip's 'stack_base' + half a cube, moved sideways
   to where the human let it go (the clips' hands land 2-4 cm from their
   place targets, short of full reach); cube i's is one cube size above
@@ -16,16 +18,15 @@ human 3, robot 4 (reference-benchmark.md, paper Table I).
   it. The human waits for 'second_cube_placed' and
   'fourth_cube_placed' (clip.TASK_EVENTS): the robot's cube in its slot,
   released, the TCP WITHDRAWN_DISTANCE away from it.
-* Station: across the table, layout.STACKING_STATION_SHIFT closer than the
-  shared station
-  (pelvis 0.18 m from the table edge), placement +-(0.02 m, 0.1 m,
-  0.1 rad). The clips' stack, 0.55-0.65 m ahead of the person, is then
-  0.68-0.79 m in front of the robot (0.80-0.91 m unshifted: beyond the
-  Cartesian action box, x <= 0.8 m, and most robots' gripper-down reach).
-  Gripper-down reach of the top cube's place (0.19 m above the table):
-  Sawyer and UR5e everywhere, Panda and iiwa up to ~0.76 m, Kinova Gen3
-  and Jaco up to ~0.70 m, the Schunk nowhere (< 0.5 m). Closer still, the
-  resting person's hands keep an SSM-shielded robot from the stack.
+* Station: across the table at layout.HUMAN_STATION_STACKING (x 1.05 m,
+  the pelvis 0.18 m from the table's edge), placement +-(0.02 m, 0.1 m,
+  0.1 rad), so the person-robot distance is about the reference's (its
+  stacking table is centred on its robot). People put the stack 0.40-0.65
+  m ahead of their pelvis: it lands 0.40-0.65 m in front of the robot,
+  where every robot on its mount reaches the top cube's place
+  gripper-down (docs/tasks.md). Across the other tasks' 1 m table it lay
+  0.71-0.94 m away, beyond the Cartesian action box (x <= 0.8 m) and most
+  robots' reach.
 * Success (delayed by the retreat, reference): all four cubes stacked when
   the human's clip ends (the clips go on ~5 s after the last event; the
   base's `clip_ended`). Rewards (sparse): +2 success, -10 and termination
