@@ -137,8 +137,9 @@ def test_table_pedestal_and_extra_boxes():
 
 
 def test_tool_may_touch_the_table_when_allowed():
-  description, strict = _prevention('kinova3')
-  _, lenient = _prevention('kinova3', tool_table_allowance=0.01)
+  # A robot on the default mount (its pedestal top flush with the table).
+  description, strict = _prevention('panda')
+  _, lenient = _prevention('panda', tool_table_allowance=0.01)
   table = strict.box_names.index('table')
   lo, hi = strict.box_min[table], strict.box_max[table]
 
