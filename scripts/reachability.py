@@ -91,10 +91,10 @@ def _cube_region(task, region_x, region_y, both_sides):
   return points
 
 
-def _clip_points(task, name, above=0.0, towards_base=0.0):
+def _clip_points(task, name, towards_base=0.0):
   """(label, point) of target `name` of every clip, at the station and the
-  ends of its placement range in y, `above` higher and `towards_base`
-  closer to the robot's base (horizontally)."""
+  ends of its placement range in y, moved `towards_base` closer to the
+  robot's base (horizontally)."""
   x, y, yaw = task.HUMAN_STATION
   dy = task.HUMAN_PLACEMENT_RANGE[1]
   points = []
@@ -104,7 +104,7 @@ def _clip_points(task, name, above=0.0, towards_base=0.0):
       c, s = np.cos(yaw), np.sin(yaw)
       world = np.array([c * local[0] - s * local[1] + x,
                         s * local[0] + c * local[1] + y + shift,
-                        local[2] + above])
+                        local[2]])
       back = task.kinematics.base_pose[:2, 3] - world[:2]
       world[:2] += towards_base * back / np.linalg.norm(back)
       points.append((name, world))
