@@ -40,6 +40,7 @@ names.
 
 import argparse
 import collections
+import textwrap
 
 import numpy as np
 
@@ -220,7 +221,10 @@ def main():
   lines.append('')
   for robot in robots:
     if missed[robot]:
-      lines.append(f'* {robot} misses: ' + '; '.join(missed[robot]) + '.')
+      lines += textwrap.wrap(
+          f'* {robot} misses: ' + '; '.join(missed[robot]) + '.', 79,
+          subsequent_indent='  ', break_long_words=False,
+          break_on_hyphens=False)
   text = '\n'.join(lines) + '\n'
   print(text)
   if args.out:
