@@ -27,8 +27,9 @@ drives its nail in (reference-benchmark.md, paper Table I).
   the human's head and hands. 'full' adds the board pose, nail progress,
   nail target and hammer face position.
 * Reach: the clips put the nail 0.22-0.42 m above the table, 0.49-0.62 m in
-  front of the robot: within gripper-down reach of the 7-joint robots and
-  the UR5e, above the Schunk's gripper-down workspace (<= 0.2 m).
+  front of the default base: within gripper-down reach of every robot on
+  its mount (scripts/reachability.py, docs/robots.md; the Schunk, Jaco and
+  Kinova Gen3 stand raised, layout.py).
 * The reference's recordings are refused (task_targets: no blows): their
   person never strikes, the reference's robot hammers; they play in
   hammering/robot_hammers (hammering_robot.py, docs/tasks.md).
