@@ -83,7 +83,29 @@ SCHUNK_MOUNT = RobotMount(
     pedestal_center_xy=(-0.02, 0.0),
     workspace_scale=0.85)
 
-ROBOT_MOUNTS = {'schunk': SCHUNK_MOUNT}
+# Jaco and Kinova Gen3 (issue 17): on the default mount their gripper-down
+# IK (scripts/reachability.py, docs/robots.md) reached none (Jaco) and 6
+# of 45 (Gen3) of the robot-to-human handover points, 16 and 17 of 49
+# human-to-robot ones, 1 and 9 of 11 nail targets: those TCP points lie
+# 0.49-0.75 m ahead of the default base and 0.19-0.51 m above the table,
+# past what their long hands (flange 0.16 m and 0.06 m past the last
+# joint, then our 0.12 m gripper) reach held vertically. Both stand at the
+# pedestal's front edge like the Schunk (base 0.15 m ahead, the pedestal's
+# front face flush with the table edge), raised by the lowest height in
+# 0.1 m steps that reaches every handover and nail point: Jaco 0.3 m
+# (45/45, 49/49, 11/11; at 0.2 m one palm and 4 inspection points stay
+# out), Gen3 0.2 m (45/45, 49/49, 11/11). The table regions given in the
+# base frame (reach box, cube regions) move with the base and are reached
+# as before or better.
+JACO_MOUNT = RobotMount(
+    base_position=(0.15, 0.0, TABLE_TOP_Z + 0.30),
+    pedestal_center_xy=(-0.02, 0.0))
+KINOVA3_MOUNT = RobotMount(
+    base_position=(0.15, 0.0, TABLE_TOP_Z + 0.20),
+    pedestal_center_xy=(-0.02, 0.0))
+
+ROBOT_MOUNTS = {'schunk': SCHUNK_MOUNT, 'jaco': JACO_MOUNT,
+                'kinova3': KINOVA3_MOUNT}
 
 
 def robot_mount(robot_name: str) -> RobotMount:

@@ -91,6 +91,9 @@ class RobotDescription:
   shield: ShieldParameters
   q_home: np.ndarray              # (dof,) gripper down above the table.
   notes: tuple
+  # Pairs of link indices never checked for self-collision (each with its
+  # reason in `notes`): capsules that touch by construction.
+  self_collision_exempt: tuple
   path: str
 
   @property
@@ -297,6 +300,18 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
       reachability_interval_cycles=int(interval),
       unclampable_links=tuple(tuple(p) for p in unclampable))
 
+  exempt = data.get('self_collision_exempt', [])
+  if not isinstance(exempt, list):
+    reader.fail('self_collision_exempt', f'expected a list of link index '
+                f'pairs, got {exempt!r}')
+  for pair in exempt:
+    if (not isinstance(pair, list) or len(pair) != 2 or
+        not all(isinstance(x, int) for x in pair) or
+        not all(0 <= x < dof for x in pair) or pair[1] < pair[0] + 2):
+      reader.fail('self_collision_exempt', f'expected pairs [i, j] of link '
+                  f'indices in [0, {dof}) with j >= i + 2 (non-adjacent), '
+                  f'got {pair!r}')
+
   if 'q_home' in data:
     q_home = reader.array(data, 'q_home', 'q_home', (dof,))
     if np.any(q_home < limits.q_min) or np.any(q_home > limits.q_max):
@@ -316,6 +331,7 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
       shield=shield,
       q_home=q_home,
       notes=tuple(data.get('notes', ())),
+      self_collision_exempt=tuple(tuple(p) for p in exempt),
       path=str(path),
   )
 

@@ -95,6 +95,10 @@ def _write_broken(tmp_path, mutate):
     (lambda d: d.pop('flange'), r"'flange'.*missing"),
     (lambda d: d['limits'].update(torque=[1.0, 1.0, 'x', 1, 1, 1, 1]),
      r"limits\.torque"),
+    (lambda d: d.update(self_collision_exempt=[[2, 3]]),
+     r"self_collision_exempt.*non-adjacent"),
+    (lambda d: d.update(self_collision_exempt=[[0, 9]]),
+     r"self_collision_exempt.*\[0, 7\)"),
 ])
 def test_broken_description_names_file_and_field(tmp_path, mutate, field):
   path = _write_broken(tmp_path, mutate)

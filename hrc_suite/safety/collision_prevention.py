@@ -20,6 +20,9 @@ Rules (derived per robot at construction, see `self_collision_pairs`):
   moves around home.)
 * The tool capsule may touch the table top (grasping) up to
   `tool_table_allowance` metres of penetration (default 0: no contact).
+* Pairs the robot description lists as `self_collision_exempt` (capsules
+  that touch by construction without overlapping at q_home, e.g. the
+  Sawyer's wrist, sawyer.json's notes) are not checked either.
 
 Path sampling: a surface point of a capsule moves at most sum_k lever_k
 |dq_k| for a joint step dq, lever_k bounding the distance of any later
@@ -192,7 +195,9 @@ class CollisionPrevention:
                                      p2[:, j], r[j])               # (S, P)
     always = (dist < 0).mean(axis=0) >= _ALWAYS_FRACTION
     at_home = dist[0] < 0
-    excluded = always | at_home
+    exempt = np.array([tuple(p) in self.description.self_collision_exempt
+                       for p in pairs.tolist()], dtype=bool)
+    excluded = always | at_home | exempt
     self.excluded_pairs = tuple((int(a), int(b)) for a, b in pairs[excluded])
     self.home_overlap_pairs = tuple(
         (int(a), int(b)) for a, b in pairs[at_home & ~always])

@@ -1,5 +1,7 @@
 """Tests for hrc_suite.safety.collision_prevention (all seven robots)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -60,13 +62,16 @@ def _static_and_self(prevention, q):
 def test_home_is_free_and_exclusions_follow_the_rule(name):
   description, prevention = _prevention(name)
   assert not prevention.in_collision(description.q_home)
-  # Excluded pairs overlap at home or at every sampled configuration.
+  # Excluded pairs overlap at home or at every sampled configuration, or
+  # the description exempts them.
   rs = np.random.RandomState(11)
   q = rs.uniform(description.limits.q_min, description.limits.q_max,
                  (300, description.dof))
   p1, p2, r = prevention.reach.capsules(np.vstack([description.q_home, q]))
   for i, j in prevention.excluded_pairs:
     assert j >= i + 2
+    if (i, j) in description.self_collision_exempt:
+      continue
     d = geometry.capsule_distance(p1[:, i], p2[:, i], r[i], p1[:, j],
                                   p2[:, j], r[j])
     assert d[0] < 0 or np.all(d < 0)
@@ -132,8 +137,9 @@ def test_table_pedestal_and_extra_boxes():
 
 
 def test_tool_may_touch_the_table_when_allowed():
-  description, strict = _prevention('kinova3')
-  _, lenient = _prevention('kinova3', tool_table_allowance=0.01)
+  # A robot on the default mount (its pedestal top flush with the table).
+  description, strict = _prevention('panda')
+  _, lenient = _prevention('panda', tool_table_allowance=0.01)
   table = strict.box_names.index('table')
   lo, hi = strict.box_min[table], strict.box_max[table]
 
@@ -445,3 +451,23 @@ def test_compiled_planned_check_refines_as_the_reference(monkeypatch):
   unrefined = [prevention.planned_paths_free(*case) for case in cases]
   assert not np.array_equal(np.concatenate(unrefined),
                             np.concatenate(decided))
+
+
+def test_sawyer_wrist_pair_exemption():
+  """Sawyer: the wrist pair (link5, link7) touches across the gripper-down
+  band of q5 (sawyer.json's notes); without the description's exemption it
+  flags poses there, with it only that pair is dropped."""
+  description, prevention = _prevention('sawyer')
+  assert (4, 6) in description.self_collision_exempt
+  assert (4, 6) in prevention.excluded_pairs
+  bare = collision_prevention.CollisionPrevention(
+      dataclasses.replace(description, self_collision_exempt=()),
+      tool_capsule=_tool(description))
+  assert (4, 6) not in bare.excluded_pairs
+  rs = np.random.RandomState(3)
+  q = rs.uniform(description.limits.q_min, description.limits.q_max,
+                 (2000, description.dof))
+  q[:, 5] = rs.uniform(0.4, 1.6, len(q))   # The gripper-down band.
+  with_exemption, without = prevention.in_collision(q), bare.in_collision(q)
+  assert not np.any(with_exemption & ~without)
+  assert np.any(without & ~with_exemption)
