@@ -187,7 +187,7 @@ def random_states(env):
 
 def make_agent(run_config, env):
   """The run's agent (SACAgent) for env, seeded from the run seed."""
-  sac_config = config_lib.SACConfig(**run_config['sac_config'])
+  sac_config = config_lib.SACConfig.from_dict(run_config['sac_config'])
   return agent_lib.SACAgent(specs_lib.make_environment_spec(env), sac_config,
                             seed=derived_seed(run_config['seed'], _AGENT))
 
