@@ -19,9 +19,10 @@ fused_steps fresh minibatches) whenever the credit holds that many.
 
 Overlap and lag: JAX runs a call asynchronously, so the call dispatched
 before an environment step computes while the environment steps. The actor
-does not wait for it: each call moves the actor to the policy the learner
-had before that call (the previous call's result, computed in the
-meantime). A call's gradient steps therefore reach the actions one call
+does not wait for it: it runs the policy in NumPy (a jitted action would
+queue behind the call on the device), and each call moves it to the policy
+the learner had before that call (the previous call's result, computed in
+the meantime). A call's gradient steps therefore reach the actions one call
 later, fused_steps / updates_per_step environment steps after its dispatch,
 and act until the call after that. A call learns only from transitions
 observed before its dispatch: its minibatches are sampled then, from
@@ -33,9 +34,9 @@ depends on how fast the call ran) and part of a checkpoint; evaluation
 
 Checkpoints (`save` / `restore`, and `load_policy` for rendering) are a
 directory holding agent.json (config, sizes, counters, caller metadata),
-learner.npz (TrainingState), replay.npz and agent.npz (actor key and
-acting policy, replay sampling RandomState, the episode's last
-observation, caller arrays).
+learner.npz (TrainingState), replay.npz and agent.npz (the actor's
+RandomState and acting policy, replay sampling RandomState, the episode's
+last observation, caller arrays).
 """
 
 import collections
@@ -70,6 +71,24 @@ def _seeds(seed, count):
     raise ValueError(f'seed={seed!r}: expected an integer >= 0')
   state = np.random.SeedSequence(int(seed)).generate_state(count, np.uint32)
   return [int(s) >> 1 for s in state]
+
+
+def _random_state_arrays(prefix, random_state):
+  """{prefix/field: array} of a np.random.RandomState's state."""
+  _, keys, position, has_gauss, cached = random_state.get_state()
+  return {f'{prefix}/keys': keys,
+          f'{prefix}/position': np.int64(position),
+          f'{prefix}/has_gauss': np.int64(has_gauss),
+          f'{prefix}/cached_gaussian': np.float64(cached)}
+
+
+def _restore_random_state(arrays, prefix, random_state):
+  """Sets a RandomState to the state `_random_state_arrays` saved."""
+  random_state.set_state((
+      'MT19937', arrays[f'{prefix}/keys'],
+      int(arrays[f'{prefix}/position']),
+      int(arrays[f'{prefix}/has_gauss']),
+      float(arrays[f'{prefix}/cached_gaussian'])))
 
 
 class SACAgent:
@@ -182,8 +201,8 @@ class SACAgent:
   def policy(self, deterministic=True, seed=0):
     """Callable timestep -> action with the agent's current parameters.
 
-    Deterministic: tanh(mean). Otherwise samples with its own key from
-    `seed` (the training actor's key is left alone).
+    Deterministic: tanh(mean). Otherwise samples with its own RandomState
+    seeded by `seed` (the training actor's is left alone).
     """
     actor = actor_lib.SACActor(self._networks, self._policy_params, seed,
                                evaluation=deterministic)
@@ -250,15 +269,11 @@ class SACAgent:
         'learner_steps': self._learner.steps,
     }
     description['metadata'] = metadata or {}
-    name, keys, position, has_gauss, cached = (
-        self._sample_random_state.get_state())
-    agent_arrays = {
-        'actor_key': self._actor.key,
-        'sample_random_state/keys': keys,
-        'sample_random_state/position': np.int64(position),
-        'sample_random_state/has_gauss': np.int64(has_gauss),
-        'sample_random_state/cached_gaussian': np.float64(cached),
-    }
+    agent_arrays = dict(
+        _random_state_arrays('sample_random_state',
+                             self._sample_random_state),
+        **_random_state_arrays('actor_random_state',
+                               self._actor.random_state))
     if self._last_observation is not None:
       agent_arrays['last_observation'] = self._last_observation
     for key, value in learning.flatten_to_arrays(
@@ -294,12 +309,14 @@ class SACAgent:
     self._learner.restore(checkpointing.load_arrays(directory /
                                                     'learner.npz'))
     self._replay.restore(checkpointing.load_arrays(directory / 'replay.npz'))
-    self._actor.key = agent_arrays['actor_key']
-    self._sample_random_state.set_state((
-        'MT19937', agent_arrays['sample_random_state/keys'],
-        int(agent_arrays['sample_random_state/position']),
-        int(agent_arrays['sample_random_state/has_gauss']),
-        float(agent_arrays['sample_random_state/cached_gaussian'])))
+    _restore_random_state(agent_arrays, 'sample_random_state',
+                          self._sample_random_state)
+    if 'actor_random_state/keys' in agent_arrays:
+      _restore_random_state(agent_arrays, 'actor_random_state',
+                            self._actor.random_state)
+    else:   # Written when the actor sampled with a JAX key: seeded by it.
+      self._actor.random_state.seed(
+          np.asarray(agent_arrays['actor_key']).astype(np.uint32))
     self._last_observation = agent_arrays.get('last_observation')
     acting = {key[len(_ACTING_PREFIX):]: value
               for key, value in agent_arrays.items()

@@ -12,6 +12,7 @@ from agents import config as config_lib
 from agents import specs
 from agents.sac import actor as actor_lib
 from agents.sac import agent as agent_lib
+from agents.sac import networks as networks_lib
 from agents.sac import SACAgent
 
 STEP_SCALE = 0.2   # Toy task: position change per step at |action| = 1.
@@ -288,6 +289,25 @@ def test_load_policy_acts_like_the_agents_policy(tmp_path):
     np.testing.assert_allclose(loaded(timestep), own(timestep), rtol=1e-6)
   with pytest.raises(ValueError, match='action spec'):
     agent_lib.load_policy(tmp_path / 'agent', PointReach(0))
+
+
+def test_numpy_actor_computes_the_networks_policy():
+  nets = networks_lib.make_networks(5, 3, (16, 8, 4))
+  params = nets.policy_init(np.random.RandomState(0))
+  # Scaled up so that log std reaches its clip bounds on some rows.
+  observations = 30.0 * np.random.RandomState(1).randn(50, 5).astype(
+      np.float32)
+  mean, log_std = actor_lib.policy_mean_log_std(
+      actor_lib.numpy_policy(params), observations)
+  expected_mean, expected_log_std = nets.policy_apply(params, observations)
+  np.testing.assert_allclose(mean, expected_mean, rtol=1e-5, atol=1e-5)
+  np.testing.assert_allclose(log_std, expected_log_std, rtol=1e-5,
+                             atol=1e-5)
+  actor = actor_lib.SACActor(nets, lambda: params, seed=0, evaluation=True)
+  np.testing.assert_allclose(actor.select_action(observations[0]),
+                             np.tanh(expected_mean[0]), rtol=1e-5, atol=1e-6)
+  with pytest.raises(ValueError, match='GaussianPolicy params'):
+    actor_lib.numpy_policy({'params': {}})
 
 
 def test_action_scaler_round_trip_and_errors():
