@@ -76,9 +76,9 @@ def numpy_policy(params):
                   np.asarray(mlp[name]['bias'], np.float32))
                  for name in names)
   except (KeyError, TypeError, ValueError, IndexError) as e:
+    structure = jax.tree_util.tree_structure(params)
     raise ValueError(f'Expected GaussianPolicy params (params/MLP_0/Dense_i/'
-                     f'kernel, bias), got {jax.tree_util.tree_structure(params)}'
-                     ) from e
+                     f'kernel, bias), got {structure}') from e
 
 
 def policy_mean_log_std(layers, observation):
