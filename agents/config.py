@@ -33,9 +33,10 @@ from typing import Optional, Tuple
 
 # Gradient steps per compiled learner call by default: measured on the
 # 2-core machine (docs/benchmarks.md, "SAC training throughput"), 8 fused
-# steps cost the environment's core 0.2 ms per gradient step instead of
-# 0.8 ms unfused; longer scans save little more and make the actor's
-# policy lag longer (agents/sac/agent.py).
+# steps cost the environment's core 0.13-0.15 ms per gradient step instead
+# of 0.5-0.7 ms unfused, and 1.5-1.7 ms of CPU in all instead of 2.0-2.4;
+# longer scans save little more and lengthen the actor's policy lag
+# (agents/sac/agent.py).
 FUSED_STEPS = 8
 
 
