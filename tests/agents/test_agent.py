@@ -12,6 +12,7 @@ from agents import config as config_lib
 from agents import specs
 from agents.sac import actor as actor_lib
 from agents.sac import agent as agent_lib
+from agents.sac import checkpointing
 from agents.sac import networks as networks_lib
 from agents.sac import SACAgent
 
@@ -260,6 +261,29 @@ def test_save_restore_gives_identical_agents_and_continuations(tmp_path):
       agent.observe_first(timestep)
       restored.observe_first(timestep)
   _assert_same_agents(agent, restored)
+
+
+def test_restore_reads_checkpoints_from_before_the_numpy_actor(tmp_path):
+  env = PointReach(0)
+  spec = specs.make_environment_spec(env)
+  agent = SACAgent(spec, _small_config(min_replay_size=50), seed=3)
+  _run(env, agent, 60)
+  agent.save(tmp_path / 'agent')
+  path = tmp_path / 'agent' / 'agent.npz'
+  arrays = checkpointing.load_arrays(path)
+  old = {key: value for key, value in arrays.items()
+         if not key.startswith(('actor_random_state/', 'acting_policy/'))}
+  old['actor_key'] = np.array([0, 7], np.uint32)   # A JAX PRNG key.
+  checkpointing.save_arrays(path, old)
+  restored = SACAgent(spec, _small_config(min_replay_size=50), seed=0)
+  restored.restore(tmp_path / 'agent')
+  # It acts with the learner's policy, sampling from the key's seed.
+  for a, b in zip(_policy_leaves(restored.acting_policy_params),
+                  _policy_leaves(agent.learner.policy_params)):
+    np.testing.assert_array_equal(a, b)
+  expected = np.random.RandomState(np.array([0, 7], np.uint32))
+  assert restored.actor.random_state.randint(1 << 30) == expected.randint(
+      1 << 30)
 
 
 def test_save_replaces_atomically_and_restore_checks_the_config(tmp_path):
