@@ -7,7 +7,8 @@ Three presets:
   256 units, batch 256, tau 0.005, gamma 0.99, one gradient step per
   environment step) with an initial temperature of 1.0 (Acme's SAC default):
   a high temperature explores broadly at first and the automatic tuning
-  brings it down within a few thousand updates.
+  brings it down within a few thousand updates. Its gradient steps run
+  FUSED_STEPS at a time in one compiled call (`SACConfig.fused_steps`).
 * `reference_config()`: the Human-Robot Gym paper's SAC (see
   the shared reference-benchmark.md, "Training and evaluation"): lr 5e-4,
   buffer 1e6, learning starts at 1000 transitions, batch 128, tau 0.005,
@@ -30,6 +31,14 @@ import dataclasses
 import math
 from typing import Optional, Tuple
 
+# Gradient steps per compiled learner call by default: measured on the
+# 2-core machine (docs/benchmarks.md, "SAC training throughput"), 8 fused
+# steps cost the environment's core 0.13-0.15 ms per gradient step instead
+# of 0.5-0.7 ms unfused, and 1.5-1.7 ms of CPU in all instead of 2.0-2.4;
+# longer scans save little more and lengthen the actor's policy lag
+# (agents/sac/agent.py).
+FUSED_STEPS = 8
+
 
 @dataclasses.dataclass(frozen=True)
 class SACConfig:
@@ -46,9 +55,11 @@ class SACConfig:
     initial_temperature: entropy temperature alpha at the start.
     target_entropy: entropy the temperature tuning aims at; None means
       -action_size (Haarnoja et al. 2018).
-    updates_per_step: gradient steps per environment step (may be < 1).
-    update_every: environment steps between bursts of updates; a burst runs
-      updates_per_step * update_every gradient steps.
+    updates_per_step: gradient steps per environment step, the
+      update-to-data ratio (may be fractional: the agent accumulates it).
+    fused_steps: gradient steps per learner call, fused into one compiled
+      lax.scan (amortises dispatch); a call runs once fused_steps steps
+      are due, i.e. every fused_steps / updates_per_step environment steps.
     max_grad_norm: clip each gradient to this global norm (None: no clipping).
     reward_scale: factor on rewards in the critic target (Acme's SACConfig
       field; Haarnoja et al. 2018a, Sec. 5.2: SAC is sensitive to the scale of
@@ -66,7 +77,7 @@ class SACConfig:
   initial_temperature: float = 1.0
   target_entropy: Optional[float] = None
   updates_per_step: float = 1.0
-  update_every: int = 1
+  fused_steps: int = FUSED_STEPS
   max_grad_norm: Optional[float] = None
   reward_scale: float = 1.0
 
@@ -74,7 +85,7 @@ class SACConfig:
     # Lists (e.g. from JSON) become tuples so the config stays hashable.
     object.__setattr__(self, 'hidden_sizes', tuple(self.hidden_sizes))
     _check(self.learning_rate > 0, 'learning_rate', self.learning_rate, '> 0')
-    for name in ('batch_size', 'replay_capacity', 'update_every'):
+    for name in ('batch_size', 'replay_capacity', 'fused_steps'):
       value = getattr(self, name)
       _check(isinstance(value, int) and value >= 1, name, value,
              'an integer >= 1')
@@ -104,10 +115,30 @@ class SACConfig:
     return float(self.target_entropy)
 
   def to_dict(self):
-    """JSON-ready dict (`SACConfig(**d)` rebuilds the config)."""
+    """JSON-ready dict (`SACConfig.from_dict` rebuilds the config)."""
     values = dataclasses.asdict(self)
     values['hidden_sizes'] = list(self.hidden_sizes)
     return values
+
+  @classmethod
+  def from_dict(cls, values):
+    """The config of a `to_dict` dict, also one written before
+    fused_steps existed: its update_every (environment steps between
+    bursts of updates_per_step * update_every gradient steps, run as one
+    call) becomes fused_steps."""
+    values = dict(values)
+    if 'update_every' in values:
+      if 'fused_steps' in values:
+        raise ValueError(f'SAC config {values!r} has both update_every and '
+                         'fused_steps: expected one of them')
+      burst = values.pop('update_every') * values.get('updates_per_step', 1.0)
+      if burst != int(burst) or burst < 1:
+        raise ValueError(
+            f'SAC config {values!r}: update_every times updates_per_step is '
+            f'{burst!r} gradient steps per burst, expected an integer >= 1 '
+            '(fused_steps)')
+      values['fused_steps'] = int(burst)
+    return cls(**values)
 
 
 def _check(condition, name, value, expected):
@@ -133,7 +164,7 @@ def reference_config(**overrides):
       initial_temperature=0.2,
       target_entropy=None,
       updates_per_step=1.0,
-      update_every=100,
+      fused_steps=100,
   )
   values.update(overrides)
   return SACConfig(**values)

@@ -187,7 +187,7 @@ def random_states(env):
 
 def make_agent(run_config, env):
   """The run's agent (SACAgent) for env, seeded from the run seed."""
-  sac_config = config_lib.SACConfig(**run_config['sac_config'])
+  sac_config = config_lib.SACConfig.from_dict(run_config['sac_config'])
   return agent_lib.SACAgent(specs_lib.make_environment_spec(env), sac_config,
                             seed=derived_seed(run_config['seed'], _AGENT))
 
@@ -236,9 +236,17 @@ def evaluate_policy(run_config, env, agent, index):
 
 
 def _check_resumable(stored, run_config):
+  stored = dict(stored)
+  if 'sac_config' in stored:   # Also one written before fused_steps.
+    stored['sac_config'] = config_lib.SACConfig.from_dict(
+        stored['sac_config']).to_dict()
   changed = sorted(k for k in set(stored) | set(run_config)
                    if k not in _RESUMABLE_CHANGES and k in run_config
                    and stored.get(k) != run_config[k])
+  if 'sac_config' not in changed:
+    # Overrides that give the stored SAC config (e.g. fused_steps=1 for a
+    # run begun with update_every=1) are no change.
+    changed = [k for k in changed if k != 'overrides']
   if changed:
     details = '; '.join(f'{k}: {stored.get(k)!r} -> {run_config[k]!r}'
                         for k in changed)

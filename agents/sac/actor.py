@@ -4,11 +4,10 @@ Actions live in [-1, 1] (the tanh-Gaussian's range); `ActionScaler` maps
 them to and from a bounded dm_env action spec.
 """
 
-import functools
-
 import jax
-import jax.numpy as jnp
 import numpy as np
+
+from agents.sac import networks as networks_lib
 
 
 class ActionScaler:
@@ -64,43 +63,69 @@ class ActionScaler:
     return np.clip(action, -1.0, 1.0)
 
 
-@functools.lru_cache(maxsize=None)
-def _compiled_policy(networks):
-  """Jitted (sample, mode) functions, shared by the actors of `networks`."""
+def numpy_policy(params):
+  """The policy's layers as float32 NumPy (kernel, bias) pairs, input first.
 
-  def sample(params, key, observation):
-    key, sample_key = jax.random.split(key)
-    mean, log_std = networks.policy_apply(params, observation[None])
-    action, _ = networks.sample(sample_key, mean, log_std)
-    return action[0], key
+  `params` are `networks.GaussianPolicy` parameters (flax: an MLP of Dense
+  layers, ReLU between them, a last layer giving mean and log std).
+  """
+  try:
+    mlp = params['params']['MLP_0']
+    names = sorted(mlp, key=lambda name: int(name.rsplit('_', 1)[1]))
+    return tuple((np.asarray(mlp[name]['kernel'], np.float32),
+                  np.asarray(mlp[name]['bias'], np.float32))
+                 for name in names)
+  except (KeyError, TypeError, ValueError, IndexError) as e:
+    structure = jax.tree_util.tree_structure(params)
+    raise ValueError(f'Expected GaussianPolicy params (params/MLP_0/Dense_i/'
+                     f'kernel, bias), got {structure}') from e
 
-  def mode(params, observation):
-    mean, _ = networks.policy_apply(params, observation[None])
-    return networks.deterministic_action(mean)[0]
 
-  return jax.jit(sample), jax.jit(mode)
+def policy_mean_log_std(layers, observation):
+  """(mean, clipped log std) of `numpy_policy` layers, in NumPy: the same
+  maths as `networks.GaussianPolicy` (float32)."""
+  x = observation
+  for kernel, bias in layers[:-1]:
+    x = np.maximum(x @ kernel + bias, 0.0)
+  kernel, bias = layers[-1]
+  mean, log_std = np.split(x @ kernel + bias, 2, axis=-1)
+  return mean, np.clip(log_std, networks_lib.LOG_STD_MIN,
+                       networks_lib.LOG_STD_MAX)
 
 
 class SACActor:
   """Samples (or, in evaluation, takes tanh(mean)) actions in [-1, 1].
 
+  The policy runs in NumPy on the host, not as a JAX computation: JAX
+  executes a device's computations in order, so a jitted action would wait
+  for the learner call in flight (docs/benchmarks.md, "SAC training
+  throughput"). A one-observation forward pass of the small MLP costs tens
+  of microseconds this way.
+
   Args:
     networks: `SACNetworks`.
     variable_source: callable returning the current policy params (e.g. the
-      learner's `policy_params`), read at every action as Acme's variable
-      client would be after each update.
-    seed: int seed of the sampling key.
+      agent's acting policy), read at every action as Acme's variable
+      client would be after each update; they are copied to NumPy when a
+      different params object comes back.
+    seed: int seed of the sampling noise (a np.random.RandomState).
     evaluation: deterministic actions tanh(mean) instead of samples.
   """
 
   def __init__(self, networks, variable_source, seed, evaluation=False):
-    self._networks = networks
     self._variable_source = variable_source
-    self._key = jax.random.PRNGKey(seed)
+    self.random_state = np.random.RandomState(seed)
     self.evaluation = bool(evaluation)
     self._observation_size = networks.observation_size
+    self._source = None   # The params object `_layers` were copied from.
+    self._layers = None
 
-    self._sample, self._mode = _compiled_policy(networks)
+  def _current_layers(self):
+    params = self._variable_source()
+    if params is not self._source:
+      self._layers = numpy_policy(params)
+      self._source = params
+    return self._layers
 
   def select_action(self, observation):
     """float64 (action_size,) action in [-1, 1] of a flat observation."""
@@ -108,24 +133,10 @@ class SACActor:
     if observation.shape != (self._observation_size,):
       raise ValueError(f'Observation vector has shape {observation.shape}, '
                        f'expected ({self._observation_size},)')
-    params = self._variable_source()
+    mean, log_std = policy_mean_log_std(self._current_layers(), observation)
     if self.evaluation:
-      action = self._mode(params, observation)
+      pre_squash = mean
     else:
-      action, self._key = self._sample(params, self._key, observation)
-    return np.clip(np.asarray(action, np.float64), -1.0, 1.0)
-
-  @property
-  def key(self):
-    """The sampling key as a NumPy array (for checkpoints)."""
-    return np.array(self._key, copy=True)
-
-  @key.setter
-  def key(self, value):
-    value = np.asarray(value)
-    expected = np.asarray(self._key)
-    if value.shape != expected.shape or value.dtype != expected.dtype:
-      raise ValueError(f'Actor key has shape {value.shape} and dtype '
-                       f'{value.dtype}, expected {expected.shape} and '
-                       f'{expected.dtype}')
-    self._key = jnp.asarray(value)
+      noise = self.random_state.standard_normal(mean.shape)
+      pre_squash = mean + np.exp(log_std) * noise.astype(np.float32)
+    return np.clip(np.tanh(pre_squash.astype(np.float64)), -1.0, 1.0)

@@ -11,14 +11,32 @@
 
 Bootstrapping uses the environment's discount: 0 at a termination, 1 at a
 time-limit truncation (dm_env's convention), times the config's gamma.
-Updates start once the replay holds `min_replay_size` transitions; then
-every `update_every` observed steps a burst of `updates_per_step *
-update_every` gradient steps runs (fractional parts carry over).
+Updates start once the replay holds `min_replay_size` transitions; from
+then on each observed step adds `updates_per_step` gradient steps to a
+credit (fractional ratios accumulate), and `update()` dispatches one
+learner call of `fused_steps` gradient steps (one compiled lax.scan on
+fused_steps fresh minibatches) whenever the credit holds that many.
+
+Overlap and lag: JAX runs a call asynchronously, so the call dispatched
+before an environment step computes while the environment steps. The actor
+does not wait for it: it runs the policy in NumPy (a jitted action would
+queue behind the call on the device), and each call moves it to the policy
+the learner had before that call (the previous call's result, computed in
+the meantime). A call's gradient steps therefore reach the actions one call
+later, fused_steps / updates_per_step environment steps after its dispatch,
+and act until the call after that. A call learns only from transitions
+observed before its dispatch: its minibatches are sampled then, from
+everything observed so far (up to fused_steps / updates_per_step - 1
+transitions more than the same gradient steps would have seen dispatched
+one at a time). The policy the actor uses is deterministic (it never
+depends on how fast the call ran) and part of a checkpoint; evaluation
+(`policy`) uses the learner's latest parameters.
 
 Checkpoints (`save` / `restore`, and `load_policy` for rendering) are a
 directory holding agent.json (config, sizes, counters, caller metadata),
-learner.npz (TrainingState), replay.npz and agent.npz (actor key, replay
-sampling RandomState, the episode's last observation, caller arrays).
+learner.npz (TrainingState), replay.npz and agent.npz (the actor's
+RandomState and acting policy, replay sampling RandomState, the episode's
+last observation, caller arrays).
 """
 
 import collections
@@ -36,6 +54,11 @@ from agents.sac import networks as networks_lib
 
 CHECKPOINT_FORMAT = 1
 _EXTRA_PREFIX = 'extra/'
+_ACTING_PREFIX = 'acting_policy/'
+# Slack on the update credit, a float sum of updates_per_step, before it
+# counts as holding fused_steps gradient steps (0.1 added ten times is
+# 0.9999999999999999).
+_CREDIT_TOLERANCE = 1e-9
 
 CheckpointExtras = collections.namedtuple('CheckpointExtras',
                                           ['metadata', 'arrays'])
@@ -48,6 +71,24 @@ def _seeds(seed, count):
     raise ValueError(f'seed={seed!r}: expected an integer >= 0')
   state = np.random.SeedSequence(int(seed)).generate_state(count, np.uint32)
   return [int(s) >> 1 for s in state]
+
+
+def _random_state_arrays(prefix, random_state):
+  """{prefix/field: array} of a np.random.RandomState's state."""
+  _, keys, position, has_gauss, cached = random_state.get_state()
+  return {f'{prefix}/keys': keys,
+          f'{prefix}/position': np.int64(position),
+          f'{prefix}/has_gauss': np.int64(has_gauss),
+          f'{prefix}/cached_gaussian': np.float64(cached)}
+
+
+def _restore_random_state(arrays, prefix, random_state):
+  """Sets a RandomState to the state `_random_state_arrays` saved."""
+  random_state.set_state((
+      'MT19937', arrays[f'{prefix}/keys'],
+      int(arrays[f'{prefix}/position']),
+      int(arrays[f'{prefix}/has_gauss']),
+      float(arrays[f'{prefix}/cached_gaussian'])))
 
 
 class SACAgent:
@@ -73,8 +114,10 @@ class SACAgent:
                                         learner_seed)
     self._replay = replay_lib.ReplayBuffer(self._config.replay_capacity,
                                            observation_size, action_size)
-    self._actor = actor_lib.SACActor(self._networks, self._policy_params,
-                                     actor_seed)
+    # The policy the actor acts with: the learner's before its last call.
+    self._acting_params = self._learner.policy_params
+    self._actor = actor_lib.SACActor(self._networks,
+                                     lambda: self._acting_params, actor_seed)
     self._sample_random_state = np.random.RandomState(replay_seed)
     self._last_observation = None   # Flat observation before the next action.
     self._flat_cache = (None, None)   # (observation dict, its flat vector).
@@ -119,27 +162,33 @@ class SACAgent:
     self._steps_since_update += 1
 
   def update(self):
-    """Runs the gradient steps due; their mean metrics, or None."""
+    """Dispatches the learner calls due; the last one's mean metrics (read
+    lazily: learning.UpdateMetrics), or None."""
     config = self._config
     if len(self._replay) < max(config.min_replay_size, 1):
       self._steps_since_update = 0
       return None
-    if self._steps_since_update < config.update_every:
-      return None
     self._update_credit += config.updates_per_step * self._steps_since_update
     self._steps_since_update = 0
-    num_steps = int(self._update_credit)
-    self._update_credit -= num_steps
-    if num_steps == 0:
+    calls = int((self._update_credit + _CREDIT_TOLERANCE)
+                // config.fused_steps)
+    if calls == 0:
       return None
-    return self.learn(num_steps)
+    self._update_credit = max(
+        0.0, self._update_credit - calls * config.fused_steps)
+    for _ in range(calls):
+      metrics = self.learn(config.fused_steps)
+    return metrics
 
   def learn(self, num_steps=1):
-    """`num_steps` gradient steps on fresh replay samples; mean metrics."""
+    """One learner call of `num_steps` gradient steps on fresh replay
+    samples, dispatched asynchronously; its mean metrics. The actor moves
+    to the policy from before this call (module docstring)."""
     if len(self._replay) == 0:
       raise ValueError('Cannot learn from an empty replay buffer')
     batch = self._replay.sample(num_steps * self._config.batch_size,
                                 self._sample_random_state)
+    self._acting_params = self._learner.policy_params
     if num_steps == 1:
       return self._learner.update(batch)
     batches = replay_lib.Transition(*(
@@ -152,8 +201,8 @@ class SACAgent:
   def policy(self, deterministic=True, seed=0):
     """Callable timestep -> action with the agent's current parameters.
 
-    Deterministic: tanh(mean). Otherwise samples with its own key from
-    `seed` (the training actor's key is left alone).
+    Deterministic: tanh(mean). Otherwise samples with its own RandomState
+    seeded by `seed` (the training actor's is left alone).
     """
     actor = actor_lib.SACActor(self._networks, self._policy_params, seed,
                                evaluation=deterministic)
@@ -180,6 +229,11 @@ class SACAgent:
   @property
   def flattener(self):
     return self._flattener
+
+  @property
+  def acting_policy_params(self):
+    """The policy parameters the actor samples with (module docstring)."""
+    return self._acting_params
 
   @property
   def env_steps(self):
@@ -215,17 +269,16 @@ class SACAgent:
         'learner_steps': self._learner.steps,
     }
     description['metadata'] = metadata or {}
-    name, keys, position, has_gauss, cached = (
-        self._sample_random_state.get_state())
-    agent_arrays = {
-        'actor_key': self._actor.key,
-        'sample_random_state/keys': keys,
-        'sample_random_state/position': np.int64(position),
-        'sample_random_state/has_gauss': np.int64(has_gauss),
-        'sample_random_state/cached_gaussian': np.float64(cached),
-    }
+    agent_arrays = dict(
+        _random_state_arrays('sample_random_state',
+                             self._sample_random_state),
+        **_random_state_arrays('actor_random_state',
+                               self._actor.random_state))
     if self._last_observation is not None:
       agent_arrays['last_observation'] = self._last_observation
+    for key, value in learning.flatten_to_arrays(
+        self._acting_params).items():
+      agent_arrays[_ACTING_PREFIX + key] = value
     for key, value in (arrays or {}).items():
       agent_arrays[_EXTRA_PREFIX + key] = np.asarray(value)
     with checkpointing.atomic_directory(directory) as staging:
@@ -242,6 +295,8 @@ class SACAgent:
     """
     directory = pathlib.Path(directory)
     description = checkpointing.load_json(directory / 'agent.json')
+    description['config'] = config_lib.SACConfig.from_dict(
+        description['config']).to_dict()
     expected = self._description()
     for key in ('format', 'config', 'images', 'observation_keys',
                 'observation_size', 'action_size', 'action_minimum',
@@ -254,13 +309,23 @@ class SACAgent:
     self._learner.restore(checkpointing.load_arrays(directory /
                                                     'learner.npz'))
     self._replay.restore(checkpointing.load_arrays(directory / 'replay.npz'))
-    self._actor.key = agent_arrays['actor_key']
-    self._sample_random_state.set_state((
-        'MT19937', agent_arrays['sample_random_state/keys'],
-        int(agent_arrays['sample_random_state/position']),
-        int(agent_arrays['sample_random_state/has_gauss']),
-        float(agent_arrays['sample_random_state/cached_gaussian'])))
+    _restore_random_state(agent_arrays, 'sample_random_state',
+                          self._sample_random_state)
+    if 'actor_random_state/keys' in agent_arrays:
+      _restore_random_state(agent_arrays, 'actor_random_state',
+                            self._actor.random_state)
+    else:   # Written when the actor sampled with a JAX key: seeded by it.
+      self._actor.random_state.seed(
+          np.asarray(agent_arrays['actor_key']).astype(np.uint32))
     self._last_observation = agent_arrays.get('last_observation')
+    acting = {key[len(_ACTING_PREFIX):]: value
+              for key, value in agent_arrays.items()
+              if key.startswith(_ACTING_PREFIX)}
+    # Checkpoints written before the acting policy was saved act with the
+    # learner's.
+    self._acting_params = (learning.unflatten_from_arrays(
+        self._learner.policy_params, acting) if acting
+                           else self._learner.policy_params)
     self._flat_cache = (None, None)
     counters = description['counters']
     self._env_steps = int(counters['env_steps'])
@@ -314,7 +379,7 @@ def load_policy(directory, environment, deterministic=True, seed=0):
       or scaler.maximum.tolist() != description['action_maximum']):
     raise ValueError(f'The environment action spec {environment.action_spec()}'
                      f' differs from the checkpoint\'s ({directory})')
-  config = config_lib.SACConfig(**description['config'])
+  config = config_lib.SACConfig.from_dict(description['config'])
   networks = networks_lib.make_networks(flattener.size, scaler.size,
                                         config.hidden_sizes)
   prefix = 'policy_params/'

@@ -4,6 +4,7 @@ import collections
 
 import dm_env
 from dm_env import specs as dm_specs
+import jax
 import numpy as np
 import pytest
 
@@ -11,6 +12,8 @@ from agents import config as config_lib
 from agents import specs
 from agents.sac import actor as actor_lib
 from agents.sac import agent as agent_lib
+from agents.sac import checkpointing
+from agents.sac import networks as networks_lib
 from agents.sac import SACAgent
 
 STEP_SCALE = 0.2   # Toy task: position change per step at |action| = 1.
@@ -148,14 +151,65 @@ def test_replay_stores_normalised_actions_and_environment_discounts():
 
 def test_update_schedule_follows_the_config():
   env = PointReach(0)
-  config = _small_config(min_replay_size=30, update_every=10,
-                         updates_per_step=0.25, batch_size=8)
+  config = _small_config(min_replay_size=30, updates_per_step=0.25,
+                         fused_steps=2, batch_size=8)
   agent = SACAgent(specs.make_environment_spec(env), config, seed=0)
-  _run(env, agent, 29)
+  timestep = _run(env, agent, 29)
   assert agent.learner.steps == 0
-  # From the 30th transition on: 10 steps -> 2.5 gradient steps, carried.
-  _run(env, agent, 1 + 40, timestep=None)
-  assert agent.learner.steps == 10
+  # From the 30th transition on each step adds 0.25 gradient steps; a call
+  # of 2 fused steps runs whenever 2 are due: after 8, 16, ... steps.
+  steps = []
+  for _ in range(41):
+    timestep = _run(env, agent, 1, timestep)
+    steps.append(agent.learner.steps)
+  expected = [2 * ((k + 1) // 8) for k in range(41)]
+  assert steps == expected
+
+
+def test_fused_call_equals_single_steps_on_the_same_samples():
+  env = PointReach(0)
+  spec = specs.make_environment_spec(env)
+  fused = SACAgent(spec, _small_config(fused_steps=4, min_replay_size=50),
+                   seed=2)
+  single = SACAgent(spec, _small_config(fused_steps=1, min_replay_size=50),
+                    seed=2)
+  for agent in (fused, single):
+    _run(PointReach(0), agent, 49)   # Same transitions, no update yet.
+  assert fused.learner.steps == single.learner.steps == 0
+  fused.learn(4)
+  for _ in range(4):
+    single.learn(1)
+  assert fused.learner.steps == single.learner.steps == 4
+  # One draw of 4 x 64 replay rows is the four draws of 64 in a row.
+  for name, value in single.learner.state().items():
+    np.testing.assert_allclose(fused.learner.state()[name], value,
+                               rtol=1e-4, atol=1e-5, err_msg=name)
+
+
+def _policy_leaves(params):
+  return [np.array(leaf) for leaf in jax.tree_util.tree_leaves(params)]
+
+
+def test_the_actor_acts_with_the_policy_from_before_the_last_call():
+  env = PointReach(0)
+  config = _small_config(min_replay_size=20, fused_steps=3)
+  agent = SACAgent(specs.make_environment_spec(env), config, seed=0)
+  timestep = _run(env, agent, 19)
+  learned = [_policy_leaves(agent.learner.policy_params)]
+  acting = []
+  for _ in range(12):
+    timestep = _run(env, agent, 1, timestep)
+    learned.append(_policy_leaves(agent.learner.policy_params))
+    acting.append(_policy_leaves(agent.acting_policy_params))
+  # Calls after the 3rd, 6th, 9th and 12th step from the 20th transition.
+  changes = [k for k in range(1, 13)
+             if not np.array_equal(learned[k][0], learned[k - 1][0])]
+  assert changes == [3, 6, 9, 12]
+  for k in range(12):
+    last_call = max([c for c in changes if c <= k + 1], default=None)
+    before = learned[0] if last_call is None else learned[last_call - 1]
+    for a, b in zip(acting[k], before):
+      np.testing.assert_array_equal(a, b)
 
 
 def _assert_same_agents(first, second):
@@ -170,10 +224,13 @@ def _assert_same_agents(first, second):
 def test_save_restore_gives_identical_agents_and_continuations(tmp_path):
   env = PointReach(0)
   spec = specs.make_environment_spec(env)
-  config = _small_config(min_replay_size=50, update_every=2,
+  config = _small_config(min_replay_size=50, fused_steps=3,
                          updates_per_step=1.5)
   agent = SACAgent(spec, config, seed=3)
-  timestep = _run(env, agent, 75)   # Mid-episode, mid-burst.
+  timestep = _run(env, agent, 75)   # Mid-episode, with credit left over.
+  # The actor lags the learner by a call: both are part of the checkpoint.
+  assert not np.array_equal(_policy_leaves(agent.acting_policy_params)[0],
+                            _policy_leaves(agent.learner.policy_params)[0])
   agent.save(tmp_path / 'agent', metadata={'episode': 3},
              arrays={'loop_counter': np.arange(4)})
   restored = SACAgent(spec, config, seed=99)
@@ -206,6 +263,29 @@ def test_save_restore_gives_identical_agents_and_continuations(tmp_path):
   _assert_same_agents(agent, restored)
 
 
+def test_restore_reads_checkpoints_from_before_the_numpy_actor(tmp_path):
+  env = PointReach(0)
+  spec = specs.make_environment_spec(env)
+  agent = SACAgent(spec, _small_config(min_replay_size=50), seed=3)
+  _run(env, agent, 60)
+  agent.save(tmp_path / 'agent')
+  path = tmp_path / 'agent' / 'agent.npz'
+  arrays = checkpointing.load_arrays(path)
+  old = {key: value for key, value in arrays.items()
+         if not key.startswith(('actor_random_state/', 'acting_policy/'))}
+  old['actor_key'] = np.array([0, 7], np.uint32)   # A JAX PRNG key.
+  checkpointing.save_arrays(path, old)
+  restored = SACAgent(spec, _small_config(min_replay_size=50), seed=0)
+  restored.restore(tmp_path / 'agent')
+  # It acts with the learner's policy, sampling from the key's seed.
+  for a, b in zip(_policy_leaves(restored.acting_policy_params),
+                  _policy_leaves(agent.learner.policy_params)):
+    np.testing.assert_array_equal(a, b)
+  expected = np.random.RandomState(np.array([0, 7], np.uint32))
+  assert restored.actor.random_state.randint(1 << 30) == expected.randint(
+      1 << 30)
+
+
 def test_save_replaces_atomically_and_restore_checks_the_config(tmp_path):
   env = PointReach(0)
   spec = specs.make_environment_spec(env)
@@ -233,6 +313,25 @@ def test_load_policy_acts_like_the_agents_policy(tmp_path):
     np.testing.assert_allclose(loaded(timestep), own(timestep), rtol=1e-6)
   with pytest.raises(ValueError, match='action spec'):
     agent_lib.load_policy(tmp_path / 'agent', PointReach(0))
+
+
+def test_numpy_actor_computes_the_networks_policy():
+  nets = networks_lib.make_networks(5, 3, (16, 8, 4))
+  params = nets.policy_init(np.random.RandomState(0))
+  # Scaled up so that log std reaches its clip bounds on some rows.
+  observations = 30.0 * np.random.RandomState(1).randn(50, 5).astype(
+      np.float32)
+  mean, log_std = actor_lib.policy_mean_log_std(
+      actor_lib.numpy_policy(params), observations)
+  expected_mean, expected_log_std = nets.policy_apply(params, observations)
+  np.testing.assert_allclose(mean, expected_mean, rtol=1e-5, atol=1e-5)
+  np.testing.assert_allclose(log_std, expected_log_std, rtol=1e-5,
+                             atol=1e-5)
+  actor = actor_lib.SACActor(nets, lambda: params, seed=0, evaluation=True)
+  np.testing.assert_allclose(actor.select_action(observations[0]),
+                             np.tanh(expected_mean[0]), rtol=1e-5, atol=1e-6)
+  with pytest.raises(ValueError, match='GaussianPolicy params'):
+    actor_lib.numpy_policy({'params': {}})
 
 
 def test_action_scaler_round_trip_and_errors():

@@ -16,8 +16,8 @@ def test_reference_preset_has_the_papers_values():
   assert reference.batch_size == 128
   assert reference.tau == 0.005
   assert reference.discount == 0.99
-  assert reference.update_every == 100
-  assert reference.updates_per_step * reference.update_every == 100
+  # 100 gradient steps every 100 environment steps, in one call.
+  assert reference.fused_steps == 100 and reference.updates_per_step == 1.0
   assert reference.initial_temperature == 0.2
   assert reference.hidden_sizes == (64, 64, 64)
 
@@ -28,7 +28,8 @@ def test_default_preset():
   assert default.batch_size == 256
   assert default.hidden_sizes == (256, 256)
   assert default.initial_temperature == 1.0
-  assert default.updates_per_step == 1.0 and default.update_every == 1
+  assert default.updates_per_step == 1.0
+  assert default.fused_steps == config.FUSED_STEPS
   assert default.max_grad_norm is None
   assert default.reward_scale == 1.0
 
@@ -53,7 +54,8 @@ def test_unknown_names_are_rejected():
     ('learning_rate', 0.0), ('batch_size', 0), ('batch_size', 2.5),
     ('discount', 1.5), ('tau', 0.0), ('hidden_sizes', ()),
     ('hidden_sizes', (64, 0)), ('initial_temperature', -1.0),
-    ('updates_per_step', -1.0), ('update_every', 0),
+    ('updates_per_step', -1.0), ('fused_steps', 0),
+    ('fused_steps', 1.5),
     ('max_grad_norm', 0.0), ('min_replay_size', -1),
     ('target_entropy', float('nan')), ('reward_scale', 0.0)])
 def test_bad_values_name_the_field(field, value):
@@ -72,3 +74,17 @@ def test_json_round_trip_and_frozen():
   assert rebuilt == cfg
   with pytest.raises(dataclasses.FrozenInstanceError):
     cfg.batch_size = 3
+
+
+def test_from_dict_reads_configs_written_before_fused_steps():
+  cfg = config.reference_config()
+  assert config.SACConfig.from_dict(cfg.to_dict()) == cfg
+  old = cfg.to_dict()
+  del old['fused_steps']
+  old['update_every'] = 100   # The reference's bursts of 100 steps.
+  assert config.SACConfig.from_dict(old) == cfg
+  old.update(update_every=10, updates_per_step=0.25)
+  with pytest.raises(ValueError, match='2.5 gradient steps per burst'):
+    config.SACConfig.from_dict(old)
+  with pytest.raises(ValueError, match='both update_every and fused_steps'):
+    config.SACConfig.from_dict(dict(cfg.to_dict(), update_every=1))

@@ -90,11 +90,14 @@ def test_target_critics_follow_by_polyak_averaging():
 def test_scanned_steps_equal_single_steps():
   sequential, scanned = _learner(seed=3), _learner(seed=3)
   batches = [_batch(seed=i) for i in range(4)]
-  for batch in batches:
-    sequential.update(batch)
+  metrics = [dict(sequential.update(batch)) for batch in batches]
   stacked = replay.Transition(*(np.stack(field) for field in zip(*batches)))
-  scanned.update_steps(stacked)
+  fused = scanned.update_steps(stacked)
   assert scanned.steps == sequential.steps == 4
+  # A fused call reports the mean of its steps' metrics.
+  for name in learning.METRIC_NAMES:
+    assert fused[name] == pytest.approx(
+        np.mean([m[name] for m in metrics]), rel=1e-4, abs=1e-6), name
   for a, b in zip(_leaves(sequential.training_state),
                   _leaves(scanned.training_state)):
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5)

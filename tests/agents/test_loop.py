@@ -192,12 +192,13 @@ def test_bootstrap_ci_on_known_data():
 
 
 def test_benchmark_measures_every_section():
-  results = benchmark.measure(steps=5, warmup=12, batch_size=8,
-                              hidden_sizes=(8,))
-  assert list(results) == ['training', 'environment only', 'update only',
+  results = benchmark.measure(steps=6, warmup=14, batch_size=8,
+                              hidden_sizes=(8,), fused_steps=3)
+  assert list(results) == ['training', 'environment only',
+                           'update, 1 per call', 'update, 3 per call',
                            'actor only']
-  for steps, wall, cpu in results.values():
-    assert steps == 5 and wall > 0 and cpu >= 0
+  for steps, wall, cpu, main in results.values():
+    assert steps == 6 and wall > 0 and cpu >= 0 and main >= 0
   assert 's per 1000 RL steps' in benchmark.format_results(results)
   with pytest.raises(ValueError, match='warmup'):
-    benchmark.measure(steps=5, warmup=8, batch_size=8)
+    benchmark.measure(steps=5, warmup=13, batch_size=8, fused_steps=3)

@@ -248,6 +248,43 @@ def test_train_writes_the_curve_and_a_video_of_the_final_policy(tmp_path):
   assert episode['frames'] == 11 and episode['robot'] == 'schunk'
 
 
+def _to_update_every(sac_config):
+  """A SAC config dict as written before fused_steps replaced update_every
+  (one update per step, as the presets had)."""
+  old = dict(sac_config, update_every=1)
+  del old['fused_steps']
+  return old
+
+
+def test_runs_begun_before_fused_steps_resume(tmp_path):
+  logdir = str(tmp_path / 'run')
+  old_overrides = dict(_OVERRIDES, fused_steps=1)
+  train.train(train.make_run_config(
+      'reach', 'dense', 'schunk', 'cartesian', overrides=old_overrides,
+      task_kwargs=_TASK_KWARGS, steps=30, checkpoint_every=20), logdir)
+  config_path = os.path.join(logdir, 'config.json')
+  stored = checkpoints.read_json(config_path)
+  stored['sac_config'] = _to_update_every(stored['sac_config'])
+  stored['overrides'] = dict(_OVERRIDES)
+  checkpoints.write_json(config_path, stored)
+  agent_json = os.path.join(checkpoints.latest(logdir),
+                            checkpoints.AGENT_DIR, 'agent.json')
+  description = checkpoints.read_json(agent_json)
+  description['config'] = _to_update_every(description['config'])
+  checkpoints.write_json(agent_json, description)
+  # The default fused_steps is a different schedule: refused.
+  with pytest.raises(ValueError, match='different configuration.*fused'):
+    train.train(train.make_run_config(
+        'reach', 'dense', 'schunk', 'cartesian', overrides=_OVERRIDES,
+        task_kwargs=_TASK_KWARGS, steps=40, checkpoint_every=20), logdir,
+                resume=True)
+  _, state = train.train(train.make_run_config(
+      'reach', 'dense', 'schunk', 'cartesian', overrides=old_overrides,
+      task_kwargs=_TASK_KWARGS, steps=40, checkpoint_every=20), logdir,
+                         resume=True)
+  assert state['counter']['steps'] == 40
+
+
 def test_resume_without_a_checkpoint_starts_afresh(tmp_path):
   logdir = str(tmp_path / 'run')
   train.train(_run_config(steps=15, checkpoint_every=0), logdir)
