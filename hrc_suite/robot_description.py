@@ -216,6 +216,15 @@ def _check_rotation(reader, rotation, field):
   return u @ vt
 
 
+def _notes(reader, data):
+  """The optional 'notes': a list of strings (free text, e.g. sources)."""
+  notes = data.get('notes', [])
+  if not (isinstance(notes, list)
+          and all(isinstance(note, str) for note in notes)):
+    reader.fail('notes', f'expected a list of strings, got {notes!r:.80}')
+  return tuple(notes)
+
+
 def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
   """Loads and validates a robot description by robot name or file path."""
   path = _path_for(name_or_path)
@@ -280,11 +289,15 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
   raw_shield = reader.get(data, 'shield', 'shield')
   unclampable = reader.get(raw_shield, 'unclampable_links',
                            'shield.unclampable_links')
+  if not isinstance(unclampable, list):
+    reader.fail('shield.unclampable_links', 'expected a list of pairs of '
+                f'link indices, got {unclampable!r}')
   for pair in unclampable:
-    if (len(pair) != 2 or not all(isinstance(x, int) for x in pair) or
-        not all(0 <= x < dof for x in pair)):
+    if (not isinstance(pair, list) or len(pair) != 2 or
+        not all(type(x) is int and 0 <= x < dof for x in pair)):
       reader.fail('shield.unclampable_links',
-                  f'expected pairs of link indices in [0, {dof}), got {pair}')
+                  f'expected pairs of link indices in [0, {dof}), got '
+                  f'{pair!r}')
   interval = reader.number(raw_shield, 'reachability_interval_cycles',
                            'shield.reachability_interval_cycles')
   if interval != int(interval):
@@ -330,7 +343,7 @@ def load(name_or_path: Union[str, os.PathLike]) -> RobotDescription:
                                       'flange.translation', (3,)),
       shield=shield,
       q_home=q_home,
-      notes=tuple(data.get('notes', ())),
+      notes=_notes(reader, data),
       self_collision_exempt=tuple(tuple(p) for p in exempt),
       path=str(path),
   )

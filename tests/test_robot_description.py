@@ -99,6 +99,15 @@ def _write_broken(tmp_path, mutate):
      r"self_collision_exempt.*non-adjacent"),
     (lambda d: d.update(self_collision_exempt=[[0, 9]]),
      r"self_collision_exempt.*\[0, 7\)"),
+    (lambda d: d['shield'].update(unclampable_links=5),
+     r"shield\.unclampable_links.*list of pairs.*got 5"),
+    (lambda d: d['shield'].update(unclampable_links=[5]),
+     r"shield\.unclampable_links.*pairs of link indices in \[0, 7\), got 5"),
+    (lambda d: d['shield'].update(unclampable_links=[[0, 7]]),
+     r"shield\.unclampable_links.*\[0, 7\), got \[0, 7\]"),
+    (lambda d: d.update(notes=5), r"'notes'.*list of strings, got 5"),
+    (lambda d: d.update(notes='one line'),
+     r"'notes'.*list of strings, got 'one line'"),
 ])
 def test_broken_description_names_file_and_field(tmp_path, mutate, field):
   path = _write_broken(tmp_path, mutate)
