@@ -9,9 +9,11 @@ group them. Names are (domain, task) pairs, e.g. ('reach', 'dense').
 """
 
 import collections
+import collections.abc
 import importlib
 
 from dm_control import composer
+import numpy as np
 
 from hrc_suite.tasks import substeps
 
@@ -31,6 +33,8 @@ _LOADED = False
 # episode anew from the continuing random_state). A few, because one
 # failure is already rare (docs/safety.md, "Physics errors").
 MAX_RESET_ATTEMPTS = 3
+# Largest seed np.random.RandomState accepts (a 32-bit unsigned integer).
+_MAX_SEED = 2**32 - 1
 
 
 class Environment(composer.Environment):
@@ -122,9 +126,31 @@ def build_task(domain, task, task_kwargs=None):
     names = sorted(t for d, t in _REGISTRY if d == domain)
     raise ValueError(f'Unknown task {task!r} for domain {domain!r}: '
                      f'expected one of {", ".join(names)}')
-  hrc_task = _REGISTRY[(domain, task)](**dict(task_kwargs or {}))
+  hrc_task = _REGISTRY[(domain, task)](
+      **_kwargs_dict('task_kwargs', task_kwargs))
   hrc_task.suite_name = (domain, task)   # Experts and datasets key on it.
   return hrc_task
+
+
+def _kwargs_dict(name, kwargs):
+  """A copy of `kwargs` (None or a mapping of argument names)."""
+  if kwargs is None:
+    return {}
+  if not isinstance(kwargs, collections.abc.Mapping):
+    raise ValueError(f'{name} must be a dict of keyword arguments (e.g. '
+                     f"{{'robot': 'panda'}}), got {kwargs!r:.80}")
+  return dict(kwargs)
+
+
+def _seed(seed):
+  """None or an integer seed of np.random.RandomState."""
+  if seed is None:
+    return None
+  if (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))
+      or not 0 <= seed <= _MAX_SEED):
+    raise ValueError(f'seed must be None or an integer in [0, {_MAX_SEED}], '
+                     f'got {seed!r}')
+  return int(seed)
 
 
 def load(domain, task, task_kwargs=None, environment_kwargs=None):
@@ -144,9 +170,9 @@ def load(domain, task, task_kwargs=None, environment_kwargs=None):
   episode draws it again, up to MAX_RESET_ATTEMPTS times
   (max_reset_attempts). environment_kwargs may override both.
   """
-  task_kwargs = dict(task_kwargs or {})
-  environment_kwargs = dict(environment_kwargs or {})
-  seed = task_kwargs.pop('seed', None)
+  task_kwargs = _kwargs_dict('task_kwargs', task_kwargs)
+  environment_kwargs = _kwargs_dict('environment_kwargs', environment_kwargs)
+  seed = _seed(task_kwargs.pop('seed', None))
   hrc_task = build_task(domain, task, task_kwargs)
   environment_kwargs.setdefault('random_state', seed)
   if 'time_limit' in environment_kwargs:

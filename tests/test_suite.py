@@ -74,3 +74,18 @@ def test_episodes_reuse_the_compiled_model():
   env.reset()
   assert env.physics.data.ptr is data
   assert not np.array_equal(env.task.goal_position, first_goal)
+
+
+@pytest.mark.parametrize('kwargs, message', [
+    ({'task_kwargs': 'robot=panda'},
+     "task_kwargs must be a dict of keyword arguments.*got 'robot=panda'"),
+    ({'environment_kwargs': [1]},
+     r'environment_kwargs must be a dict.*got \[1\]'),
+    ({'task_kwargs': {'seed': 'abc'}},
+     r"seed must be None or an integer in \[0, 4294967295\], got 'abc'"),
+    ({'task_kwargs': {'seed': -1}}, 'seed must be.*got -1'),
+    ({'task_kwargs': {'seed': 1.5}}, 'seed must be.*got 1.5'),
+])
+def test_bad_load_arguments_raise_clearly(kwargs, message):
+  with pytest.raises(ValueError, match=message):
+    suite.load('reach', 'dense', **kwargs)

@@ -9,7 +9,8 @@
 
 Tasks with a gripper append one dimension: -1 open, +1 closed. Actions
 outside [-1, 1] are clipped (documented behaviour, as in the reference);
-NaN or infinite entries and wrong shapes raise a ValueError.
+NaN or infinite entries, wrong shapes and non-numbers (e.g. a string) raise
+a ValueError.
 """
 
 from dm_env import specs
@@ -35,7 +36,11 @@ GRIPPER_YAW = 0.0
 
 def validate_action(action, shape):
   """The action as a float array clipped to [-1, 1]; clear errors else."""
-  action = np.asarray(action, dtype=np.float64)
+  raw = np.asarray(action)
+  if raw.dtype.kind not in 'biuf':
+    raise ValueError(f'action must be an array of numbers of shape {shape} '
+                     f'in [-1, 1], got {action!r:.80} (dtype {raw.dtype})')
+  action = raw.astype(np.float64, copy=False)
   if action.shape != shape:
     raise ValueError(f'action must have shape {shape}, got {action.shape}')
   finite = np.isfinite(action)

@@ -137,6 +137,10 @@ def _positive(name, value):
   return float(value)
 
 
+def _is_integer(value):
+  return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
 class HrcTask(composer.Task):
   """A robot, a gripper and a human in the workcell, shielded."""
 
@@ -203,7 +207,8 @@ class HrcTask(composer.Task):
       cameras: names of workcell cameras ('front', 'side', 'top',
         'human_view') whose RGB images join the observation as
         'camera_<name>' (uint8, camera_size).
-      camera_size: (height, width) of camera observations in pixels.
+      camera_size: (height, width) of camera observations in pixels, at
+        most the workcell's offscreen framebuffer (960, 1280).
       observation_noise: None or {observable name: bound}: uniform noise in
         [-bound, bound] (drawn from the environment's random_state, so
         snapshots restore the noise-free state, not the noise stream).
@@ -335,6 +340,7 @@ class HrcTask(composer.Task):
     self.set_timesteps(control_timestep, physics_timestep)
     self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
     self._physics_ptr = None
+    self._episode_data = None   # MjData of the last initialised episode.
     self._one_substep = False
     self._physics_steps = substeps_lib.PhysicsSteps()
     self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
@@ -518,17 +524,27 @@ class HrcTask(composer.Task):
     """Enabled RGB observables of named workcell cameras."""
     if isinstance(cameras, str):
       cameras = (cameras,)
-    if (len(camera_size) != 2 or
-        not all(isinstance(v, int) and v > 0 for v in camera_size)):
-      raise ValueError('camera_size must be (height, width) in pixels, got '
+    if not (isinstance(cameras, (list, tuple))
+            and all(isinstance(name, str) for name in cameras)):
+      raise ValueError('cameras must be a camera name or a list of names, '
+                       f'got {cameras!r}')
+    # Cameras render into the model's offscreen framebuffer (workcell.py).
+    frame = getattr(self._arena.mjcf_model.visual, 'global')
+    largest = (frame.offheight, frame.offwidth)
+    if not (isinstance(camera_size, (list, tuple)) and len(camera_size) == 2
+            and all(_is_integer(v) and 0 < v <= top
+                    for v, top in zip(camera_size, largest))):
+      raise ValueError('camera_size must be (height, width) in pixels, at '
+                       f'most the offscreen framebuffer {largest}, got '
                        f'{camera_size!r}')
     available = {c.name: c for c in self._arena.mjcf_model.find_all('camera')}
     for name in cameras:
       if name not in available:
         raise ValueError(f'Unknown camera {name!r}: expected some of '
                          f'{", ".join(sorted(available))}')
-      camera = observable.MJCFCamera(available[name], height=camera_size[0],
-                                     width=camera_size[1])
+      camera = observable.MJCFCamera(available[name],
+                                     height=int(camera_size[0]),
+                                     width=int(camera_size[1]))
       camera.enabled = True
       self._task_obs[f'camera_{name}'] = camera
       self.observation_names += (f'camera_{name}',)
@@ -600,6 +616,7 @@ class HrcTask(composer.Task):
       raise composer.EpisodeInitializationError(
           f'MuJoCo physics error while initialising the episode: {error}'
       ) from error
+    self._episode_data = physics.data.ptr   # set_state needs an episode.
 
   def _initialize_episode(self, physics, random_state):
     if physics.data.ptr is not self._physics_ptr:
@@ -937,14 +954,19 @@ class HrcTask(composer.Task):
     }
 
   def set_state(self, physics, state):
-    """Restores a snapshot from get_state (same task configuration)."""
+    """Restores a snapshot from get_state (same task configuration) into
+    an environment that has been reset."""
+    if physics.data.ptr is not self._episode_data:
+      # composer.Environment resets at its first step, which would draw a
+      # new episode over the restored one.
+      raise ValueError('set_state needs an environment that has been reset: '
+                       'this physics has no episode yet (call env.reset() '
+                       'before env.task.set_state(env.physics, state))')
     size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
     physics_state = np.asarray(state['physics'], dtype=np.float64)
     if physics_state.shape != (size,):
       raise ValueError(f'physics state must have {size} entries for this '
                        f'model, got shape {physics_state.shape}')
-    if physics.data.ptr is not self._physics_ptr:
-      self._bind(physics)
     # Grips first: hold/release switch welds on and off, the physics state
     # then restores which are active.
     self._grips.restore(physics, state['grips'])

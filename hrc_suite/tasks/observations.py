@@ -75,6 +75,11 @@ def select(observables, presets, selection):
                        f'expected one of {", ".join(sorted(presets))} or a '
                        'list of observable names')
   else:
+    if not (isinstance(selection, (list, tuple))
+            and all(isinstance(name, str) for name in selection)):
+      raise ValueError('observations must be a preset name ('
+                       f'{", ".join(sorted(presets))}) or a list of '
+                       f'observable names, got {selection!r:.80}')
     names = list(selection)
     unknown = [n for n in names if n not in observables]
     if unknown or not names:

@@ -46,6 +46,14 @@ def _random_actions(env, count, seed=1):
     ({'time_limit': 0.0}, 'time_limit'),
     ({'collision_reward': 5.0}, 'collision_reward'),
     ({'motions': []}, 'motions'),
+    ({'observations': 5}, 'observations must be a preset name.*got 5'),
+    ({'cameras': 5}, 'cameras must be a camera name or a list.*got 5'),
+    ({'cameras': 'top', 'camera_size': 84},
+     r'camera_size must be \(height, width\).*got 84'),
+    ({'cameras': 'top', 'camera_size': (48, 64.0)}, 'camera_size'),
+    # Refused before dm_control allocates a 28 GiB observation buffer.
+    ({'cameras': 'top', 'camera_size': (100000, 100000)},
+     r'at most the offscreen framebuffer \(960, 1280\).*100000'),
 ])
 def test_bad_kwargs_raise_clearly(kwargs, message):
   with pytest.raises(ValueError, match=message):
@@ -102,6 +110,15 @@ def test_wrong_action_shape_raises_with_expected_shape():
   env.reset()
   with pytest.raises(ValueError, match=r'shape \(7,\)'):
     env.step(np.zeros(6))
+
+
+@pytest.mark.parametrize('bad', ['abc', ['0.1'] * 7, [None] * 7])
+def test_non_numeric_actions_raise_naming_the_action(bad):
+  env = _env()
+  env.reset()
+  with pytest.raises(ValueError, match=r'action must be an array of numbers '
+                     r'of shape \(7,\).*got'):
+    env.step(bad)
 
 
 def test_out_of_range_actions_are_clipped():
@@ -261,6 +278,17 @@ def test_snapshot_moves_to_a_fresh_environment():
   fresh.reset()
   fresh.task.set_state(fresh.physics, state)
   _assert_same(first, _rollout(fresh, replay))
+
+
+def test_set_state_before_the_first_reset_raises():
+  """The environment's first step resets, so a snapshot restored before it
+  would be discarded silently."""
+  env = _env(seed=6)
+  env.reset()
+  state = env.task.get_state(env.physics)
+  fresh = _env(seed=6)
+  with pytest.raises(ValueError, match=r'call env\.reset\(\) before'):
+    fresh.task.set_state(fresh.physics, state)
 
 
 def test_set_state_rejects_a_foreign_physics_state():
