@@ -15,9 +15,13 @@ setuptools.setup(
     long_description=open('README.md').read(),
     long_description_content_type='text/markdown',
     python_requires='>=3.10',
-    packages=setuptools.find_packages(include=['hrc_suite', 'hrc_suite.*',
-                                               'agents', 'agents.*']),
-    package_data={'hrc_suite': ['assets/**/*']},
+    # The data folders under hrc_suite/assets have no __init__.py: listed as
+    # namespace packages, with their files as package data (listing them
+    # only as data of hrc_suite makes setuptools warn about each folder).
+    packages=setuptools.find_namespace_packages(
+        include=['hrc_suite', 'hrc_suite.*', 'agents', 'agents.*'],
+        exclude=['*.__pycache__']),
+    package_data={'hrc_suite.assets': ['**/*.json', '**/*.npz']},
     # `python -m hrc_suite.render --policy=<checkpoint>` finds the agents'
     # checkpoint loader here (hrc_suite does not import agents).
     entry_points={'hrc_suite.checkpoint_policies': [
