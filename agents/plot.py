@@ -15,7 +15,8 @@ any real return) and the mean expert return (1). The expert return comes
 from --expert_return or the experts file (--experts_json, by default
 docs/results/experts.json of the repository when present); without either
 the raw return is plotted and the axis says so. --per_seed draws one curve
-per run instead of the mean, which shows how seeds differ.
+per run instead of the mean, which shows how seeds differ. A curve of one
+seed is that run's evaluations, without a band, and the title says so.
 
 Experts files read: the output of `python -m hrc_suite.experts.evaluate`
 ({"rows": [{domain, task, robot, action_space, policy, return, ...}]}: the
@@ -170,6 +171,21 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
   return curves
 
 
+def title(config, curves, per_seed=False):
+  """The figure's title: the task, the robot and what the curves show (a
+  confidence interval only for curves over several seeds)."""
+  head = f'{config["domain"]}/{config["task"]}, {config["robot"]}: '
+  one_seed = [len(curve.seeds) == 1 for curve in curves]
+  if per_seed:
+    return head + 'one curve per seed (no confidence interval)'
+  if all(one_seed):
+    return head + 'one seed (no confidence interval)'
+  if any(one_seed):
+    return head + ('mean and 95 % bootstrap CI over seeds (none for the '
+                   'curves of one seed)')
+  return head + 'mean and 95 % bootstrap CI over seeds'
+
+
 def draw(curves, out, title):
   """Writes the curves as `out` (PNG) and the same stem .svg."""
   import matplotlib   # pylint: disable=g-import-not-at-top
@@ -182,8 +198,9 @@ def draw(curves, out, title):
       seeds = ', '.join(str(seed) for seed in curve.seeds)
       label = f'{curve.label}, seed{plural} {seeds}'
       line, = axis.plot(curve.steps, mean, label=label)
-      axis.fill_between(curve.steps, low, high, color=line.get_color(),
-                        alpha=0.25, linewidth=0)
+      if len(curve.seeds) > 1:   # One seed has no interval over seeds.
+        axis.fill_between(curve.steps, low, high, color=line.get_color(),
+                          alpha=0.25, linewidth=0)
   axes[0].set_ylabel('evaluation success rate')
   axes[0].set_ylim(-0.02, 1.02)
   normalised = all(c.normalised for c in curves)
@@ -266,10 +283,7 @@ def plot(logdirs, out, seed=0, expert=None, experts_json=_DEFAULT_EXPERTS,
                            num_resamples=num_resamples, minimum=minimum,
                            per_seed=per_seed)
   config, _ = load_run(logdirs[0])
-  title = (f'{config["domain"]}/{config["task"]}, {config["robot"]}: '
-           + ('one curve per seed' if per_seed else
-              'mean and 95 % bootstrap CI over seeds'))
-  paths = list(draw(curves, out, title))
+  paths = list(draw(curves, out, title(config, curves, per_seed)))
   table = os.path.splitext(out)[0] + '.csv'
   if os.path.exists(table):
     os.remove(table)

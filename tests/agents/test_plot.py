@@ -138,6 +138,23 @@ def test_per_seed_curves_keep_each_run(tmp_path):
   assert [r['seed_ids'] for r in rows] == ['0'] * 3 + ['1'] * 4
 
 
+def test_title_says_what_one_seed_shows(tmp_path):
+  a, b = _two_seeds(tmp_path)
+  config, _ = plot.load_run(a)
+
+  def curves(logdirs):
+    return plot.learning_curves(logdirs, np.random.RandomState(0),
+                                expert=-20.0, num_resamples=10)
+
+  one, both = curves([a]), curves([a, b])
+  assert plot.title(config, one).endswith(': one seed (no confidence '
+                                          'interval)')
+  assert plot.title(config, both).endswith(
+      ': mean and 95 % bootstrap CI over seeds')
+  assert 'none for the curves of one seed' in plot.title(config, one + both)
+  assert 'one curve per seed' in plot.title(config, one, per_seed=True)
+
+
 def test_bad_runs_raise(tmp_path):
   with pytest.raises(ValueError, match='not a training run'):
     plot.learning_curves([str(tmp_path)], np.random.RandomState(0),
