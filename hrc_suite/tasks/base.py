@@ -89,12 +89,12 @@ from hrc_suite.control import controller as controller_lib
 from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import human_kernels
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import batch
 from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import geometry
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
@@ -103,6 +103,7 @@ from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
+from hrc_suite.tasks import self_collision as self_collision_lib
 from hrc_suite.tasks import substeps as substeps_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
@@ -312,6 +313,8 @@ class HrcTask(composer.Task):
         description, base_pose=base_pose, tool_capsule=tool_capsule,
         tool_table_allowance=self.tool_table_allowance, compiled=fast_path,
         table=self.TABLE)
+    self._self_colliding = self_collision_lib.SelfCollision(
+        self._collision_checker, compiled=fast_path)
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     # The shipped library's documented fast phases (hammer blows,
@@ -327,7 +330,7 @@ class HrcTask(composer.Task):
         station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
     self._playback = human_playback.HumanPlayback(
-        self._human, self._player, shield_substeps)
+        self._human, self._player, shield_substeps, compiled=fast_path)
 
     self._object_geoms = []
     self._grips = grips_lib.HumanGrips(self._human)
@@ -669,6 +672,8 @@ class HrcTask(composer.Task):
     would make the metric depend on playback state that snapshots do not
     keep; check_motions has checked every frame of every clip.)"""
     frames = self._playback.positions
+    if self.fast_path:   # The same decision, compiled.
+      return human_kernels.faster_than(frames, self._dt, self._human_v_max)
     speeds = np.linalg.norm(np.diff(frames, axis=0), axis=-1) / self._dt
     return bool(np.any(speeds > self._human_v_max))
 
@@ -812,16 +817,6 @@ class HrcTask(composer.Task):
       self._shield.resync(self._q_measured)
       self._resyncs += 1
 
-  def _self_colliding(self, q):
-    checker = self._collision_checker
-    if not len(checker.pairs):
-      return False
-    p1, p2, r = checker.reach.capsules(q[None])
-    i, j = checker.pairs[:, 0], checker.pairs[:, 1]
-    distance = geometry.capsule_distance(p1[0, i], p2[0, i], r[i],
-                                         p1[0, j], p2[0, j], r[j])
-    return bool(np.any(distance < 0.0))
-
   def after_step(self, physics, random_state):
     del random_state
     self._steps += 1
@@ -829,7 +824,7 @@ class HrcTask(composer.Task):
       self._end_at_physics_error()
       return
     q = physics.data.qpos[self._qpos_index]
-    self_collision = self._self_colliding(q)
+    self_collision = self._self_colliding(q)   # tasks/self_collision.py
     clip_index = self._player.clip_index
     self._clip_ended = clip_index != self._clip_index
     self._clip_index = clip_index

@@ -5,7 +5,9 @@ trigger between RL steps (after_step). So at the start of an RL step the
 player is advanced through all L substeps in one call
 (`Player.advance_many`: the keypoints of each substep, one array operation
 per clip), and the capsule frames of all L x S segments come from one
-vectorised `human.segment_frames` call instead of L calls. Each substep only copies its rows into MuJoCo's
+vectorised `human.segment_frames` call instead of L calls (compiled=True,
+the task's fast path: its kernel, `human_kernels.segment_frames`, the
+same values). Each substep only copies its rows into MuJoCo's
 mocap arrays and hands its keypoints to the shield, exactly as if the player
 had been advanced in that substep.
 
@@ -17,6 +19,7 @@ legs, world z for the pelvis); tests check the two agree.
 import numpy as np
 
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import human_kernels
 from hrc_suite.human import keypoints
 
 _LEG_PARTS = ('thigh', 'shin')
@@ -33,8 +36,9 @@ def _as_slice(ids):
 class HumanPlayback:
   """Batches a Player's keypoints over an RL step onto a Human."""
 
-  def __init__(self, human, player, substeps):
+  def __init__(self, human, player, substeps, compiled=False):
     self._human = human
+    self._compiled = bool(compiled)
     self._player = player
     self.substeps = int(substeps)
     k, s = keypoints.NUM_KEYPOINTS, len(human_lib.SEGMENTS)
@@ -62,6 +66,15 @@ class HumanPlayback:
     self._quaternions = np.zeros((self.substeps, s, 4))
     self._physics_ptr = None
     self._shown_clip = None
+    if self._compiled:
+      human_kernels.warm_up()
+
+  def _frames_compiled(self):
+    """The segment frames of `positions` by the kernel."""
+    human_kernels.segment_frames(
+        self.positions.reshape(-1, 3), self._proximal, self._distal,
+        self._reference.reshape(-1, 3), self._middles.reshape(-1, 3),
+        self._quaternions.reshape(-1, 4))
 
   def bind(self, physics):
     """Mocap indices of the human's capsules and keypoints in `physics`."""
@@ -106,6 +119,9 @@ class HumanPlayback:
     left, right = self._hips
     reference[:, self._hip_line] = (self.positions[:, left]
                                    - self.positions[:, right])[:, None]
+    if self._compiled:
+      self._frames_compiled()
+      return
     middles, _, quaternions = human_lib.segment_frames(
         self.positions.reshape(-1, 3), self._proximal, self._distal,
         reference.reshape(-1, 3))
