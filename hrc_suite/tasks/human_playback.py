@@ -64,6 +64,10 @@ class HumanPlayback:
     self._reference[:, self._vertical] = (0.0, 0.0, 1.0)
     self._middles = np.zeros((self.substeps, s, 3))
     self._quaternions = np.zeros((self.substeps, s, 4))
+    # The mocap rows of capsules and keypoints side by side, where the
+    # model holds them so (`bind`): one write per substep instead of two.
+    self._mocap_rows = np.zeros((self.substeps, s + k, 3))
+    self._together = None
     self._physics_ptr = None
     self._shown_clip = None
     if self._compiled:
@@ -85,6 +89,11 @@ class HumanPlayback:
     sites = physics.bind(list(self._human.keypoint_sites)).element_id
     self._keypoint_mocap = _as_slice(
         model.body_mocapid[model.site_bodyid[sites]])
+    segments, keypoint_rows = self._segment_mocap, self._keypoint_mocap
+    self._together = None
+    if (isinstance(segments, slice) and isinstance(keypoint_rows, slice)
+        and segments.stop == keypoint_rows.start):
+      self._together = slice(segments.start, keypoint_rows.stop)
     self._mocap_pos = physics.data.ptr.mocap_pos
     self._mocap_quat = physics.data.ptr.mocap_quat
     self._physics_ptr = physics.data.ptr
@@ -121,18 +130,25 @@ class HumanPlayback:
                                    - self.positions[:, right])[:, None]
     if self._compiled:
       self._frames_compiled()
-      return
-    middles, _, quaternions = human_lib.segment_frames(
-        self.positions.reshape(-1, 3), self._proximal, self._distal,
-        reference.reshape(-1, 3))
-    self._middles[:] = middles.reshape(self._middles.shape)
-    self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
+    else:
+      middles, _, quaternions = human_lib.segment_frames(
+          self.positions.reshape(-1, 3), self._proximal, self._distal,
+          reference.reshape(-1, 3))
+      self._middles[:] = middles.reshape(self._middles.shape)
+      self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
+    if self._together is not None:
+      count = self._middles.shape[1]
+      self._mocap_rows[:, :count] = self._middles
+      self._mocap_rows[:, count:] = self.positions
 
   def apply(self, physics, k):
     """Moves the human to substep k's pose; returns its keypoints."""
     if self.clips[k] is not self._shown_clip:
       self._resize(physics, self.clips[k])
-    self._mocap_pos[self._segment_mocap] = self._middles[k]
+    if self._together is not None:
+      self._mocap_pos[self._together] = self._mocap_rows[k]
+    else:
+      self._mocap_pos[self._segment_mocap] = self._middles[k]
+      self._mocap_pos[self._keypoint_mocap] = self.positions[k]
     self._mocap_quat[self._segment_mocap] = self._quaternions[k]
-    self._mocap_pos[self._keypoint_mocap] = self.positions[k]
     return self.positions[k]
