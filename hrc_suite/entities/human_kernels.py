@@ -1,11 +1,12 @@
 """Compiled (numba) capsule frames of the human's segments.
 
 `segment_frames` computes what human.segment_frames (the NumPy reference)
-computes, the same operations in the same order, so the two agree bit
-for bit (tests/entities/test_human_kernels.py). The order of NumPy's
-small dot products (np.einsum 'ij,ij->i') is its SIMD loop's, measured
-on this machine: (0 + 2) + 1 for 3 terms, (0 + 2) + (1 + 3) for 4; the
-test fails where a NumPy build sums otherwise. The task's playback uses it on the fast path
+computes, the same operations in the same order (its dot products and
+the quaternion's diagonal sums in the reference's written-out order,
+human._row_dots), so the two agree bit for bit (tests/entities/
+test_human_kernels.py); `faster_than` is the task's check that no
+keypoint outran the shield's human model (HrcTask._faster_than_model),
+likewise. The task's playback uses them on the fast path
 (tasks/human_playback.py). Same compilation settings as the shield's
 kernels (safety/kernels.py: cache, IEEE arithmetic).
 """
@@ -27,7 +28,7 @@ _MIN_LENGTH = 1e-9
 
 @_jit
 def _dot3(x0, x1, x2, y0, y1, y2):
-  """np.einsum('ij,ij->i') of a 3-vector pair, in NumPy's order."""
+  """human._row_dots of one pair of 3-vectors (its order)."""
   return (x0 * y0 + x2 * y2) + x1 * y1
 
 
@@ -43,7 +44,7 @@ def _quaternion(x, y, z, out):
   m1 = math.copysign(m1, y[2] - z[1])
   m2 = math.copysign(m2, z[0] - x[2])
   m3 = math.copysign(m3, x[1] - y[0])
-  # einsum's order for 4 terms: (0 + 2) + (1 + 3).
+  # human._row_dots' order for 4 terms: (0 + 2) + (1 + 3).
   norm = math.sqrt((m0 * m0 + m2 * m2) + (m1 * m1 + m3 * m3))
   out[0] = m0 / norm
   out[1] = m1 / norm

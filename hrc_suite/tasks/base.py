@@ -42,9 +42,10 @@ step is exactly L shield cycles.
   "Pushed robots"). On the fast path the shield is first rewound to that
   physics step (a checkpoint and a replay of the precomputed cycles) and
   the rest of the RL step's set-points are computed again after resync.
-* after_step: self-collision check (capsule model), the task's own logic
-  (`_update_task`, `_human_events`), reward (with optional delay and the
-  collision penalty), termination, metrics (`metrics`).
+* after_step: self-collision check (capsule model; `self_collision`),
+  the task's own logic (`_update_task`, `_human_events`), reward (with
+  optional delay and the collision penalty), termination, metrics
+  (`metrics`).
 * Physics errors (MuJoCo warnings such as mjWARN_BADQACC): `suite.load`
   makes the environment end the episode instead of raising
   (raise_exception_on_physics_error=False): the step is LAST with reward 0
@@ -219,12 +220,13 @@ class HrcTask(composer.Task):
         (`safety.batch.step_many`, compiled where it can) and hand the
         controller the verified set-points, check new goals with
         compiled capsule tests (`safety.cp_kernels`), compute the
-        controller's torques and classify contacts in compiled kernels
-        (the same bit for bit) and, in environments of `suite.load`, run
-        the RL step's physics steps in one composer substep (`substeps`);
+        controller's torques, the contact classification, the person's
+        capsule frames and the self-collision check in compiled kernels
+        (the same bit for bit) and, in environments of `suite.load`, run the
+        RL step's physics steps in one composer substep (`substeps`);
         False runs `Shield.step` every physics step, NumPy collision
-        checks, controller and contact classification and composer's
-        substeps (the readable reference; the two agree,
+        checks, controller, contact classification and capsule frames
+        and composer's substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
     _choice('robot', robot, robot_lib.ROBOTS)
