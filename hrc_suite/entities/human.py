@@ -69,6 +69,18 @@ _DIAGONAL_SIGNS = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0],
                             [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])
 
 
+def _row_dots(x, y):
+  """Row-wise dot products of (N, 3) or (N, 4) arrays, summed in a fixed
+  order (terms 0 + 2, then 1 (+ 3)): the order np.einsum('ij,ij->i')
+  took on this machine, written out so that the compiled frames
+  (human_kernels) match on any machine."""
+  products = x * y
+  total = products[:, 0] + products[:, 2]
+  if products.shape[1] == 4:
+    return total + (products[:, 1] + products[:, 3])
+  return total + products[:, 1]
+
+
 def segment_frames(positions, proximal, distal, reference):
   """Midpoints (S, 3), half lengths (S,) and quaternions (S, 4) of segments.
 
@@ -79,16 +91,16 @@ def segment_frames(positions, proximal, distal, reference):
   a = positions[proximal]
   b = positions[distal]
   axis = b - a
-  length = np.sqrt(np.einsum('ij,ij->i', axis, axis))
+  length = np.sqrt(_row_dots(axis, axis))
   z = axis / np.maximum(length, 1e-9)[:, None]
-  x = reference - np.einsum('ij,ij->i', reference, z)[:, None] * z
-  norm = np.sqrt(np.einsum('ij,ij->i', x, x))
+  x = reference - _row_dots(reference, z)[:, None] * z
+  norm = np.sqrt(_row_dots(x, x))
   weak = norm < 0.2
   if weak.any():
     fallback = np.stack([-z[weak, 1], z[weak, 0], np.zeros(weak.sum())], -1)
     fallback[np.abs(fallback).sum(-1) < 1e-6] = (1.0, 0.0, 0.0)
     x[weak] = fallback
-    norm[weak] = np.sqrt(np.einsum('ij,ij->i', fallback, fallback))
+    norm[weak] = np.sqrt(_row_dots(fallback, fallback))
   x /= norm[:, None]
   y = z[:, _NEXT] * x[:, _PREV] - z[:, _PREV] * x[:, _NEXT]   # z cross x
   return 0.5 * (a + b), 0.5 * length, axes_to_quaternion(x, y, z)
@@ -101,12 +113,15 @@ def axes_to_quaternion(x, y, z):
   antisymmetric part (continuous; exact to ~1e-8 for unit frames).
   """
   diagonal = np.column_stack([x[:, 0], y[:, 1], z[:, 2]])
-  q = 0.5 * np.sqrt(np.maximum(0.0, 1.0 + diagonal @ _DIAGONAL_SIGNS.T))
+  # diagonal @ _DIAGONAL_SIGNS.T, summed in order (no BLAS order).
+  signed = diagonal[:, None, :] * _DIAGONAL_SIGNS[None]
+  q = 0.5 * np.sqrt(np.maximum(
+      0.0, 1.0 + ((signed[..., 0] + signed[..., 1]) + signed[..., 2])))
   antisymmetric = np.column_stack([y[:, 2] - z[:, 1],    # m21 - m12
                                    z[:, 0] - x[:, 2],    # m02 - m20
                                    x[:, 1] - y[:, 0]])   # m10 - m01
   np.copysign(q[:, 1:], antisymmetric, out=q[:, 1:])
-  return q / np.sqrt(np.einsum('ij,ij->i', q, q))[:, None]
+  return q / np.sqrt(_row_dots(q, q))[:, None]
 
 
 def matrix_to_quaternion(m):

@@ -42,9 +42,10 @@ step is exactly L shield cycles.
   "Pushed robots"). On the fast path the shield is first rewound to that
   physics step (a checkpoint and a replay of the precomputed cycles) and
   the rest of the RL step's set-points are computed again after resync.
-* after_step: self-collision check (capsule model), the task's own logic
-  (`_update_task`, `_human_events`), reward (with optional delay and the
-  collision penalty), termination, metrics (`metrics`).
+* after_step: self-collision check (capsule model; `self_collision`),
+  the task's own logic (`_update_task`, `_human_events`), reward (with
+  optional delay and the collision penalty), termination, metrics
+  (`metrics`).
 * Physics errors (MuJoCo warnings such as mjWARN_BADQACC): `suite.load`
   makes the environment end the episode instead of raising
   (raise_exception_on_physics_error=False): the step is LAST with reward 0
@@ -89,12 +90,12 @@ from hrc_suite.control import controller as controller_lib
 from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import human_kernels
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import batch
 from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import geometry
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
@@ -103,6 +104,7 @@ from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
+from hrc_suite.tasks import self_collision as self_collision_lib
 from hrc_suite.tasks import substeps as substeps_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
@@ -223,12 +225,13 @@ class HrcTask(composer.Task):
         (`safety.batch.step_many`, compiled where it can) and hand the
         controller the verified set-points, check new goals with
         compiled capsule tests (`safety.cp_kernels`), compute the
-        controller's torques and classify contacts in compiled kernels
-        (the same bit for bit) and, in environments of `suite.load`, run
-        the RL step's physics steps in one composer substep (`substeps`);
+        controller's torques, the contact classification, the person's
+        capsule frames and the self-collision check in compiled kernels
+        (the same bit for bit) and, in environments of `suite.load`, run the
+        RL step's physics steps in one composer substep (`substeps`);
         False runs `Shield.step` every physics step, NumPy collision
-        checks, controller and contact classification and composer's
-        substeps (the readable reference; the two agree,
+        checks, controller, contact classification and capsule frames
+        and composer's substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
     _choice('robot', robot, robot_lib.ROBOTS)
@@ -317,6 +320,8 @@ class HrcTask(composer.Task):
         description, base_pose=base_pose, tool_capsule=tool_capsule,
         tool_table_allowance=self.tool_table_allowance, compiled=fast_path,
         table=self.TABLE)
+    self._self_colliding = self_collision_lib.SelfCollision(
+        self._collision_checker, compiled=fast_path)
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     # The shipped library's documented fast phases (hammer blows,
@@ -332,7 +337,7 @@ class HrcTask(composer.Task):
         station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
     self._playback = human_playback.HumanPlayback(
-        self._human, self._player, shield_substeps)
+        self._human, self._player, shield_substeps, compiled=fast_path)
 
     self._object_geoms = []
     self._grips = grips_lib.HumanGrips(self._human)
@@ -348,7 +353,9 @@ class HrcTask(composer.Task):
     # Tracking check (after_substep): where the command puts the joints
     # after the physics step, and how far the robot may be from it (m; the
     # levers turn joint errors into a cheap upper bound).
-    self._expected_q = np.zeros(self._robot.dof)
+    self._expected_buffer = np.zeros(self._robot.dof)
+    self._expected_q = self._expected_buffer
+    self._expected_rows = None
     self._tracking_scratch = np.zeros(self._robot.dof)
     self._tracking_levers = self._shield.tracking_levers
     self._tracking_tolerance = self._shield.tracking_tolerance
@@ -686,6 +693,8 @@ class HrcTask(composer.Task):
     would make the metric depend on playback state that snapshots do not
     keep; check_motions has checked every frame of every clip.)"""
     frames = self._playback.positions
+    if self.fast_path:   # The same decision, compiled.
+      return human_kernels.faster_than(frames, self._dt, self._human_v_max)
     speeds = np.linalg.norm(np.diff(frames, axis=0), axis=-1) / self._dt
     return bool(np.any(speeds > self._human_v_max))
 
@@ -697,12 +706,13 @@ class HrcTask(composer.Task):
     self._shield_checkpoint = None
 
   def _shield_command(self, k, positions):
-    """The shield's command for substep k: precomputed for the rest of
-    the RL step at its first substep (or after a resync) on the fast
-    path, else one Shield.step."""
+    """The shield's command for substep k, and where it puts the joints
+    (`_expected`): precomputed for the rest of the RL step at its first
+    substep (or after a resync) on the fast path, else one Shield.step."""
     if not self.fast_path:
       command = self._shield.step(positions, self._time)
       self._intervened |= self._shield.intervened
+      self._expected_q = self._expected(*command, self._expected_buffer)
       return command
     if self._setpoints is None:
       self._shield_checkpoint = batch.checkpoint(self._shield)
@@ -710,9 +720,27 @@ class HrcTask(composer.Task):
       self._setpoints, self._setpoint_flags = batch.step_many(
           self._shield, self._playback.positions[k:],
           self._playback.times[k:])
+      setpoints = self._setpoints
+      self._expected_rows = self._expected(
+          setpoints[:, 0], setpoints[:, 1], setpoints[:, 2],
+          np.empty(setpoints.shape[:1] + setpoints.shape[2:]))
     i = k - self._setpoints_from
     self._intervened |= bool(self._setpoint_flags[i])
+    self._expected_q = self._expected_rows[i]
     return self._setpoints[i]
+
+  def _expected(self, q, dq, ddq, out):
+    """Where command(s) (q, dq, ddq) put the joints after a physics step,
+    written into out: the controller drives the command's acceleration
+    from the command's state, and MuJoCo's semi-implicit Euler moves q by
+    h (dq + h ddq). (The command is the robot's state at the step's start:
+    measured within ~2e-6 rad; after the step within ~2e-5 rad of this.)
+    Element by element, so rows computed at once equal single ones."""
+    np.multiply(ddq, self._dt, out=out)
+    out += dq
+    out *= self._dt
+    out += q
+    return out
 
   def _rewind_shield(self, k):
     """The shield back at the end of cycle k (its state when substep k's
@@ -785,18 +813,8 @@ class HrcTask(composer.Task):
     self._substep = k + 1
     positions = self._playback.apply(physics, k)
     self._time = self._playback.times[k]
-    q, dq, ddq = self._shield_command(k, positions)
+    q, dq, ddq = self._shield_command(k, positions)   # and _expected_q
     self._command_dq[:] = dq
-    # Where the command puts the joints after this physics step: the
-    # controller drives the command's acceleration from the command's
-    # state, and MuJoCo's semi-implicit Euler moves q by h (dq + h ddq).
-    # (The command is the robot's state at the step's start: measured
-    # within ~2e-6 rad; after the step within ~2e-5 rad of this.)
-    expected = self._expected_q
-    np.multiply(ddq, self._dt, out=expected)
-    expected += dq
-    expected *= self._dt
-    expected += q
     self._controller(physics, q, dq, ddq)
     self._before_physics_step(physics)
 
@@ -829,16 +847,6 @@ class HrcTask(composer.Task):
       self._shield.resync(self._q_measured)
       self._resyncs += 1
 
-  def _self_colliding(self, q):
-    checker = self._collision_checker
-    if not len(checker.pairs):
-      return False
-    p1, p2, r = checker.reach.capsules(q[None])
-    i, j = checker.pairs[:, 0], checker.pairs[:, 1]
-    distance = geometry.capsule_distance(p1[0, i], p2[0, i], r[i],
-                                         p1[0, j], p2[0, j], r[j])
-    return bool(np.any(distance < 0.0))
-
   def after_step(self, physics, random_state):
     del random_state
     self._steps += 1
@@ -846,7 +854,7 @@ class HrcTask(composer.Task):
       self._end_at_physics_error()
       return
     q = physics.data.qpos[self._qpos_index]
-    self_collision = self._self_colliding(q)
+    self_collision = self._self_colliding(q)   # tasks/self_collision.py
     clip_index = self._player.clip_index
     self._clip_ended = clip_index != self._clip_index
     self._clip_index = clip_index

@@ -5,7 +5,9 @@ trigger between RL steps (after_step). So at the start of an RL step the
 player is advanced through all L substeps in one call
 (`Player.advance_many`: the keypoints of each substep, one array operation
 per clip), and the capsule frames of all L x S segments come from one
-vectorised `human.segment_frames` call instead of L calls. Each substep only copies its rows into MuJoCo's
+vectorised `human.segment_frames` call instead of L calls (compiled=True,
+the task's fast path: its kernel, `human_kernels.segment_frames`, the
+same values). Each substep only copies its rows into MuJoCo's
 mocap arrays and hands its keypoints to the shield, exactly as if the player
 had been advanced in that substep.
 
@@ -17,6 +19,7 @@ legs, world z for the pelvis); tests check the two agree.
 import numpy as np
 
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import human_kernels
 from hrc_suite.human import keypoints
 
 _LEG_PARTS = ('thigh', 'shin')
@@ -33,8 +36,9 @@ def _as_slice(ids):
 class HumanPlayback:
   """Batches a Player's keypoints over an RL step onto a Human."""
 
-  def __init__(self, human, player, substeps):
+  def __init__(self, human, player, substeps, compiled=False):
     self._human = human
+    self._compiled = bool(compiled)
     self._player = player
     self.substeps = int(substeps)
     k, s = keypoints.NUM_KEYPOINTS, len(human_lib.SEGMENTS)
@@ -60,8 +64,21 @@ class HumanPlayback:
     self._reference[:, self._vertical] = (0.0, 0.0, 1.0)
     self._middles = np.zeros((self.substeps, s, 3))
     self._quaternions = np.zeros((self.substeps, s, 4))
+    # The mocap rows of capsules and keypoints side by side, where the
+    # model holds them so (`bind`): one write per substep instead of two.
+    self._mocap_rows = np.zeros((self.substeps, s + k, 3))
+    self._together = None
     self._physics_ptr = None
     self._shown_clip = None
+    if self._compiled:
+      human_kernels.warm_up()
+
+  def _frames_compiled(self):
+    """The segment frames of `positions` by the kernel."""
+    human_kernels.segment_frames(
+        self.positions.reshape(-1, 3), self._proximal, self._distal,
+        self._reference.reshape(-1, 3), self._middles.reshape(-1, 3),
+        self._quaternions.reshape(-1, 4))
 
   def bind(self, physics):
     """Mocap indices of the human's capsules and keypoints in `physics`."""
@@ -72,6 +89,11 @@ class HumanPlayback:
     sites = physics.bind(list(self._human.keypoint_sites)).element_id
     self._keypoint_mocap = _as_slice(
         model.body_mocapid[model.site_bodyid[sites]])
+    segments, keypoint_rows = self._segment_mocap, self._keypoint_mocap
+    self._together = None
+    if (isinstance(segments, slice) and isinstance(keypoint_rows, slice)
+        and segments.stop == keypoint_rows.start):
+      self._together = slice(segments.start, keypoint_rows.stop)
     self._mocap_pos = physics.data.ptr.mocap_pos
     self._mocap_quat = physics.data.ptr.mocap_quat
     self._physics_ptr = physics.data.ptr
@@ -106,17 +128,27 @@ class HumanPlayback:
     left, right = self._hips
     reference[:, self._hip_line] = (self.positions[:, left]
                                    - self.positions[:, right])[:, None]
-    middles, _, quaternions = human_lib.segment_frames(
-        self.positions.reshape(-1, 3), self._proximal, self._distal,
-        reference.reshape(-1, 3))
-    self._middles[:] = middles.reshape(self._middles.shape)
-    self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
+    if self._compiled:
+      self._frames_compiled()
+    else:
+      middles, _, quaternions = human_lib.segment_frames(
+          self.positions.reshape(-1, 3), self._proximal, self._distal,
+          reference.reshape(-1, 3))
+      self._middles[:] = middles.reshape(self._middles.shape)
+      self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
+    if self._together is not None:
+      count = self._middles.shape[1]
+      self._mocap_rows[:, :count] = self._middles
+      self._mocap_rows[:, count:] = self.positions
 
   def apply(self, physics, k):
     """Moves the human to substep k's pose; returns its keypoints."""
     if self.clips[k] is not self._shown_clip:
       self._resize(physics, self.clips[k])
-    self._mocap_pos[self._segment_mocap] = self._middles[k]
+    if self._together is not None:
+      self._mocap_pos[self._together] = self._mocap_rows[k]
+    else:
+      self._mocap_pos[self._segment_mocap] = self._middles[k]
+      self._mocap_pos[self._keypoint_mocap] = self.positions[k]
     self._mocap_quat[self._segment_mocap] = self._quaternions[k]
-    self._mocap_pos[self._keypoint_mocap] = self.positions[k]
     return self.positions[k]

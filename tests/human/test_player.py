@@ -319,6 +319,12 @@ def test_advance_many_equals_advance_steps(seed):
     player.reset(np.random.RandomState(seed))
     return player
   single, batched = make(), make()
+  # Both ways of advance_many are taken: whole blocks within one clip
+  # (arrays at once) and blocks with waits, switches or blends (step loop).
+  within_clip = []
+  whole_block = batched._advance_within_clip
+  batched._advance_within_clip = lambda *args: within_clip.append(
+      whole_block(*args)) or within_clip[-1]
   n, blends = 25, 0
   positions, times, clips = np.zeros((n, K, 3)), np.zeros(n), [None] * n
   for block in range(60):
@@ -337,6 +343,7 @@ def test_advance_many_equals_advance_steps(seed):
     if block % 3 == 0 and single.waiting_for:
       assert single.trigger('go') and batched.trigger('go')
   assert blends > 0 and single.clip_index > 3
+  assert any(within_clip) and not all(within_clip)
 
 
 def test_advance_many_needs_room_for_every_step():

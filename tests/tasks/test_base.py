@@ -530,6 +530,8 @@ def test_batched_human_playback_matches_set_keypoints():
   for action in _random_actions(env, 3):
     env.step(action)
   physics, task = env.physics, env.task
+  # Capsule and keypoint rows side by side: one mocap write per substep.
+  assert task._playback._together is not None
   played_pos = physics.data.mocap_pos.copy()
   played_quat = physics.data.mocap_quat.copy()
   # The pose after the step is the player's current pose, as Human puts it.
