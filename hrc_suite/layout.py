@@ -127,14 +127,16 @@ HUMAN_STATION_BESIDE = (0.55, DEFAULT_TABLE.y[1] + STATION_EDGE_CLEARANCE,
 # m ahead of their pelvis (recordings 0.40-0.63 m, synthetic 0.55-0.65 m,
 # docs/tasks.md); across our 1 m table that was 0.71-0.94 m from the robot,
 # beyond most arms' gripper-down reach of the top slot. Every robot on its
-# mount reaches the top slot for x 0.40-0.65 m and the robot's cubes for
-# x 0.45-0.55 m, |y| 0.28-0.36 m (world; docs/tasks.md, stacking), so
-# the station stands where a stack 0.40-0.62 m ahead lands in 0.43-0.65 m.
+# mount reaches the top slot for x 0.40-0.75 m and the robot's cubes for
+# x 0.40-0.55 m, |y| 0.22-0.36 m (world; docs/tasks.md, stacking), so
+# the station stands where a stack 0.40-0.62 m ahead lands in 0.48-0.70 m
+# (at x 1.05 m the stack came within 0.25 m of the raised Schunk's base,
+# where carrying cube 4 sideways folded it into itself: docs/tasks.md).
 # The person stands STACKING_STATION_SHIFT closer to the table's edge than
 # at the shared stations (pelvis 0.18 m from it: a stack 0.55-0.65 m ahead
 # is within reach of a person standing upright).
 STACKING_STATION_SHIFT = 0.12   # m
-STACKING_STATION_X = 1.05       # m, world
+STACKING_STATION_X = 1.10       # m, world
 STACKING_TABLE = Table(
     (TABLE_X[0], STACKING_STATION_X - STATION_EDGE_CLEARANCE
      + STACKING_STATION_SHIFT), TABLE_Y)
