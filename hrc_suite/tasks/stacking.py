@@ -18,13 +18,13 @@ human 3, robot 4 (reference-benchmark.md, paper Table I).
   it. The human waits for 'second_cube_placed' and
   'fourth_cube_placed' (clip.TASK_EVENTS): the robot's cube in its slot,
   released, the TCP WITHDRAWN_DISTANCE away from it.
-* Station: across the table at layout.HUMAN_STATION_STACKING (x 1.05 m,
+* Station: across the table at layout.HUMAN_STATION_STACKING (x 1.10 m,
   the pelvis 0.18 m from the table's edge), placement +-(0.02 m, 0.1 m,
   0.1 rad), so the person-robot distance is about the reference's (its
   stacking table is centred on its robot). People put the stack 0.40-0.65
-  m ahead of their pelvis: it lands 0.40-0.65 m in front of the robot,
-  where every robot on its mount reaches the top cube's place
-  gripper-down (docs/tasks.md). Across the other tasks' 1 m table it lay
+  m ahead of their pelvis: it lands at world x 0.45-0.67 m, where every
+  robot on its mount reaches the top cube's place gripper-down
+  (docs/tasks.md). Across the other tasks' 1 m table it lay
   0.71-0.94 m away, beyond the Cartesian action box (x <= 0.8 m) and most
   robots' reach.
 * Success (delayed by the retreat, reference): all four cubes stacked when
