@@ -116,7 +116,11 @@ def _grasp_scene(name):
   robot = robot_lib.make_robot(name)
   gripper = robot.attach_gripper(gripper_lib.ParallelGripper())
   arena.attach_robot(robot)
-  cube_position = np.array([0.4, 0.05, layout.TABLE_TOP_Z + CUBE_HALF])
+  # 0.4 m ahead of the robot's base (the raised mounts stand at the
+  # table's edge: layout.ROBOT_MOUNTS).
+  base_x = layout.robot_mount(name).base_position[0]
+  cube_position = np.array([base_x + 0.4, 0.05,
+                            layout.TABLE_TOP_Z + CUBE_HALF])
   cube = arena.mjcf_model.worldbody.add('body', name='cube',
                                         pos=cube_position)
   cube.add('freejoint')
