@@ -69,7 +69,7 @@ ROBOT_CUBE_X = (0.40, 0.55)    # m, world
 ROBOT_CUBE_Y = (0.22, 0.36)    # m to either side of the centre line
 STACK_CLEARANCE = 0.15         # m: fingers and the person's hands
 CUBE_SPACING = 0.1             # m
-ROBOT_CUBE_DRAWS = 50
+ROBOT_CUBE_DRAWS = 200
 # The human's palm within this of a cube's grip point grabs it (the clips'
 # hands stop up to ~2.5 cm short of a pick at full reach).
 HAND_TOLERANCE = 0.035         # m

@@ -1,6 +1,7 @@
 """The stacking task: reset/step, the human's cubes, rewards, snapshots and
 an oracle that stacks all four cubes."""
 
+import types
 import unittest
 
 from dm_env import test_utils
@@ -325,3 +326,20 @@ class StackingSpecTest(test_utils.EnvironmentTestMixin, unittest.TestCase):
 
   def make_object_under_test(self):
     return _env('schunk', 'cartesian', observations='full', time_limit=1.0)
+
+
+@pytest.mark.parametrize('stack', [(0.47, 0.29), (0.47, -0.29), (0.5, 0.0),
+                                   (0.7, 0.4), (0.4, -0.22)])
+def test_robot_cubes_find_room_beside_any_stack(stack):
+  """Wherever a person puts the stack on the robot's half (held-out
+  recordings included), both robot cubes get a spot clear of it."""
+  task = types.SimpleNamespace(_size=0.05)
+  for seed in range(5):
+    rs = np.random.RandomState(seed)
+    taken = [np.array(stack)]
+    for side in (1.0, -1.0):
+      spot = stacking.Stacking._robot_cube_spot(task, rs, side, taken)
+      assert np.all(np.linalg.norm(np.array(taken) - spot[:2], axis=1)
+                    >= [stacking.STACK_CLEARANCE]
+                    + [stacking.CUBE_SPACING] * (len(taken) - 1))
+      taken.append(spot[:2])
