@@ -37,7 +37,6 @@ Measured (docs/results/experts.md): 50 of 50 episodes on the Schunk
 
 import numpy as np
 
-from hrc_suite.control import ik as ik_lib
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
@@ -112,7 +111,6 @@ class LiftingExpert(base.Expert):
     self._steer = steering.Steering(self._task)
     self._hand_index = np.array(keypoints.index(
         ('left_hand', 'right_hand')))
-    self._ik = ik_lib.InverseKinematics(self._task.kinematics)
     self._box = actions.workspace_box(self._task.kinematics)
     self._checker = self._task.collision_checker
     self._base = self._task.kinematics.base_pose[:3, 3]
@@ -213,8 +211,7 @@ class LiftingExpert(base.Expert):
 
   def _reaches(self, aim, q):
     """Whether gripper-down IK from q reaches `aim` without a collision."""
-    result = self._ik.solve(aim, q, self._steer.yaw)
-    return result.success and not self._checker.in_collision(result.q)
+    return self._steer.reaches(aim, q, self._checker)
 
   def _within_reach(self, aim, q):
     """`aim` (inside the Cartesian workspace box), or, where gripper-down IK

@@ -295,23 +295,10 @@ class StackingExpert(base.Expert):
     return aim, OPEN
 
   def _can_reach(self, aim, q):
-    """Gripper-down IK reaches `aim` from q without self or static
-    collision, and the task's collision prevention lets the first
-    Cartesian step towards it through (a straight joint path)."""
-    checker, ik, yaw = (self._task.collision_checker, self._steer.ik,
-                        self._steer.yaw)
-    result = ik.solve(aim, q, yaw)
-    if not result.success or checker.in_collision(result.q):
-      return False
-    tcp = self._task.kinematics.tcp_pose(q)[:3, 3]
-    delta = aim - tcp
-    norm = np.linalg.norm(delta)
-    if norm > actions.CARTESIAN_STEP:
-      first = ik.solve(tcp + delta * (actions.CARTESIAN_STEP / norm), q, yaw)
-      if not first.success:
-        return False
-      return checker.is_safe(q, first.q)
-    return checker.is_safe(q, result.q)
+    """The robot reaches `aim` from q and collision prevention lets its
+    first step through (`Steering.reaches`)."""
+    return self._steer.reaches(aim, q, self._task.collision_checker,
+                               first_step=True)
 
   def _carry(self, obs, tcp, cubes, slots, stacked, held):
     """Aim, gripper command and speed with cube `held` in the gripper."""

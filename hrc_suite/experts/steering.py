@@ -94,6 +94,27 @@ class Steering:
       arm /= largest
     return arm
 
+  def reaches(self, aim, q, checker, first_step=False):
+    """Whether gripper-down IK from q reaches `aim` in a configuration
+    free of collisions (`checker`: the task's collision prevention); with
+    `first_step`, also whether the straight joint path of the first
+    Cartesian step towards it (<= cartesian_step) is free: what collision
+    prevention checks before letting the step through."""
+    result = self._ik.solve(aim, q, self.yaw)
+    if not result.success or checker.in_collision(result.q):
+      return False
+    if not first_step:
+      return True
+    tcp = self._model.tcp_pose(q)[:3, 3]
+    delta = aim - tcp
+    norm = np.linalg.norm(delta)
+    if norm > self.cartesian_step:
+      result = self._ik.solve(tcp + delta * (self.cartesian_step / norm), q,
+                              self.yaw)
+      if not result.success:
+        return False
+    return checker.is_safe(q, result.q)
+
   def ik_target(self, aim, tcp, q):
     """Joint positions one gripper-down IK step (<= cartesian_step) from
     q towards `aim` (the best iterate if the solve misses)."""

@@ -503,7 +503,6 @@ class Shield:
     if human_keypoints is not None:
       self.human.measure(human_keypoints, t)
     self.time = t
-    self._lazy = {}
     self._pending_check = None
     self._previous_q = self._state[0]
     dt = self.cycle_time
@@ -523,7 +522,7 @@ class Shield:
       starts = (1.0, 0.0) if self._at_rest() else (1.0,)
     nominal = None   # The first start's intended step: what was wanted.
     for start in starts:
-      self._lazy = {}   # Reach capsules are those of this start's check.
+      self._lazy = {}   # Read-outs are those of this cycle and start.
       if start is not None:
         current = path_lib.Path(self._verified.s, start, 0.0, 0.0)
       intended, failsafe, s_dot_limit = self._monitored(plan, current,
