@@ -7,8 +7,11 @@ wrappers are removed afterwards). Parts nest: collision prevention holds
 the IK it calls, the task's hooks hold the shield, the person, the
 controller and the contact monitor. Top-level parts count their own time
 without the top-level parts they call: on the fast path the task's
-before_substep runs the RL step's physics steps and after_substep hooks
-(tasks/substeps.py), which count as physics and after_substep. "composer
+before_substep runs the RL step's first L - 1 physics steps
+(tasks/substeps.py), most in one compiled call (tasks/physics_loop.py,
+which holds their physics, mocap, controller, tracking and contacts);
+steps it hands back to Python count as physics and after_substep, and
+composer's last physics step as physics. "composer
 and the rest" is the RL step's total minus the top-level parts
 (dm_control's environment loop, observables, the action spec check,
 numpy glue).
@@ -22,9 +25,9 @@ import numpy as np
 # (label, module, class or None, attribute, top level): top-level parts are
 # disjoint and add up to the measured step with "composer and the rest".
 PARTS = (
-    ('physics (25x: mj_step2, mj_step1, warnings, entity hooks)',
+    ('physics in Python (mj_step2, mj_step1, warnings, entity hooks)',
      'dm_control.mujoco.engine', 'Physics', 'step', True),
-    ('physics (25x: mj_step2, mj_step1, warnings, entity hooks)',
+    ('physics in Python (mj_step2, mj_step1, warnings, entity hooks)',
      'hrc_suite.tasks.substeps', 'PhysicsSteps', 'step', True),
     ('task before_step (action, goal, shield.new_goal, playback)',
      'hrc_suite.tasks.base', 'HrcTask', 'before_step', True),
@@ -35,17 +38,20 @@ PARTS = (
      'InverseKinematics', 'solve', False),
     ('  person: playback of the RL step (25 poses, segment frames)',
      'hrc_suite.tasks.human_playback', 'HumanPlayback', 'advance', False),
-    ('task before_substep: the loop, before each physics step (25x)',
+    ('task before_substep: the loop of the RL step\'s physics steps',
      'hrc_suite.tasks.base', 'HrcTask', 'before_substep', True),
     ('  shield: 25 cycles (safety.batch.step_many)', 'hrc_suite.safety.batch',
      None, 'step_many', False),
-    ('  person: mocap of one pose (25x)', 'hrc_suite.tasks.human_playback',
+    ('  compiled physics steps (physics_loop.run: mocap, controller, '
+     'mj_step2, mj_step1, tracking, contacts)', 'hrc_suite.tasks.physics_loop',
+     'CompiledSteps', 'run', False),
+    ('  person: mocap of one pose, Python steps', 'hrc_suite.tasks.human_playback',
      'HumanPlayback', 'apply', False),
-    ('  controller (25x)', 'hrc_suite.control.controller',
+    ('  controller, Python steps', 'hrc_suite.control.controller',
      'JointTrackingController', '__call__', False),
-    ('task after_substep: tracking, contacts (25x)', 'hrc_suite.tasks.base',
+    ('task after_substep: tracking, contacts, Python steps', 'hrc_suite.tasks.base',
      'HrcTask', 'after_substep', True),
-    ('  contact monitor (25x)', 'hrc_suite.tasks.contacts', 'ContactMonitor',
+    ('  contact monitor, Python steps', 'hrc_suite.tasks.contacts', 'ContactMonitor',
      'update', False),
     ('task after_step: self-collision, task logic, reward, metrics',
      'hrc_suite.tasks.base', 'HrcTask', 'after_step', True),

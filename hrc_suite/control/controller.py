@@ -159,6 +159,14 @@ class JointTrackingController:
     self._ctrl[:] = torque
     return torque
 
+  def kernel_arguments(self):
+    """The arrays and gains of the compiled call, in the order of
+    tasks/physics_loop.run (which runs it inside its physics loop)."""
+    return (self._q, self._dq, self._bias, self._passive, self._ctrl,
+            self._acceleration, self._arm_acceleration, self._product,
+            self._arm_product, self.kp, self.kd, self._half_step,
+            self._damping_step, self._torque_limit, self._torque)
+
   def _call_compiled(self, q_d, dq_d, ddq_d):
     """__call__'s arithmetic in the two kernels (float64 inputs)."""
     _acceleration(q_d, dq_d, ddq_d, self._q, self._dq, self.kp, self.kd,

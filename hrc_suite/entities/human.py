@@ -352,6 +352,12 @@ class Human(composer.Entity):
       self._player_clip = None
       self._apply_player(physics)
 
+  @property
+  def substep_hooks_idle(self):
+    """Whether before_substep does nothing (no player to follow):
+    tasks/substeps.py may then skip it."""
+    return self._player is None
+
   def before_substep(self, physics, random_state):
     if self._player is not None:
       self._player.advance(physics.timestep())

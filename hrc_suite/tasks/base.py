@@ -104,6 +104,7 @@ from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
+from hrc_suite.tasks import physics_loop
 from hrc_suite.tasks import self_collision as self_collision_lib
 from hrc_suite.tasks import substeps as substeps_lib
 
@@ -348,6 +349,7 @@ class HrcTask(composer.Task):
     self._episode_data = None   # MjData of the last initialised episode.
     self._one_substep = False
     self._physics_steps = substeps_lib.PhysicsSteps()
+    self._compiled_steps = None   # tasks/physics_loop.py, once bound
     self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
     self._command_dq = np.zeros(self._robot.dof)
     # Tracking check (after_substep): where the command puts the joints
@@ -356,7 +358,6 @@ class HrcTask(composer.Task):
     self._expected_buffer = np.zeros(self._robot.dof)
     self._expected_q = self._expected_buffer
     self._expected_rows = None
-    self._tracking_scratch = np.zeros(self._robot.dof)
     self._tracking_levers = self._shield.tracking_levers
     self._tracking_tolerance = self._shield.tracking_tolerance
     self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
@@ -611,6 +612,16 @@ class HrcTask(composer.Task):
     # requires it), read every physics step without a copy.
     first = int(self._qpos_index[0])
     self._q_measured = physics.data.qpos[first:first + self._robot.dof]
+    self._compiled_steps = None
+    if self.fast_path and self._physics_steps.raw:
+      try:
+        self._compiled_steps = physics_loop.CompiledSteps(
+            physics, self._controller, self._playback, self._monitor,
+            self._tracking_levers, self._tracking_tolerance,
+            self._q_measured, self._command_dq, self._step_flags,
+            self._contact_steps)
+      except ValueError:
+        pass   # The Python loop runs every physics step.
     self._qvel_index = np.array(joints.dofadr)
     fingers = physics.bind(self._gripper.finger_joints)
     self._finger_qpos_index = np.array(fingers.qposadr)
@@ -714,20 +725,26 @@ class HrcTask(composer.Task):
       self._intervened |= self._shield.intervened
       self._expected_q = self._expected(*command, self._expected_buffer)
       return command
-    if self._setpoints is None:
-      self._shield_checkpoint = batch.checkpoint(self._shield)
-      self._setpoints_from = k
-      self._setpoints, self._setpoint_flags = batch.step_many(
-          self._shield, self._playback.positions[k:],
-          self._playback.times[k:])
-      setpoints = self._setpoints
-      self._expected_rows = self._expected(
-          setpoints[:, 0], setpoints[:, 1], setpoints[:, 2],
-          np.empty(setpoints.shape[:1] + setpoints.shape[2:]))
+    self._plan_setpoints(k)
     i = k - self._setpoints_from
     self._intervened |= bool(self._setpoint_flags[i])
     self._expected_q = self._expected_rows[i]
     return self._setpoints[i]
+
+  def _plan_setpoints(self, k):
+    """The shield's set-points from substep k to the RL step's end (one
+    compiled call, `batch.step_many`) if not planned yet."""
+    if self._setpoints is not None:
+      return
+    self._shield_checkpoint = batch.checkpoint(self._shield)
+    self._setpoints_from = k
+    self._setpoints, self._setpoint_flags = batch.step_many(
+        self._shield, self._playback.positions[k:],
+        self._playback.times[k:])
+    setpoints = self._setpoints
+    self._expected_rows = self._expected(
+        setpoints[:, 0], setpoints[:, 1], setpoints[:, 2],
+        np.empty(setpoints.shape[:1] + setpoints.shape[2:]))
 
   def _expected(self, q, dq, ddq, out):
     """Where command(s) (q, dq, ddq) put the joints after a physics step,
@@ -798,13 +815,59 @@ class HrcTask(composer.Task):
 
   def before_substep(self, physics, action, random_state):
     if self._one_substep:
-      steps = self._physics_steps
-      for _ in range(self.shield_substeps - 1):
-        self._prepare_physics_step(physics)
-        steps.step(physics, action, random_state)
-        self.after_substep(physics, random_state)
-        steps.after(physics, random_state)
+      self._run_physics_steps(physics, action, random_state,
+                              self.shield_substeps - 1)
     self._prepare_physics_step(physics)
+
+  def _run_physics_steps(self, physics, action, random_state, stop):
+    """Physics steps _substep..stop-1 with their hooks: stretches in one
+    compiled call where nothing needs Python (tasks/physics_loop.py),
+    the others one by one."""
+    steps, compiled = self._physics_steps, self._compiled_steps
+    if compiled is not None and (self._works_before_physics_steps()
+                                 or not steps.idle()
+                                 or not compiled.has_headroom()):
+      compiled = None
+    while self._substep < stop:
+      k = self._substep
+      if compiled is not None:
+        end = self._playback.same_clip_until(k, stop)
+        if end > k:
+          self._run_compiled(physics, random_state, compiled, k, end)
+          continue
+      self._prepare_physics_step(physics)
+      steps.step(physics, action, random_state)
+      self.after_substep(physics, random_state)
+      steps.after(physics, random_state)
+
+  def _run_compiled(self, physics, random_state, compiled, k, end):
+    """Physics steps k..end-1 in the compiled call, then what it left to
+    Python (physics_loop.run's status)."""
+    self._plan_setpoints(k)
+    out = compiled.out
+    out[0] = self._max_tracking_error
+    out[1] = 0.0
+    stopped, status = compiled.run(k, end, self._setpoints,
+                                   self._setpoint_flags,
+                                   self._setpoints_from, self._expected_rows)
+    self._completed_substeps += stopped - k
+    self._max_tracking_error = float(out[0])
+    self._intervened |= bool(out[1])
+    last = stopped - 1 if status == physics_loop.DONE else stopped
+    self._substep = last + 1
+    self._time = self._playback.times[last]
+    self._expected_q = self._expected_rows[last - self._setpoints_from]
+    if status == physics_loop.PHYSICS_WARNING:
+      self._physics_steps.raise_warnings(compiled.warnings_before)
+    elif status == physics_loop.PYTHON_AFTER:
+      self.after_substep(physics, random_state)
+      self._physics_steps.after(physics, random_state)
+
+  def _works_before_physics_steps(self):
+    """Whether `_before_physics_step` has work in this RL step (a task
+    that overrides it may say when it has none)."""
+    return (type(self)._before_physics_step
+            is not HrcTask._before_physics_step)
 
   def _prepare_physics_step(self, physics):
     """Before a physics step: the person's pose, the shield's command, the
@@ -824,10 +887,8 @@ class HrcTask(composer.Task):
   def after_substep(self, physics, random_state):
     del physics, random_state
     self._completed_substeps += 1
-    error = self._tracking_scratch
-    np.subtract(self._q_measured, self._expected_q, out=error)
-    np.abs(error, out=error)
-    distance = float(error @ self._tracking_levers)   # Shield.tracking_bound
+    distance = physics_loop.tracking_bound(   # Shield.tracking_bound
+        self._q_measured, self._expected_q, self._tracking_levers)
     pushed = distance > self._tracking_tolerance
     if pushed:   # Rare: the exact distance (forward kinematics) decides.
       distance = self._shield.tracking_error(self._q_measured,
@@ -900,6 +961,9 @@ class HrcTask(composer.Task):
     self._discount = 0.0
     self._reward = 0.0
     self._pending_rewards.clear()
+    # The shield as after the physics step that failed (the fast path had
+    # planned the RL step's later cycles): its metrics as on the reference.
+    self._rewind_shield(self._substep - 1)
     self._clip_ended = False
     step = {'success': 0.0}
     step.update(self._step_info)

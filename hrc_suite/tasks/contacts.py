@@ -130,6 +130,11 @@ class ContactMonitor:
     self._flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
     self.max_human_contact_speed = 0.0
 
+  @property
+  def pair_types(self):
+    """The contact type of every geom pair (ngeom, ngeom), -1 for none."""
+    return self._pair_types
+
   def reset(self):
     """Starts a new interval for `max_human_contact_speed`."""
     self.max_human_contact_speed = 0.0

@@ -261,6 +261,9 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     physics.model.geom_contype[geoms] = contype if on else 0
     physics.model.geom_conaffinity[geoms] = conaffinity if on else 0
 
+  def _works_before_physics_steps(self):
+    return self._phase != PLACED   # Changes only between RL steps.
+
   def _before_physics_step(self, physics):
     if self._phase != PLACED:
       self._carry_board(physics, self._playback.positions[self._substep - 1])

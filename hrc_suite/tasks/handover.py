@@ -393,6 +393,9 @@ class HumanToRobot(_Handover):
     return (self._holder() is not None and self._pick_grip is None
             and self._turn >= 1.0)
 
+  def _works_before_physics_steps(self):
+    return self._presenting()   # Changes only between RL steps.
+
   def _before_physics_step(self, physics):
     if self._presenting():
       # The presenting grip at every physics step: a fixed weld to the

@@ -141,6 +141,24 @@ class HumanPlayback:
       self._mocap_rows[:, :count] = self._middles
       self._mocap_rows[:, count:] = self.positions
 
+  def mocap_layout(self):
+    """(mocap_pos, the mocap rows of every substep, their first row,
+    mocap_quat, the capsules' quaternions, their first row) for
+    tasks/physics_loop.py, or None where the rows are not one block."""
+    if self._together is None or not isinstance(self._segment_mocap, slice):
+      return None
+    return (self._mocap_pos, self._mocap_rows, self._together.start,
+            self._mocap_quat, self._quaternions, self._segment_mocap.start)
+
+  def same_clip_until(self, k, stop):
+    """The first substep in [k, stop) whose clip is not the one shown
+    (`apply` resizes the capsules there), else stop."""
+    shown, clips = self._shown_clip, self.clips
+    for i in range(k, stop):
+      if clips[i] is not shown:
+        return i
+    return stop
+
   def apply(self, physics, k):
     """Moves the human to substep k's pose; returns its keypoints."""
     if self.clips[k] is not self._shown_clip:

@@ -75,17 +75,36 @@ class PhysicsSteps:
 
   def bind(self, physics, root_entity):
     """Entity hooks and MuJoCo's model and data of a compiled physics."""
+    self._owners = []
     for name in HOOKS:
       trivial = getattr(composer.Entity, name)
-      self._entity[name] = [getattr(entity, name)
-                            for entity in root_entity.iter_entities()
-                            if getattr(type(entity), name) is not trivial]
+      owners = [entity for entity in root_entity.iter_entities()
+                if getattr(type(entity), name) is not trivial]
+      self._entity[name] = [getattr(entity, name) for entity in owners]
+      self._owners += owners
     self._model, self._data = physics.model.ptr, physics.data.ptr
     self._warnings = physics.data.warning.number   # a view into MjData
     # dm_control's legacy step (mj_step2, then mj_step1) with Euler-type
     # integrators; else its own Physics.step.
     self._raw = bool(physics.legacy_step) and (
         physics.model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4.value)
+
+  @property
+  def raw(self):
+    """Whether a physics step is MuJoCo's mj_step2 then mj_step1."""
+    return self._raw
+
+  def idle(self):
+    """Whether no hook has work to do: no extra hooks, and every entity
+    with hooks says they are idle (`substep_hooks_idle`)."""
+    return not (self._extra['before_substep'] or self._extra['after_substep']
+                or any(not getattr(entity, 'substep_hooks_idle', False)
+                       for entity in self._owners))
+
+  def raise_warnings(self, before):
+    """dm_control's PhysicsError for the warnings raised since `before`
+    (counters, as `warning.number`)."""
+    self._check_warnings(np.asarray(before, self._warnings.dtype).tobytes())
 
   def step(self, physics, action, random_state):
     """One physics step with the hooks composer runs around it; the

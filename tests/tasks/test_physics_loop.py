@@ -1,0 +1,139 @@
+"""The compiled physics loop (tasks/physics_loop.py): where MjData keeps
+its contacts, the hand-backs to Python, and agreement with the reference
+path in the cases test_fast_path's random episodes may not reach."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from hrc_suite import experts
+from hrc_suite import suite
+from hrc_suite.tasks import physics_loop
+
+
+def test_contact_memory_reads_the_bindings_contacts():
+  model = mujoco.MjModel.from_xml_string(physics_loop._PROBE_XML)
+  data = mujoco.MjData(model)
+  mujoco.mj_forward(model, data)
+  memory = physics_loop.ContactMemory(model, data)
+  seen = set()
+  for _ in range(300):
+    mujoco.mj_step(model, data)
+    assert memory.ncon[0] == data.ncon
+    assert np.array_equal(memory.geom_pairs(), data.contact.geom)
+    seen.add(data.ncon)
+  assert len(seen) > 1   # The spheres roll apart: the count changes.
+
+
+def test_contact_memory_refuses_a_layout_it_cannot_check():
+  model = mujoco.MjModel.from_xml_string(physics_loop._PROBE_XML)
+  data = mujoco.MjData(model)
+  mujoco.mj_forward(model, data)
+
+  class Moved:   # An MjData whose qpos view is not where mjData's is.
+    def __getattr__(self, name):
+      return getattr(data, name)
+    qpos = np.zeros(model.nq)
+
+  with pytest.raises(ValueError, match='qpos'):
+    physics_loop.ContactMemory(model, Moved())
+
+
+def _count_runs(env, statuses):
+  compiled = env.task._compiled_steps
+  run = compiled.run
+
+  def counted(*args):
+    k, status = run(*args)
+    statuses.append(status)
+    return k, status
+  compiled.run = counted
+
+
+def _expert_episode(domain, task, fast_path, steps, statuses=None):
+  env = suite.load(domain, task, task_kwargs=dict(
+      robot='schunk', seed=1, fast_path=fast_path))
+  policy = experts.make(env, seed=0)
+  timestep = env.reset()
+  if statuses is not None:
+    _count_runs(env, statuses)
+  qpos, metrics = [], []
+  for _ in range(steps):
+    timestep = env.step(policy(timestep))
+    qpos.append(env.physics.data.qpos.copy())
+    metrics.append(dict(env.task.episode_metrics, reward=timestep.reward))
+    if timestep.last():
+      break
+  return np.array(qpos), metrics
+
+
+def test_handing_back_at_robot_human_contacts_agrees_with_the_reference():
+  # Robot-to-human handover (PFL): the expert's gripper meets the hand, so
+  # the compiled call hands robot-human contacts back to Python.
+  statuses = []
+  fast_q, fast = _expert_episode('handover', 'robot_to_human', True, 150,
+                                 statuses)
+  slow_q, slow = _expert_episode('handover', 'robot_to_human', False, 150)
+  assert physics_loop.PYTHON_AFTER in statuses
+  assert physics_loop.DONE in statuses
+  assert fast[-1]['contacts_human_allowed'] > 0
+  assert np.array_equal(fast_q, slow_q)
+  assert fast == slow
+
+
+def _broken_episode(fast_path):
+  env = suite.load('reach', 'dense', task_kwargs=dict(
+      robot='panda', seed=0, fast_path=fast_path))
+  statuses = []
+  env.reset()
+  if fast_path:
+    _count_runs(env, statuses)
+  timesteps = [env.step(np.zeros(7)) for _ in range(2)]
+  # A joint velocity far beyond MuJoCo's limit: the next physics step (the
+  # RL step's first, inside the compiled call) raises mjWARN_BADQACC.
+  env.physics.data.qvel[env.task._qvel_index[1]] = 1e9
+  timesteps.append(env.step(np.zeros(7)))
+  return timesteps, env.task.step_metrics, statuses
+
+
+def test_a_physics_warning_inside_the_compiled_call_ends_the_episode():
+  fast, fast_metrics, statuses = _broken_episode(True)
+  slow, slow_metrics, _ = _broken_episode(False)
+  assert statuses[-1] == physics_loop.PHYSICS_WARNING
+  assert fast[-1].last() and fast[-1].discount == 0.0
+  assert fast_metrics['physics_errors'] == 1
+  assert fast_metrics == slow_metrics
+  assert [t.reward for t in fast] == [t.reward for t in slow]
+
+
+@pytest.mark.parametrize('domain,task,compiled', [
+    ('hammering', 'default', False),       # the hand's hold, every step
+    ('reach', 'dense', True)])
+def test_work_before_each_physics_step_keeps_the_python_loop(
+    domain, task, compiled):
+  env = suite.load(domain, task, task_kwargs=dict(robot='schunk', seed=0))
+  statuses = []
+  env.reset()
+  _count_runs(env, statuses)
+  for _ in range(3):
+    env.step(np.zeros(env.action_spec().shape))
+  assert bool(statuses) == compiled
+
+
+def test_a_full_arena_keeps_the_python_loop():
+  def episode(headroom):
+    env = suite.load('reach', 'dense', task_kwargs=dict(robot='schunk',
+                                                        seed=2))
+    env.reset()
+    statuses = []
+    _count_runs(env, statuses)
+    if not headroom:
+      env.task._compiled_steps._arena_limit = -1.0
+    rng = np.random.RandomState(0)
+    for _ in range(20):
+      env.step(rng.uniform(-1, 1, env.action_spec().shape))
+    return env.physics.data.qpos.copy(), statuses
+  q_compiled, statuses = episode(True)
+  q_python, none = episode(False)
+  assert statuses and not none
+  assert np.array_equal(q_compiled, q_python)
