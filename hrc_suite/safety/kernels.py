@@ -515,6 +515,29 @@ def speed_tables(speeds, width):
   return window, suffix
 
 
+@_jit
+def capsules_min_distance(q, fixed, points, frame_index, radii, keypoints,
+                          ends, half_thickness):
+  """The smallest signed distance between the robot's real capsules at q
+  (dof,) and the person's body capsules (keypoints (N_kp, 3), end indices
+  (2 B,), radii (B,)): Shield.min_distance, pair by pair
+  (geometry.capsule_distance's minimum over all pairs)."""
+  robot = _endpoints(_frames(q.reshape(1, -1), fixed), points, frame_index)
+  bodies = half_thickness.shape[0]
+  best = np.inf
+  for l in range(radii.shape[0]):
+    a0, a1 = robot[0, l, 0], robot[0, l, 1]
+    for b in range(bodies):
+      h0, h1 = keypoints[ends[b]], keypoints[ends[bodies + b]]
+      distance = segment_distance(
+          a0[0], a0[1], a0[2], h0[0], h0[1], h0[2],
+          a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2],
+          h1[0] - h0[0], h1[1] - h0[1], h1[2] - h0[2]) - radii[l] - (
+              half_thickness[b])
+      best = min(best, distance)
+  return best
+
+
 _warm = False
 
 
@@ -546,6 +569,8 @@ def warm_up():
                                     ends.reshape(2, count_b),
                                     np.ones(count_b), 0.0, 0.0, np.zeros(3))
   balls_capsules_distance(centre, radius, c1, c2, r)
+  capsules_min_distance(q[0], fixed, points, frame_index, ones, positions,
+                        ends, np.ones(count_b))
   coefficients = np.zeros((1, 4, dof))
   plan_positions(coefficients, 0.0, 1.0, 1.0, np.zeros(1), q, 1)
   coefficients.flags.writeable = False   # Plans made from given samples.

@@ -396,13 +396,25 @@ class Shield:
     if 'distance' not in self._lazy:
       if self.human.positions is None:
         self._lazy['distance'] = np.inf
-      else:
-        r1, r2, rr = self.robot.capsules(self._state[0])
-        h1, h2, hr = self.human.body_capsules(self.human.positions)
-        self._lazy['distance'] = float(geometry.capsule_distance(
-            r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
-            hr[None]).min())
+      else:   # The NumPy reference: min_distance_reference.
+        human = self.human
+        self._lazy['distance'] = float(kernels.capsules_min_distance(
+            self._state[0], *self.robot._kernel_model,
+            self.robot._kernel_frames, self.robot._kernel_radii,
+            np.ascontiguousarray(human.positions, dtype=float),
+            human._kernel_ends, human._half_thickness))
     return self._lazy['distance']
+
+  def min_distance_reference(self):
+    """min_distance by NumPy (geometry.capsule_distance over all pairs);
+    the kernel agrees to round-off (tests/safety/test_shield.py)."""
+    if self.human.positions is None:
+      return np.inf
+    r1, r2, rr = self.robot.capsules(self._state[0])
+    h1, h2, hr = self.human.body_capsules(self.human.positions)
+    return float(geometry.capsule_distance(
+        r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
+        hr[None]).min())
 
   # -------------------------------------------------------------- snapshots
 

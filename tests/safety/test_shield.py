@@ -127,6 +127,28 @@ def test_read_outs(panda):
   assert shield.reach_distance <= shield.min_distance
 
 
+@pytest.mark.parametrize('robot', robot_description.ROBOT_NAMES)
+def test_min_distance_kernel_agrees_with_numpy(robot):
+  description = robot_description.load(robot)
+  shield = _shield(description)
+  rng = np.random.RandomState(0)
+  limits = description.limits
+  body = harness.place(harness.STANDING, 0.0, 0.0, math.pi)
+  overlapping = 0
+  for _ in range(50):
+    q = rng.uniform(limits.q_min, limits.q_max)
+    shield.reset(q, 0.0)
+    # A person's torso from on the robot's wrist to 1.2 m from it.
+    _, p2, _ = shield.robot.capsules(q)
+    offset = p2[-1] + rng.uniform(-1.2, 1.2, 3)
+    human = body + offset - body[keypoints.KEYPOINT_INDEX['torso']]
+    shield.step(human, 0.0)
+    expected = shield.min_distance_reference()
+    assert shield.min_distance == pytest.approx(expected, abs=1e-12)
+    overlapping += expected < 0
+  assert 0 < overlapping < 50
+
+
 def test_slices_cover_the_failsafe(panda):
   shield = _shield(panda)
   shield.new_goal(_goal(panda, 1.5))
