@@ -1,4 +1,5 @@
-"""Headless by default: without a display, importing hrc_suite picks EGL."""
+"""Headless by default: without a display, importing hrc_suite has
+dm_control load EGL when something first renders, and only then."""
 
 import ctypes.util
 import os
@@ -13,18 +14,29 @@ _REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _HEADLESS = pytest.mark.skipif(
     not sys.platform.startswith('linux') or not ctypes.util.find_library(
         'EGL'), reason='the EGL default applies on Linux with libEGL')
-# Renders a small scene through dm_control after importing hrc_suite.
+# Steps a task, then renders a small scene through dm_control, after
+# importing hrc_suite; reports whether libEGL was mapped before and after.
 _RENDER = """
 import os
-import hrc_suite
+import numpy as np
+from hrc_suite import suite
 from dm_control import mujoco
 from dm_control import _render
+
+def egl_loaded():
+  with open('/proc/self/maps') as maps:
+    return 'libEGL' in maps.read()
+
+env = suite.load('reach', 'dense', task_kwargs={'seed': 0})
+env.reset()
+env.step(np.zeros(env.action_spec().shape))
+before = egl_loaded()
 physics = mujoco.Physics.from_xml_string(
     '<mujoco><worldbody><light pos="0 0 3"/><geom type="sphere" size="0.2"'
     ' rgba="1 0 0 1"/></worldbody></mujoco>')
 frame = physics.render(48, 64)
-print(os.environ.get('MUJOCO_GL'), _render.BACKEND, frame.shape,
-      int(frame.max()))
+print(os.environ.get('MUJOCO_GL'), _render.BACKEND, before, egl_loaded(),
+      frame.shape, int(frame.max()))
 """
 
 
@@ -56,18 +68,21 @@ def test_no_default_without_libegl():
 
 
 @_HEADLESS
-def test_import_without_display_renders_with_egl_and_no_glfw_error():
+def test_without_display_egl_loads_at_the_first_render_only():
   result = _run(_RENDER)
   assert result.returncode == 0, result.stderr
   assert 'GLFW' not in result.stderr, result.stderr
-  gl, backend, *_, brightest = result.stdout.split()
-  assert (gl, backend) == ('egl', 'egl')
+  gl, backend, before, after, *_, brightest = result.stdout.split()
+  # MUJOCO_GL stays unset for the program and its subprocesses.
+  assert (gl, backend) == ('None', 'egl')
+  assert (before, after) == ('False', 'True')
   assert int(brightest) > 0, 'blank frame'
 
 
 @_HEADLESS
 def test_explicit_mujoco_gl_wins():
-  result = _run('import os, hrc_suite; print(os.environ["MUJOCO_GL"])',
-                MUJOCO_GL='osmesa')
+  result = _run('import os, hrc_suite; from dm_control import _render; '
+                'print(os.environ["MUJOCO_GL"], _render.BACKEND)',
+                MUJOCO_GL='off')
   assert result.returncode == 0, result.stderr
-  assert result.stdout.split() == ['osmesa']
+  assert result.stdout.split() == ['off', 'off']   # dm_control's no-renderer
