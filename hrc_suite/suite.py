@@ -51,6 +51,13 @@ class Environment(composer.Environment):
       super().add_extra_hook('before_substep', steps.last_before)
       super().add_extra_hook('after_substep', steps.last_after)
 
+  def step(self, action):
+    # After a LAST step composer resets; a running episode restored since
+    # (HrcTask.set_state) continues instead of being discarded.
+    if self._reset_next_step and getattr(self.task, 'restored', False):
+      self._reset_next_step = False
+    return super().step(action)
+
   def add_extra_hook(self, hook_name, hook_callable):
     if self.task.one_substep and hook_name in substeps.HOOKS:
       self.task.physics_steps.add_extra_hook(hook_name, hook_callable)

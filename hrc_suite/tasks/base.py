@@ -347,6 +347,7 @@ class HrcTask(composer.Task):
     self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
     self._physics_ptr = None
     self._episode_data = None   # MjData of the last initialised episode.
+    self._restored = False      # set_state since the last step
     self._one_substep = False
     self._physics_steps = substeps_lib.PhysicsSteps()
     self._compiled_steps = None   # tasks/physics_loop.py, once bound
@@ -662,6 +663,7 @@ class HrcTask(composer.Task):
 
   def before_step(self, physics, action, random_state):
     del random_state
+    self._restored = False
     spec_shape = (self._action_space.num_arm + int(self.HAS_GRIPPER_ACTION),)
     action = actions.validate_action(action, spec_shape)
     q = physics.data.qpos[self._qpos_index]
@@ -1027,7 +1029,9 @@ class HrcTask(composer.Task):
 
   def set_state(self, physics, state):
     """Restores a snapshot from get_state (same task configuration) into
-    an environment that has been reset."""
+    an environment that has been reset. A snapshot of a running episode
+    restored after a LAST step continues at the next step (environments
+    of suite.load) instead of being discarded by a reset."""
     if physics.data.ptr is not self._episode_data:
       # composer.Environment resets at its first step, which would draw a
       # new episode over the restored one.
@@ -1072,3 +1076,11 @@ class HrcTask(composer.Task):
     self._clip_ended = bool(task['clip_ended'])
     mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
     self._set_task_state(physics, copy.deepcopy(task['own']))
+    # A running episode was restored: its next step continues it, also
+    # after a LAST step (suite.Environment does not reset then).
+    self._restored = not self._terminate
+
+  @property
+  def restored(self):
+    """Whether a running episode was restored since the last step."""
+    return self._restored

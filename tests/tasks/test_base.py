@@ -291,6 +291,26 @@ def test_set_state_before_the_first_reset_raises():
     fresh.task.set_state(fresh.physics, state)
 
 
+def test_a_snapshot_restored_after_the_last_step_continues():
+  env = _env(seed=7, observations='full', time_limit=1.0)
+  env.reset()
+  _rollout(env, _random_actions(env, 3))
+  state = env.task.get_state(env.physics)
+  replay = _random_actions(env, 4, seed=5)
+  first = _rollout(env, replay)
+  timestep = None
+  while timestep is None or not timestep.last():
+    timestep = env.step(np.zeros(env.action_spec().shape))
+  env.task.set_state(env.physics, state)   # No reset in between.
+  steps = [env.step(action) for action in replay]
+  assert not any(t.first() for t in steps)
+  _assert_same(first, [t.observation for t in steps])
+  # Without a restore, the step after LAST starts a new episode.
+  while not env.step(np.zeros(env.action_spec().shape)).last():
+    pass
+  assert env.step(np.zeros(env.action_spec().shape)).first()
+
+
 def test_set_state_rejects_a_foreign_physics_state():
   env = _env()
   env.reset()
