@@ -849,12 +849,14 @@ class HrcTask(composer.Task):
     out = compiled.out
     out[0] = self._max_tracking_error
     out[1] = 0.0
+    out[2] = self._monitor.max_human_contact_speed
     stopped, status = compiled.run(k, end, self._setpoints,
                                    self._setpoint_flags,
                                    self._setpoints_from, self._expected_rows)
     self._completed_substeps += stopped - k
     self._max_tracking_error = float(out[0])
     self._intervened |= bool(out[1])
+    self._monitor.max_human_contact_speed = float(out[2])
     last = stopped - 1 if status == physics_loop.DONE else stopped
     self._substep = last + 1
     self._time = self._playback.times[last]

@@ -86,6 +86,19 @@ def _classify(geom, pair_types, flags):
   return human
 
 
+@numba.njit(cache=True, nogil=True)
+def commanded_speed(jacobian, dofs, dq_command):
+  """|J[:, dofs] dq_command| (m/s), summed joint by joint in order (the
+  same value in the Python loop and tasks/physics_loop.py)."""
+  v0 = v1 = v2 = 0.0
+  for k in range(dofs.shape[0]):
+    column = dofs[k]
+    v0 += jacobian[0, column] * dq_command[k]
+    v1 += jacobian[1, column] * dq_command[k]
+    v2 += jacobian[2, column] * dq_command[k]
+  return np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+
+
 class ContactMonitor:
   """Counts contacts by type for one compiled physics."""
 
@@ -120,7 +133,7 @@ class ContactMonitor:
     self._velocity = np.zeros(6)
     self._jacobian = np.zeros((3, model.nv))
     self._dofs = (np.arange(model.nv) if robot_dofs is None
-                  else np.asarray(robot_dofs, dtype=int))
+                  else np.asarray(robot_dofs, dtype=np.int64))
     self._qpos = (None if robot_qpos is None
                   else np.asarray(robot_qpos, dtype=int))
     if self._qpos is not None and self._qpos.shape != self._dofs.shape:
@@ -130,10 +143,12 @@ class ContactMonitor:
     self._flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
     self.max_human_contact_speed = 0.0
 
-  @property
-  def pair_types(self):
-    """The contact type of every geom pair (ngeom, ngeom), -1 for none."""
-    return self._pair_types
+  def kernel_arguments(self):
+    """What tasks/physics_loop.run judges contacts with: the type of every
+    geom pair (ngeom, ngeom; -1: none), geom categories and bodies, the
+    robot's dofs, a Jacobian buffer and critical_speed."""
+    return (self._pair_types, self._categories, self._geom_body,
+            self._dofs, self._jacobian, self.critical_speed)
 
   def reset(self):
     """Starts a new interval for `max_human_contact_speed`."""
@@ -160,8 +175,8 @@ class ContactMonitor:
       point = posed.xpos[body] + posed.xmat[body].reshape(3, 3) @ local
       data = posed
     mujoco.mj_jac(self._model, data, self._jacobian, None, point, body)
-    velocity = self._jacobian[:, self._dofs] @ dq_command
-    return float(np.sqrt(velocity @ velocity))
+    return float(commanded_speed(self._jacobian, self._dofs,
+                                 np.asarray(dq_command, dtype=np.float64)))
 
   def _posed(self, q_command):
     """A scratch MjData with the measured state and the robot at q_command

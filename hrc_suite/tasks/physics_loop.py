@@ -8,8 +8,9 @@ the shield's precomputed set-point, the controller's torque
 (control/controller.py's kernels around mj_mulM), MuJoCo's mj_step2 and
 mj_step1 (dm_control's legacy step; libmujoco's own functions, called
 by name from compiled code), dm_control's warning check, then the task's after_substep:
-the tracking bound and the contact classification
-(tasks/contacts.py). The arithmetic is the Python loop's, operation for
+the tracking bound and the contacts' classification, robot-human contacts
+judged by the commanded speed at the contact point (mj_jac, as
+tasks/contacts.py). The arithmetic is the Python loop's, operation for
 operation, so both give the same states bit for bit
 (tests/tasks/test_fast_path.py).
 
@@ -18,8 +19,8 @@ before, at a step that needs it:
 
 * the person changes clip (the capsules are resized in the model);
 * the tracking bound exceeds the shield's tolerance (a push: the exact
-  check, rewind and resync are Python's);
-* a robot-human contact (its speed is judged with mj_jac);
+  check, rewind and resync, and contacts judged at the commanded pose,
+  are Python's);
 * a physics step that raised a MuJoCo warning (the task raises
   dm_control's PhysicsError, as the Python loop does).
 
@@ -61,6 +62,7 @@ PHYSICS_WARNING = 2   # step k's physics raised a MuJoCo warning counter
 # compiled call runs (module doc: MuJoCo errors need the Python loop).
 ARENA_HEADROOM = 0.5
 _ALLOWED = contacts.TYPE_INDEX['human_allowed']
+_CRITICAL = contacts.TYPE_INDEX['human_critical']
 # Two spheres resting on a plane and touching each other: three contacts,
 # to locate mjContact's fields (_contact_fields).
 _PROBE_XML = """
@@ -99,6 +101,8 @@ _STEP1 = types.ExternalFunction('mj_step1', types.void(types.uint64,
 _STEP2 = types.ExternalFunction('mj_step2', types.void(types.uint64,
                                                        types.uint64))
 _MUL_M = types.ExternalFunction('mj_mulM', types.void(*[types.uint64] * 4))
+_JAC = types.ExternalFunction('mj_jac', types.void(*[types.uint64] * 5,
+                                                   types.int32))
 
 
 def _address(array):
@@ -150,9 +154,10 @@ class ContactMemory:
     self.ncon = counts[:1]
     self.contact_slot = pointers[-1:]   # d->contact (read every step)
     self.arena_ints = _view(ctypes.c_int32, self.arena, model.narena // 4)
-    stride, geom = _contact_fields()
+    stride, geom, pos = _contact_fields()
     self.stride = stride // 4          # in int32 entries
     self.geom = geom // 4
+    self.stride_bytes, self.pos_bytes = stride, pos
     if data.ncon:   # The bindings' geom pairs where this reads them.
       if not np.array_equal(self.geom_pairs(), data.contact.geom):
         raise ValueError('contact geoms are not where expected')
@@ -165,8 +170,8 @@ class ContactMemory:
 
 
 def _contact_fields():
-  """(stride, offset of geom) of mjContact in bytes, from the bindings'
-  views on a model with contacts."""
+  """(stride, offset of geom, offset of pos) of mjContact in bytes, from
+  the bindings' views on a model with contacts."""
   model = mujoco.MjModel.from_xml_string(_PROBE_XML)
   data = mujoco.MjData(model)
   mujoco.mj_forward(model, data)
@@ -174,9 +179,10 @@ def _contact_fields():
     raise ValueError('the probe model has no contacts')
   dist = np.asarray(data.contact.dist)
   offset = _address(data.contact.geom) - _address(dist)
-  if dist.strides[0] % 8 or offset % 4:
+  pos = _address(data.contact.pos) - _address(dist)
+  if dist.strides[0] % 8 or offset % 4 or pos % 8:
     raise ValueError('mjContact is not laid out as expected')
-  return dist.strides[0], offset
+  return dist.strides[0], offset, pos
 
 
 @_jit
@@ -186,12 +192,13 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
         arm_acceleration, product, arm_product, kp, kd, half_step,
         damping_step, torque_limit, torque, command_dq, warnings, before,
         q_measured, levers, tolerance, ncon, contact_slot, arena,
-        arena_ints, stride, geom, pair_types, flags, step_flags,
-        contact_steps, out):
+        arena_ints, stride, geom, stride_bytes, pos_bytes, pair_types,
+        categories, geom_body, dofs, jacobian, critical_speed, flags,
+        step_flags, contact_steps, out):
   """Physics steps k0..k1-1 (module doc); returns (k, status): the step
   it stopped at and why (DONE: k = k1). out[0]: the largest tracking
-  bound (updated), out[1]: 1 if a set-point run had the shield
-  intervene."""
+  bound, out[2]: the largest robot-human contact speed (both updated);
+  out[1]: set to 1 if a set-point run had the shield intervene."""
   rows, segments = mocap_rows.shape[1], quaternions.shape[1]
   dof = q.shape[0]
   for k in range(k0, k1):
@@ -226,14 +233,28 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
     flags[:] = False
     count = ncon[0]
     if count:
+      human = False
       start = np.int64(contact_slot[0] - arena) // 4
       for c in range(count):
         row = start + c * stride + geom
         kind = pair_types[arena_ints[row], arena_ints[row + 1]]
-        if kind == _ALLOWED:
-          return k, PYTHON_AFTER
         if kind >= 0:
           flags[kind] = True
+          human |= kind == _ALLOWED
+      if human:   # contacts.ContactMonitor.update, the robot tracking
+        flags[_ALLOWED] = False
+        for c in range(count):
+          row = start + c * stride + geom
+          first, second = arena_ints[row], arena_ints[row + 1]
+          if pair_types[first, second] != _ALLOWED:
+            continue
+          robot = first if categories[first] == contacts.ROBOT else second
+          point = contact_slot[0] + np.uint64(c * stride_bytes + pos_bytes)
+          _JAC(model, data, np.uint64(jacobian.ctypes.data), np.uint64(0),
+               point, np.int32(geom_body[robot]))
+          speed = contacts.commanded_speed(jacobian, dofs, command_dq)
+          out[2] = max(out[2], speed)
+          flags[_CRITICAL if speed > critical_speed else _ALLOWED] = True
     if distance > out[0]:
       out[0] = distance
     for t in range(flags.shape[0]):
@@ -271,14 +292,15 @@ class CompiledSteps:
     self._maxuse = None
     self._flags = np.zeros_like(step_flags)
     self._before = np.zeros(physics.data.warning.number.shape, np.int32)
-    self.out = np.zeros(2)
+    self.out = np.zeros(3)
     self._head = (model._address, data._address) + mocap
     self._tail = controller.kernel_arguments() + (
         command_dq, physics.data.warning.number, self._before, q_measured,
         np.ascontiguousarray(tracking_levers, dtype=float),
         float(tracking_tolerance), memory.ncon, memory.contact_slot,
         np.uint64(memory.arena), memory.arena_ints, memory.stride,
-        memory.geom, monitor.pair_types, self._flags, step_flags,
+        memory.geom, memory.stride_bytes, memory.pos_bytes,
+        *monitor.kernel_arguments(), self._flags, step_flags,
         contact_steps, self.out)
 
   def has_headroom(self):
