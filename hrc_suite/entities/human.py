@@ -407,10 +407,24 @@ class Human(composer.Entity):
 
   def set_grip(self, physics, object_body, position, quaternion):
     """Changes the pose at which a held object is welded to the hand."""
+    target, index = self.grip_slots(physics, object_body)
+    target[index] = self.grip_values(position, quaternion)
+
+  def grip_slots(self, physics, object_body):
+    """(MjModel's eq_data, flat, and the indices of the held object's
+    weld's relative pose in it) for `grip_values`."""
     hand = self._held.get(object_body)
     if hand is None:
       name = getattr(object_body, 'full_identifier', object_body)
       raise ValueError(f'{name!r} is not held')
+    eq_id = physics.bind(self._holdables[object_body][hand]).element_id
+    eq_data = physics.model.eq_data
+    return eq_data.reshape(-1), eq_id * eq_data.shape[1] + np.arange(10)
+
+  @staticmethod
+  def grip_values(position, quaternion):
+    """The weld's eq_data[0:10] holding an object at (position,
+    quaternion) in the hand's frame (anchor 0, the unit quaternion)."""
     position = np.asarray(position, dtype=np.float64)
     quaternion = np.asarray(quaternion, dtype=np.float64)
     norm = np.linalg.norm(quaternion) if quaternion.shape == (4,) else 0.0
@@ -419,11 +433,10 @@ class Human(composer.Entity):
       raise ValueError('relative pose must be a finite position (3,) and a '
                        f'non-zero quaternion (4,), got {position!r}, '
                        f'{quaternion!r}')
-    eq_id = physics.bind(self._holdables[object_body][hand]).element_id
-    data = physics.model.eq_data[eq_id]
-    data[0:3] = 0.0
-    data[3:6] = position
-    data[6:10] = quaternion / norm
+    values = np.zeros(10)
+    values[3:6] = position
+    values[6:10] = quaternion / norm
+    return values
 
   def grip(self, physics, object_body):
     """(position, quaternion) at which a held object is welded to its hand

@@ -826,23 +826,29 @@ class HrcTask(composer.Task):
     compiled call where nothing needs Python (tasks/physics_loop.py),
     the others one by one."""
     steps, compiled = self._physics_steps, self._compiled_steps
-    if compiled is not None and (self._works_before_physics_steps()
-                                 or not steps.idle()
+    if compiled is not None and (not steps.idle()
                                  or not compiled.has_headroom()):
       compiled = None
+    writes = ()
+    if compiled is not None and self._works_before_physics_steps():
+      writes = self._physics_step_writes(physics)
+      if writes is None:
+        compiled = None
     while self._substep < stop:
       k = self._substep
       if compiled is not None:
         end = self._playback.same_clip_until(k, stop)
         if end > k:
-          self._run_compiled(physics, random_state, compiled, k, end)
+          self._run_compiled(physics, random_state, compiled, k, end,
+                             writes)
           continue
       self._prepare_physics_step(physics)
       steps.step(physics, action, random_state)
       self.after_substep(physics, random_state)
       steps.after(physics, random_state)
 
-  def _run_compiled(self, physics, random_state, compiled, k, end):
+  def _run_compiled(self, physics, random_state, compiled, k, end,
+                    writes):
     """Physics steps k..end-1 in the compiled call, then what it left to
     Python (physics_loop.run's status)."""
     self._plan_setpoints(k)
@@ -852,7 +858,8 @@ class HrcTask(composer.Task):
     out[2] = self._monitor.max_human_contact_speed
     stopped, status = compiled.run(k, end, self._setpoints,
                                    self._setpoint_flags,
-                                   self._setpoints_from, self._expected_rows)
+                                   self._setpoints_from, self._expected_rows,
+                                   writes)
     self._completed_substeps += stopped - k
     self._max_tracking_error = float(out[0])
     self._intervened |= bool(out[1])
@@ -872,6 +879,16 @@ class HrcTask(composer.Task):
     that overrides it may say when it has none)."""
     return (type(self)._before_physics_step
             is not HrcTask._before_physics_step)
+
+  def _physics_step_writes(self, physics):
+    """What `_before_physics_step` writes before each of this RL step's
+    physics steps, computed at its start for the compiled loop
+    (tasks/physics_loop.py): up to two groups (target (n,) array, indices
+    (m,), values (L, m): target[indices] = values[k] before physics step
+    k), the same values as `_before_physics_step` writes; None where they
+    cannot be computed ahead (the Python loop runs then)."""
+    del physics
+    return None
 
   def _prepare_physics_step(self, physics):
     """Before a physics step: the person's pose, the shield's command, the

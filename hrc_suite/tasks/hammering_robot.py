@@ -33,6 +33,7 @@ recordings, CollaborativeHammering, record these roles).
 
 import collections
 
+from dm_control import mjcf
 from dm_control.composer.observation import observable
 import numpy as np
 
@@ -237,14 +238,35 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     self._carry = (rotation.T @ (board.xpos - hand),
                    rotation.T @ board.xmat.reshape(3, 3))
 
-  def _carry_board(self, physics, points):
-    """Puts the plank at the holding hand (heading frame offset)."""
+  def _carry_pose(self, points):
+    """The carried plank's (position, quaternion) at the holding hand
+    (heading frame offset) of the keypoints `points`."""
     rotation = _yaw_matrix(heading(points))
     offset, relative = self._carry
     hand = points[keypoints.KEYPOINT_INDEX[f'{self._hand}_hand']]
-    self._board.set_pose(physics, hand + rotation @ offset,
-                         hammering.matrix_to_quat(rotation @ relative))
+    return (hand + rotation @ offset,
+            hammering.matrix_to_quat(rotation @ relative))
+
+  def _carry_board(self, physics, points):
+    """Puts the plank at the holding hand, at rest."""
+    self._board.set_pose(physics, *self._carry_pose(points))
     self._board.set_velocity(physics, np.zeros(3), np.zeros(3))
+
+  def _physics_step_writes(self, physics):
+    """The carried plank's free-joint position and velocity rows for each
+    physics step of the RL step: what _carry_board writes (set_pose
+    normalises the quaternion, set_velocity zeroes the velocity)."""
+    joint = physics.bind(mjcf.get_frame_freejoint(self._board.mjcf_model))
+    positions = self._playback.positions
+    qpos = np.empty((len(positions), 7))
+    for k, points in enumerate(positions):
+      position, quaternion = self._carry_pose(points)
+      qpos[k, :3] = position
+      qpos[k, 3:] = quaternion / np.linalg.norm(quaternion)
+    data = physics.data
+    return ((data.qpos, int(joint.qposadr) + np.arange(7), qpos),
+            (data.qvel, int(joint.dofadr) + np.arange(6),
+             np.zeros((len(positions), 6))))
 
   def _set_board_collisions(self, physics, on):
     """A carried plank is part of the kinematic person: no collisions."""

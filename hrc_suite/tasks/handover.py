@@ -185,6 +185,11 @@ class _Handover(base.HrcTask):
     """The current clip's holding hand (its palm is the target)."""
     return self._holding_hand
 
+  def _hand_segment(self):
+    """Index of the holding hand's capsule in human.SEGMENTS."""
+    names = [seg[0] for seg in human_lib.SEGMENTS]
+    return names.index(f'{self._hand()}_hand')
+
   def _palm_position(self, physics):
     index = self._palm[f'{self._hand()}_hand']
     return self._human.keypoint_positions(physics)[index]
@@ -285,9 +290,7 @@ class RobotToHuman(_Handover):
   def palm_touches_handle(self, physics):
     """True if the holding hand's capsule is within TOUCH_TOLERANCE of the
     handle (both as capsules)."""
-    names = [s[0] for s in human_lib.SEGMENTS]
-    hand = physics.bind(self._human.geoms[names.index(
-        f'{self._hand()}_hand')])
+    hand = physics.bind(self._human.geoms[self._hand_segment()])
     axis = hand.xmat.reshape(3, 3)[:, 2] * hand.size[1]
     handle = physics.bind(self._hammer.handle)
     half = handle.xmat.reshape(3, 3)[:, 0] * handle.size[0]
@@ -348,7 +351,7 @@ class HumanToRobot(_Handover):
     self._pick_grip = None
     self._turn = 0.0
 
-  def presenting_grip(self, physics):
+  def presenting_grip(self, physics, hand_pose=None):
     """(position, quaternion) of the hammer in the holding hand's capsule
     frame when presented: along the hand's axis (head forward), lying on
     its side (body y in the vertical plane through the handle, upwards),
@@ -358,14 +361,17 @@ class HumanToRobot(_Handover):
     wrist: a recording's hand continues its forearm, which points 15-35
     degrees down while presenting; held along it, a palm 0.05 m above the
     table put the hammer into the table. The hand's frame is read from its
-    mocap pose (this physics step's keypoints)."""
-    names = [seg[0] for seg in human_lib.SEGMENTS]
-    segment = names.index(f'{self._hand()}_hand')
+    mocap pose (this physics step's keypoints), or given: hand_pose =
+    (centre (3,), quaternion (4,)) of the hand's capsule."""
+    segment = self._hand_segment()
     half = physics.bind(self._human.geoms[segment]).size[1]
-    mocap = physics.bind(self._human.segment_bodies[segment]).mocapid
-    centre = physics.data.mocap_pos[mocap]
+    if hand_pose is None:
+      mocap = physics.bind(self._human.segment_bodies[segment]).mocapid
+      hand_pose = (physics.data.mocap_pos[mocap],
+                   physics.data.mocap_quat[mocap])
+    centre = hand_pose[0]
     r_hand = np.empty(9)
-    mujoco.mju_quat2Mat(r_hand, physics.data.mocap_quat[mocap])
+    mujoco.mju_quat2Mat(r_hand, hand_pose[1])
     r_hand = r_hand.reshape(3, 3)
     axis = r_hand[:, 2]
     heading = axis * (1.0, 1.0, 0.0)
@@ -395,6 +401,19 @@ class HumanToRobot(_Handover):
 
   def _works_before_physics_steps(self):
     return self._presenting()   # Changes only between RL steps.
+
+  def _physics_step_writes(self, physics):
+    """The presenting grip's weld data for each physics step of the RL
+    step (what _before_physics_step sets), from the hand capsule's poses
+    the person's playback shows at those steps."""
+    target, index = self._human.grip_slots(physics, self._hammer.body)
+    segment = self._hand_segment()
+    middles, quaternions = self._playback.segment_poses(segment)
+    values = np.empty((len(middles), index.size))
+    for k in range(len(middles)):
+      values[k] = self._human.grip_values(*self.presenting_grip(
+          physics, (middles[k], quaternions[k])))
+    return ((target, index, values),)
 
   def _before_physics_step(self, physics):
     if self._presenting():

@@ -150,6 +150,11 @@ class HumanPlayback:
     return (self._mocap_pos, self._mocap_rows, self._together.start,
             self._mocap_quat, self._quaternions, self._segment_mocap.start)
 
+  def segment_poses(self, segment):
+    """(centres (L, 3), quaternions (L, 4)) of capsule `segment` at the RL
+    step's substeps: the mocap pose `apply` gives it."""
+    return self._middles[:, segment], self._quaternions[:, segment]
+
   def same_clip_until(self, k, stop):
     """The first substep in [k, stop) whose clip is not the one shown
     (`apply` resizes the capsules there), else stop."""

@@ -24,9 +24,12 @@ before, at a step that needs it:
 * a physics step that raised a MuJoCo warning (the task raises
   dm_control's PhysicsError, as the Python loop does).
 
-Where a task works before every physics step (`_before_physics_step`),
-an entity or an extra substep hook is active, or the model is not
-stepped the legacy way, the Python loop runs (HrcTask._run_physics_steps).
+A task that works before every physics step (`_before_physics_step`)
+may hand the call what it writes there, computed for the RL step's
+physics steps at its start (`HrcTask._physics_step_writes`: the carried
+plank's pose, the presenting grip); where it cannot, an entity or an
+extra substep hook is active, or the model is not stepped the legacy
+way, the Python loop runs (HrcTask._run_physics_steps).
 MuJoCo errors (mju_error, e.g. an exhausted arena) cannot pass through
 compiled frames as exceptions, so the call also needs the arena's high
 water mark below `ARENA_HEADROOM` of its size; above it the Python loop,
@@ -194,11 +197,14 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
         q_measured, levers, tolerance, ncon, contact_slot, arena,
         arena_ints, stride, geom, stride_bytes, pos_bytes, pair_types,
         categories, geom_body, dofs, jacobian, critical_speed, flags,
-        step_flags, contact_steps, out):
+        step_flags, contact_steps, out, target0, index0, rows0, target1,
+        index1, rows1):
   """Physics steps k0..k1-1 (module doc); returns (k, status): the step
   it stopped at and why (DONE: k = k1). out[0]: the largest tracking
   bound, out[2]: the largest robot-human contact speed (both updated);
-  out[1]: set to 1 if a set-point run had the shield intervene."""
+  out[1]: set to 1 if a set-point run had the shield intervene. target,
+  index, rows (two groups): the task's writes before each physics step,
+  target[index] = rows[k] (HrcTask._physics_step_writes)."""
   rows, segments = mocap_rows.shape[1], quaternions.shape[1]
   dof = q.shape[0]
   for k in range(k0, k1):
@@ -220,6 +226,10 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
            np.uint64(acceleration.ctypes.data))
     controller_lib._torque(damping_step, arm_acceleration, arm_product,
                            bias, passive, torque_limit, torque, ctrl)
+    for j in range(index0.shape[0]):
+      target0[index0[j]] = rows0[k, j]
+    for j in range(index1.shape[0]):
+      target1[index1[j]] = rows1[k, j]
     for w in range(warnings.shape[0]):
       before[w] = warnings[w]
     _STEP2(model, data)
@@ -293,6 +303,8 @@ class CompiledSteps:
     self._flags = np.zeros_like(step_flags)
     self._before = np.zeros(physics.data.warning.number.shape, np.int32)
     self.out = np.zeros(3)
+    self._no_writes = (np.zeros(0), np.zeros(0, dtype=np.int64),
+                       np.zeros((max(len(playback.times), 1), 0)))
     self._head = (model._address, data._address) + mocap
     self._tail = controller.kernel_arguments() + (
         command_dq, physics.data.warning.number, self._before, q_measured,
@@ -313,7 +325,12 @@ class CompiledSteps:
     return self._before
 
   def run(self, k0, k1, setpoints, setpoint_flags, setpoints_from,
-          expected_rows):
-    """Physics steps k0..k1-1 (see `run`): (k, status)."""
+          expected_rows, writes=()):
+    """Physics steps k0..k1-1 (see `run`): (k, status). writes: up to two
+    (target, index, rows) groups (HrcTask._physics_step_writes)."""
+    if len(writes) > 2:
+      raise ValueError(f'at most two groups of writes, got {len(writes)}')
+    groups = list(writes) + [self._no_writes] * (2 - len(writes))
     return run(k0, k1, *self._head, setpoints, setpoint_flags,
-               setpoints_from, expected_rows, *self._tail)
+               setpoints_from, expected_rows, *self._tail,
+               *groups[0], *groups[1])
