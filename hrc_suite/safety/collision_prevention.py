@@ -43,9 +43,12 @@ penetrate deeper until it is free (see `paths_free`).
 
 Compiled (compiled=True): the capsule tests run in `cp_kernels`, and a
 plan from a free start is swept in one call
-(`cp_kernels.planned_path_collides`); compiled=False runs the NumPy
-reference (`_colliding_reference`, `_planned_sweep`). Both make the same
-decisions (the same operations in the same order; tests on random goals).
+(`cp_kernels.planned_path_collides`, with a conservative broad phase that
+skips only capsule tests proven not to hit: `cp_bounds`); compiled=False
+runs the NumPy reference (`_colliding_reference`, `_planned_sweep`). Both
+make the same decisions (the same operations in the same order where a
+test is done; tests on random goals, near the table and near
+self-collision).
 """
 
 import numpy as np
@@ -66,6 +69,11 @@ DEFAULT_MAX_STEP = 0.01
 # sample and levels (inflation 5 mm -> 1.25 -> 0.31 -> 0.08 mm).
 REFINE = 4
 REFINE_LEVELS = 3
+# Samples per run of the compiled plan sweep's broad phase (cp_bounds):
+# one forward kinematics at a run's centre proves most capsule tests free
+# for all of its samples (16: the fastest of 8, 16 and 32 on reach's
+# plans, docs/benchmarks.md).
+SWEEP_RUN = 16
 # Sub-sample positions in (-1, 1), in half widths of the refined sample.
 _REFINE_OFFSETS = (2.0 * np.arange(REFINE) + 1.0) / REFINE - 1.0
 # Escape rule: a penetration may grow this much (m) from sample to sample
@@ -503,9 +511,10 @@ class CollisionPrevention:
         plan._all(), plan.start_time, plan._inverse_cycle, cycle,
         cycle ** 2, cycle ** 3, plan.num_samples - 1, self.levers,
         self._kernel_pair_levers, self.max_step, _REFINE_OFFSETS,
-        REFINE_LEVELS, *self.reach._kernel_model, self.reach._kernel_frames,
-        self._kernel_radii, self.box_min, self.box_max, self._box_checked,
-        self._box_allowance, self._kernel_pairs)
+        REFINE_LEVELS, SWEEP_RUN, *self.reach._kernel_model,
+        self.reach._kernel_frames, self._kernel_radii, self.box_min,
+        self.box_max, self._box_checked, self._box_allowance,
+        self._kernel_pairs)
 
   def _planned_sweep(self, q0, plans, cycle):
     """Collision flags of plans (None: not made, not flagged) from q0, by
