@@ -36,9 +36,16 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
   times first..stop - 1 cycles. table (dof * P, 5): rows (start time, p,
   v, a, j) of constant-jerk pieces, joint i's P rows from i * P; starts:
   the rows' start times shifted by joint_shift (dof,) per joint (sorted);
-  from `duration` on the goal (dof,) at rest."""
+  from `duration` on the goal (dof,) at rest.
+
+  The sample times, and so each joint's query time + joint_shift[i],
+  never decrease (floating-point products and sums are monotone): each
+  joint's row is searched once and then walked forward, to the same row
+  the search would give."""
   dof = joint_shift.shape[0]
   out = np.empty((stop - first, 4, dof))
+  rows = np.full(dof, -2, dtype=np.int64)   # -2: not searched yet.
+  last = starts.shape[0] - 1
   for n in range(stop - first):
     time = (first + n) * cycle_time
     if time >= duration:
@@ -49,7 +56,14 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
         out[n, 3, i] = 0.0
       continue
     for i in range(dof):
-      row = _last_at_or_before(starts, time + joint_shift[i])
+      x = time + joint_shift[i]
+      row = rows[i]
+      if row == -2:
+        row = _last_at_or_before(starts, x)
+      else:
+        while row < last and starts[row + 1] <= x:
+          row += 1
+      rows[i] = row
       d = time - table[row, 0]
       p, v, a, j = table[row, 1], table[row, 2], table[row, 3], table[row, 4]
       out[n, 0, i] = p + d * (v + d * (0.5 * a + d * j / 6.0))
