@@ -8,6 +8,8 @@ Same compilation settings as the shield's kernels (cache, IEEE
 arithmetic).
 """
 
+import math
+
 import numpy as np
 
 from hrc_suite.safety import kernels
@@ -86,4 +88,23 @@ def start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
             abs(ddq0[i]) <= a_max[i] + slack and
             ramped <= v_max[i] + slack):
       return False
+  return True
+
+
+@_jit
+def plan_inputs_ok(q0, dq0, ddq0, q_goal, q_min, q_max, v_max, a_max,
+                   j_max, slack, margin, goal):
+  """Whether long_term_plan.plan_to_goal's inputs (dof,) pass its checks
+  (all finite, `start_state_ok`), its fast path; if so the goal clamped
+  `margin` inside the joint limits (np.clip(q_goal, q_min + margin,
+  q_max - margin)) is written to goal."""
+  for i in range(q0.shape[0]):
+    if not (math.isfinite(q0[i]) and math.isfinite(dq0[i]) and
+            math.isfinite(ddq0[i]) and math.isfinite(q_goal[i])):
+      return False
+  if not start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
+                        slack):
+    return False
+  for i in range(q0.shape[0]):
+    goal[i] = min(max(q_goal[i], q_min[i] + margin), q_max[i] - margin)
   return True

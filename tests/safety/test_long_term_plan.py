@@ -1,6 +1,7 @@
 """Long-term plan: Ruckig to rest, exact sampling, single index offset (B1)."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -248,3 +249,43 @@ def test_compiled_start_check_agrees_with_the_numpy_conditions(panda):
     assert raised == (not expected)
     outcomes.append(ok)
   assert set(outcomes) == {True, False}
+
+
+def test_compiled_input_check_agrees_with_the_checks_one_by_one(panda):
+  """plan_kernels.plan_inputs_ok (plan_to_goal's fast path) passes exactly
+  the inputs that pass _check_vector, clamp_goal and check_start_state,
+  with clamp_goal's goal bit for bit: random states, some not finite,
+  some beyond the limits; plan_to_goal raises the checks' own errors."""
+  limits = panda.limits
+  rng = np.random.RandomState(5)
+  outcomes = []
+  for _ in range(400):
+    q0 = rng.uniform(limits.q_min - 0.02, limits.q_max + 0.02)
+    dq0 = rng.uniform(-1.05, 1.05, panda.dof) * limits.v_max
+    ddq0 = rng.uniform(-0.5, 0.5, panda.dof) * limits.a_max_ltt
+    q_goal = rng.uniform(limits.q_min - 0.3, limits.q_max + 0.3)
+    vectors = [q0, dq0, ddq0, q_goal]
+    if rng.rand() < 0.2:
+      vectors[rng.randint(4)][rng.randint(panda.dof)] = rng.choice(
+          [np.nan, np.inf, -np.inf])
+    try:
+      for name, x in zip(('q0', 'dq0', 'ddq0'), vectors):
+        ltp._check_vector(name, x, panda.dof)
+      expected_goal = ltp.clamp_goal(q_goal, limits)
+      ltp.check_start_state(q0, dq0, ddq0, limits)
+      expected = None
+    except ValueError as e:   # PlanningError included.
+      expected = e
+    goal = np.empty(panda.dof)
+    ok = ltp.plan_kernels.plan_inputs_ok(
+        *vectors, limits.q_min, limits.q_max, limits.v_max,
+        limits.a_max_ltt, limits.j_max_ltt, ltp._LIMIT_SLACK,
+        ltp.GOAL_LIMIT_MARGIN, goal)
+    assert ok == (expected is None)
+    if ok:
+      assert np.array_equal(goal, expected_goal)
+    else:
+      with pytest.raises(type(expected), match=re.escape(str(expected))):
+        ltp.plan_to_goal(q0, dq0, ddq0, q_goal, limits, 0.004)
+    outcomes.append(ok)
+  assert 0.2 < np.mean(outcomes) < 0.8
