@@ -335,6 +335,9 @@ class CollisionPrevention:
 
   def _within(self, q_goals):
     limits = self.description.limits
+    if self.compiled:
+      return cp_kernels.within_limits(np.ascontiguousarray(q_goals),
+                                      limits.q_min, limits.q_max)
     return np.all((q_goals >= limits.q_min) & (q_goals <= limits.q_max),
                   axis=-1)
 
@@ -495,20 +498,28 @@ class CollisionPrevention:
         feasible[g] = True
       except ltp.PlanningError:
         plans.append(None)
-    if self.compiled and not self._colliding(q0[None])[0]:
-      collided = np.array([plan is not None and self._plan_collides(plan)
-                           for plan in plans], dtype=bool)
-    else:
+    collided = np.zeros(len(q_goals), dtype=bool)
+    start_free = self.compiled
+    if self.compiled:
+      start = np.ascontiguousarray(q0[None])
+      for g, plan in enumerate(plans):
+        verdict = 0 if plan is None else self._plan_collides(plan, start)
+        start_free = verdict >= 0
+        if not start_free:
+          break
+        collided[g] = verdict > 0
+    if not start_free:   # The reference, and the escape rule.
       collided = self._planned_sweep(q0, plans, cycle)
     self.num_checks += len(q_goals)
     return self._within(q_goals) & feasible & ~collided
 
-  def _plan_collides(self, plan):
-    """Whether a plan collides (start not in collision): the compiled
-    sweep of `_planned_sweep` (cp_kernels.planned_path_collides)."""
+  def _plan_collides(self, plan, start):
+    """1 if a plan from start (1, dof) collides, 0 if not, -1 if the start
+    collides (then `_planned_sweep` decides): the compiled sweep of
+    `_planned_sweep` (cp_kernels.planned_path_collides)."""
     cycle = plan.cycle_time
     return cp_kernels.planned_path_collides(
-        plan._all(), plan.start_time, plan._inverse_cycle, cycle,
+        start, plan._all(), plan.start_time, plan._inverse_cycle, cycle,
         cycle ** 2, cycle ** 3, plan.num_samples - 1, self.levers,
         self._kernel_pair_levers, self.max_step, _REFINE_OFFSETS,
         REFINE_LEVELS, SWEEP_RUN, *self.reach._kernel_model,

@@ -355,14 +355,16 @@ def _refine_collides(coefficients, start_time, inverse_cycle, cycle, last,
 
 
 @_jit
-def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
-                          cycle2, cycle3, last, levers, pair_levers,
+def planned_path_collides(start, coefficients, start_time, inverse_cycle,
+                          cycle, cycle2, cycle3, last, levers, pair_levers,
                           max_step, offsets, levels, run, fixed, points,
                           frame_index, radii, box_min, box_max, box_checked,
                           box_allowance, pairs):
   """Whether a plan (samples (N, 4, dof) one cycle apart from start_time)
-  collides: collision_prevention.planned_paths_free's sweep for a start
-  not in collision, in one call. Each cycle is cut into samples moving no
+  from configuration start (1, dof) collides: 1 if it does, 0 if not, -1
+  if the start itself collides (not swept: the escape rule's reference
+  sweep decides then). collision_prevention.planned_paths_free's sweep for
+  a start not in collision, in one call. Each cycle is cut into samples moving no
   capsule point more than max_step (cycle2, cycle3: cycle**2, cycle**3);
   a sample colliding with its margins is checked exactly (a hit: the
   path collides) and else refined into len(offsets) sub-samples, `levels`
@@ -378,6 +380,15 @@ def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
   dof = coefficients.shape[2]
   count_l = levers.shape[1]
   count_p = pair_levers.shape[1]
+  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
+  no_pairs = np.zeros((0, 0), dtype=np.bool_)
+  zero_l = np.zeros((run, count_l))
+  zero_p = np.zeros((run, count_p))
+  ends = kernels._endpoints(kernels._frames(start, fixed), points,
+                            frame_index)
+  if _hit(ends, 0, radii, zero_l, zero_p, box_min, box_max, box_checked,
+          box_allowance, pairs, no_boxes, no_pairs):
+    return -1
   params, halves, q, reach = sweep_samples(
       coefficients, start_time, inverse_cycle, cycle, cycle2, cycle3, last,
       levers, max_step)
@@ -389,10 +400,6 @@ def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
   pair_todo = np.empty(count_p, dtype=np.int64)
   capsule_margin = np.empty((run, count_l))
   pair_margin = np.empty((run, count_p))
-  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
-  no_pairs = np.zeros((0, 0), dtype=np.bool_)
-  zero_l = np.zeros((run, count_l))
-  zero_p = np.zeros((run, count_p))
   # Samples hitting with their margins but not without: refined after
   # the sweep (a hit without margins ends it first).
   pending = np.empty(total, dtype=np.int64)
@@ -421,7 +428,7 @@ def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
       if levels == 0 or _hit(ends, n - first, radii, zero_l, zero_p,
                              box_min, box_max, box_checked, box_allowance,
                              pairs, no_boxes, no_pairs):
-        return True
+        return 1
       pending[num_pending] = n
       num_pending += 1
   for k in range(num_pending):
@@ -433,8 +440,22 @@ def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
                         points, frame_index, radii, box_min, box_max,
                         box_checked, box_allowance, pairs, ends, params[n],
                         halves[n]):
-      return True
-  return False
+      return 1
+  return 0
+
+
+@_jit
+def within_limits(q, q_min, q_max):
+  """Flags (N,): configurations q (N, dof) within [q_min, q_max] (dof,)
+  (CollisionPrevention._within)."""
+  out = np.empty(q.shape[0], dtype=np.bool_)
+  for n in range(q.shape[0]):
+    inside = True
+    for d in range(q.shape[1]):
+      if not (q[n, d] >= q_min[d] and q[n, d] <= q_max[d]):
+        inside = False
+    out[n] = inside
+  return out
 
 
 _warm = False
@@ -442,8 +463,8 @@ _warm = False
 
 def warm_up():
   """Compiles (or loads from the cache) `colliding` (with and without
-  escape masks) and `planned_path_collides` for the argument types
-  collision prevention passes."""
+  escape masks), `planned_path_collides` and `within_limits` for the
+  argument types collision prevention passes."""
   global _warm
   if _warm:
     return
@@ -461,11 +482,12 @@ def warm_up():
               floats((count_x, count_l)),
               np.zeros((count_p, 2), dtype=np.int64), boxes, pairs)
   planned_path_collides(
-      floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1,
+      floats((1, dof)), floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1,
       floats((dof, count_l)), floats((dof, count_p)), 1.0, floats(2), 1, 1,
       floats((dof, 3, 4)), floats((count_l, 2, 4)),
       np.zeros(count_l, dtype=np.int64), floats(count_l),
       floats((count_x, 3)), floats((count_x, 3)),
       np.ones((count_x, count_l), dtype=bool), floats((count_x, count_l)),
       np.zeros((count_p, 2), dtype=np.int64))
+  within_limits(floats((1, dof)), floats(dof), floats(dof))
   _warm = True
