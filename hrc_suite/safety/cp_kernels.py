@@ -14,7 +14,9 @@ long-term plan (`CollisionPrevention._planned_sweep`, the reference) in
 one call: the plan's per-cycle Taylor polynomial sampled from its samples
 (LongTermPlan.nominal), the margins of its motion bound, the checks and
 their refinement, the same operations in the same order, so that it
-rejects exactly the plans the reference rejects. Same compilation
+rejects exactly the plans the reference rejects. A conservative broad
+phase (`cp_bounds`, docs/safety.md) skips, for runs of samples, only the
+capsule tests it proves cannot hit at any of them. Same compilation
 settings as `kernels` (cache, IEEE arithmetic).
 """
 
@@ -26,7 +28,6 @@ from hrc_suite.safety import cp_bounds
 from hrc_suite.safety import kernels
 
 _jit = kernels._jit
-
 
 
 @_jit
@@ -363,12 +364,13 @@ def planned_path_collides(start, coefficients, start_time, inverse_cycle,
   """Whether a plan (samples (N, 4, dof) one cycle apart from start_time)
   from configuration start (1, dof) collides: 1 if it does, 0 if not, -1
   if the start itself collides (not swept: the escape rule's reference
-  sweep decides then). collision_prevention.planned_paths_free's sweep for
-  a start not in collision, in one call. Each cycle is cut into samples moving no
-  capsule point more than max_step (cycle2, cycle3: cycle**2, cycle**3);
-  a sample colliding with its margins is checked exactly (a hit: the
-  path collides) and else refined into len(offsets) sub-samples, `levels`
-  times; at the last level a hit with margins collides
+  sweep decides then). collision_prevention.planned_paths_free's sweep
+  for a start not in collision, in one call. Each cycle is cut into
+  samples moving no capsule point more than max_step (cycle2, cycle3:
+  cycle**2, cycle**3); a sample colliding with its margins is checked
+  exactly (a hit: the path collides) and else refined into len(offsets)
+  sub-samples, `levels` times; at the last level a hit with margins
+  collides
   (`_refine_collides`). A path collides iff some sample of the
   refinement tree does, as in the reference's level-by-level sweep; here
   all samples are checked exactly before any is refined (an early exit
