@@ -340,29 +340,6 @@ def check_start_state(q0, dq0, ddq0, limits):
                           f'ddq0={ddq0.tolist()})')
 
 
-def _pieces(profile):
-  """Constant-jerk pieces of one joint: rows (start time, p, v, a, j),
-  flat (5 floats a row)."""
-  if profile.accel.duration > 0.0:
-    raise PlanningError('Ruckig returned a pre-acceleration phase; the start '
-                        'state is outside the planning limits')
-  # Each attribute access converts a whole C++ array: read them once.
-  durations, p, v, a, j = profile.t, profile.p, profile.v, profile.a, profile.j
-  rows = []
-  time = 0.0
-  brake = profile.brake
-  if brake.duration > 0.0:
-    b_t, b_p, b_v, b_a, b_j = brake.t, brake.p, brake.v, brake.a, brake.j
-    for i in range(2):
-      if b_t[i] > 0.0:
-        rows += (time, b_p[i], b_v[i], b_a[i], b_j[i])
-        time += b_t[i]
-  for i in range(7):
-    rows += (time, p[i], v[i], a[i], j[i])
-    time += durations[i]
-  return rows
-
-
 class _Solver:
   """One reusable Ruckig instance per number of joints (creating one costs
   more than a whole calculation)."""
@@ -376,6 +353,9 @@ class _Solver:
                           ruckig.Trajectory(dof))
     return cls._by_dof[dof]
 
+
+# No brake pre-profile (plan_kernels.piece_table).
+_NO_BRAKES = np.zeros((0, 5, 2))
 
 # Ruckig >= 0.13 raises RuckigError (an Exception, not a RuntimeError).
 _RUCKIG_ERRORS = (RuntimeError, getattr(ruckig, 'RuckigError', RuntimeError))
@@ -483,18 +463,30 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   # Pieces of constant jerk of all joints, (dof * P, 5) rows, padded to P
   # per joint with pieces that start after the end. Shifting joint i's
   # times by i * span makes one sorted array for one searchsorted.
-  rows = [_pieces(profile) for profile in trajectory.profiles[0]]
-  size = max(len(joint) for joint in rows)     # 5 P
-  count = size // 5
+  numbers = []
+  brakes = _NO_BRAKES
+  for i, profile in enumerate(trajectory.profiles[0]):
+    if profile.accel.duration > 0.0:
+      raise PlanningError('Ruckig returned a pre-acceleration phase; the '
+                          'start state is outside the planning limits')
+    # Each attribute access converts a whole C++ array: read them once.
+    numbers += profile.t
+    numbers += profile.p
+    numbers += profile.v
+    numbers += profile.a
+    numbers += profile.j
+    brake = profile.brake
+    if brake.duration > 0.0:
+      if not brakes.shape[0]:
+        brakes = np.zeros((dof, 5, 2))
+      brakes[i] = (brake.t, brake.p, brake.v, brake.a, brake.j)
+  if len(numbers) != dof * plan_kernels.PROFILE_SIZE:
+    raise RuntimeError(f'Ruckig profiles: expected {plan_kernels.PROFILE_SIZE}'
+                       f' numbers per joint, got {len(numbers) / dof}')
   duration = trajectory.duration
-  pad = [duration + 0.5]
-  flat = []
-  for joint in rows:
-    flat += joint
-    flat += pad * (size - len(joint))
-  table = np.fromiter(flat, float, dof * size).reshape(dof * count, 5)
-  joint_shift = np.arange(dof) * (duration + 1.0)
-  starts = table[:, 0] + np.repeat(joint_shift, count)
+  table, starts, joint_shift = plan_kernels.piece_table(
+      np.fromiter(numbers, float, len(numbers)).reshape(dof, -1), brakes,
+      duration)
   num = math.ceil(duration / cycle_time - 1e-9) + 1
   # Whole-motion joint extremes (exact, from Ruckig) for the limit check.
   low = (limits.q_min - _LIMIT_SLACK).tolist()

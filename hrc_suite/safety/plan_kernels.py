@@ -108,3 +108,58 @@ def plan_inputs_ok(q0, dq0, ddq0, q_goal, q_min, q_max, v_max, a_max,
   for i in range(q0.shape[0]):
     goal[i] = min(max(q_goal[i], q_min[i] + margin), q_max[i] - margin)
   return True
+
+
+# Ruckig's arrays of one joint's profile, concatenated (ruckig's Profile):
+# durations t (7), then p, v, a at the pieces' starts (8 each: the last is
+# the end), then jerks j (7).
+PROFILE_SIZE = 38
+_P, _V, _A, _J = 7, 15, 23, 31
+
+
+@_jit
+def piece_table(profiles, brakes, duration):
+  """(table, starts, joint_shift) of long_term_plan's sampler from Ruckig's
+  profiles (dof, PROFILE_SIZE) and brake pre-profiles (dof, 5, 2): rows
+  t, p, v, a, j; (0, 5, 2) for none). table (dof * P, 5): rows (start
+  time, p, v, a, j) of each joint's constant-jerk pieces, first the brake
+  pieces of positive duration, then the 7 of the profile, each starting
+  where the previous ends (times summed in that order), padded to P rows
+  with rows of duration + 0.5; joint_shift (dof,): i * (duration + 1);
+  starts: the rows' start times plus their joint's shift (sorted)."""
+  dof = profiles.shape[0]
+  count = 7
+  for i in range(brakes.shape[0]):
+    extra = 0
+    for k in range(2):
+      if brakes[i, 0, k] > 0.0:
+        extra += 1
+    count = max(count, 7 + extra)
+  table = np.full((dof * count, 5), duration + 0.5)
+  for i in range(dof):
+    row = i * count
+    time = 0.0
+    if brakes.shape[0] > 0:
+      for k in range(2):
+        if brakes[i, 0, k] > 0.0:
+          table[row, 0] = time
+          for c in range(1, 5):
+            table[row, c] = brakes[i, c, k]
+          time += brakes[i, 0, k]
+          row += 1
+    for k in range(7):
+      table[row, 0] = time
+      table[row, 1] = profiles[i, _P + k]
+      table[row, 2] = profiles[i, _V + k]
+      table[row, 3] = profiles[i, _A + k]
+      table[row, 4] = profiles[i, _J + k]
+      time += profiles[i, k]
+      row += 1
+  joint_shift = np.empty(dof)
+  span = duration + 1.0
+  for i in range(dof):
+    joint_shift[i] = float(i) * span
+  starts = np.empty(dof * count)
+  for r in range(dof * count):
+    starts[r] = table[r, 0] + joint_shift[r // count]
+  return table, starts, joint_shift

@@ -251,6 +251,50 @@ def test_compiled_start_check_agrees_with_the_numpy_conditions(panda):
   assert set(outcomes) == {True, False}
 
 
+def test_piece_table_lists_each_joints_pieces_in_time_order():
+  """plan_kernels.piece_table against the rows written out in Python:
+  random profiles, some joints with one or two brake pieces (Ruckig
+  gives them only for starts check_start_state rejects, so plans never
+  exercise them), zero-duration pieces, padding and the joint shifts."""
+  rng = np.random.RandomState(6)
+  size = ltp.plan_kernels.PROFILE_SIZE
+  for _ in range(50):
+    dof = rng.randint(1, 8)
+    profiles = rng.normal(size=(dof, size))
+    profiles[:, :7] = rng.uniform(0.0, 0.3, (dof, 7)) * (rng.rand(dof, 7)
+                                                         < 0.8)
+    brakes = np.zeros((0, 5, 2))
+    if rng.rand() < 0.7:
+      brakes = rng.normal(size=(dof, 5, 2))
+      brakes[:, 0] = rng.uniform(0.0, 0.2, (dof, 2)) * (rng.rand(dof, 2)
+                                                        < 0.5)
+    duration = float(profiles[:, :7].sum(1).max() + 0.1)
+    rows = []
+    for i in range(dof):
+      joint, time = [], 0.0
+      for k in range(2 if len(brakes) else 0):
+        if brakes[i, 0, k] > 0.0:
+          joint.append([time] + list(brakes[i, 1:, k]))
+          time += brakes[i, 0, k]
+      for k in range(7):
+        joint.append([time, profiles[i, 7 + k], profiles[i, 15 + k],
+                      profiles[i, 23 + k], profiles[i, 31 + k]])
+        time += profiles[i, k]
+      rows.append(joint)
+    count = max(len(joint) for joint in rows)
+    expected = np.full((dof, count, 5), duration + 0.5)
+    for i, joint in enumerate(rows):
+      expected[i, :len(joint)] = joint
+    expected = expected.reshape(dof * count, 5)
+    shift = np.arange(dof) * (duration + 1.0)
+    table, starts, joint_shift = ltp.plan_kernels.piece_table(
+        profiles, brakes, duration)
+    assert np.array_equal(table, expected)
+    assert np.array_equal(joint_shift, shift)
+    assert np.array_equal(starts, expected[:, 0] + np.repeat(shift, count))
+    assert np.all(np.diff(starts) >= 0.0)
+
+
 def test_compiled_input_check_agrees_with_the_checks_one_by_one(panda):
   """plan_kernels.plan_inputs_ok (plan_to_goal's fast path) passes exactly
   the inputs that pass _check_vector, clamp_goal and check_start_state,
