@@ -3,7 +3,9 @@
 `sample_pieces` computes what long_term_plan's NumPy reference
 (`long_term_plan.sample_pieces_reference`) computes, the same operations
 in the same order (bit for bit, tests/safety/test_long_term_plan.py): the
-plan's samples one cycle apart from the table of each joint's pieces.
+plan's samples one cycle apart from the table of each joint's pieces,
+which `piece_table` builds from Ruckig's profiles. `start_state_ok` and
+`plan_inputs_ok` are the fast paths of long_term_plan's input checks.
 Same compilation settings as the shield's kernels (cache, IEEE
 arithmetic).
 """
