@@ -43,9 +43,12 @@ penetrate deeper until it is free (see `paths_free`).
 
 Compiled (compiled=True): the capsule tests run in `cp_kernels`, and a
 plan from a free start is swept in one call
-(`cp_kernels.planned_path_collides`); compiled=False runs the NumPy
-reference (`_colliding_reference`, `_planned_sweep`). Both make the same
-decisions (the same operations in the same order; tests on random goals).
+(`cp_kernels.planned_path_collides`, with a conservative broad phase that
+skips only capsule tests proven not to hit: `cp_bounds`); compiled=False
+runs the NumPy reference (`_colliding_reference`, `_planned_sweep`). Both
+make the same decisions (the same operations in the same order where a
+test is done; tests on random goals, near the table and near
+self-collision).
 """
 
 import numpy as np
@@ -66,6 +69,11 @@ DEFAULT_MAX_STEP = 0.01
 # sample and levels (inflation 5 mm -> 1.25 -> 0.31 -> 0.08 mm).
 REFINE = 4
 REFINE_LEVELS = 3
+# Samples per run of the compiled plan sweep's broad phase (cp_bounds):
+# one forward kinematics at a run's centre proves most capsule tests free
+# for all of its samples (16: the fastest of 4 to 64 on reach's plans,
+# docs/benchmarks.md).
+SWEEP_RUN = 16
 # Sub-sample positions in (-1, 1), in half widths of the refined sample.
 _REFINE_OFFSETS = (2.0 * np.arange(REFINE) + 1.0) / REFINE - 1.0
 # Escape rule: a penetration may grow this much (m) from sample to sample
@@ -327,6 +335,9 @@ class CollisionPrevention:
 
   def _within(self, q_goals):
     limits = self.description.limits
+    if self.compiled:
+      return cp_kernels.within_limits(np.ascontiguousarray(q_goals),
+                                      limits.q_min, limits.q_max)
     return np.all((q_goals >= limits.q_min) & (q_goals <= limits.q_max),
                   axis=-1)
 
@@ -487,25 +498,34 @@ class CollisionPrevention:
         feasible[g] = True
       except ltp.PlanningError:
         plans.append(None)
-    if self.compiled and not self._colliding(q0[None])[0]:
-      collided = np.array([plan is not None and self._plan_collides(plan)
-                           for plan in plans], dtype=bool)
-    else:
+    collided = np.zeros(len(q_goals), dtype=bool)
+    start_free = self.compiled
+    if self.compiled:
+      start = np.ascontiguousarray(q0[None])
+      for g, plan in enumerate(plans):
+        verdict = 0 if plan is None else self._plan_collides(plan, start)
+        start_free = verdict >= 0
+        if not start_free:
+          break
+        collided[g] = verdict > 0
+    if not start_free:   # The reference, and the escape rule.
       collided = self._planned_sweep(q0, plans, cycle)
     self.num_checks += len(q_goals)
     return self._within(q_goals) & feasible & ~collided
 
-  def _plan_collides(self, plan):
-    """Whether a plan collides (start not in collision): the compiled
-    sweep of `_planned_sweep` (cp_kernels.planned_path_collides)."""
+  def _plan_collides(self, plan, start):
+    """1 if a plan from start (1, dof) collides, 0 if not, -1 if the start
+    collides (then `_planned_sweep` decides): the compiled sweep of
+    `_planned_sweep` (cp_kernels.planned_path_collides)."""
     cycle = plan.cycle_time
     return cp_kernels.planned_path_collides(
-        plan._all(), plan.start_time, plan._inverse_cycle, cycle,
+        start, plan._all(), plan.start_time, plan._inverse_cycle, cycle,
         cycle ** 2, cycle ** 3, plan.num_samples - 1, self.levers,
         self._kernel_pair_levers, self.max_step, _REFINE_OFFSETS,
-        REFINE_LEVELS, *self.reach._kernel_model, self.reach._kernel_frames,
-        self._kernel_radii, self.box_min, self.box_max, self._box_checked,
-        self._box_allowance, self._kernel_pairs)
+        REFINE_LEVELS, SWEEP_RUN, *self.reach._kernel_model,
+        self.reach._kernel_frames, self._kernel_radii, self.box_min,
+        self.box_max, self._box_checked, self._box_allowance,
+        self._kernel_pairs)
 
   def _planned_sweep(self, q0, plans, cycle):
     """Collision flags of plans (None: not made, not flagged) from q0, by

@@ -14,7 +14,9 @@ long-term plan (`CollisionPrevention._planned_sweep`, the reference) in
 one call: the plan's per-cycle Taylor polynomial sampled from its samples
 (LongTermPlan.nominal), the margins of its motion bound, the checks and
 their refinement, the same operations in the same order, so that it
-rejects exactly the plans the reference rejects. Same compilation
+rejects exactly the plans the reference rejects. A conservative broad
+phase (`cp_bounds`, docs/safety.md) skips, for runs of samples, only the
+capsule tests it proves cannot hit at any of them. Same compilation
 settings as `kernels` (cache, IEEE arithmetic).
 """
 
@@ -22,6 +24,7 @@ import math
 
 import numpy as np
 
+from hrc_suite.safety import cp_bounds
 from hrc_suite.safety import kernels
 
 _jit = kernels._jit
@@ -83,6 +86,34 @@ def segment_box_distance(a, b, lo, hi):
 
 
 @_jit
+def _box_hit(ends, n, l, b, radius, box_min, box_max, box_allowance):
+  """Whether capsule l of configuration n (radius grown by its margin)
+  hits box b: its bounding box overlaps, and its distance is below minus
+  the allowance."""
+  for r in range(3):
+    low = min(ends[n, l, 0, r], ends[n, l, 1, r]) - radius
+    high = max(ends[n, l, 0, r], ends[n, l, 1, r]) + radius
+    if low > box_max[b, r] or high < box_min[b, r]:
+      return False
+  distance = segment_box_distance(ends[n, l, 0], ends[n, l, 1], box_min[b],
+                                  box_max[b]) - radius
+  return distance < -box_allowance[b, l]
+
+
+@_jit
+def _pair_hit(ends, n, p, radii, pairs, pair_margin):
+  """Whether pair p of configuration n is closer than its margin."""
+  i, j = pairs[p, 0], pairs[p, 1]
+  a0, a1 = ends[n, i, 0], ends[n, i, 1]
+  b0, b1 = ends[n, j, 0], ends[n, j, 1]
+  distance = kernels.segment_distance(
+      a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
+      a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2],
+      b1[0] - b0[0], b1[1] - b0[1], b1[2] - b0[2]) - radii[i] - radii[j]
+  return distance < pair_margin[n, p]
+
+
+@_jit
 def _hit(ends, n, radii, capsule_margin, pair_margin, box_min, box_max,
          box_checked, box_allowance, pairs, ignore_boxes, ignore_pairs):
   """Whether configuration n (capsule ends (N, L, 2, 3)) collides: the
@@ -94,30 +125,31 @@ def _hit(ends, n, radii, capsule_margin, pair_margin, box_min, box_max,
     for l in range(count_l):
       if not box_checked[b, l] or (masked_boxes and ignore_boxes[n, b, l]):
         continue
-      radius = radii[l] + capsule_margin[n, l]
-      outside = False
-      for r in range(3):
-        low = min(ends[n, l, 0, r], ends[n, l, 1, r]) - radius
-        high = max(ends[n, l, 0, r], ends[n, l, 1, r]) + radius
-        if low > box_max[b, r] or high < box_min[b, r]:
-          outside = True
-      if outside:
-        continue
-      distance = segment_box_distance(ends[n, l, 0], ends[n, l, 1],
-                                      box_min[b], box_max[b]) - radius
-      if distance < -box_allowance[b, l]:
+      if _box_hit(ends, n, l, b, radii[l] + capsule_margin[n, l], box_min,
+                  box_max, box_allowance):
         return True
   for p in range(pairs.shape[0]):
     if masked_pairs and ignore_pairs[n, p]:
       continue
-    i, j = pairs[p, 0], pairs[p, 1]
-    a0, a1 = ends[n, i, 0], ends[n, i, 1]
-    b0, b1 = ends[n, j, 0], ends[n, j, 1]
-    distance = kernels.segment_distance(
-        a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
-        a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2],
-        b1[0] - b0[0], b1[1] - b0[1], b1[2] - b0[2]) - radii[i] - radii[j]
-    if distance < pair_margin[n, p]:
+    if _pair_hit(ends, n, p, radii, pairs, pair_margin):
+      return True
+  return False
+
+
+@_jit
+def _hit_some(ends, n, radii, capsule_margin, pair_margin, box_min,
+              box_max, box_allowance, pairs, box_todo, boxes, pair_todo,
+              count):
+  """`_hit` restricted to the tests box_todo[:boxes] (flat b * L + l) and
+  pair_todo[:count] (the others proven not to hit: cp_bounds)."""
+  count_l = radii.shape[0]
+  for k in range(boxes):
+    b, l = box_todo[k] // count_l, box_todo[k] % count_l
+    if _box_hit(ends, n, l, b, radii[l] + capsule_margin[n, l], box_min,
+                box_max, box_allowance):
+      return True
+  for k in range(count):
+    if _pair_hit(ends, n, pair_todo[k], radii, pairs, pair_margin):
       return True
   return False
 
@@ -154,39 +186,54 @@ def _lever_sum(x, levers, column):
 
 
 @_jit
-def _plan_sample(coefficients, start_time, inverse_cycle, cycle, last, s,
-                 half, levers, pair_levers, row, q, capsule_margin,
-                 pair_margin):
+def _plan_point(coefficients, start_time, inverse_cycle, cycle, last, s,
+                half, row, q, reach):
   """The plan's Taylor polynomial at plan time s (LongTermPlan.nominal)
-  into q[row], and the margins covering it within `half` of s (the
-  motion bound of planned_paths_free's `evaluate`) into the margin rows."""
+  into q[row], and the reach of its motion within `half` of s into
+  reach[row] (the motion bound of planned_paths_free's `evaluate`, whose
+  lever sums are the margins: `_margins`)."""
   dof = coefficients.shape[2]
   k = math.floor((s - start_time) * inverse_cycle)
   k = int(min(max(k, 0.0), float(last)))
   tau = s - start_time - k * cycle
-  reach = np.empty(dof)
   for d in range(dof):
     c0, c1 = coefficients[k, 0, d], coefficients[k, 1, d]
     c2, j = coefficients[k, 2, d], coefficients[k, 3, d]
     a = c2 + tau * j
     v = c1 + tau * (c2 + 0.5 * tau * j)
     q[row, d] = c0 + tau * (c1 + tau * (0.5 * c2 + tau * j / 6.0))
-    reach[d] = half * (abs(v) + half * (abs(a) / 2 + half * abs(j) / 6))
+    reach[row, d] = half * (abs(v) + half * (abs(a) / 2
+                                             + half * abs(j) / 6))
+
+
+@_jit
+def _margins(reach, row, levers, pair_levers, capsule_margin, pair_margin,
+             out):
+  """Capsule and pair margins of reach[row] into row `out`."""
   for l in range(levers.shape[1]):
-    capsule_margin[row, l] = _lever_sum(reach, levers, l)
+    capsule_margin[out, l] = _lever_sum(reach[row], levers, l)
   for p in range(pair_levers.shape[1]):
-    pair_margin[row, p] = _lever_sum(reach, pair_levers, p)
+    pair_margin[out, p] = _lever_sum(reach[row], pair_levers, p)
 
 
 @_jit
 def _cycle_pieces(coefficients, start_time, inverse_cycle, cycle, cycle2,
                   cycle3, last, levers, max_step):
   """Samples per plan cycle (planned_paths_free's `pieces`): the motion
-  over a whole cycle bounded from the cycle's sample, over max_step."""
+  over a whole cycle bounded from the cycle's sample, over max_step.
+
+  A cycle whose travel moves no capsule more than max_step even with each
+  joint's largest lever needs one sample without the per-capsule sums:
+  floating-point products and sums of non-negative numbers are monotone,
+  so every capsule's computed sum is at most that one."""
   count = last + 1
   dof = coefficients.shape[2]
   pieces = np.empty(count, dtype=np.int64)
   travel = np.empty(dof)
+  widest = np.zeros((dof, 1))
+  for d in range(dof):
+    for l in range(levers.shape[1]):
+      widest[d, 0] = max(widest[d, 0], levers[d, l])
   for i in range(count):
     s = start_time + cycle * i
     k = math.floor((s - start_time) * inverse_cycle)
@@ -197,6 +244,9 @@ def _cycle_pieces(coefficients, start_time, inverse_cycle, cycle, cycle2,
       v = abs(coefficients[k, 1, d] + tau * (c2 + 0.5 * tau * j))
       a = abs(c2 + tau * j)
       travel[d] = v * cycle + a * cycle2 / 2 + abs(j) * cycle3 / 6
+    if math.ceil(_lever_sum(travel, widest, 0) / max_step) <= 1.0:
+      pieces[i] = 1
+      continue
     largest = -np.inf
     for l in range(levers.shape[1]):
       largest = max(largest, _lever_sum(travel, levers, l))
@@ -205,25 +255,12 @@ def _cycle_pieces(coefficients, start_time, inverse_cycle, cycle, cycle2,
 
 
 @_jit
-def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
-                          cycle2, cycle3, last, levers, pair_levers,
-                          max_step, offsets, levels, fixed, points,
-                          frame_index, radii, box_min, box_max, box_checked,
-                          box_allowance, pairs):
-  """Whether a plan (samples (N, 4, dof) one cycle apart from start_time)
-  collides: collision_prevention.planned_paths_free's sweep for a start
-  not in collision, in one call. Each cycle is cut into samples moving no
-  capsule point more than max_step (cycle2, cycle3: cycle**2, cycle**3);
-  a sample colliding with its margins is checked exactly (a hit: the
-  path collides) and else refined into len(offsets) sub-samples, `levels`
-  times; at the last level a hit with margins collides. Depth first with
-  an early exit: the reference's level-by-level sweep flags the same
-  paths (a path collides iff some sample of the refinement tree does)."""
+def sweep_samples(coefficients, start_time, inverse_cycle, cycle, cycle2,
+                  cycle3, last, levers, max_step):
+  """The plan sweep's base samples: (plan times (S,), half widths (S,),
+  configurations q (S, dof), reach (S, dof) (`_plan_point`)), each cycle
+  cut into `_cycle_pieces` samples."""
   dof = coefficients.shape[2]
-  count_l = levers.shape[1]
-  count_p = pair_levers.shape[1]
-  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
-  no_pairs = np.zeros((0, 0), dtype=np.bool_)
   pieces = _cycle_pieces(coefficients, start_time, inverse_cycle, cycle,
                          cycle2, cycle3, last, levers, max_step)
   total = 0
@@ -239,13 +276,42 @@ def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
       halves[n] = 0.5 * width
       n += 1
   q = np.empty((total, dof))
-  capsule_margin = np.empty((total, count_l))
-  pair_margin = np.empty((total, count_p))
+  reach = np.empty((total, dof))
   for n in range(total):
-    _plan_sample(coefficients, start_time, inverse_cycle, cycle, last,
-                 params[n], halves[n], levers, pair_levers, n, q,
-                 capsule_margin, pair_margin)
-  ends = kernels._endpoints(kernels._frames(q, fixed), points, frame_index)
+    _plan_point(coefficients, start_time, inverse_cycle, cycle, last,
+                params[n], halves[n], n, q, reach)
+  return params, halves, q, reach
+
+
+@_jit
+def run_motion(q, reach, first, stop, centre, motion):
+  """m = D + R of cp_bounds for the samples [first, stop) around sample
+  `centre` into motion[0] (dof,): the largest joint displacement from
+  the centre plus the largest reach."""
+  for d in range(q.shape[1]):
+    spread = 0.0
+    largest = 0.0
+    for n in range(first, stop):
+      spread = max(spread, abs(q[n, d] - q[centre, d]))
+      largest = max(largest, reach[n, d])
+    motion[0, d] = spread + largest
+
+
+@_jit
+def _refine_collides(coefficients, start_time, inverse_cycle, cycle, last,
+                     levers, pair_levers, offsets, levels, fixed, points,
+                     frame_index, radii, box_min, box_max, box_checked,
+                     box_allowance, pairs, base_ends, base_s, base_half):
+  """Whether a base sample (plan time base_s, half width base_half, ends
+  base_ends (1, L, 2, 3)) that hits with its margins collides: a hit
+  without margins does; else its len(offsets) sub-samples are checked
+  with their margins, `levels` times, and at the last level a hit with
+  margins collides. Depth first, with an early exit."""
+  dof = coefficients.shape[2]
+  count_l = levers.shape[1]
+  count_p = pair_levers.shape[1]
+  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
+  no_pairs = np.zeros((0, 0), dtype=np.bool_)
   zero_l = np.zeros((1, count_l))
   zero_p = np.zeros((1, count_p))
   # Refinement stack: (path parameter, half width, level).
@@ -254,44 +320,144 @@ def planned_path_collides(coefficients, start_time, inverse_cycle, cycle,
   stack_h = np.empty(levels * width + 1)
   stack_level = np.empty(levels * width + 1, dtype=np.int64)
   one_q = np.empty((1, dof))
+  one_reach = np.empty((1, dof))
   one_capsule = np.empty((1, count_l))
   one_pair = np.empty((1, count_p))
-  for n in range(total):
-    if not _hit(ends, n, radii, capsule_margin, pair_margin, box_min,
-                box_max, box_checked, box_allowance, pairs, no_boxes,
-                no_pairs):
-      continue
-    top = 0
-    stack_s[0], stack_h[0], stack_level[0] = params[n], halves[n], 0
-    top = 1
-    first = True
-    while top > 0:
-      top -= 1
-      s, half, level = stack_s[top], stack_h[top], stack_level[top]
-      if first:    # The base sample, already known to hit.
-        sample_ends = ends[n:n + 1]
-        first = False
-      else:
-        _plan_sample(coefficients, start_time, inverse_cycle, cycle, last,
-                     s, half, levers, pair_levers, 0, one_q, one_capsule,
-                     one_pair)
-        sample_ends = kernels._endpoints(kernels._frames(one_q, fixed),
-                                         points, frame_index)
-        if not _hit(sample_ends, 0, radii, one_capsule, one_pair, box_min,
-                    box_max, box_checked, box_allowance, pairs, no_boxes,
-                    no_pairs):
-          continue
-      if level == levels:
-        return True
-      if _hit(sample_ends, 0, radii, zero_l, zero_p, box_min, box_max,
-              box_checked, box_allowance, pairs, no_boxes, no_pairs):
-        return True
-      for o in range(width):
-        stack_s[top] = s + offsets[o] * half
-        stack_h[top] = half / width
-        stack_level[top] = level + 1
-        top += 1
+  stack_s[0], stack_h[0], stack_level[0] = base_s, base_half, 0
+  top = 1
+  first = True
+  while top > 0:
+    top -= 1
+    s, half, level = stack_s[top], stack_h[top], stack_level[top]
+    if first:    # The base sample, already known to hit.
+      sample_ends = base_ends
+      first = False
+    else:
+      _plan_point(coefficients, start_time, inverse_cycle, cycle, last, s,
+                  half, 0, one_q, one_reach)
+      _margins(one_reach, 0, levers, pair_levers, one_capsule, one_pair, 0)
+      sample_ends = kernels._endpoints(kernels._frames(one_q, fixed),
+                                       points, frame_index)
+      if not _hit(sample_ends, 0, radii, one_capsule, one_pair, box_min,
+                  box_max, box_checked, box_allowance, pairs, no_boxes,
+                  no_pairs):
+        continue
+    if level == levels:
+      return True
+    if _hit(sample_ends, 0, radii, zero_l, zero_p, box_min, box_max,
+            box_checked, box_allowance, pairs, no_boxes, no_pairs):
+      return True
+    for o in range(width):
+      stack_s[top] = s + offsets[o] * half
+      stack_h[top] = half / width
+      stack_level[top] = level + 1
+      top += 1
   return False
+
+
+@_jit
+def planned_path_collides(start, coefficients, start_time, inverse_cycle,
+                          cycle, cycle2, cycle3, last, levers, pair_levers,
+                          max_step, offsets, levels, run, fixed, points,
+                          frame_index, radii, box_min, box_max, box_checked,
+                          box_allowance, pairs):
+  """Whether a plan (samples (N, 4, dof) one cycle apart from start_time)
+  from configuration start (1, dof) collides: 1 if it does, 0 if not, -1
+  if the start itself collides (not swept: the escape rule's reference
+  sweep decides then). collision_prevention.planned_paths_free's sweep
+  for a start not in collision, in one call. Each cycle is cut into
+  samples moving no capsule point more than max_step (cycle2, cycle3:
+  cycle**2, cycle**3); a sample colliding with its margins is checked
+  exactly (a hit: the path collides) and else refined into len(offsets)
+  sub-samples, `levels` times; at the last level a hit with margins
+  collides
+  (`_refine_collides`). A path collides iff some sample of the
+  refinement tree does, as in the reference's level-by-level sweep; here
+  all samples are checked exactly before any is refined (an early exit
+  at the first hit without margins, and most colliding plans have one).
+
+  Broad phase: runs of `run` samples are checked at their centre sample
+  first (cp_bounds.unproven); only the tests it cannot prove free are
+  done at each sample of the run, so the same samples hit."""
+  dof = coefficients.shape[2]
+  count_l = levers.shape[1]
+  count_p = pair_levers.shape[1]
+  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
+  no_pairs = np.zeros((0, 0), dtype=np.bool_)
+  zero_l = np.zeros((run, count_l))
+  zero_p = np.zeros((run, count_p))
+  ends = kernels._endpoints(kernels._frames(start, fixed), points,
+                            frame_index)
+  if _hit(ends, 0, radii, zero_l, zero_p, box_min, box_max, box_checked,
+          box_allowance, pairs, no_boxes, no_pairs):
+    return -1
+  params, halves, q, reach = sweep_samples(
+      coefficients, start_time, inverse_cycle, cycle, cycle2, cycle3, last,
+      levers, max_step)
+  total = params.shape[0]
+  motion = np.empty((1, dof))
+  capsule_motion = np.empty((1, count_l))
+  pair_motion = np.empty((1, count_p))
+  box_todo = np.empty(box_min.shape[0] * count_l, dtype=np.int64)
+  pair_todo = np.empty(count_p, dtype=np.int64)
+  capsule_margin = np.empty((run, count_l))
+  pair_margin = np.empty((run, count_p))
+  # Samples hitting with their margins but not without: refined after
+  # the sweep (a hit without margins ends it first).
+  pending = np.empty(total, dtype=np.int64)
+  num_pending = 0
+  for first in range(0, total, run):
+    stop = min(first + run, total)
+    centre = (first + stop) // 2
+    run_motion(q, reach, first, stop, centre, motion)
+    _margins(motion, 0, levers, pair_levers, capsule_motion, pair_motion, 0)
+    ends = kernels._endpoints(kernels._frames(q[centre:centre + 1], fixed),
+                              points, frame_index)
+    boxes, count = cp_bounds.unproven(
+        ends[0], capsule_motion[0], pair_motion[0], radii, box_min, box_max,
+        box_checked, box_allowance, pairs, box_todo, pair_todo)
+    if boxes == 0 and count == 0:
+      continue
+    ends = kernels._endpoints(kernels._frames(q[first:stop], fixed), points,
+                              frame_index)
+    for n in range(first, stop):
+      _margins(reach, n, levers, pair_levers, capsule_margin, pair_margin,
+               n - first)
+      if not _hit_some(ends, n - first, radii, capsule_margin, pair_margin,
+                       box_min, box_max, box_allowance, pairs, box_todo,
+                       boxes, pair_todo, count):
+        continue
+      if levels == 0 or _hit(ends, n - first, radii, zero_l, zero_p,
+                             box_min, box_max, box_checked, box_allowance,
+                             pairs, no_boxes, no_pairs):
+        return 1
+      pending[num_pending] = n
+      num_pending += 1
+  for k in range(num_pending):
+    n = pending[k]
+    ends = kernels._endpoints(kernels._frames(q[n:n + 1], fixed), points,
+                              frame_index)
+    if _refine_collides(coefficients, start_time, inverse_cycle, cycle,
+                        last, levers, pair_levers, offsets, levels, fixed,
+                        points, frame_index, radii, box_min, box_max,
+                        box_checked, box_allowance, pairs, ends, params[n],
+                        halves[n]):
+      return 1
+  return 0
+
+
+@_jit
+def within_limits(q, q_min, q_max):
+  """Flags (N,): configurations q (N, dof) within [q_min, q_max] (dof,)
+  (CollisionPrevention._within)."""
+  out = np.empty(q.shape[0], dtype=np.bool_)
+  for n in range(q.shape[0]):
+    inside = True
+    for d in range(q.shape[1]):
+      if not (q[n, d] >= q_min[d] and q[n, d] <= q_max[d]):
+        inside = False
+    out[n] = inside
+  return out
 
 
 _warm = False
@@ -299,8 +465,8 @@ _warm = False
 
 def warm_up():
   """Compiles (or loads from the cache) `colliding` (with and without
-  escape masks) and `planned_path_collides` for the argument types
-  collision prevention passes."""
+  escape masks), `planned_path_collides` and `within_limits` for the
+  argument types collision prevention passes."""
   global _warm
   if _warm:
     return
@@ -318,11 +484,12 @@ def warm_up():
               floats((count_x, count_l)),
               np.zeros((count_p, 2), dtype=np.int64), boxes, pairs)
   planned_path_collides(
-      floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1,
-      floats((dof, count_l)), floats((dof, count_p)), 1.0, floats(2), 1,
+      floats((1, dof)), floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1,
+      floats((dof, count_l)), floats((dof, count_p)), 1.0, floats(2), 1, 1,
       floats((dof, 3, 4)), floats((count_l, 2, 4)),
       np.zeros(count_l, dtype=np.int64), floats(count_l),
       floats((count_x, 3)), floats((count_x, 3)),
       np.ones((count_x, count_l), dtype=bool), floats((count_x, count_l)),
       np.zeros((count_p, 2), dtype=np.int64))
+  within_limits(floats((1, dof)), floats(dof), floats(dof))
   _warm = True

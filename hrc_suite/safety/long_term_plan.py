@@ -16,6 +16,7 @@ and samples it exactly (piecewise constant jerk) every cycle.
 """
 
 import collections
+import math
 
 import numpy as np
 import ruckig
@@ -339,28 +340,6 @@ def check_start_state(q0, dq0, ddq0, limits):
                           f'ddq0={ddq0.tolist()})')
 
 
-def _pieces(profile):
-  """Constant-jerk pieces of one joint: rows (start time, p, v, a, j)."""
-  if profile.accel.duration > 0.0:
-    raise PlanningError('Ruckig returned a pre-acceleration phase; the start '
-                        'state is outside the planning limits')
-  # Each attribute access converts a whole C++ array: read them once.
-  durations, p, v, a, j = profile.t, profile.p, profile.v, profile.a, profile.j
-  rows = []
-  time = 0.0
-  brake = profile.brake
-  if brake.duration > 0.0:
-    b_t, b_p, b_v, b_a, b_j = brake.t, brake.p, brake.v, brake.a, brake.j
-    for i in range(2):
-      if b_t[i] > 0.0:
-        rows.append((time, b_p[i], b_v[i], b_a[i], b_j[i]))
-        time += b_t[i]
-  for i in range(7):
-    rows.append((time, p[i], v[i], a[i], j[i]))
-    time += durations[i]
-  return rows
-
-
 class _Solver:
   """One reusable Ruckig instance per number of joints (creating one costs
   more than a whole calculation)."""
@@ -374,6 +353,9 @@ class _Solver:
                           ruckig.Trajectory(dof))
     return cls._by_dof[dof]
 
+
+# No brake pre-profile (plan_kernels.piece_table).
+_NO_BRAKES = np.zeros((0, 5, 2))
 
 # Ruckig >= 0.13 raises RuckigError (an Exception, not a RuntimeError).
 _RUCKIG_ERRORS = (RuntimeError, getattr(ruckig, 'RuckigError', RuntimeError))
@@ -432,11 +414,19 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
       motion would leave the joint limits on the way.
   """
   dof = len(limits.q_min)
-  q0 = _check_vector('q0', q0, dof)
-  dq0 = _check_vector('dq0', dq0, dof)
-  ddq0 = _check_vector('ddq0', ddq0, dof)
-  goal = clamp_goal(q_goal, limits)
-  check_start_state(q0, dq0, ddq0, limits)
+  inputs = [np.ascontiguousarray(x, dtype=float)
+            for x in (q0, dq0, ddq0, q_goal)]
+  goal = np.empty(dof)
+  if all(x.shape == (dof,) for x in inputs) and plan_kernels.plan_inputs_ok(
+      *inputs, limits.q_min, limits.q_max, limits.v_max, limits.a_max_ltt,
+      limits.j_max_ltt, _LIMIT_SLACK, GOAL_LIMIT_MARGIN, goal):
+    q0, dq0, ddq0 = inputs[:3]
+  else:   # The checks one by one, raising the first failure's error.
+    q0 = _check_vector('q0', q0, dof)
+    dq0 = _check_vector('dq0', dq0, dof)
+    ddq0 = _check_vector('ddq0', ddq0, dof)
+    goal = clamp_goal(q_goal, limits)
+    check_start_state(q0, dq0, ddq0, limits)
   if not cycle_time > 0:
     raise ValueError(f'cycle_time must be positive, got {cycle_time}')
   key = _RECENT.key((q0, dq0, ddq0, goal), limits, cycle_time, start_time)
@@ -473,30 +463,42 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   # Pieces of constant jerk of all joints, (dof * P, 5) rows, padded to P
   # per joint with pieces that start after the end. Shifting joint i's
   # times by i * span makes one sorted array for one searchsorted.
-  pieces = [_pieces(profile) for profile in trajectory.profiles[0]]
-  count = max(len(rows) for rows in pieces)
+  numbers = []
+  brakes = _NO_BRAKES
+  for i, profile in enumerate(trajectory.profiles[0]):
+    if profile.accel.duration > 0.0:
+      raise PlanningError('Ruckig returned a pre-acceleration phase; the '
+                          'start state is outside the planning limits')
+    # Each attribute access converts a whole C++ array: read them once.
+    numbers += profile.t
+    numbers += profile.p
+    numbers += profile.v
+    numbers += profile.a
+    numbers += profile.j
+    brake = profile.brake
+    if brake.duration > 0.0:
+      if not brakes.shape[0]:
+        brakes = np.zeros((dof, 5, 2))
+      brakes[i] = (brake.t, brake.p, brake.v, brake.a, brake.j)
+  if len(numbers) != dof * plan_kernels.PROFILE_SIZE:
+    raise RuntimeError(f'Ruckig profiles: expected {plan_kernels.PROFILE_SIZE}'
+                       f' numbers per joint, got {len(numbers) / dof}')
   duration = trajectory.duration
-  span = duration + 1.0
-  table = np.full((dof, count, 5), duration + 0.5)
-  for i, rows in enumerate(pieces):
-    table[i, :len(rows)] = rows
-  table = table.reshape(dof * count, 5)
-  shift = np.repeat(np.arange(dof) * span, count)
-  num = int(np.ceil(duration / cycle_time - 1e-9)) + 1
-  starts = table[:, 0] + shift
-  joint_shift = shift[::count]
+  table, starts, joint_shift = plan_kernels.piece_table(
+      np.fromiter(numbers, float, len(numbers)).reshape(dof, -1), brakes,
+      duration)
+  num = math.ceil(duration / cycle_time - 1e-9) + 1
   # Whole-motion joint extremes (exact, from Ruckig) for the limit check.
-  extrema = trajectory.position_extrema
-  low = np.array([e.min for e in extrema])
-  high = np.array([e.max for e in extrema])
-  outside = (low < limits.q_min - _LIMIT_SLACK) | (high > limits.q_max
-                                                    + _LIMIT_SLACK)
-  if np.any(outside):
+  low = (limits.q_min - _LIMIT_SLACK).tolist()
+  high = (limits.q_max + _LIMIT_SLACK).tolist()
+  outside = [i for i, e in enumerate(trajectory.position_extrema)
+             if e.min < low[i] or e.max > high[i]]
+  if outside:
     raise PlanningError(f'The motion to {goal.tolist()} would leave the joint '
-                        f'limits on joints {np.nonzero(outside)[0].tolist()}')
+                        f'limits on joints {outside}')
 
-  pieces = (table, starts, np.ascontiguousarray(joint_shift), goal,
-            float(cycle_time), float(duration))
+  pieces = (table, starts, joint_shift, goal, float(cycle_time),
+            float(duration))
 
   def sampler(first, stop):
     return plan_kernels.sample_pieces(*pieces, first, stop)
@@ -504,7 +506,7 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   plan = LongTermPlan._lazy(num, dof, sampler, cycle_time, start_time)
   plan._pieces = pieces   # sampler's arguments (tests: the reference)
   plan._goal = goal
-  plan._inputs = np.stack([q0, dq0, ddq0, goal])
+  plan._inputs = np.array((q0, dq0, ddq0, goal))
   return plan
 
 

@@ -3,10 +3,14 @@
 `sample_pieces` computes what long_term_plan's NumPy reference
 (`long_term_plan.sample_pieces_reference`) computes, the same operations
 in the same order (bit for bit, tests/safety/test_long_term_plan.py): the
-plan's samples one cycle apart from the table of each joint's pieces.
+plan's samples one cycle apart from the table of each joint's pieces,
+which `piece_table` builds from Ruckig's profiles. `start_state_ok` and
+`plan_inputs_ok` are the fast paths of long_term_plan's input checks.
 Same compilation settings as the shield's kernels (cache, IEEE
 arithmetic).
 """
+
+import math
 
 import numpy as np
 
@@ -36,9 +40,16 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
   times first..stop - 1 cycles. table (dof * P, 5): rows (start time, p,
   v, a, j) of constant-jerk pieces, joint i's P rows from i * P; starts:
   the rows' start times shifted by joint_shift (dof,) per joint (sorted);
-  from `duration` on the goal (dof,) at rest."""
+  from `duration` on the goal (dof,) at rest.
+
+  The sample times, and so each joint's query time + joint_shift[i],
+  never decrease (floating-point products and sums are monotone): each
+  joint's row is searched once and then walked forward, to the same row
+  the search would give."""
   dof = joint_shift.shape[0]
   out = np.empty((stop - first, 4, dof))
+  rows = np.full(dof, -2, dtype=np.int64)   # -2: not searched yet.
+  last = starts.shape[0] - 1
   for n in range(stop - first):
     time = (first + n) * cycle_time
     if time >= duration:
@@ -49,7 +60,14 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
         out[n, 3, i] = 0.0
       continue
     for i in range(dof):
-      row = _last_at_or_before(starts, time + joint_shift[i])
+      x = time + joint_shift[i]
+      row = rows[i]
+      if row == -2:
+        row = _last_at_or_before(starts, x)
+      else:
+        while row < last and starts[row + 1] <= x:
+          row += 1
+      rows[i] = row
       d = time - table[row, 0]
       p, v, a, j = table[row, 1], table[row, 2], table[row, 3], table[row, 4]
       out[n, 0, i] = p + d * (v + d * (0.5 * a + d * j / 6.0))
@@ -73,3 +91,77 @@ def start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
             ramped <= v_max[i] + slack):
       return False
   return True
+
+
+@_jit
+def plan_inputs_ok(q0, dq0, ddq0, q_goal, q_min, q_max, v_max, a_max,
+                   j_max, slack, margin, goal):
+  """Whether long_term_plan.plan_to_goal's inputs (dof,) pass its checks
+  (all finite, `start_state_ok`), its fast path; if so the goal clamped
+  `margin` inside the joint limits (np.clip(q_goal, q_min + margin,
+  q_max - margin)) is written to goal."""
+  for i in range(q0.shape[0]):
+    if not (math.isfinite(q0[i]) and math.isfinite(dq0[i]) and
+            math.isfinite(ddq0[i]) and math.isfinite(q_goal[i])):
+      return False
+  if not start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
+                        slack):
+    return False
+  for i in range(q0.shape[0]):
+    goal[i] = min(max(q_goal[i], q_min[i] + margin), q_max[i] - margin)
+  return True
+
+
+# Ruckig's arrays of one joint's profile, concatenated (ruckig's Profile):
+# durations t (7), then p, v, a at the pieces' starts (8 each: the last is
+# the end), then jerks j (7).
+PROFILE_SIZE = 38
+_P, _V, _A, _J = 7, 15, 23, 31
+
+
+@_jit
+def piece_table(profiles, brakes, duration):
+  """(table, starts, joint_shift) of long_term_plan's sampler from Ruckig's
+  profiles (dof, PROFILE_SIZE) and brake pre-profiles (dof, 5, 2): rows
+  t, p, v, a, j; (0, 5, 2) for none). table (dof * P, 5): rows (start
+  time, p, v, a, j) of each joint's constant-jerk pieces, first the brake
+  pieces of positive duration, then the 7 of the profile, each starting
+  where the previous ends (times summed in that order), padded to P rows
+  with rows of duration + 0.5; joint_shift (dof,): i * (duration + 1);
+  starts: the rows' start times plus their joint's shift (sorted)."""
+  dof = profiles.shape[0]
+  count = 7
+  for i in range(brakes.shape[0]):
+    extra = 0
+    for k in range(2):
+      if brakes[i, 0, k] > 0.0:
+        extra += 1
+    count = max(count, 7 + extra)
+  table = np.full((dof * count, 5), duration + 0.5)
+  for i in range(dof):
+    row = i * count
+    time = 0.0
+    if brakes.shape[0] > 0:
+      for k in range(2):
+        if brakes[i, 0, k] > 0.0:
+          table[row, 0] = time
+          for c in range(1, 5):
+            table[row, c] = brakes[i, c, k]
+          time += brakes[i, 0, k]
+          row += 1
+    for k in range(7):
+      table[row, 0] = time
+      table[row, 1] = profiles[i, _P + k]
+      table[row, 2] = profiles[i, _V + k]
+      table[row, 3] = profiles[i, _A + k]
+      table[row, 4] = profiles[i, _J + k]
+      time += profiles[i, k]
+      row += 1
+  joint_shift = np.empty(dof)
+  span = duration + 1.0
+  for i in range(dof):
+    joint_shift[i] = float(i) * span
+  starts = np.empty(dof * count)
+  for r in range(dof * count):
+    starts[r] = table[r, 0] + joint_shift[r // count]
+  return table, starts, joint_shift

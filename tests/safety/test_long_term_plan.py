@@ -1,6 +1,7 @@
 """Long-term plan: Ruckig to rest, exact sampling, single index offset (B1)."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -248,3 +249,87 @@ def test_compiled_start_check_agrees_with_the_numpy_conditions(panda):
     assert raised == (not expected)
     outcomes.append(ok)
   assert set(outcomes) == {True, False}
+
+
+def test_piece_table_lists_each_joints_pieces_in_time_order():
+  """plan_kernels.piece_table against the rows written out in Python:
+  random profiles, some joints with one or two brake pieces (Ruckig
+  gives them only for starts check_start_state rejects, so plans never
+  exercise them), zero-duration pieces, padding and the joint shifts."""
+  rng = np.random.RandomState(6)
+  size = ltp.plan_kernels.PROFILE_SIZE
+  for _ in range(50):
+    dof = rng.randint(1, 8)
+    profiles = rng.normal(size=(dof, size))
+    profiles[:, :7] = rng.uniform(0.0, 0.3, (dof, 7)) * (rng.rand(dof, 7)
+                                                         < 0.8)
+    brakes = np.zeros((0, 5, 2))
+    if rng.rand() < 0.7:
+      brakes = rng.normal(size=(dof, 5, 2))
+      brakes[:, 0] = rng.uniform(0.0, 0.2, (dof, 2)) * (rng.rand(dof, 2)
+                                                        < 0.5)
+    duration = float(profiles[:, :7].sum(1).max() + 0.1)
+    rows = []
+    for i in range(dof):
+      joint, time = [], 0.0
+      for k in range(2 if len(brakes) else 0):
+        if brakes[i, 0, k] > 0.0:
+          joint.append([time] + list(brakes[i, 1:, k]))
+          time += brakes[i, 0, k]
+      for k in range(7):
+        joint.append([time, profiles[i, 7 + k], profiles[i, 15 + k],
+                      profiles[i, 23 + k], profiles[i, 31 + k]])
+        time += profiles[i, k]
+      rows.append(joint)
+    count = max(len(joint) for joint in rows)
+    expected = np.full((dof, count, 5), duration + 0.5)
+    for i, joint in enumerate(rows):
+      expected[i, :len(joint)] = joint
+    expected = expected.reshape(dof * count, 5)
+    shift = np.arange(dof) * (duration + 1.0)
+    table, starts, joint_shift = ltp.plan_kernels.piece_table(
+        profiles, brakes, duration)
+    assert np.array_equal(table, expected)
+    assert np.array_equal(joint_shift, shift)
+    assert np.array_equal(starts, expected[:, 0] + np.repeat(shift, count))
+    assert np.all(np.diff(starts) >= 0.0)
+
+
+def test_compiled_input_check_agrees_with_the_checks_one_by_one(panda):
+  """plan_kernels.plan_inputs_ok (plan_to_goal's fast path) passes exactly
+  the inputs that pass _check_vector, clamp_goal and check_start_state,
+  with clamp_goal's goal bit for bit: random states, some not finite,
+  some beyond the limits; plan_to_goal raises the checks' own errors."""
+  limits = panda.limits
+  rng = np.random.RandomState(5)
+  outcomes = []
+  for _ in range(400):
+    q0 = rng.uniform(limits.q_min - 0.02, limits.q_max + 0.02)
+    dq0 = rng.uniform(-1.05, 1.05, panda.dof) * limits.v_max
+    ddq0 = rng.uniform(-0.5, 0.5, panda.dof) * limits.a_max_ltt
+    q_goal = rng.uniform(limits.q_min - 0.3, limits.q_max + 0.3)
+    vectors = [q0, dq0, ddq0, q_goal]
+    if rng.rand() < 0.2:
+      vectors[rng.randint(4)][rng.randint(panda.dof)] = rng.choice(
+          [np.nan, np.inf, -np.inf])
+    try:
+      for name, x in zip(('q0', 'dq0', 'ddq0'), vectors):
+        ltp._check_vector(name, x, panda.dof)
+      expected_goal = ltp.clamp_goal(q_goal, limits)
+      ltp.check_start_state(q0, dq0, ddq0, limits)
+      expected = None
+    except ValueError as e:   # PlanningError included.
+      expected = e
+    goal = np.empty(panda.dof)
+    ok = ltp.plan_kernels.plan_inputs_ok(
+        *vectors, limits.q_min, limits.q_max, limits.v_max,
+        limits.a_max_ltt, limits.j_max_ltt, ltp._LIMIT_SLACK,
+        ltp.GOAL_LIMIT_MARGIN, goal)
+    assert ok == (expected is None)
+    if ok:
+      assert np.array_equal(goal, expected_goal)
+    else:
+      with pytest.raises(type(expected), match=re.escape(str(expected))):
+        ltp.plan_to_goal(q0, dq0, ddq0, q_goal, limits, 0.004)
+    outcomes.append(ok)
+  assert 0.2 < np.mean(outcomes) < 0.8
