@@ -37,7 +37,8 @@ from agents.sac import agent as agent_lib
 from hrc_suite import suite
 
 # The paper's cost figure: seconds per 10^3 RL steps of training on ten
-# cores of an AMD EPYC 7763 (reference-benchmark.md).
+# cores of an AMD EPYC 7763 (docs/reference_benchmark.md, Training and
+# evaluation).
 REFERENCE_SECONDS_PER_1000_STEPS = 17.61
 # Training target on this 2-core machine, environment and updates included
 # (docs/benchmarks.md, "SAC training throughput").

@@ -10,7 +10,7 @@ Three presets:
   brings it down within a few thousand updates. Its gradient steps run
   FUSED_STEPS at a time in one compiled call (`SACConfig.fused_steps`).
 * `reference_config()`: the Human-Robot Gym paper's SAC (see
-  the shared reference-benchmark.md, "Training and evaluation"): lr 5e-4,
+  docs/reference_benchmark.md, Training and evaluation): lr 5e-4,
   buffer 1e6, learning starts at 1000 transitions, batch 128, tau 0.005,
   gamma 0.99, 100 gradient steps every 100 environment steps, initial
   temperature 0.2, MLP (64, 64, 64).

@@ -5,7 +5,7 @@ chain, limits, link capsules and link dynamics of one robot. The MuJoCo model
 (`hrc_suite.entities.robot`), the pinocchio model (`hrc_suite.control`) and
 the shield (`hrc_suite.safety`) are all built from it.
 
-Conventions (from the SaRA robot configurations, see `robots.md`):
+Conventions (from the SaRA robot configurations; docs/shield_maths.md, 5.1):
 * every joint is revolute about its local z axis;
 * chain: T_i = T_{i-1} · A_i · Rz(q_i), starting from the robot base frame,
   where A_i = (fixed_rotation, fixed_translation) of link i;

@@ -1,14 +1,15 @@
 """Percentile bootstrap confidence intervals of a mean.
 
 The reference benchmark reports the mean over seeds with a 95 % bootstrap
-confidence interval from 10^4 resamples (reference-benchmark.md, "Training
-and evaluation"). `bootstrap_ci` does that for one sample or, vectorised,
-for many (a learning curve: seeds x evaluation points) at once.
+confidence interval from 10^4 resamples (docs/reference_benchmark.md,
+Training and evaluation). `bootstrap_ci` does that for one sample or,
+vectorised, for many (a learning curve: seeds x evaluation points) at once.
 """
 
 import numpy as np
 
-# The reference's evaluation protocol (reference-benchmark.md).
+# The reference's evaluation protocol (docs/reference_benchmark.md, Training
+# and evaluation).
 DEFAULT_RESAMPLES = 10_000
 DEFAULT_CONFIDENCE = 0.95
 

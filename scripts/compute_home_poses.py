@@ -43,7 +43,7 @@ from make_robot_descriptions import to_json  # pylint: disable=g-bad-import-orde
 HOME_TCP = {name: (0.45, 0.0, 0.25) for name in robot_description.ROBOT_NAMES}
 
 # Link indices (0-based) whose frame origins are the shoulder, elbow and
-# wrist, from the chains in robots.md.
+# wrist, from the chains in hrc_suite/assets/robots/*.json.
 ARM_POINTS = {
     'panda': (1, 3, 5), 'sawyer': (1, 3, 5), 'iiwa': (1, 3, 5),
     'jaco': (1, 3, 5), 'kinova3': (1, 3, 5), 'ur5e': (1, 2, 3),

@@ -61,9 +61,9 @@ FLANGES = {
 
 
 # PFL safe contact speed [m/s]: hrc_suite's default for every robot
-# (reference-benchmark.md decision: the reference's code used 0.05 m/s; the
-# SaRA Schunk configuration moved to 0.1 m/s in 2024-11). Configurable in the
-# shield.
+# (docs/reference_benchmark.md, Safety: the reference's code used 0.05 m/s;
+# the SaRA Schunk configuration moved to 0.1 m/s in 2024-11). Configurable
+# in the shield.
 V_SAFE = 0.05
 
 

@@ -1,5 +1,5 @@
-"""Imitation similarities and rewards (reference-benchmark.md, "Experts and
-imitation"; Human-Robot Gym, ICRA 2024, Sec. V).
+"""Imitation similarities and rewards (docs/reference_benchmark.md,
+Imitation; Human-Robot Gym, ICRA 2024, Sec. V).
 
 similarity(d, iota) = 2^(-(d / iota)^2): 1 at d = 0, 1/2 at d = iota.
 Vectors with a gripper part mix a position and a gripper similarity:
@@ -12,8 +12,9 @@ import dataclasses
 
 import numpy as np
 
-# Reference values (reference-benchmark.md): imitation weight, distance
-# scales, and the position/gripper mixing weight of Cartesian tasks.
+# Reference values (docs/reference_benchmark.md, Imitation): imitation
+# weight, distance scales, and the position/gripper mixing weight of
+# Cartesian tasks.
 IMITATION_WEIGHT = 0.25        # varsigma (the paper's alpha)
 DISTANCE_SCALE = 0.1           # iota: joints (rad), positions (m), actions
 SIR_GRIPPER_SCALE = 0.01       # iota of the gripper part, state-based

@@ -19,8 +19,9 @@
 * 'rsi+air' (wrap): AIR over RSI, the reference's AIR (its agents all
   started from dataset states).
 
-The reference (reference-benchmark.md) also started plain SAC episodes from
-dataset states; here plain SAC samples fresh task instances (no wrapper).
+The reference (docs/reference_benchmark.md, Imitation) also started plain
+SAC episodes from dataset states; here plain SAC samples fresh task
+instances (no wrapper).
 """
 
 import dm_env
@@ -29,7 +30,7 @@ import numpy as np
 from agents.imitation import rewards as rewards_lib
 from hrc_suite import experts as experts_lib
 
-DEFAULT_RSI_PROBABILITY = 0.5    # reference-benchmark.md (RSI, p = 0.5)
+DEFAULT_RSI_PROBABILITY = 0.5    # docs/reference_benchmark.md, Imitation
 
 
 class EnvironmentWrapper(dm_env.Environment):

@@ -35,7 +35,8 @@ from hrc_suite.control import ik_kernels
 from hrc_suite.control import kinematics
 
 # Reference benchmark IK: residual 1e-3, at most 50 iterations
-# (reference-benchmark.md); the LM iteration here converges in far fewer.
+# (docs/reference_benchmark.md, Actions); the LM iteration here converges in
+# far fewer.
 DEFAULT_MAX_ITERATIONS = 100
 DEFAULT_POSITION_TOLERANCE = 1e-3     # m
 DEFAULT_ORIENTATION_TOLERANCE = 1e-2  # rad

@@ -70,12 +70,13 @@ TASK_TARGETS = {
 TASK_KEYFRAMES = {'lifting': 2, 'handover_human_to_robot': 2,
                   'hammering_board': 2}
 
-# The shield's human model bounds every keypoint speed by 2 m/s (SaRA
-# reachability, shield-spec.md; ISO/TS 15066 walking speed 1.6 m/s plus margin).
+# The shield's human model bounds every keypoint speed by 2 m/s
+# (docs/shield_maths.md, 8; ISO/TS 15066 walking speed 1.6 m/s plus margin).
 MAX_KEYPOINT_SPEED = 2.0
 
 # The reference randomises idle-phase amplitudes and speeds by
-# factor ** clip(N(0, 1), -3, 3) with factor 1.1 (reference-benchmark.md).
+# factor ** clip(N(0, 1), -3, 3) with factor 1.1
+# (docs/reference_benchmark.md, Human motions).
 DEFAULT_STD_FACTOR = 1.1
 
 FORMAT_NAME = 'hrc_suite.clip'

@@ -26,7 +26,8 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 
 # Peak keypoint speed while blending from one clip's last pose to the next
-# clip's first pose: half the 2 m/s the shield assumes (shield-spec.md).
+# clip's first pose: half the 2 m/s the shield assumes
+# (docs/shield_maths.md, 8).
 TRANSITION_SPEED = 1.0
 # Poses closer than this (max keypoint distance, m) switch without a blend.
 TRANSITION_TOLERANCE = 1e-4

@@ -559,7 +559,7 @@ TASK_SCRIPTS = {
     'hammering_board': hammering_board,
 }
 
-# Clips per task: the reference's counts (paper Table I).
+# Clips per task: the reference's counts (docs/reference_benchmark.md, Tasks).
 CLIP_COUNTS = {
     'reach': 12, 'pick_place': 12, 'inspection': 8, 'lifting': 9,
     'handover_robot_to_human': 15, 'handover_human_to_robot': 11,

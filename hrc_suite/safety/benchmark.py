@@ -28,7 +28,7 @@ from hrc_suite.human import keypoints
 from hrc_suite.safety import batch
 from hrc_suite.safety import shield as shield_lib
 
-# Policy period in shield cycles: 20 Hz at 4 ms (spec 2.4).
+# Policy period in shield cycles: 20 Hz at 4 ms (docs/shield_maths.md, 4).
 GOAL_EVERY = 12
 SCENES = ('close', 'across', 'far')
 # Distance (m) of a standing person from the robot base along x.

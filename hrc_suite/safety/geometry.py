@@ -8,7 +8,7 @@ infinite lines, clamps, and re-projects onto the other segment (the
 clamp-and-reproject scheme of Ericson, "Real-Time Collision Detection",
 2005, sec. 5.1.9). Parallel and degenerate (point) segments take explicit
 branches, so overlapping parallel segments are exact (defect B3 of the SaRA
-shield, shield-spec section 9).
+shield, docs/shield_maths.md, 10).
 """
 
 import numpy as np
@@ -110,7 +110,8 @@ def capsule_contains_capsule(outer_p1, outer_p2, outer_r, p1, p2, r,
 
 
 def enclosing_ball(c1, r1, c2, r2):
-  """Smallest ball enclosing balls (c1, r1) and (c2, r2) (shield-spec 4.4).
+  """Smallest ball enclosing balls (c1, r1) and (c2, r2)
+  (docs/shield_maths.md, 8.4).
 
   With the larger ball i and the smaller j at distance d: if d <= ri - rj
   ball i already encloses j; else the centre lies on the line through both,

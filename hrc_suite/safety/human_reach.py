@@ -1,6 +1,7 @@
 """The human's reachable set: per-keypoint balls and body capsules over time.
 
-Implements shield-spec sections 4.1-4.4 on hrc_suite's keypoints:
+Implements docs/shield_maths.md, 8 on hrc_suite's keypoints (defects B2,
+L2, L5: its section 10):
 * measurement processing by finite differences or a constant-velocity
   Kalman filter whose dt is measured from the PREVIOUS sample (fixes B2);
 * the VEL (maximal velocity), ACCEL (acceleration) and POS (arm extremity)
@@ -35,9 +36,10 @@ DEFAULT_MODEL_PATH = (pathlib.Path(__file__).resolve().parents[1] / 'assets' /
                       'human' / 'shield_human_model.json')
 
 # Speeds below this (m/s) have no direction; the combined model then shifts
-# along x by a zero amount (shield-spec 4.3).
+# along x by a zero amount (docs/shield_maths.md, 8.3).
 _MIN_SPEED = 1e-12
-# Sample periods below this (s) do not update velocities (shield-spec 4.1).
+# Sample periods below this (s) do not update velocities
+# (docs/shield_maths.md, 8.1).
 _MIN_SAMPLE_PERIOD = 1e-7
 
 POS, VEL, ACCEL = 0, 1, 2
@@ -159,7 +161,8 @@ class HumanModelConfig:
 
 
 def combined_balls(p, v, v_max, a_max, t):
-  """COMBINED model balls (shield-spec 4.3) without measurement errors.
+  """COMBINED model balls (docs/shield_maths.md, 8.3) without measurement
+  errors.
 
   p, v (N, 3); v_max, a_max (N,); t (T,) prediction times >= 0. Returns
   centres (T, N, 3) and core radii (T, N). Keypoints measured faster than
@@ -333,8 +336,8 @@ class HumanReach:
     self._update_extremity_lengths()
 
   def _kalman_update(self, z, dt):
-    """Constant-velocity KF per coordinate (shield-spec 4.1); all share the
-    same 2x2 covariance, so it is propagated once."""
+    """Constant-velocity KF per coordinate (docs/shield_maths.md, 8.1); all
+    share the same 2x2 covariance, so it is propagated once."""
     cfg = self.config
     if self.num_measurements == 1:  # State (p, 0) from the first sample.
       self.velocities = np.zeros_like(z)

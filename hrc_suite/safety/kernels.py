@@ -3,7 +3,8 @@
 Each kernel computes exactly what a readable NumPy function computes (the
 reference, tested against it on random inputs to 1e-12):
 * `segment_distance`: geometry.closest_parameters / capsule distance, same
-  operations in the same order (parallel and point segments included, B3);
+  operations in the same order (parallel and point segments included, B3
+  of docs/shield_maths.md, 10);
 * `ssm_first_unsafe` / `ssm_clearances`: verification.ssm_verdict, the
   first with an early exit at the first unsafe interval;
 * `robot_reach`: robot_reach.RobotReach.reach_capsules (batched FK, chord

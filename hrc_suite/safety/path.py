@@ -5,10 +5,10 @@ fast the robot moves along it. The plan is a function of plan time `s`
 (seconds); the path velocity `s_dot` in [0, 1] scales it (1 = nominal speed,
 0 = standstill). A `Path` holds the current (s, s_dot, s_ddot, jerk) and a
 schedule of three constant-jerk phases given as cumulative end times relative
-to now (shield spec section 2.2). `plan_profile` builds the three-phase
+to now (docs/shield_maths.md, 2). `plan_profile` builds the three-phase
 jerk-limited change of path velocity used for the intended motion (to
-s_dot = 1) and the failsafe (to rest) (spec section 2.4), and `path_limits`
-turns joint limits into path acceleration and jerk bounds (spec section 2.3).
+s_dot = 1) and the failsafe (to rest) (section 4 there), and `path_limits`
+turns joint limits into path acceleration and jerk bounds (section 3).
 
 Scalars only, in plain Python floats: this runs several times per 4 ms cycle
 and Python float arithmetic is faster than NumPy on 1-element arrays.
@@ -16,7 +16,8 @@ and Python float arithmetic is faster than NumPy on 1-element arrays.
 
 import math
 
-# Tolerance of the profile planner on velocities and accelerations (spec 2.4).
+# Tolerance of the profile planner on velocities and accelerations
+# (docs/shield_maths.md, 4).
 PROFILE_EPSILON = 1e-6
 # Phase end times at or below this are treated as elapsed (float residue of
 # subtracting whole cycles from multiples of the cycle time).
@@ -30,7 +31,7 @@ _SEARCH_CYCLES = 4
 
 
 def ceil_to_cycle(duration, cycle_time):
-  """Rounds a duration up to a whole number of cycles (spec 2.4)."""
+  """Rounds a duration up to whole cycles (docs/shield_maths.md, 4)."""
   cycles = math.ceil(duration / cycle_time - 1e-9)
   return max(cycles, 0) * cycle_time
 
@@ -106,8 +107,8 @@ class Path:
     """Constant-jerk motion for `duration`.
 
     If s_dot would become negative, the path stops at the first zero of
-    s_dot (spec 2.2) and stays at rest: returns the time of the stop, else
-    None.
+    s_dot (docs/shield_maths.md, 2) and stays at rest: returns the time of
+    the stop, else None.
     """
     v, a = self.s_dot, self.s_ddot
     v_end = v + a * duration + 0.5 * jerk * duration * duration
@@ -248,13 +249,14 @@ def _first_zero(v, a, jerk, duration):
 
 def plan_profile(s, s_dot, s_ddot, target_s_dot, max_s_ddot, max_s_dddot,
                  cycle_time):
-  """Three-phase jerk-limited change of path velocity (spec 2.4).
+  """Three-phase jerk-limited change of path velocity (docs/shield_maths.md,
+  4).
 
   From (s, s_dot, s_ddot) to s_dot = target_s_dot with s_ddot = 0 at the end,
   |s_ddot| <= max_s_ddot and |jerk| <= max_s_dddot (up to the rounding of the
   phase durations up to whole cycles, which the peak correction compensates).
   Uses the physically consistent trapezoid threshold A^2 - a^2/2 in all four
-  sign cases (fixes defect B6 of the original).
+  sign cases (fixes defect B6 of the original, docs/shield_maths.md, 10).
 
   Returns a `Path` starting at the given state, or None if no such profile
   exists (negative bounds or |s_ddot| above the bound).
@@ -331,8 +333,8 @@ def _feasible(peak, a, max_s_ddot, max_s_dddot, t01, t23):
 def path_limits(prev_dq, a_max, j_max, a_max_ltt, j_max_ltt, max_s_stop):
   """(max_s_ddot, max_s_dddot) keeping joint acceleration and jerk in limits.
 
-  Spec 2.3 (from eq. 2.6a/b of the TUM thesis cited by the original): the plan
-  itself uses up to a_max_ltt / j_max_ltt, so the path may add
+  docs/shield_maths.md, 3 (eq. 2.6a/b of the TUM thesis the original cites):
+  the plan itself uses up to a_max_ltt / j_max_ltt, so the path may add
   s_ddot * |dq| and s_dddot * |dq| on top, with |dq| bounded over the braking
   horizon by |prev_dq| + a_max_ltt * max_s_stop. Arguments are per-joint
   sequences; pass the plan's nominal joint velocity as `prev_dq` to bound it

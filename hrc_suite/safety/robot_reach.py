@@ -6,7 +6,7 @@ appended in the last link's frame. Forward kinematics is batched over any
 number of configurations: per joint one stacked 4x4 product, then one product
 for all capsule end points.
 
-Reachable capsule of a link over an interval (shield-spec 3.2): a point
+Reachable capsule over an interval (docs/shield_maths.md, 5.2): a point
 moving along a curve p(s) with ||d^2p/ds^2|| <= alpha stays within
 alpha ds^2 / 8 of its chord, so the link stays inside the capsule between the
 chord midpoints of its two end points with radius
@@ -200,8 +200,9 @@ class RobotReach:
 
     Point velocity on link i: v(p) = w_i x p - U_i with w_i = sum_{k<=i}
     dq_k z_k and U_i = sum_{k<=i} dq_k z_k x o_k, o_k the origin of joint k's
-    frame (on its axis; fixes L7). Velocity is affine along the segment, so
-    the maximum is at an end point; ||w|| r covers the surface.
+    frame (on its axis; fixes L7; docs/shield_maths.md, 7). Velocity is
+    affine along the segment, so the maximum is at an end point; ||w|| r
+    covers the surface.
     compiled=False runs the NumPy reference instead of the kernel.
     """
     q = self._check_q(q)

@@ -1,6 +1,6 @@
 """The reachability shield: verified joint commands, one every cycle.
 
-Each cycle (shield spec section 1.3) the shield takes the human keypoints,
+Each cycle (docs/shield_maths.md, 4) the shield takes the human keypoints,
 proposes the monitored path "one intended step along the long-term plan,
 then brake to rest along it", and verifies it: the robot's reachable capsules
 over time slices of that path must not meet the human's reachable capsules
@@ -15,7 +15,7 @@ that, `tracking_error` > `tracking_tolerance`; `tracking_bound` is a cheap
 upper bound to check first), the caller hands the measured pose to
 `resync`, which restarts the shield at rest there.
 
-Differences to the original (shield spec section 9), on purpose:
+Differences to the original (docs/shield_maths.md, 10), on purpose:
 * B1: plan look-ups subtract the plan's start once (`long_term_plan`).
 * B4: a new plan is only adopted when a monitored path on it verifies;
   until then the robot follows the verified path on the old plan.
@@ -54,7 +54,8 @@ from hrc_suite.safety import robot_reach as robot_reach_lib
 from hrc_suite.safety import verification
 
 MODES = ('ssm', 'pfl', 'off')
-# Default shield cycle (s): human-robot-gym's control_sample_time (spec 2.4).
+# Default shield cycle (s): human-robot-gym's control_sample_time
+# (docs/shield_maths.md, 4).
 DEFAULT_CYCLE_TIME = 0.004
 # PFL: speeds are compared with this fraction of v_safe. Surface speeds are
 # taken at the plan's samples; between samples (2 ms either side) they change
@@ -119,7 +120,7 @@ class Shield:
           use_combined_model=use_combined_model)
     limits = robot_description.limits
     self.limits = limits
-    # Per-joint terms of the path bounds (spec 2.3, `path.path_limits`).
+    # Per-joint terms of `path.path_limits` (docs/shield_maths.md, 3).
     a_ltt = np.abs(limits.a_max_ltt)
     self._den_offset = _joint_list(a_ltt * self.max_s_stop)
     self._den_offset[0] += 1e-9
@@ -129,7 +130,7 @@ class Shield:
     self._jerk_acc = _joint_list(3.0 * a_ltt)
     self._q_min = _joint_list(limits.q_min)
     self._q_max = _joint_list(limits.q_max)
-    # Clip bounds of the (dq, ddq, dddq) rows of a state (spec 2.2).
+    # Clip bounds of a state's (dq, ddq, dddq) rows (docs/shield_maths.md, 2).
     self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
     self._clip_low = -self._clip
     self._pfl_speeds = {}
@@ -216,9 +217,10 @@ class Shield:
     tracking tolerance (a person pushed it): restart at rest at q.
 
     The shield assumes the robot stays within the secure radius of its
-    command (docs/safety.md, Assumptions: Tracking; spec section 9, L1); a
-    robot pushed further is not on the verified path, which then no longer
-    describes it. The new verified path is the failsafe from the measured
+    command (docs/safety.md, Assumptions: Tracking; L1 of
+    docs/shield_maths.md, 10); a robot pushed further is not on the
+    verified path, which then no longer describes it. The new verified
+    path is the failsafe from the measured
     pose in its strictest form: stand still there (q clipped to the joint
     limits). The measured velocity is not taken over: it is the push, not
     the robot's own motion, and continuing it would make the robot carry
@@ -638,7 +640,7 @@ class Shield:
     self._candidate = None
     state = self._state
     if np.any(np.abs(state[2]) > self.limits.a_max_ltt):
-      return None   # Spec 2.1: braking too hard to start a plan here; later.
+      return None   # Braking too hard to plan here (docs/shield_maths.md, 1).
     try:
       plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
                               self.limits, self.cycle_time, self._verified.s)

@@ -1,6 +1,6 @@
 """Verification helpers: the SSM verdict and the joint-limit check.
 
-SSM (shield-spec 5.2): interval k is safe iff SOME human model m has no
+SSM (docs/shield_maths.md, 9.2): interval k is safe iff SOME model m has no
 intersection between any robot reach capsule and any of its body capsules
 (every model over-approximates the human, so one collision-free model
 suffices); the motion is safe iff every interval is safe. Intersection is

@@ -20,8 +20,8 @@ from hrc_suite import layout
 from hrc_suite.control import ik as ik_lib
 
 ACTION_SPACES = ('joint', 'cartesian')
-# Reference benchmark (reference-benchmark.md): 0.2 rad per RL step in joint
-# space, 0.1 m per RL step in the workspace.
+# Reference benchmark (docs/reference_benchmark.md, Actions): 0.2 rad per RL
+# step in joint space, 0.1 m per RL step in the workspace.
 JOINT_STEP = 0.2       # rad
 CARTESIAN_STEP = 0.1   # m
 # Workspace box of TCP targets in the robot base frame (m): over the table

@@ -108,12 +108,12 @@ from hrc_suite.tasks import physics_loop
 from hrc_suite.tasks import self_collision as self_collision_lib
 from hrc_suite.tasks import substeps as substeps_lib
 
-DEFAULT_SHIELD_SUBSTEPS = 25          # L (reference-benchmark.md)
+DEFAULT_SHIELD_SUBSTEPS = 25          # L (docs/reference_benchmark.md, Timing)
 DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
 DEFAULT_CONTROL_TIMESTEP = 0.1        # s, 10 Hz RL step
 COLLISION_PREVENTION_POLICIES = cp_lib.POLICIES + ('off',)
 # PFL safe speed: the reference code that produced the paper used 50 mm/s
-# (reference-benchmark.md, Decision).
+# (docs/reference_benchmark.md, Safety).
 DEFAULT_V_SAFE = 0.05                 # m/s
 # Reward of an illegal contact (static, self, critical human): the
 # reference's default (its paper runs used 0).
@@ -147,7 +147,7 @@ def _is_integer(value):
 class HrcTask(composer.Task):
   """A robot, a gripper and a human in the workcell, shielded."""
 
-  # Task facts (reference-benchmark.md); subclasses override.
+  # Task facts (docs/reference_benchmark.md, Tasks); subclasses override.
   MOTIONS = 'reach'                          # shipped library name
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   TABLE = layout.DEFAULT_TABLE               # layout.Table

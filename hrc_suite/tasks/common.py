@@ -5,7 +5,8 @@ from dm_control.composer.observation import observable
 import numpy as np
 
 # Sparse rewards of pick and place, also object inspection's
-# (reference-benchmark.md): success, object gripped, otherwise.
+# (docs/reference_benchmark.md, Rewards and success): success, object
+# gripped, otherwise.
 SUCCESS_REWARD = 1.0
 GRIPPED_REWARD = -0.25
 IDLE_REWARD = -1.0

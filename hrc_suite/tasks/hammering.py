@@ -1,5 +1,5 @@
 """Collaborative hammering: the robot holds a nail board while the human
-drives its nail in (reference-benchmark.md, paper Table I).
+drives its nail in (docs/reference_benchmark.md, Tasks).
 
 * Start: the robot starts at home with the nail board already grasped by its
   handle (decision: the task is holding, not picking; the reference's expert

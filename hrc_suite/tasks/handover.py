@@ -1,5 +1,5 @@
 """Handovers of a hammer between the robot and a human across the table
-(reference-benchmark.md, paper Table I).
+(docs/reference_benchmark.md, Tasks).
 
 Robot to human (`RobotToHuman`): the episode starts with the hammer in the
 closed gripper at the home pose, handle towards the human. The robot brings

@@ -1,5 +1,6 @@
 """Object inspection: the robot picks a cube from the table and holds it in
-front of a person, who inspects it and leaves (reference-benchmark.md).
+front of a person, who inspects it and leaves (docs/reference_benchmark.md,
+Tasks).
 
 * Scene: a 4 cm cube on the table, uniform in OBJECT_REGION_X x
   OBJECT_REGION_Y (robot base frame, where the Schunk's and the iiwa's

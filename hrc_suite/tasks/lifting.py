@@ -1,5 +1,5 @@
 """Collaborative lifting: the robot and a person lift a board together and
-keep it level while the person moves (reference-benchmark.md).
+keep it level while the person moves (docs/reference_benchmark.md, Tasks).
 
 * Scene: the 1.0 x 0.4 x 0.03 m board (`props.Board`) lies on the table
   along x, its robot end BOARD_NEAR_END_X from the base (about 2 cm onto

@@ -1,8 +1,9 @@
 """A task's human motions: the shipped library, a folder, a list of clips, or
 one side of a train/test split of any of those.
 
-The reference's overfitting ablation (reference-benchmark.md) trains on 7 of
-the 9 lifting motions and tests on the other 2, over 5 splits. Here
+The reference's overfitting ablation (docs/reference_benchmark.md, Human
+motions) trains on 7 of the 9 lifting motions and tests on the other 2, over
+5 splits. Here
 
   motions={'split': 'train', 'test_clips': 2, 'split_seed': k}
 

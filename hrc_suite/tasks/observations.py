@@ -1,9 +1,10 @@
 """Observables every task shares, and selection by preset or by name.
 
-Shared (paper Table II): joint angles and velocities, gripper aperture,
-end-effector (TCP) pose, human keypoints in the world, head and hands in the
-TCP frame and their distances, safe and critical human contact and static
-collision flags of the last RL step. Tasks add goals and objects.
+Shared (docs/reference_benchmark.md, Observations): joint angles and
+velocities, gripper aperture, end-effector (TCP) pose, human keypoints in
+the world, head and hands in the TCP frame and their distances, safe and
+critical human contact and static collision flags of the last RL step.
+Tasks add goals and objects.
 """
 
 import collections
@@ -14,7 +15,8 @@ import numpy as np
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import contacts
 
-# Human keypoints observed relative to the end effector (paper: head, hands).
+# Human keypoints observed relative to the end effector: head and hands
+# (docs/reference_benchmark.md, Observations).
 OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
 
 

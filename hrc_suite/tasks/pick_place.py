@@ -1,5 +1,5 @@
 """Pick and place: move a cube to a target on the table while a person works
-beside the robot (reference-benchmark.md, paper Table I).
+beside the robot (docs/reference_benchmark.md, Tasks).
 
 * Scene: a 4 cm cube (`props.Cube`) and a flat target disc on the table,
   one on each side of the robot's centre line (the side is drawn per

@@ -1,5 +1,5 @@
 """Collaborative stacking: four cubes stacked in turns, human 1, robot 2,
-human 3, robot 4 (reference-benchmark.md, paper Table I).
+human 3, robot 4 (docs/reference_benchmark.md, Tasks).
 
 * Scene: four 5 cm cubes (`props.make_stacking_cubes`) on a shallower
   table than the other tasks' (layout.STACKING_TABLE). Cubes 1 and 3

@@ -14,7 +14,7 @@ from hrc_suite.human import player as player_lib
 from hrc_suite.human import synthesis
 from hrc_suite.human import task_motions
 
-# The reference benchmark's clip counts (paper Table I).
+# The reference benchmark's clip counts (docs/reference_benchmark.md, Tasks).
 PAPER_COUNTS = {'reach': 12, 'pick_place': 12, 'inspection': 8, 'lifting': 9,
                 'handover_robot_to_human': 15, 'handover_human_to_robot': 11,
                 'hammering': 11, 'stacking': 8}

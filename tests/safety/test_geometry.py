@@ -1,4 +1,4 @@
-"""Tests for hrc_suite.safety.geometry: exact distances (spec 5.1, B3)."""
+"""Tests for hrc_suite.safety.geometry (docs/shield_maths.md, 9.1, B3)."""
 
 import numpy as np
 import pytest

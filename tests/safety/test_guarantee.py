@@ -240,9 +240,9 @@ def test_braking_from_full_speed(name):
     assert t - start < 1.0, 'did not stop'
   stop_time = t - start
   q, dq = np.array(q), np.array(dq)
-  # The bound of spec 2.3: the path may brake at (a_max - a_ltt) / (|v| +
-  # a_ltt max_s_stop), i.e. 0.2 s for 1 rad/s joints; UR5e's 3.14 rad/s
-  # joints need longer by the same formula.
+  # The bound of docs/shield_maths.md, 3: the path may brake at
+  # (a_max - a_ltt) / (|v| + a_ltt max_s_stop), i.e. 0.2 s for 1 rad/s
+  # joints; UR5e's 3.14 rad/s joints need longer by the same formula.
   v_max = limits.v_max.max()
   brake_bound = max(shield.max_s_stop,
                     ((v_max + limits.a_max_ltt.max() * shield.max_s_stop) /

@@ -1,4 +1,4 @@
-"""Tests for hrc_suite.safety.human_reach (shield-spec 4.1-4.4, B2, L2, L5)."""
+"""Tests for hrc_suite.safety.human_reach (docs/shield_maths.md, 8, 10)."""
 
 import dataclasses
 import json

@@ -44,7 +44,8 @@ def test_segment_distance_matches_geometry_including_b3_cases():
   got = np.array([kernels.segment_distance(*p0, *q0, *(p1 - p0), *(q1 - q0))
                   for p0, p1, q0, q1 in zip(a0, a1, b0, b1)])
   np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
-  # The overlapping parallel case of defect B3: distance 1, not more.
+  # The overlapping parallel case of defect B3 (docs/shield_maths.md, 10):
+  # distance 1, not more.
   assert kernels.segment_distance(0, 0, 0, 1, 1, 0, 2, 0, 0, 2, 0,
                                   0) == pytest.approx(1.0, abs=1e-15)
 

@@ -1,4 +1,7 @@
-"""Long-term plan: Ruckig to rest, exact sampling, single index offset (B1)."""
+"""Long-term plan: Ruckig to rest, exact sampling, single index offset (B1).
+
+docs/shield_maths.md, sections 1, 2 and 10 (B1).
+"""
 
 import dataclasses
 import re
@@ -217,8 +220,8 @@ def test_compiled_sampling_is_the_numpy_reference_bit_for_bit(panda, seed):
 
 def test_compiled_start_check_agrees_with_the_numpy_conditions(panda):
   """plan_kernels.start_state_ok (check_start_state's fast path) against
-  spec 2.1's conditions in NumPy, and check_start_state raises exactly
-  where they fail: random states at and beyond every limit."""
+  the conditions of docs/shield_maths.md, 1 in NumPy, and check_start_state
+  raises exactly where they fail: random states at and beyond every limit."""
   limits = panda.limits
   slack = ltp._LIMIT_SLACK
   rng = np.random.RandomState(4)

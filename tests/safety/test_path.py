@@ -1,4 +1,4 @@
-"""Path parameterisation: profiles (spec 2.4, B6), bounds (2.3), advance."""
+"""Path profiles (4, B6), bounds (3), advance (2) of docs/shield_maths.md."""
 
 import numpy as np
 import pytest
@@ -29,8 +29,8 @@ def _peak_acceleration(profile):
 
 
 def test_profile_grid_ends_at_target():
-  """Spec section 10: v in [0, 1], a in [-8, 8), target in [0, 1], A=10,
-  J=100."""
+  """The original's grid (docs/shield_maths.md, 4): v in [0, 1], a in [-8,
+  8), target in [0, 1], A=10, J=100."""
   for v in np.linspace(0.0, 1.0, 11):
     for a in np.arange(-8.0, 8.0, 0.5):
       for target in np.linspace(0.0, 1.0, 11):
@@ -70,7 +70,8 @@ def test_already_at_target_coasts_one_cycle():
 
 
 def test_path_limits_examples():
-  """Spec 2.3: Panda-like limits a=10, j=400, a_ltt=2, j_ltt=15."""
+  """docs/shield_maths.md, 3: Panda-like limits a=10, j=400, a_ltt=2,
+  j_ltt=15."""
   a_max, j_max = [10.0] * 7, [400.0] * 7
   a_ltt, j_ltt = [2.0] * 7, [15.0] * 7
   acc, jerk = path_lib.path_limits([0.0] * 7, a_max, j_max, a_ltt, j_ltt, 0.2)

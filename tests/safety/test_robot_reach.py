@@ -1,4 +1,4 @@
-"""Tests for hrc_suite.safety.robot_reach (shield-spec 3.1, 3.2, 3.4)."""
+"""Tests for hrc_suite.safety.robot_reach (docs/shield_maths.md, 5, 7)."""
 
 import dataclasses
 

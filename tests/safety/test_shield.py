@@ -107,7 +107,8 @@ def test_read_outs(panda):
   assert robot[2].shape == (k, num_capsules)
   human_reach = shield.human_reach_capsules
   assert human_reach[0].shape == (1, k, shield.human.num_bodies, 3)
-  # Slices: the current step (fix L4), then 20 ms slices of the failsafe.
+  # Slices (docs/shield_maths.md, 6): the current step (fix L4), then 20 ms
+  # slices of the failsafe.
   assert k >= 2
   # The first slice encloses the robot at the previous and the new command.
   for q in (previous, shield.q):

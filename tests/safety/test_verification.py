@@ -1,4 +1,4 @@
-"""Tests for hrc_suite.safety.verification (shield-spec 5.1, 5.2)."""
+"""Tests for hrc_suite.safety.verification (docs/shield_maths.md, 9)."""
 
 import numpy as np
 import pytest
