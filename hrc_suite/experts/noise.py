@@ -1,7 +1,7 @@
 """Ornstein-Uhlenbeck action noise and the noisy expert.
 
-The reference's noisy expert (reference-benchmark.md, "Experts and
-imitation") executes
+The reference's noisy expert (docs/reference_benchmark.md, Experts)
+executes
 
   a = (1 - w) a_e + w X,     w = 0.02,
 
@@ -30,7 +30,7 @@ import numbers
 
 import numpy as np
 
-# Reference parameters (reference-benchmark.md, "Experts and imitation"),
+# Reference parameters (docs/reference_benchmark.md, Experts),
 # per action space: OU rate alpha (1/s), stationary std sigma (normalised
 # action units: the limit is 1, sigma = half of it), sampling step dt (s).
 REFERENCE_PARAMETERS = {

@@ -1,5 +1,5 @@
 """Pick-and-place expert: a state machine whose phase is read off the
-observed state every step (reference-benchmark.md, "Experts").
+observed state every step (docs/reference_benchmark.md, Experts).
 
 Geometry (world frame; `grasp` = cube centre + GRASP_TCP_ABOVE_CENTRE, the
 TCP position that grasps the cube from above):
@@ -43,8 +43,9 @@ from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.tasks import pick_place
 
-# Reference expert (reference-benchmark.md): hover 0.2 m above the object,
-# close when the horizontal error < 0.035 m and the vertical < 0.015 m.
+# Reference expert (docs/reference_benchmark.md, Experts): hover 0.2 m above
+# the object, close when the horizontal error < 0.035 m and the vertical
+# < 0.015 m.
 HOVER = 0.2                # m above the grasp / place point
 CLOSE_XY = 0.035           # m
 CLOSE_DZ = 0.015           # m

@@ -61,7 +61,8 @@ from hrc_suite.safety import robot_reach
 
 POLICIES = ('zero', 'resample', 'closest')
 
-# Default number of replacement samples (reference benchmark: 20).
+# Default number of replacement samples (reference benchmark: 20;
+# docs/reference_benchmark.md, Safety).
 DEFAULT_NUM_SAMPLES = 20
 # Largest motion of any capsule point between path samples (m).
 DEFAULT_MAX_STEP = 0.01

@@ -2,17 +2,17 @@
 
 A `LongTermPlan` stores joint samples (q, dq, ddq, dddq) one cycle apart,
 starting at plan time `start_time`. The shield moves along it with a path
-parameter s (plan time) and path velocity s_dot (spec section 2.2): the plan
-is evaluated by a Taylor expansion from the sample at or before s and the
-chain rule. The sample index is floor((s - start_time) / cycle_time): the
+parameter s (plan time) and path velocity s_dot (docs/shield_maths.md, 2):
+the plan is evaluated by a Taylor expansion from the sample at or before s
+and the chain rule. The sample index is floor((s - start_time) / cycle_time): the
 plan's own start is subtracted exactly once (the original subtracted its
 starting index twice after the first re-planning, so every look-ahead
-collapsed onto the current sample: defect B1).
+collapsed onto the current sample: defect B1, docs/shield_maths.md, 10).
 
 `plan_to_goal` computes the time-optimal, jerk-limited, synchronised motion
 from the current joint state to rest at a goal with Ruckig, using the
-long-term-planning limits (a_max_ltt, j_max_ltt, v_max; spec section 2.1),
-and samples it exactly (piecewise constant jerk) every cycle.
+long-term-planning limits (a_max_ltt, j_max_ltt, v_max; docs/shield_maths.md,
+1), and samples it exactly (piecewise constant jerk) every cycle.
 """
 
 import collections
@@ -25,8 +25,8 @@ from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import kernels
 from hrc_suite.safety import plan_kernels
 
-# Goals are kept this far inside the joint limits (rad; spec 2.1, the
-# original's planning tolerance).
+# Goals are kept this far inside the joint limits (rad; docs/shield_maths.md,
+# 1: the original's planning tolerance).
 GOAL_LIMIT_MARGIN = 0.01
 # Plan samples computed at once when more are needed (~0.26 s at 4 ms: a
 # failsafe's horizon).
@@ -262,8 +262,8 @@ class LongTermPlan:
   def state_reference(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
     """NumPy reference of `state`.
 
-    Chain rule of spec 2.2 with the Taylor expansion folded into one 5x4
-    matrix: dq = v s_dot, ddq = v s_ddot + a s_dot^2,
+    Chain rule of docs/shield_maths.md, 2 with the Taylor expansion folded
+    into one 5x4 matrix: dq = v s_dot, ddq = v s_ddot + a s_dot^2,
     dddq = j s_dot^3 + 3 a s_ddot s_dot + v jerk; v_nominal = v.
     """
     k = int((s - self.start_time) * self._inverse_cycle // 1.0)
@@ -311,14 +311,16 @@ def _check_vector(name, value, dof):
 
 
 def clamp_goal(q_goal, limits):
-  """The goal moved GOAL_LIMIT_MARGIN inside the joint limits (spec 2.1)."""
+  """The goal moved GOAL_LIMIT_MARGIN inside the joint limits
+  (docs/shield_maths.md, 1)."""
   q_goal = _check_vector('q_goal', q_goal, len(limits.q_min))
   return np.clip(q_goal, limits.q_min + GOAL_LIMIT_MARGIN,
                  limits.q_max - GOAL_LIMIT_MARGIN)
 
 
 def check_start_state(q0, dq0, ddq0, limits):
-  """Raises PlanningError if the plan cannot start here (spec 2.1)."""
+  """Raises PlanningError if the plan cannot start here
+  (docs/shield_maths.md, 1)."""
   v_max, a_max, j_max = limits.v_max, limits.a_max_ltt, limits.j_max_ltt
   if plan_kernels.start_state_ok(q0, dq0, ddq0, limits.q_min, limits.q_max,
                                  v_max, a_max, j_max, _LIMIT_SLACK):
@@ -410,8 +412,8 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
     is the goal at rest.
 
   Raises:
-    PlanningError: the start state violates the checks of spec 2.1, or the
-      motion would leave the joint limits on the way.
+    PlanningError: the start state violates the checks of docs/shield_maths.md,
+      1, or the motion would leave the joint limits on the way.
   """
   dof = len(limits.q_min)
   inputs = [np.ascontiguousarray(x, dtype=float)
