@@ -134,8 +134,10 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
   previous_q = np.array(shield._previous_q, dtype=float)
   verified = shield_lib._path_array(shield._verified)
   intended_path = shield._intended
-  flags = np.array([intended_path is not None, shield.goal_pending,
-                    candidate is not None, -1], dtype=np.int64)
+  flags = np.empty(4, dtype=np.int64)   # cycle_kernels.HAS_INTENDED, ...
+  flags[[ck.HAS_INTENDED, ck.GOAL_PENDING, ck.HAS_CANDIDATE,
+         ck.ADOPTED_AT]] = (intended_path is not None, shield.goal_pending,
+                            candidate is not None, -1)
   intended = shield_lib._path_array(intended_path or path_lib.Path())
   state = np.array([human.last_measurement_time, human._last_period,
                     human.num_measurements], dtype=float)
@@ -161,9 +163,9 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
     if done:
       total += done
       check = (status, first, distance, s_edges, t_edges, q_edges)
-    if flags[3] >= 0:   # The candidate was adopted (Shield._adopt).
+    if flags[ck.ADOPTED_AT] >= 0:   # The candidate was adopted (Shield._adopt).
       plan, candidate, adopted = candidate, None, True
-      flags[3] = -1
+      flags[ck.ADOPTED_AT] = -1
     if not missing:
       break
     if plan._filled > plan._last and (candidate is None
@@ -178,14 +180,14 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
   shield._plan = plan
   if adopted:
     shield._pfl_speeds = {}
-  shield._goal_pending = bool(flags[1])
-  if not flags[2]:
+  shield._goal_pending = bool(flags[ck.GOAL_PENDING])
+  if not flags[ck.HAS_CANDIDATE]:
     shield._candidate = None
   shield._state = command
   shield._previous_q = previous_q
   shield._verified = shield_lib._path_from_array(verified)
-  shield._intended = (shield_lib._path_from_array(intended) if flags[0]
-                      else None)
+  shield._intended = (shield_lib._path_from_array(intended)
+                      if flags[ck.HAS_INTENDED] else None)
   shield.time = float(times[total - 1])
   shield._lazy = {}
   shield._pending_check = None

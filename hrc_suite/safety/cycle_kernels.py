@@ -14,9 +14,9 @@ and adopted as Shield.step does while the verified path stays where it
 was planned from. A cycle the kernel does not cover stops the call before
 anything of it is changed, and the caller runs that cycle in Python: a
 candidate needed from a new state (Ruckig), a plan sample not computed
-yet, a measurement the Python `measure` would refuse. Cycles are thus either wholly compiled or wholly
-the reference, and the shield's state after each is the same
-(tests/safety/test_step_many.py).
+yet, a measurement the Python `measure` would refuse. Cycles are thus
+either wholly compiled or wholly the reference, and the shield's state
+after each is the same (tests/safety/test_step_many.py).
 """
 
 import math
@@ -34,6 +34,9 @@ CYCLE, INTERVAL, WORKSPACE, ERROR_POS, ERROR_VEL, DELAY, MIN_PERIOD, SAME, \
 NUM_PARAMS = 13
 # Indices of `human` (float64): last measurement time, its period, count.
 LAST_T, LAST_PERIOD, COUNT = range(3)
+# Indices of `flags` (int64): an intended path is kept, a goal is pending,
+# a candidate plan is pending, the cycle that adopted it (-1: none).
+HAS_INTENDED, GOAL_PENDING, HAS_CANDIDATE, ADOPTED_AT = range(4)
 
 
 @_jit
@@ -254,12 +257,13 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
     # verified state, or none while braking harder than the plans allow.
     use_candidate = False
     drop_candidate = False
-    if flags[1] == 1:
+    if flags[GOAL_PENDING] == 1:
       braking = False
       for d in range(dof):
         if abs(command[2, d]) > limits[6, d]:
           braking = True
-      same_key = (flags[2] == 1 and candidate_meta[2] == verified[0]
+      same_key = (flags[HAS_CANDIDATE] == 1
+                  and candidate_meta[2] == verified[0]
                   and candidate_meta[3] == verified[1])
       if same_key:
         use_candidate = True
@@ -306,7 +310,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       if attempt == 1:
         pk.make(current, verified[0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                 0.0, 0.0)
-      have = (not use_candidate and flags[0] == 1
+      have = (not use_candidate and flags[HAS_INTENDED] == 1
               and not (intended[6] <= pk._TIME_EPS and intended[1] != 1.0))
       if have:
         new_intended[:] = intended
@@ -378,20 +382,20 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       human[COUNT] += 1.0
     previous_q[:] = command[0]
     if drop_candidate:
-      flags[2] = 0
+      flags[HAS_CANDIDATE] = 0
     if safe:
       if use_candidate:   # Shield._adopt.
         plan, plan_start, plan_filled = now_plan, now_start, now_filled
         plan_window, plan_suffix = now_window, now_suffix
-        flags[1] = 0
-        flags[2] = 0
-        flags[3] = c
+        flags[GOAL_PENDING] = 0
+        flags[HAS_CANDIDATE] = 0
+        flags[ADOPTED_AT] = c
       verified[:] = failsafe
       intended[:] = new_intended
-      flags[0] = 1
+      flags[HAS_INTENDED] = 1
     else:
       verified[:] = moved
-      flags[0] = 0
+      flags[HAS_INTENDED] = 0
     for row in range(1, 4):
       for d in range(dof):
         state[row, d] = min(max(state[row, d], -clip[row - 1, d]),
