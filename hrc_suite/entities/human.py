@@ -184,7 +184,7 @@ class Human(composer.Entity):
     self._held_bits = {}      # object body -> (geom ids, contype, conaff.)
     self._cache = None
     self._player = None
-    self._player_clip = None
+    self._playback = None   # follow's HumanPlayback
 
   def _build_observables(self):
     return HumanObservables(self)
@@ -329,28 +329,27 @@ class Human(composer.Entity):
 
     At episode start the player is reset with the episode's random_state;
     before every physics step it advances by the physics timestep and the
-    capsules move to its keypoints (resized whenever the clip changes). The
-    task triggers the player's events itself. None stops following.
+    capsules move to its keypoints (resized whenever the clip changes), by
+    the tasks' own playback (entities/human_playback.py, one substep at a
+    time). The task triggers the player's events itself. None stops
+    following.
     """
+    # Imported here: human_playback builds on this module.
+    from hrc_suite.entities import human_playback
     self._player = player
-    self._player_clip = None
+    self._playback = (None if player is None else
+                      human_playback.HumanPlayback(self, player, substeps=1))
 
   @property
   def player(self):
     return self._player
 
-  def _apply_player(self, physics):
-    clip = self._player.clip
-    if clip is not self._player_clip:
-      self.resize(physics, clip)
-      self._player_clip = clip
-    self.set_keypoints(physics, self._player.positions)
-
   def initialize_episode(self, physics, random_state):
     if self._player is not None:
       self._player.reset(random_state)
-      self._player_clip = None
-      self._apply_player(physics)
+      self._playback.bind(physics)
+      self._playback.forget_clip()
+      self._playback.show_current(physics)
 
   @property
   def substep_hooks_idle(self):
@@ -360,8 +359,8 @@ class Human(composer.Entity):
 
   def before_substep(self, physics, random_state):
     if self._player is not None:
-      self._player.advance(physics.timestep())
-      self._apply_player(physics)
+      self._playback.advance(physics.timestep())
+      self._playback.apply(physics, 0)
 
   # ---------------------------------------------------------------- holding
 

@@ -7,7 +7,7 @@ human._row_dots), so the two agree bit for bit (tests/entities/
 test_human_kernels.py); `faster_than` is the task's check that no
 keypoint outran the shield's human model (HrcTask._faster_than_model),
 likewise. The task's playback uses them on the fast path
-(tasks/human_playback.py). Same compilation settings as the shield's
+(entities/human_playback.py). Same compilation settings as the shield's
 kernels (safety/kernels.py: cache, IEEE arithmetic).
 """
 

@@ -91,6 +91,7 @@ from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import human_kernels
+from hrc_suite.entities import human_playback
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
@@ -100,7 +101,6 @@ from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import grips as grips_lib
-from hrc_suite.tasks import human_playback
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
