@@ -14,7 +14,11 @@ setuptools.setup(
                  'reinforcement learning, on dm_control composer and MuJoCo.'),
     long_description=open('README.md').read(),
     long_description_content_type='text/markdown',
-    python_requires='>=3.10',
+    # Tested versions: docs/python_versions.md. Not 3.13: dm-control
+    # requires labmaze, whose last release (1.0.6) has wheels up to 3.12 and
+    # whose source build needs Bazel; capped so pip refuses with a clear
+    # message instead of failing in that build.
+    python_requires='>=3.10,<3.13',
     # The data folders under hrc_suite/assets have no __init__.py: listed as
     # namespace packages, with their files as package data (listing them
     # only as data of hrc_suite makes setuptools warn about each folder).
@@ -33,7 +37,11 @@ setuptools.setup(
         'mujoco==3.17.0',
         'pin>=3.0',          # pinocchio kinematics (wheels, with coal).
         'dm-env',
-        'numpy>=1.24',
+        # NumPy 2.5 deprecates setting ndarray.shape, which dm-control 1.0.50
+        # does (dm_control/mujoco/index.py) with DeprecationWarnings always
+        # shown (dm_control/composer/environment.py): six warnings per
+        # suite.load on Python 3.12 (docs/python_versions.md).
+        'numpy>=1.24,<2.5',
         'scipy>=1.10',
         'absl-py',
         'ruckig>=0.12',      # jerk-limited trajectory generation.
@@ -57,6 +65,9 @@ setuptools.setup(
     },
     classifiers=[
         'Programming Language :: Python :: 3',
+        'Programming Language :: Python :: 3.10',
+        'Programming Language :: Python :: 3.11',
+        'Programming Language :: Python :: 3.12',
         'Topic :: Scientific/Engineering :: Artificial Intelligence',
     ],
 )
