@@ -5,8 +5,10 @@ beside the robot (reference-benchmark.md, paper Table I).
   workspace box (`ik.table_workspace_box`, at least GOAL_MIN_HEIGHT above
   the table), kept only if gripper-down IK reaches it and the IK solution is
   free of static and self-collision; its joint solution is the joint goal.
-  Joint action space: joint positions uniform within the limits, rejecting
-  colliding ones; the goal position is their TCP position.
+  Joint action space: joint positions uniform within the limits, on joints
+  with more than one turn within one turn around home
+  (`layout.reach_joint_goal_range`), rejecting colliding ones; the goal
+  position is their TCP position.
 * Success: TCP within SUCCESS_DISTANCE of the goal (Cartesian) or joint
   error norm |q_goal - q| <= SUCCESS_JOINT_ERROR (joint).
 * Reward: dense -0.1 x distance (m or rad), or sparse +1 on success, -1
@@ -62,6 +64,8 @@ class Reach(base.HrcTask):
     table = -layout.robot_mount(self._robot.description.name).height_above_table
     low[2] = max(low[2], table + GOAL_MIN_HEIGHT)   # Base frame.
     self._goal_box = (low, high)
+    self._joint_goal_range = layout.reach_joint_goal_range(
+        self._robot.description)
     self._success = False
 
   # --------------------------------------------------------------- goals
@@ -79,7 +83,7 @@ class Reach(base.HrcTask):
     base_pose = model.base_pose
     for _ in range(GOAL_ATTEMPTS):
       if self._action_space.name == 'joint':
-        q = random_state.uniform(model.q_min, model.q_max)
+        q = random_state.uniform(*self._joint_goal_range)
       else:
         local = random_state.uniform(*self._goal_box)
         target = base_pose[:3, :3] @ local + base_pose[:3, 3]
