@@ -8,7 +8,9 @@ beside the robot (reference-benchmark.md, paper Table I).
   Joint action space: joint positions uniform within the limits, on joints
   with more than one turn within one turn around home
   (`layout.reach_joint_goal_range`), rejecting colliding ones; the goal
-  position is their TCP position.
+  position is their TCP position. Every goal keeps the robot's capsules
+  on its side of the table edge beside the person
+  (`layout.REACH_GOAL_MAX_Y`).
 * Success: TCP within SUCCESS_DISTANCE of the goal (Cartesian) or joint
   error norm |q_goal - q| <= SUCCESS_JOINT_ERROR (joint).
 * Reward: dense -0.1 x distance (m or rad), or sparse +1 on success, -1
@@ -78,6 +80,13 @@ class Reach(base.HrcTask):
   def goal_joint_positions(self):
     return self._goal_q.copy()
 
+  def _beside_person(self, q):
+    """Whether configuration q keeps every capsule (world) at y <=
+    layout.REACH_GOAL_MAX_Y."""
+    p1, p2, radii = self._collision_checker.reach.capsules(q)
+    reach_y = np.maximum(p1[:, 1], p2[:, 1]) + radii
+    return bool(np.all(reach_y <= layout.REACH_GOAL_MAX_Y))
+
   def _sample_goal(self, random_state):
     model, checker = self._kinematics, self._collision_checker
     base_pose = model.base_pose
@@ -93,9 +102,10 @@ class Reach(base.HrcTask):
         if not result.success:
           continue
         q = result.q
-      if not checker.in_collision(q):
+      if not checker.in_collision(q) and self._beside_person(q):
         return q, model.tcp_pose(q)[:3, 3]
-    raise RuntimeError(f'Reach: no collision-free goal in {GOAL_ATTEMPTS} '
+    raise RuntimeError(f'Reach: no collision-free goal at y <= '
+                       f'{layout.REACH_GOAL_MAX_Y} m in {GOAL_ATTEMPTS} '
                        f'samples for {self._robot.description.name}')
 
   def _initialize_task(self, physics, random_state):

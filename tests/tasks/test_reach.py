@@ -223,3 +223,19 @@ def test_joint_goals_lie_within_one_turn_of_home(robot):
     q_goal = env.task.goal_joint_positions
     assert np.all(q_goal >= low) and np.all(q_goal <= high)
     assert np.all(np.abs(q_goal - description.q_home)[wide] <= np.pi + 1e-9)
+
+
+@pytest.mark.parametrize('robot', ('jaco', 'iiwa'))
+@pytest.mark.parametrize('space', SPACES)
+def test_goals_keep_the_robot_beside_the_person(robot, space):
+  # Without the rule, joint goals of seeds 1 and 8 (Jaco) and 1, 3 and 8
+  # (iiwa) put the TCP at y 0.78-0.99 m, into the person (issue 17).
+  env = _env(robot, space)
+  task = env.task
+  for seed in range(10):
+    env.random_state.seed(seed)
+    env.reset()
+    p1, p2, radii = task.collision_checker.reach.capsules(
+        task.goal_joint_positions)
+    assert np.all(np.maximum(p1[:, 1], p2[:, 1]) + radii
+                  <= layout.REACH_GOAL_MAX_Y), seed
