@@ -141,3 +141,47 @@ STACKING_TABLE = Table(
     (TABLE_X[0], STACKING_STATION_X - STATION_EDGE_CLEARANCE
      + STACKING_STATION_SHIFT), TABLE_Y)
 HUMAN_STATION_STACKING = (STACKING_STATION_X, 0.0, math.pi)
+
+# Reach's joint goals (reach/dense, reach/sparse with joint actions). The
+# reference draws them uniformly within the joint limits, rejecting
+# colliding ones (docs/reference-benchmark.md, "Tasks"); we do too for
+# every joint whose range is at most one turn. A joint whose range exceeds
+# one turn (UR5e: five joints, Kinova Gen3 and Jaco: the four continuous
+# ones, +-2 pi; Sawyer's last, +-1.5 pi) repeats every pose of its link
+# over 2 pi, so the goals are drawn from one turn of it: the turn centred
+# on q_home, shifted inside the limits where a limit is nearer than pi.
+# Every goal pose stays possible; what goes is the unwinding: uniform over
+# +-2 pi a goal lay up to 4 pi (mean 4/3 pi) from home on each such joint,
+# 10.7-11.6 rad in norm on the UR5e (seeds 0-5), whose straight joint path
+# then swung the upper arm through the table and pedestal; unhindered,
+# the expert covers ~0.12 rad per RL step in norm (Gen3 seed 3: 11.4 rad
+# in 92 of the 100 steps), so such goals barely fit the horizon (issue
+# 17, docs/robots.md, "Reach goals").
+ONE_TURN = 2 * math.pi
+# rad: a range of one turn written with 11 decimals (UR5e elbow, +-pi) is
+# one turn.
+ONE_TURN_TOLERANCE = 1e-9
+
+
+def reach_joint_goal_range(description):
+  """(low, high) joint positions (dof,) from which reach draws its joint
+  goals: each joint's limits, cut to one turn around q_home (see above)."""
+  q_min = np.asarray(description.limits.q_min, float)
+  q_max = np.asarray(description.limits.q_max, float)
+  home = np.asarray(description.q_home, float)
+  wide = q_max - q_min > ONE_TURN + ONE_TURN_TOLERANCE
+  low = np.maximum(q_min, np.minimum(home - ONE_TURN / 2, q_max - ONE_TURN))
+  return (np.where(wide, low, q_min),
+          np.where(wide, low + ONE_TURN, q_max))
+
+# Reach's goals keep the robot on its side of the table's edge beside
+# which the person stands (HUMAN_STATION_BESIDE, STATION_EDGE_CLEARANCE
+# beyond it): every capsule of the goal configuration (gripper included)
+# within y <= REACH_GOAL_MAX_Y. The reference's joint goals ignore the
+# person (docs/reference-benchmark.md, "Tasks"); beyond the edge a goal puts
+# the arm into the person's body, where SSM holds it for the rest of the
+# episode. Issue 17's expert failures there (seeds 0-9, and experts.json's
+# 50): goals with the TCP at y 0.78-1.00 m, held for 61-83 of 100 RL steps
+# (Jaco seeds 1 and 8, iiwa 1 and 3, Schunk 8, Panda 42), the arm pushed
+# by the person (robot-human distance down to -0.14 m).
+REACH_GOAL_MAX_Y = DEFAULT_TABLE.y[1]

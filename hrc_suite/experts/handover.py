@@ -9,7 +9,11 @@ gripper-down IK step (or a shorter one). A palm beyond the gripper-down
 reach: the aim moves back along the handle to the nearest point IK
 reaches, so the handle still points along the palm's line and reaches as
 far towards it as the arm can, and the arm waits there (the person's hand
-sways while they wait and comes to the handle).
+sways while they wait and comes to the handle). The palm aimed at is the
+one nearest the robot seen so far (the person's reach loop returns there;
+chasing the current palm at the PFL shield's v_safe, the handle missed
+it for 1000 RL steps: issue 17), the current one for a while after the
+TCP stood still for STALL_STEPS.
 
 Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
@@ -98,6 +102,12 @@ OVER_TARGET = 0.02                       # m, horizontal: lower the hammer
 # Robot to human: the handle's end is not taken lower than this above the
 # table top (a palm swaying low would pull the hammer into the table).
 MIN_HANDLE_END_HEIGHT = 0.05             # m
+# Robot to human: the handle waits at the nearest palm seen; a TCP that
+# moved less than STALL_MOTION in each of STALL_STEPS RL steps chases the
+# current palm for CHASE_STEPS RL steps (RobotToHumanExpert._palm_aim).
+STALL_MOTION = 0.001                     # m
+STALL_STEPS = 20
+CHASE_STEPS = 50
 # Fingers clear of the handle before moving away: aperture at least; then
 # up and back until the grip point is this far from the TCP (a joint path
 # home from a stretched arm swept the open fingers along the handle).
@@ -249,6 +259,41 @@ class RobotToHumanExpert(_HammerExpert):
 
   TASKS = (('handover', 'robot_to_human'),)
 
+  def __init__(self, env):
+    super().__init__(env)
+    self.reset()
+
+  def reset(self):
+    self._nearest_palm = None
+    self._last_tcp = None
+    self._stalled = 0        # RL steps the TCP has not moved
+    self._chase = 0          # RL steps left chasing the current palm
+
+  def _palm_aim(self, palm, tcp):
+    """The palm position nearest the robot's base (horizontally) seen
+    this episode: the person's reach loop brings the hand back there, so
+    the handle waits where the hand comes closest instead of chasing it
+    (the PFL shield slows the arm to v_safe near the person). A TCP still
+    for STALL_STEPS (waiting in vain, or stalled: the Schunk's Cartesian
+    IK failed at every step towards a fixed aim at the edge of its reach,
+    seeds 15, 21, 32, 34) chases the current palm for CHASE_STEPS, as
+    before the memory."""
+    base = self._kinematics.base_pose[:3, 3]
+    if self._nearest_palm is None or (
+        np.linalg.norm((palm - base)[:2])
+        < np.linalg.norm((self._nearest_palm - base)[:2])):
+      self._nearest_palm = palm.copy()
+    moved = (self._last_tcp is None
+             or np.linalg.norm(tcp - self._last_tcp) > STALL_MOTION)
+    self._last_tcp = tcp.copy()
+    self._stalled = 0 if moved else self._stalled + 1
+    if self._stalled >= STALL_STEPS:
+      self._chase, self._stalled = CHASE_STEPS, 0
+    if self._chase > 0:
+      self._chase -= 1
+      return palm.copy()
+    return self._nearest_palm.copy()
+
   def action(self, obs):
     tcp = obs['eef_position']
     held = obs['object_held_by_human'][0] > 0.5
@@ -268,7 +313,7 @@ class RobotToHumanExpert(_HammerExpert):
       return self._go_home(obs, -1.0)
     rotation = _rotation(obs['object_quaternion'])
     end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
-    palm = obs['target_position'].copy()
+    palm = self._palm_aim(obs['target_position'], tcp)
     palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
     # Beyond the reach: the reachable aim nearest along the handle; at
     # the reach's edge already (no nearer point), hold still.

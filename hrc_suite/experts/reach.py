@@ -10,7 +10,11 @@ every action and the robot would stand still), the expert plans one via
 point with a collision-free straight path from q and a collision-free
 straight path on to the goal: the home configuration, then q with one joint
 already at its goal value, then q with all but one joint at their goal
-values (in that order; the first that works). Each step it steers straight
+values (in that order; the first that works), then VIA_SAMPLES random
+configurations within the task's joint goal range (explicit seed VIA_SEED,
+the same every plan), shortest total joint path first: the UR5e and the
+Sawyer had goals that no one-joint-at-a-time via point reaches (issue 17,
+docs/robots.md, "Reach goals"). Each step it steers straight
 to the goal if that path is free, else to the via point (planned again when
 the path to it is no longer free, e.g. after the shield braked off the line).
 
@@ -33,6 +37,7 @@ robot's capsules and the workcell boxes) and the shield's command
 
 import numpy as np
 
+from hrc_suite import layout
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.tasks import actions
@@ -40,6 +45,11 @@ from hrc_suite.tasks import actions
 # Joint distance (rad, max norm) under which the expert aims at the goal
 # without checking the path (the last step is tiny).
 NEAR_GOAL = 0.05
+# Random via points tried when no structured one works, and their seed.
+VIA_SAMPLES = 400
+VIA_SEED = 0
+# rad: goals read as q + (q_goal - q) from observations differ by rounding.
+GOAL_TOLERANCE = 1e-9
 
 
 class ReachExpert(base.Expert):
@@ -53,11 +63,14 @@ class ReachExpert(base.Expert):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     self._checker = self._task.collision_checker
-    self._q_home = np.asarray(self._task.robot.description.q_home, float)
+    description = self._task.robot.description
+    self._q_home = np.asarray(description.q_home, float)
+    self._via_range = layout.reach_joint_goal_range(description)
     self.reset()
 
   def reset(self):
     self._via = None      # None: straight to the goal.
+    self._failed_search = None   # (q, goal) of the last fruitless search.
 
   @property
   def via(self):
@@ -87,6 +100,30 @@ class ReachExpert(base.Expert):
     candidates = np.concatenate([
         self._q_home[None], np.where(one_first, goal, q),
         np.where(~one_first, goal, q)])
+    via = self._first_via(q, goal, candidates)
+    if via is None and not self._searched_near(q, goal):
+      rng = np.random.default_rng(VIA_SEED)
+      samples = rng.uniform(*self._via_range, (VIA_SAMPLES, len(q)))
+      length = (np.linalg.norm(samples - q, axis=1)
+                + np.linalg.norm(goal - samples, axis=1))
+      via = self._first_via(q, goal, samples[np.argsort(length)])
+      self._failed_search = None if via is not None else (q.copy(),
+                                                          goal.copy())
+    return via
+
+  def _searched_near(self, q, goal):
+    """Whether the random search failed for this goal within NEAR_GOAL
+    of q (an arm held by collision prevention: searching every step cost
+    0.4 s per RL step, UR5e seed 1)."""
+    if self._failed_search is None:
+      return False
+    q_failed, goal_failed = self._failed_search
+    return (np.abs(goal - goal_failed).max() < GOAL_TOLERANCE
+            and np.abs(q - q_failed).max() < NEAR_GOAL)
+
+  def _first_via(self, q, goal, candidates):
+    """The first candidate whose first step is accepted and whose straight
+    paths q -> v -> goal are free, or None."""
     ok = self._free(q, candidates)
     ok[ok] = self._step_free(q, candidates[ok])
     for v in candidates[ok]:

@@ -21,7 +21,8 @@ place: people may present it low. While the human waits for 'object_taken'
 a robot grasp (both fingers touch it, gripper commanded closed) makes the
 human let go and fires the event; the robot places it within
 SUCCESS_DISTANCE of a target on the table ('object_placed' fires once it lies
-there released) and the human retreats.
+there released) and the human retreats. The target is drawn in the region
+until the robot reaches its put-down (PUT_DOWN_ABOVE, PUT_DOWN_APPROACH).
 
 Success (both): the object is where it belongs (held by the human / at the
 target) and the human's motion has completed: by default the end of the
@@ -84,6 +85,20 @@ _SITE_IN_BODY = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 # hammer's centre of mass (robot to human) and the target (human to robot).
 REGION_X = (0.15, 0.75)
 REGION_Y = (0.2, 0.8)
+# Human to robot: a target is kept if gripper-down IK reaches its put-down
+# free of collisions: the TCP (at the hammer's grip point) PUT_DOWN_ABOVE
+# over the target, where a robot lets the hammer drop (the expert's
+# RELEASE_HEIGHT), and PUT_DOWN_APPROACH above that, where it carries it
+# in (CARRY_HEIGHT). The region's near corner lies inside the iiwa's
+# gripper-down reach hole (~0.35 m ahead of its base): 2 of 16 region
+# points out of reach (docs/robots.md), and its targets there (seeds 6
+# and 9, x 0.35 m ahead) were the episodes it failed, the hammer taken but
+# never set down (issue 17); the Sawyer's seed 6 target there, reached
+# only with a colliding posture, failed the same way. Where the first draw
+# is reached (Panda and Schunk, seeds 0-9) the targets are as before.
+PUT_DOWN_ABOVE = 0.08                    # m
+PUT_DOWN_APPROACH = 0.07                 # m
+TARGET_ATTEMPTS = 200
 TARGET_RGBA = (0.1, 0.8, 0.2, 0.4)
 # The human picks the hammer if the palm is this close to its grip point.
 PICK_DISTANCE = 0.15                     # m
@@ -347,6 +362,7 @@ class HumanToRobot(_Handover):
     body.add('site', name='handover_target', type='cylinder',
              size=(SUCCESS_DISTANCE, 0.001), rgba=TARGET_RGBA, group=0)
     self._target_body = body
+    self._ik = ik_lib.InverseKinematics(self._kinematics)
     self._picked = False
     self._pick_grip = None
     self._turn = 0.0
@@ -425,13 +441,29 @@ class HumanToRobot(_Handover):
       self._human.set_grip(physics, self._hammer.body,
                            *self.presenting_grip(physics))
 
+  def _reachable_target(self, target):
+    """Whether the robot reaches the put-down over `target`."""
+    return common.top_grasp_reachable(
+        self._ik, self._collision_checker, target,
+        self._robot.description.q_home, PUT_DOWN_ABOVE, PUT_DOWN_APPROACH)
+
+  def _sample_target(self, random_state):
+    for _ in range(TARGET_ATTEMPTS):
+      target = self._sample_in_region(random_state)
+      if self._reachable_target(target):
+        return target
+    raise RuntimeError(
+        f'HumanToRobot: no reachable table target for '
+        f'{self._robot.description.name} in {TARGET_ATTEMPTS} draws in '
+        f'{self._region}')
+
   def _initialize_task(self, physics, random_state):
     self._reset_flags()
     self._holding_hand = self._player.clip.holding_hand or 'right'
     self._picked = False
     self._pick_grip = None
     self._turn = 0.0
-    target = self._sample_in_region(random_state)
+    target = self._sample_target(random_state)
     physics.bind(self._target_body).mocap_pos = target
     # The hammer where this clip's hand picks it, head towards the robot,
     # the palm over its human grip point.

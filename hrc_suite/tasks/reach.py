@@ -5,8 +5,12 @@ beside the robot (reference-benchmark.md, paper Table I).
   workspace box (`ik.table_workspace_box`, at least GOAL_MIN_HEIGHT above
   the table), kept only if gripper-down IK reaches it and the IK solution is
   free of static and self-collision; its joint solution is the joint goal.
-  Joint action space: joint positions uniform within the limits, rejecting
-  colliding ones; the goal position is their TCP position.
+  Joint action space: joint positions uniform within the limits, on joints
+  with more than one turn within one turn around home
+  (`layout.reach_joint_goal_range`), rejecting colliding ones; the goal
+  position is their TCP position. Every goal keeps the robot's capsules
+  on its side of the table edge beside the person
+  (`layout.REACH_GOAL_MAX_Y`).
 * Success: TCP within SUCCESS_DISTANCE of the goal (Cartesian) or joint
   error norm |q_goal - q| <= SUCCESS_JOINT_ERROR (joint).
 * Reward: dense -0.1 x distance (m or rad), or sparse +1 on success, -1
@@ -62,6 +66,8 @@ class Reach(base.HrcTask):
     table = -layout.robot_mount(self._robot.description.name).height_above_table
     low[2] = max(low[2], table + GOAL_MIN_HEIGHT)   # Base frame.
     self._goal_box = (low, high)
+    self._joint_goal_range = layout.reach_joint_goal_range(
+        self._robot.description)
     self._success = False
 
   # --------------------------------------------------------------- goals
@@ -74,12 +80,19 @@ class Reach(base.HrcTask):
   def goal_joint_positions(self):
     return self._goal_q.copy()
 
+  def _beside_person(self, q):
+    """Whether configuration q keeps every capsule (world) at y <=
+    layout.REACH_GOAL_MAX_Y."""
+    p1, p2, radii = self._collision_checker.reach.capsules(q)
+    reach_y = np.maximum(p1[:, 1], p2[:, 1]) + radii
+    return bool(np.all(reach_y <= layout.REACH_GOAL_MAX_Y))
+
   def _sample_goal(self, random_state):
     model, checker = self._kinematics, self._collision_checker
     base_pose = model.base_pose
     for _ in range(GOAL_ATTEMPTS):
       if self._action_space.name == 'joint':
-        q = random_state.uniform(model.q_min, model.q_max)
+        q = random_state.uniform(*self._joint_goal_range)
       else:
         local = random_state.uniform(*self._goal_box)
         target = base_pose[:3, :3] @ local + base_pose[:3, 3]
@@ -89,9 +102,10 @@ class Reach(base.HrcTask):
         if not result.success:
           continue
         q = result.q
-      if not checker.in_collision(q):
+      if not checker.in_collision(q) and self._beside_person(q):
         return q, model.tcp_pose(q)[:3, 3]
-    raise RuntimeError(f'Reach: no collision-free goal in {GOAL_ATTEMPTS} '
+    raise RuntimeError(f'Reach: no collision-free goal at y <= '
+                       f'{layout.REACH_GOAL_MAX_Y} m in {GOAL_ATTEMPTS} '
                        f'samples for {self._robot.description.name}')
 
   def _initialize_task(self, physics, random_state):

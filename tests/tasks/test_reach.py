@@ -1,5 +1,6 @@
 """The reach task: spec conformance, goals, rewards, success by an oracle."""
 
+import dataclasses
 import unittest
 
 from dm_env import test_utils
@@ -7,6 +8,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import layout
+from hrc_suite import robot_description
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.tasks import actions
@@ -178,3 +180,62 @@ def test_reward_kind_conflicting_with_the_registered_task_raises():
     suite.load('reach', 'dense', task_kwargs={'reward': 'sparse'})
   with pytest.raises(ValueError, match="Unknown reward 'shaped'"):
     reach.Reach(reward='shaped')
+
+
+@pytest.mark.parametrize('robot', robot_description.ROBOT_NAMES)
+def test_joint_goal_range_is_one_turn_at_most(robot):
+  description = robot_description.load(robot)
+  limits = description.limits
+  low, high = layout.reach_joint_goal_range(description)
+  wide = (limits.q_max - limits.q_min
+          > layout.ONE_TURN + layout.ONE_TURN_TOLERANCE)
+  # Joints of at most one turn keep their limits (the reference's rule).
+  np.testing.assert_array_equal(low[~wide], limits.q_min[~wide])
+  np.testing.assert_array_equal(high[~wide], limits.q_max[~wide])
+  # Wider ones: one turn, inside the limits, centred on home here.
+  np.testing.assert_allclose(high[wide] - low[wide], layout.ONE_TURN)
+  np.testing.assert_allclose((low + high)[wide] / 2, description.q_home[wide])
+  assert np.all(low >= limits.q_min) and np.all(high <= limits.q_max)
+  assert wide.any() == (robot in ('sawyer', 'jaco', 'kinova3', 'ur5e'))
+
+
+def test_joint_goal_range_shifts_inside_a_near_limit():
+  description = robot_description.load('ur5e')
+  q_home = description.q_home.copy()
+  q_home[0] = description.limits.q_max[0] - 1.0
+  moved = dataclasses.replace(description, q_home=q_home)
+  low, high = layout.reach_joint_goal_range(moved)
+  assert high[0] == description.limits.q_max[0]
+  assert low[0] == pytest.approx(high[0] - layout.ONE_TURN)
+
+
+@pytest.mark.parametrize('robot', ('ur5e', 'kinova3'))
+def test_joint_goals_lie_within_one_turn_of_home(robot):
+  # Uniform within +-2 pi, goals lay 6-7 rad from home on these joints and
+  # the expert did not reach them in the horizon (issue 17).
+  env = _env(robot, 'joint', seed=0)
+  description = env.task.robot.description
+  low, high = layout.reach_joint_goal_range(description)
+  limits = description.limits
+  wide = limits.q_max - limits.q_min > layout.ONE_TURN + 1e-6
+  for _ in range(5):
+    env.reset()
+    q_goal = env.task.goal_joint_positions
+    assert np.all(q_goal >= low) and np.all(q_goal <= high)
+    assert np.all(np.abs(q_goal - description.q_home)[wide] <= np.pi + 1e-9)
+
+
+@pytest.mark.parametrize('robot', ('jaco', 'iiwa'))
+@pytest.mark.parametrize('space', SPACES)
+def test_goals_keep_the_robot_beside_the_person(robot, space):
+  # Without the rule, joint goals of seeds 1 and 8 (Jaco) and 1, 3 and 8
+  # (iiwa) put the TCP at y 0.78-0.99 m, into the person (issue 17).
+  env = _env(robot, space)
+  task = env.task
+  for seed in range(10):
+    env.random_state.seed(seed)
+    env.reset()
+    p1, p2, radii = task.collision_checker.reach.capsules(
+        task.goal_joint_positions)
+    assert np.all(np.maximum(p1[:, 1], p2[:, 1]) + radii
+                  <= layout.REACH_GOAL_MAX_Y), seed
