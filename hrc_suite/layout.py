@@ -70,7 +70,7 @@ class RobotMount:
 DEFAULT_MOUNT = RobotMount(ROBOT_BASE_POS)
 
 # The Schunk LWA 4P is a short arm: 0.65 m from shoulder to wrist, and
-# 0.358 m from its wrist centre to our TCP (robots.md's 0.163 m tool offset
+# 0.358 m from its wrist centre to our TCP (the flange's 0.163 m tool offset
 # + the 0.12 m gripper); its wrist bends at most 1.85 rad. On the default
 # mount gripper-down IK reaches at most ~0.21 m above the table (0.42 m
 # ahead) and 0.64 m ahead: not the handover heights, the nail, the lifted
@@ -144,7 +144,7 @@ HUMAN_STATION_STACKING = (STACKING_STATION_X, 0.0, math.pi)
 
 # Reach's joint goals (reach/dense, reach/sparse with joint actions). The
 # reference draws them uniformly within the joint limits, rejecting
-# colliding ones (docs/reference-benchmark.md, "Tasks"); we do too for
+# colliding ones (docs/reference_benchmark.md, Tasks); we do too for
 # every joint whose range is at most one turn. A joint whose range exceeds
 # one turn (UR5e: five joints, Kinova Gen3 and Jaco: the four continuous
 # ones, +-2 pi; Sawyer's last, +-1.5 pi) repeats every pose of its link
@@ -178,7 +178,7 @@ def reach_joint_goal_range(description):
 # which the person stands (HUMAN_STATION_BESIDE, STATION_EDGE_CLEARANCE
 # beyond it): every capsule of the goal configuration (gripper included)
 # within y <= REACH_GOAL_MAX_Y. The reference's joint goals ignore the
-# person (docs/reference-benchmark.md, "Tasks"); beyond the edge a goal puts
+# person (docs/reference_benchmark.md, Tasks); beyond the edge a goal puts
 # the arm into the person's body, where SSM holds it for the rest of the
 # episode. Issue 17's expert failures there (seeds 0-9, and experts.json's
 # 50): goals with the TCP at y 0.78-1.00 m, held for 61-83 of 100 RL steps

@@ -13,11 +13,6 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PACKAGES = ('hrc_suite', 'agents', 'scripts', 'tests')
-# Files other engineers are editing today; their citations are listed for
-# the lead to replace. Empty this once that is done.
-PENDING_FILES = frozenset({
-    'hrc_suite/tasks/reach.py',
-})
 # Citations of documents outside the repository. Written so that this file
 # does not match them itself.
 OUTSIDE = re.compile(
@@ -66,16 +61,9 @@ def test_the_outside_pattern_catches_the_old_citations():
 def test_no_citation_of_documents_outside_the_repository():
   found = []
   for name, text in _python_files():
-    if name in PENDING_FILES:
-      continue
     for match in OUTSIDE.finditer(text):
       found.append(f'{name}:{_line(text, match.start())}: {match.group(0)}')
   assert not found, 'cite docs/ instead:\n' + '\n'.join(found)
-
-
-def test_pending_files_exist():
-  missing = [name for name in PENDING_FILES if not (ROOT / name).is_file()]
-  assert not missing, missing
 
 
 def test_cited_docs_exist():
@@ -120,8 +108,6 @@ def test_cited_reference_benchmark_sections_exist():
   headings = _headings('reference_benchmark.md')
   bad = []
   for name, text in _python_files():
-    if name in PENDING_FILES:
-      continue
     for match in BENCHMARK_SECTION.finditer(text):
       if not _names_a_section(match.group(1), headings):
         bad.append(f'{name}:{_line(text, match.start())}: {match.group(0)!r}')

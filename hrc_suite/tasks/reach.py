@@ -1,5 +1,5 @@
 """Reach: move the end effector (or the joints) to a goal while a human works
-beside the robot (reference-benchmark.md, paper Table I).
+beside the robot (docs/reference_benchmark.md, Tasks).
 
 * Goal: Cartesian action space: a TCP position uniform in the robot's table
   workspace box (`ik.table_workspace_box`, at least GOAL_MIN_HEIGHT above
