@@ -106,13 +106,20 @@ def test_work_before_physics_steps_computed_ahead_agrees(domain, task, steps):
   assert fast == slow
 
 
-def _pushed_episode(fast_path):
+def _reach(robot, fast_path):
+  """A reset reach/dense environment and the statuses of its compiled
+  calls (collected on the fast path)."""
   env = suite.load('reach', 'dense', task_kwargs=dict(
-      robot='schunk', seed=0, fast_path=fast_path))
+      robot=robot, seed=0, fast_path=fast_path))
   statuses = []
   env.reset()
   if fast_path:
     _count_runs(env, statuses)
+  return env, statuses
+
+
+def _pushed_episode(fast_path):
+  env, statuses = _reach('schunk', fast_path)
   rng = np.random.RandomState(0)
   qpos = []
   for step in range(12):
@@ -135,12 +142,7 @@ def test_a_push_is_handed_back_and_agrees_with_the_reference():
 
 
 def _broken_episode(fast_path):
-  env = suite.load('reach', 'dense', task_kwargs=dict(
-      robot='panda', seed=0, fast_path=fast_path))
-  statuses = []
-  env.reset()
-  if fast_path:
-    _count_runs(env, statuses)
+  env, statuses = _reach('panda', fast_path)
   timesteps = [env.step(np.zeros(7)) for _ in range(2)]
   # A joint velocity far beyond MuJoCo's limit: the next physics step (the
   # RL step's first, inside the compiled call) raises mjWARN_BADQACC.
