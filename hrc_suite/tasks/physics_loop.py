@@ -7,11 +7,11 @@ per step the person's mocap rows (HumanPlayback's precomputed arrays),
 the shield's precomputed set-point, the controller's torque
 (control/controller.py's kernels around mj_mulM), MuJoCo's mj_step2 and
 mj_step1 (dm_control's legacy step; libmujoco's own functions, called
-by name from compiled code), dm_control's warning check, then the task's after_substep:
-the tracking bound and the contacts' classification, robot-human contacts
-judged by the commanded speed at the contact point (mj_jac, as
-tasks/contacts.py). The arithmetic is the Python loop's, operation for
-operation, so both give the same states bit for bit
+by name from compiled code), dm_control's warning check, then the task's
+after_substep: the tracking bound and the contacts' classification,
+robot-human contacts judged by the commanded speed at the contact point
+(mj_jac, as tasks/contacts.py). The arithmetic is the Python loop's,
+operation for operation, so both give the same states bit for bit
 (tests/tasks/test_fast_path.py).
 
 The call stops and hands back to Python, which runs the rest exactly as
@@ -44,6 +44,7 @@ runs. The mj_* functions are libmujoco's own, the copy the bindings use.
 """
 
 import ctypes
+import functools
 import os
 
 from llvmlite import binding as llvm
@@ -136,14 +137,9 @@ class ContactMemory:
     if not _LIBRARY:
       raise ValueError("MuJoCo's library was not found for compiled calls")
     names = _pointer_names()
-    timer = np.asarray(data.timer.duration)   # mjTimerStat[mjNTIMER]
-    counts = _view(ctypes.c_int32,
-                   _address(timer) + timer.strides[0] * timer.shape[0], 5)
+    counts, pointers = _counts(data), _pointers(data)
     if counts[0] != data.ncon or counts[4] != data.nefc:
       raise ValueError('ncon and nefc are not where expected in mjData')
-    pointers = _view(ctypes.c_uint64,
-                     _address(data.energy) + data.energy.nbytes,
-                     2 + len(names))
     checked = 0
     for name, value in zip(names[:-1], pointers[2:]):
       view = getattr(data, name, None)
@@ -172,15 +168,36 @@ class ContactMemory:
     return self.arena_ints[rows[:, None] + self.geom + np.arange(2)]
 
 
+def _counts(data):
+  """ncon, ne, nf, nl, nefc of an MjData: the int32s after its timers."""
+  timer = np.asarray(data.timer.duration)   # mjTimerStat[mjNTIMER]
+  return _view(ctypes.c_int32,
+               _address(timer) + timer.strides[0] * timer.shape[0], 5)
+
+
+def _pointers(data):
+  """buffer, arena, then the pointer fields from qpos to contact of an
+  MjData: the words after its `energy`."""
+  return _view(ctypes.c_uint64, _address(data.energy) + data.energy.nbytes,
+               2 + len(_pointer_names()))
+
+
+@functools.lru_cache(maxsize=None)
 def _contact_fields():
   """(stride, offset of geom, offset of pos) of mjContact in bytes, from
-  the bindings' views on a model with contacts."""
+  the bindings' views on a model with contacts, where `_counts` and
+  `_pointers` are checked too (with contacts and constraints present)."""
   model = mujoco.MjModel.from_xml_string(_PROBE_XML)
   data = mujoco.MjData(model)
   mujoco.mj_forward(model, data)
   if data.ncon < 2:
     raise ValueError('the probe model has no contacts')
   dist = np.asarray(data.contact.dist)
+  counts = _counts(data)
+  if (counts[0] != data.ncon or counts[4] != data.nefc
+      or _pointers(data)[-1] != _address(dist)):
+    raise ValueError('ncon, nefc or contact are not where expected in '
+                     'mjData')
   offset = _address(data.contact.geom) - _address(dist)
   pos = _address(data.contact.pos) - _address(dist)
   if dist.strides[0] % 8 or offset % 4 or pos % 8:
