@@ -663,7 +663,15 @@ class Shield:
     if cached is None or cached[0] is not plan:
       cached = (plan,) + pfl_speed_tables(
           self.robot.surface_speeds(plan.q, plan.dq))
-      self._pfl_speeds = {id(plan): cached}
+      # Kept for the plan and the pending candidate, both asked for in
+      # every cycle while a candidate waits (one entry alone made each
+      # evict the other).
+      alive = {id(self._plan)}
+      if self._candidate is not None:
+        alive.add(id(self._candidate[0]))
+      self._pfl_speeds = {key: value for key, value in
+                          self._pfl_speeds.items() if key in alive}
+      self._pfl_speeds[id(plan)] = cached
     return cached[1], cached[2]
 
   def _s_dot_limit(self, plan, s):
