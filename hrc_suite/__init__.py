@@ -34,27 +34,25 @@ def headless_gl_backend(environ, platform,
   return 'egl' if find_library('EGL') else None
 
 
-def _load_on_first_use(backend):
+def _load_egl_on_first_use():
   """Imports dm_control's rendering module without a backend and makes
-  its Renderer import `backend` when the first context is made."""
+  its Renderer import EGL when the first context is made."""
   os.environ['MUJOCO_GL'] = _NO_RENDERER
   try:
     from dm_control import _render   # pylint: disable=g-import-not-at-top
   finally:
     del os.environ['MUJOCO_GL']
-  importers = {'egl': _render._import_egl}   # pylint: disable=protected-access
 
   def renderer(*args, **kwargs):
-    context = importers[backend]()
+    context = _render._import_egl()   # pylint: disable=protected-access
     _render.Renderer = context
-    _render.BACKEND = backend
     _render.USING_GPU = True   # dm_control's value for EGL
     return context(*args, **kwargs)
 
   _render.Renderer = renderer
-  _render.BACKEND = backend
+  _render.BACKEND = 'egl'
 
 
-_BACKEND = headless_gl_backend(os.environ, sys.platform)
-if _BACKEND is not None and 'dm_control._render' not in sys.modules:
-  _load_on_first_use(_BACKEND)
+if (headless_gl_backend(os.environ, sys.platform) == 'egl'
+    and 'dm_control._render' not in sys.modules):
+  _load_egl_on_first_use()

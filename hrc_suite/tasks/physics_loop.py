@@ -118,6 +118,7 @@ def _view(ctype, address, count):
   return np.ctypeslib.as_array((ctype * count).from_address(address))
 
 
+@functools.lru_cache(maxsize=None)
 def _pointer_names():
   """mjData's pointer fields from qpos to contact (mujoco.introspect)."""
   from mujoco.introspect import structs   # pylint: disable=g-import-not-at-top
@@ -316,7 +317,6 @@ class CompiledSteps:
       raise ValueError("the person's mocap rows are not consecutive")
     self._data = data
     self._arena_limit = ARENA_HEADROOM * model.narena
-    self._maxuse = None
     self._flags = np.zeros_like(step_flags)
     self._before = np.zeros(physics.data.warning.number.shape, np.int32)
     self.out = np.zeros(3)
