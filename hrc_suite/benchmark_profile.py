@@ -7,11 +7,11 @@ wrappers are removed afterwards). Parts nest: collision prevention holds
 the IK it calls, the task's hooks hold the shield, the person, the
 controller and the contact monitor. Top-level parts count their own time
 without the top-level parts they call: on the fast path the task's
-before_substep runs the RL step's first L - 1 physics steps
-(tasks/substeps.py), most in one compiled call (tasks/physics_loop.py,
-which holds their physics, mocap, controller, tracking and contacts);
-steps it hands back to Python count as physics and after_substep, and
-composer's last physics step as physics. "composer
+run_physics_steps runs the RL step's L physics steps (composer's one
+substep, tasks/substeps.py), most in one compiled call
+(tasks/physics_loop.py, which holds their physics, mocap, controller,
+tracking and contacts); steps it hands back to Python count as physics
+and after_substep. "composer
 and the rest" is the RL step's total minus the top-level parts
 (dm_control's environment loop, observables, the action spec check,
 numpy glue).
@@ -38,8 +38,8 @@ PARTS = (
      'InverseKinematics', 'solve', False),
     ('  person: playback of the RL step (25 poses, segment frames)',
      'hrc_suite.entities.human_playback', 'HumanPlayback', 'advance', False),
-    ('task before_substep: the loop of the RL step\'s physics steps',
-     'hrc_suite.tasks.base', 'HrcTask', 'before_substep', True),
+    ('task run_physics_steps: the RL step\'s physics steps',
+     'hrc_suite.tasks.base', 'HrcTask', 'run_physics_steps', True),
     ('  shield: 25 cycles (safety.batch.step_many)', 'hrc_suite.safety.batch',
      None, 'step_many', False),
     ('  compiled physics steps (physics_loop.run: mocap, controller, '

@@ -67,6 +67,14 @@ class JointLimits:
   j_max_ltt: np.ndarray   # rad/s^3, long-term planning
   torque: np.ndarray      # N m
 
+  def __post_init__(self):
+    # Read-only copies: a plan cache keys on the limits object
+    # (safety/long_term_plan.py), so its values must not change.
+    for field in dataclasses.fields(self):
+      array = np.array(getattr(self, field.name), dtype=float)
+      array.flags.writeable = False
+      object.__setattr__(self, field.name, array)
+
 
 @dataclasses.dataclass(frozen=True)
 class ShieldParameters:

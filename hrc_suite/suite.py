@@ -46,10 +46,13 @@ class Environment(composer.Environment):
   def __init__(self, task, **kwargs):
     task.use_one_substep()   # Before composer reads the substep count.
     super().__init__(task, **kwargs)
-    if task.one_substep:
-      steps = task.physics_steps
-      super().add_extra_hook('before_substep', steps.last_before)
-      super().add_extra_hook('after_substep', steps.last_after)
+
+  def _substep(self, action):
+    if self.task.one_substep:   # The task runs them with their hooks.
+      self.task.run_physics_steps(self._physics_proxy, action,
+                                  self._random_state)
+    else:
+      super()._substep(action)
 
   def step(self, action):
     # After a LAST step composer resets; a running episode restored since

@@ -136,7 +136,7 @@ class InverseKinematics:
 
   def _check_target(self, target_position):
     target = np.asarray(target_position, dtype=float)
-    if target.shape != (3,) or not np.all(np.isfinite(target)):
+    if target.shape != (3,) or not np.isfinite(target).all():
       raise ValueError('target_position must be 3 finite numbers (world x, y, '
                        f'z in m), got {np.asarray(target_position).tolist()!r}')
     return target
@@ -146,8 +146,8 @@ class InverseKinematics:
     target = self._check_target(target_position)
     if not np.isfinite(yaw):
       raise ValueError(f'yaw must be a finite angle in rad, got {yaw!r}')
-    q = np.clip(self._model.check_q(q_init), self._model.q_min,
-                self._model.q_max)
+    q = np.minimum(np.maximum(self._model.check_q(q_init),
+                              self._model.q_min), self._model.q_max)
     if not self.half_turn_symmetric:
       return self._solve(target, q, float(yaw))
     seed_x_axis = (ik_kernels.tcp_pose(q, self._placements, self._tcp)

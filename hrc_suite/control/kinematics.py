@@ -161,7 +161,7 @@ class KinematicModel:
     if q.shape != (self.dof,):
       raise ValueError(f'{self._description.name}: expected a joint vector of '
                        f'shape ({self.dof},), got shape {q.shape}')
-    if not np.all(np.isfinite(q)):
+    if not np.isfinite(q).all():
       raise ValueError(f'{self._description.name}: joint vector must be '
                        f'finite, got {q.tolist()}')
     return q

@@ -263,15 +263,18 @@ class Player:
     if (not n or self._transition is not None or self._waiting
         or self._finished):
       return False
-    linear = np.add.accumulate(np.append(self._linear, np.full(n, dt)))
+    clock = np.full(n + 1, dt, dtype=float)   # n additions of dt, in order
+    clock[0] = self._linear
+    linear = np.add.accumulate(clock)
     t = linear[1:] - self._offset
     end = prepared.duration
     if self._phase < len(prepared.anchors):
       end = min(end, prepared.anchors[self._phase])
     if not t[-1] < end:   # t grows with k: the last step decides.
       return False
-    episode = np.add.accumulate(np.append(self._episode_time,
-                                          np.full(n, dt)))
+    clock[0] = self._episode_time
+    clock[1:] = dt
+    episode = np.add.accumulate(clock)
     times[:n] = episode[1:]
     clips[:n] = [prepared.clip] * n
     self._episode_time = float(episode[-1])

@@ -305,7 +305,7 @@ def _check_vector(name, value, dof):
   array = np.asarray(value, dtype=float)
   if array.shape != (dof,):
     raise ValueError(f'{name} must have shape ({dof},), got {array.shape}')
-  if not np.all(np.isfinite(array)):
+  if not np.isfinite(array).all():
     raise ValueError(f'{name} must be finite, got {array.tolist()}')
   return array
 
@@ -347,13 +347,25 @@ class _Solver:
   more than a whole calculation)."""
 
   _by_dof = {}
+  _limits = {}   # dof -> the limits last written into its request
 
   @classmethod
-  def get(cls, dof):
+  def get(cls, dof, limits):
+    """(Ruckig, its request with `limits` and rest at the target, a
+    trajectory) for dof joints."""
     if dof not in cls._by_dof:
-      cls._by_dof[dof] = (ruckig.Ruckig(dof), ruckig.InputParameter(dof),
-                          ruckig.Trajectory(dof))
-    return cls._by_dof[dof]
+      request = ruckig.InputParameter(dof)
+      request.target_velocity = [0.0] * dof
+      request.target_acceleration = [0.0] * dof
+      cls._by_dof[dof] = (ruckig.Ruckig(dof), request, ruckig.Trajectory(dof))
+    solver = cls._by_dof[dof]
+    if cls._limits.get(dof) is not limits:   # Read-only arrays: by identity.
+      request = solver[1]
+      request.max_velocity = limits.v_max.tolist()
+      request.max_acceleration = limits.a_max_ltt.tolist()
+      request.max_jerk = limits.j_max_ltt.tolist()
+      cls._limits[dof] = limits
+    return solver
 
 
 # No brake pre-profile (plan_kernels.piece_table).
@@ -373,13 +385,17 @@ class _RecentPlans:
 
   def __init__(self):
     self._plans = collections.OrderedDict()
+    self._limits = (None, b'')   # The last limits and their bytes.
 
-  @staticmethod
-  def key(arrays, limits, cycle_time, start_time):
-    return (b''.join(np.ascontiguousarray(a, dtype=float).tobytes()
-                     for a in arrays + (limits.v_max, limits.a_max_ltt,
-                                        limits.j_max_ltt, limits.q_min,
-                                        limits.q_max)),
+  def key(self, arrays, limits, cycle_time, start_time):
+    """The plan's inputs as one hashable value. The limits' bytes are
+    kept for the last limits object (JointLimits' arrays are read-only)."""
+    if self._limits[0] is not limits:
+      self._limits = (limits, b''.join(
+          np.ascontiguousarray(a, dtype=float).tobytes() for a in (
+              limits.v_max, limits.a_max_ltt, limits.j_max_ltt,
+              limits.q_min, limits.q_max)))
+    return (np.concatenate(arrays).tobytes() + self._limits[1],
             float(cycle_time), float(start_time))
 
   def get(self, key):
@@ -443,16 +459,11 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   """plan_to_goal's plan, computed (arguments checked, goal clamped)."""
   dof = len(limits.q_min)
 
-  otg, request, trajectory = _Solver.get(dof)
+  otg, request, trajectory = _Solver.get(dof, limits)
   request.current_position = q0.tolist()
   request.current_velocity = dq0.tolist()
   request.current_acceleration = ddq0.tolist()
   request.target_position = goal.tolist()
-  request.target_velocity = [0.0] * dof
-  request.target_acceleration = [0.0] * dof
-  request.max_velocity = limits.v_max.tolist()
-  request.max_acceleration = limits.a_max_ltt.tolist()
-  request.max_jerk = limits.j_max_ltt.tolist()
   try:
     result = otg.calculate(request, trajectory)
   except _RUCKIG_ERRORS as e:

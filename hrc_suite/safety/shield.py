@@ -581,7 +581,7 @@ class Shield:
   def _at_rest(self):
     """Whether the command is at rest (velocity and acceleration zero)."""
     rates = self._state[1:3]
-    return bool(np.all(np.abs(rates) <= REST_TOLERANCE))
+    return bool((np.abs(rates) <= REST_TOLERANCE).all())
 
   def _monitored(self, plan, current, candidate):
     """The monitored path from `current` on `plan`: (intended step,
@@ -639,7 +639,7 @@ class Shield:
       return self._candidate[0]   # The robot has not moved: still valid.
     self._candidate = None
     state = self._state
-    if np.any(np.abs(state[2]) > self.limits.a_max_ltt):
+    if (np.abs(state[2]) > self.limits.a_max_ltt).any():
       return None   # Braking too hard to plan here (docs/shield_maths.md, 1).
     try:
       plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,

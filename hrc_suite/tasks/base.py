@@ -25,11 +25,10 @@ step is exactly L shield cycles.
   `Shield.step` every substep (fast_path=False, the reference). Subclasses
   add their own work before each physics step in `_before_physics_step`.
 * One composer substep per RL step (fast path, environments of
-  `suite.load`; `substeps`): composer sees one substep, and before_substep
-  runs the RL step's first L - 1 physics steps itself, each with the same
+  `suite.load`; `substeps`): composer sees one substep, which is
+  run_physics_steps: the RL step's L physics steps, each with the same
   hooks in composer's order (this task's, the entities', the extra ones),
-  mj_step2 and mj_step1 as dm_control's physics.step, and after_substep;
-  composer runs the last.
+  mj_step2 and mj_step1 as dm_control's physics.step, and after_substep.
 * after_substep: the tracking check, then the contact monitor
   (`contacts`). The measured joints are compared with where the shield's
   command puts them; farther than the shield's tracking tolerance (its
@@ -789,8 +788,8 @@ class HrcTask(composer.Task):
 
   @property
   def one_substep(self):
-    """Whether before_substep runs the RL step's first L - 1 physics steps
-    (composer the last): set by `suite.Environment` on the fast path."""
+    """Whether run_physics_steps runs the RL step's physics steps as
+    composer's one substep: set by `suite.Environment` on the fast path."""
     return self._one_substep
 
   @property
@@ -816,10 +815,14 @@ class HrcTask(composer.Task):
           'before suite.load (observation_delay) or use fast_path=False')
 
   def before_substep(self, physics, action, random_state):
-    if self._one_substep:
-      self._run_physics_steps(physics, action, random_state,
-                              self.shield_substeps - 1)
     self._prepare_physics_step(physics)
+
+  def run_physics_steps(self, physics, action, random_state):
+    """The RL step's physics steps, each with the hooks composer runs
+    around a substep (`one_substep`: suite.Environment's only substep;
+    tasks/substeps.py)."""
+    self._run_physics_steps(physics, action, random_state,
+                            self.shield_substeps)
 
   def _run_physics_steps(self, physics, action, random_state, stop):
     """Physics steps _substep..stop-1 with their hooks: stretches in one

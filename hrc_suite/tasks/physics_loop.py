@@ -1,7 +1,7 @@
 """An RL step's physics steps in one compiled call (the fast path).
 
-On the fast path the task runs the first L - 1 physics steps of an RL
-step itself (tasks/substeps.py). Where nothing in a physics step needs
+On the fast path the task runs the L physics steps of an RL step itself
+(tasks/substeps.py). Where nothing in a physics step needs
 Python, `CompiledSteps.run` runs a stretch of them in one numba call:
 per step the person's mocap rows (HumanPlayback's precomputed arrays),
 the shield's precomputed set-point, the controller's torque

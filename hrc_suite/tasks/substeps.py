@@ -6,19 +6,18 @@ dm_control's `Physics.step` (mj_step2, mj_step1, then a check for new
 MuJoCo warnings), the after_substep hooks and an observation update
 (docs/benchmarks.md, "Where the time of an RL step goes"). On the fast
 path, environments made by `suite.load` tell composer that an RL step is
-one substep (`HrcTask.physics_steps_per_control_step`), and the task's
-before_substep runs the first L - 1 physics steps itself, each exactly as
-composer would: task hook, entity hooks, extra hooks, the physics step,
-then the after hooks in the same order; composer runs the last one.
+one substep (`HrcTask.physics_steps_per_control_step`), and that substep
+is the task's (`suite.Environment._substep` calls
+`HrcTask.run_physics_steps`): it runs the L physics steps itself, each
+exactly as composer would: task hook, entity hooks, extra hooks, the
+physics step, then the after hooks in the same order.
 
 composer's contracts, and how they are kept:
 
 * Entity substep hooks run every physics step (every hook an entity
   overrides; composer leaves out those with an empty body, a no-op).
 * Extra substep hooks (`env.add_extra_hook`) run every physics step:
-  `suite.Environment` hands them to the task (`add_extra_hook` here);
-  for the last physics step composer calls `last_before` / `last_after`,
-  registered as composer's extra hooks, which run them.
+  `suite.Environment` hands them to the task (`add_extra_hook` here).
 * Observables: composer reads an observable between physics steps only
   if it has a delay, a buffer of more than one value or an update
   interval other than one physics step; otherwise once per RL step after
@@ -136,12 +135,13 @@ class PhysicsSteps:
     self.last_after(physics, random_state)
 
   def last_before(self, physics, action, random_state):
-    """The extra before_substep hooks (composer calls this one for the
-    RL step's last physics step)."""
+    """The extra before_substep hooks, the last hooks before a physics
+    step."""
     for hook in self._extra['before_substep']:
       hook(physics, action, random_state)
 
   def last_after(self, physics, random_state):
-    """The extra after_substep hooks (as last_before)."""
+    """The extra after_substep hooks, the last hooks after a physics
+    step."""
     for hook in self._extra['after_substep']:
       hook(physics, random_state)
