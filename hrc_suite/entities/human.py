@@ -426,15 +426,32 @@ class Human(composer.Entity):
     quaternion) in the hand's frame (anchor 0, the unit quaternion)."""
     position = np.asarray(position, dtype=np.float64)
     quaternion = np.asarray(quaternion, dtype=np.float64)
-    norm = np.linalg.norm(quaternion) if quaternion.shape == (4,) else 0.0
-    if position.shape != (3,) or not np.all(np.isfinite(position)) or not (
-        np.isfinite(norm) and norm > 0):
+    if position.shape != (3,) or quaternion.shape != (4,):
       raise ValueError('relative pose must be a finite position (3,) and a '
                        f'non-zero quaternion (4,), got {position!r}, '
                        f'{quaternion!r}')
-    values = np.zeros(10)
-    values[3:6] = position
-    values[6:10] = quaternion / norm
+    return Human.grip_rows(position[None], quaternion[None])[0]
+
+  @staticmethod
+  def grip_rows(positions, quaternions):
+    """grip_values of n poses (positions (n, 3), quaternions (n, 4)):
+    (n, 10), each row as grip_values gives it."""
+    positions = np.asarray(positions, dtype=np.float64)
+    quaternions = np.asarray(quaternions, dtype=np.float64)
+    norms = np.full(len(quaternions), np.nan)
+    if quaternions.ndim == 2 and quaternions.shape[1] == 4:
+      # np.linalg.norm of each row (a stacked product: a row's own dot).
+      norms = np.sqrt(np.matmul(quaternions[:, None, :],
+                                quaternions[:, :, None])[:, 0, 0])
+    bad = ~(np.isfinite(norms) & (norms > 0))
+    if (positions.shape != (len(norms), 3) or not np.isfinite(positions).all()
+        or bad.any()):
+      raise ValueError('relative poses must be finite positions (n, 3) and '
+                       f'non-zero quaternions (n, 4), got {positions!r}, '
+                       f'{quaternions!r}')
+    values = np.zeros((len(norms), 10))
+    values[:, 3:6] = positions
+    values[:, 6:10] = quaternions / norms[:, None]
     return values
 
   def grip(self, physics, object_body):

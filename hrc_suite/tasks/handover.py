@@ -136,6 +136,10 @@ def _slerp(q0, q1, t):
         math.sin(angle))
   return q / np.linalg.norm(q)
 
+def _norms(vectors):
+  """np.linalg.norm of each row of (n, k) vectors, as on one row (its dot
+  product, by stacked np.matmul)."""
+  return np.sqrt(np.matmul(vectors[:, None, :], vectors[:, :, None])[:, 0, 0])
 
 class _Handover(base.HrcTask):
   """Hammer, table region, human holding logic shared by both handovers."""
@@ -369,46 +373,61 @@ class HumanToRobot(_Handover):
 
   def presenting_grip(self, physics, hand_pose=None):
     """(position, quaternion) of the hammer in the holding hand's capsule
-    frame when presented: along the hand's axis (head forward), lying on
-    its side (body y in the vertical plane through the handle, upwards),
-    `human_grip_site` at the capsule's distal end; never pointing up, and
-    tilted down at most so far that its head's axis stays PRESENT_CLEARANCE
-    above the table (level if the palm is lower). The capsule hand has no
-    wrist: a recording's hand continues its forearm, which points 15-35
-    degrees down while presenting; held along it, a palm 0.05 m above the
-    table put the hammer into the table. The hand's frame is read from its
-    mocap pose (this physics step's keypoints), or given: hand_pose =
-    (centre (3,), quaternion (4,)) of the hand's capsule."""
-    segment = self._hand_segment()
-    half = physics.bind(self._human.geoms[segment]).size[1]
+    frame when presented (`presenting_grips`). The hand's frame is read
+    from its mocap pose (this physics step's keypoints), or given:
+    hand_pose = (centre (3,), quaternion (4,)) of the hand's capsule."""
     if hand_pose is None:
-      mocap = physics.bind(self._human.segment_bodies[segment]).mocapid
+      mocap = physics.bind(
+          self._human.segment_bodies[self._hand_segment()]).mocapid
       hand_pose = (physics.data.mocap_pos[mocap],
                    physics.data.mocap_quat[mocap])
-    centre = hand_pose[0]
-    r_hand = np.empty(9)
-    mujoco.mju_quat2Mat(r_hand, hand_pose[1])
-    r_hand = r_hand.reshape(3, 3)
-    axis = r_hand[:, 2]
+    positions, quaternions = self.presenting_grips(
+        physics, np.asarray(hand_pose[0], dtype=float)[None],
+        np.asarray(hand_pose[1], dtype=float)[None])
+    return positions[0], quaternions[0]
+
+  def presenting_grips(self, physics, centres, hand_quaternions):
+    """(positions (n, 3), quaternions (n, 4)) of the hammer in the holding
+    hand's capsule frame when presented, for n poses of the hand's capsule
+    (centres (n, 3), quaternions (n, 4)): along the hand's axis (head
+    forward), lying on its side (body y in the vertical plane through the
+    handle, upwards), `human_grip_site` at the capsule's distal end; never
+    pointing up, and tilted down at most so far that its head's axis stays
+    PRESENT_CLEARANCE above the table (level if the palm is lower). The
+    capsule hand has no wrist: a recording's hand continues its forearm,
+    which points 15-35 degrees down while presenting; held along it, a palm
+    0.05 m above the table put the hammer into the table. Row by row the
+    values of one pose (products and norms by stacked np.matmul, which
+    gives each row what a single product gives)."""
+    n = len(centres)
+    half = physics.bind(self._human.geoms[self._hand_segment()]).size[1]
+    r_hand = np.empty((n, 9))
+    for k in range(n):
+      mujoco.mju_quat2Mat(r_hand[k], hand_quaternions[k])
+    r_hand = r_hand.reshape(n, 3, 3)
+    r_hand_t = r_hand.transpose(0, 2, 1)
+    axis = r_hand[:, :, 2]
     heading = axis * (1.0, 1.0, 0.0)
-    if np.linalg.norm(heading) < MIN_HEADING:
+    upright = _norms(heading) < MIN_HEADING
+    if upright.any():
       # A hand pointing straight up or down: the person's facing.
       yaw = self._player.placement[2]
-      heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    heading /= np.linalg.norm(heading)
-    end = centre + half * axis
-    lowest = (layout.TABLE_TOP_Z + PRESENT_CLEARANCE - end[2]) / (
+      heading[upright] = (math.cos(yaw), math.sin(yaw), 0.0)
+    heading /= _norms(heading)[:, None]
+    end = centres + half * axis
+    lowest = (layout.TABLE_TOP_Z + PRESENT_CLEARANCE - end[:, 2]) / (
         props.HAMMER_HUMAN_GRIP)
-    sine = min(max(axis[2], min(lowest, 0.0), -1.0), 0.0)
-    cosine = math.sqrt(1.0 - sine * sine)
+    sine = np.array([min(max(a, min(b, 0.0), -1.0), 0.0) for a, b in zip(
+        axis[:, 2].tolist(), lowest.tolist())])[:, None]
+    cosine = np.sqrt(1.0 - sine * sine)
     up = np.array([0.0, 0.0, 1.0])
     x = cosine * heading + sine * up
     y = cosine * up - sine * heading
-    r_world = np.stack([x, y, np.cross(x, y)], axis=1)
+    r_world = np.stack([x, y, np.cross(x, y)], axis=2)
     origin = end + props.HAMMER_HUMAN_GRIP * x
-    position = r_hand.T @ (origin - centre)
-    rotation = r_hand.T @ r_world
-    return position, human_lib.matrix_to_quaternion(rotation[None])[0]
+    positions = np.matmul(r_hand_t, (origin - centres)[:, :, None])[:, :, 0]
+    rotations = np.matmul(r_hand_t, r_world)
+    return positions, human_lib.matrix_to_quaternion(rotations)
 
   def _presenting(self):
     """The person holds the hammer in the presenting grip (turned)."""
@@ -423,12 +442,10 @@ class HumanToRobot(_Handover):
     step (what _before_physics_step sets), from the hand capsule's poses
     the person's playback shows at those steps."""
     target, index = self._human.grip_slots(physics, self._hammer.body)
-    segment = self._hand_segment()
-    middles, quaternions = self._playback.segment_poses(segment)
-    values = np.empty((len(middles), index.size))
-    for k in range(len(middles)):
-      values[k] = self._human.grip_values(*self.presenting_grip(
-          physics, (middles[k], quaternions[k])))
+    middles, quaternions = self._playback.segment_poses(
+        self._hand_segment())
+    values = self._human.grip_rows(*self.presenting_grips(
+        physics, middles, quaternions))
     return ((target, index, values),)
 
   def _before_physics_step(self, physics):
