@@ -35,6 +35,7 @@ import collections
 
 from dm_control import mjcf
 from dm_control.composer.observation import observable
+import mujoco
 import numpy as np
 
 from hrc_suite import layout
@@ -100,15 +101,28 @@ SHIELD = 'pfl'
 def heading(points):
   """The person's facing yaw (rad) from world keypoints: perpendicular to
   the shoulder line, horizontal."""
-  left = points[keypoints.KEYPOINT_INDEX['left_shoulder']]
-  right = points[keypoints.KEYPOINT_INDEX['right_shoulder']]
-  across = left - right
-  return float(np.arctan2(-across[0], across[1]))
+  return float(headings(np.asarray(points)[None])[0])
+
+
+def headings(points):
+  """`heading` of each row of keypoints (n, N_kp, 3): (n,)."""
+  across = (points[:, keypoints.KEYPOINT_INDEX['left_shoulder']]
+            - points[:, keypoints.KEYPOINT_INDEX['right_shoulder']])
+  return np.arctan2(-across[:, 0], across[:, 1])
+
+
+def _yaw_matrices(yaws):
+  """(n, 3, 3) rotations about world z by yaws (n,)."""
+  c, s = np.cos(yaws), np.sin(yaws)
+  matrices = np.zeros((len(yaws), 3, 3))
+  matrices[:, 0, 0], matrices[:, 0, 1] = c, -s
+  matrices[:, 1, 0], matrices[:, 1, 1] = s, c
+  matrices[:, 2, 2] = 1.0
+  return matrices
 
 
 def _yaw_matrix(yaw):
-  c, s = np.cos(yaw), np.sin(yaw)
-  return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+  return _yaw_matrices(np.array([yaw], dtype=float))[0]
 
 
 class RobotHammers(hammering.NailOutcome, base.HrcTask):
@@ -241,11 +255,21 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
   def _carry_pose(self, points):
     """The carried plank's (position, quaternion) at the holding hand
     (heading frame offset) of the keypoints `points`."""
-    rotation = _yaw_matrix(heading(points))
+    positions, quaternions = self._carry_poses(np.asarray(points)[None])
+    return positions[0], quaternions[0]
+
+  def _carry_poses(self, points):
+    """`_carry_pose` of each row of keypoints (n, N_kp, 3): positions
+    (n, 3), quaternions (n, 4); stacked np.matmul gives each row what the
+    single product gives."""
+    rotations = _yaw_matrices(headings(points))
     offset, relative = self._carry
-    hand = points[keypoints.KEYPOINT_INDEX[f'{self._hand}_hand']]
-    return (hand + rotation @ offset,
-            hammering.matrix_to_quat(rotation @ relative))
+    hand = points[:, keypoints.KEYPOINT_INDEX[f'{self._hand}_hand']]
+    matrices = np.matmul(rotations, relative)
+    quaternions = np.empty((len(points), 4))
+    for k, matrix in enumerate(matrices):
+      mujoco.mju_mat2Quat(quaternions[k], matrix.ravel())
+    return hand + np.matmul(rotations, offset), quaternions
 
   def _carry_board(self, physics, points):
     """Puts the plank at the holding hand, at rest."""
@@ -257,12 +281,12 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     physics step of the RL step: what _carry_board writes (set_pose
     normalises the quaternion, set_velocity zeroes the velocity)."""
     joint = physics.bind(mjcf.get_frame_freejoint(self._board.mjcf_model))
-    positions = self._playback.positions
+    positions, quaternions = self._carry_poses(self._playback.positions)
     qpos = np.empty((len(positions), 7))
-    for k, points in enumerate(positions):
-      position, quaternion = self._carry_pose(points)
-      qpos[k, :3] = position
-      qpos[k, 3:] = quaternion / np.linalg.norm(quaternion)
+    qpos[:, :3] = positions
+    # np.linalg.norm of each row (its own dot product, stacked).
+    qpos[:, 3:] = quaternions / np.sqrt(np.matmul(
+        quaternions[:, None, :], quaternions[:, :, None]))[:, 0]
     data = physics.data
     return ((data.qpos, int(joint.qposadr) + np.arange(7), qpos),
             (data.qvel, int(joint.dofadr) + np.arange(6),
