@@ -539,6 +539,25 @@ def capsules_min_distance(q, fixed, points, frame_index, radii, keypoints,
   return best
 
 
+
+@_jit
+def tracking_error(q, reference, fixed, points, frame_index):
+  """Shield.tracking_error: the largest displacement (m) of a capsule
+  axis end between joint positions q and reference (dof,)."""
+  pair = np.empty((2, q.shape[0]))
+  pair[0] = q
+  pair[1] = reference
+  ends = _endpoints(_frames(pair, fixed), points, frame_index)
+  largest = 0.0
+  for l in range(ends.shape[1]):
+    for j in range(2):
+      d0 = ends[0, l, j, 0] - ends[1, l, j, 0]
+      d1 = ends[0, l, j, 1] - ends[1, l, j, 1]
+      d2 = ends[0, l, j, 2] - ends[1, l, j, 2]
+      largest = max(largest, d0 * d0 + d1 * d1 + d2 * d2)
+  return math.sqrt(largest)
+
+
 _warm = False
 
 
@@ -572,6 +591,7 @@ def warm_up():
   balls_capsules_distance(centre, radius, c1, c2, r)
   capsules_min_distance(q[0], fixed, points, frame_index, ones, positions,
                         ends, np.ones(count_b))
+  tracking_error(q[0], q[1], fixed, points, frame_index)
   coefficients = np.zeros((1, 4, dof))
   plan_positions(coefficients, 0.0, 1.0, 1.0, np.zeros(1), q, 1)
   coefficients.flags.writeable = False   # Plans made from given samples.

@@ -267,7 +267,16 @@ class Shield:
     """How far (m) the robot's capsules at joint positions q are from where
     they are at `reference` (None: the command): the largest displacement
     of a capsule axis end. Capsules move rigidly, so no point of a
-    capsule moves farther than its farther end."""
+    capsule moves farther than its farther end. (kernels.tracking_error,
+    which tasks/physics_loop.py calls too; tracking_error_reference is
+    the NumPy version, equal to round-off.)"""
+    q, reference = self._joint_pair(q, reference)
+    robot = self.robot
+    return float(kernels.tracking_error(q, reference, *robot._kernel_model,
+                                        robot._kernel_frames))
+
+  def tracking_error_reference(self, q, reference=None):
+    """tracking_error by NumPy (robot capsules by RobotReach.capsules)."""
     q, reference = self._joint_pair(q, reference)
     p1, p2, _ = self.robot.capsules(np.stack([q, reference]))
     moved = np.concatenate([p1[0] - p1[1], p2[0] - p2[1]])

@@ -619,7 +619,7 @@ class HrcTask(composer.Task):
             physics, self._controller, self._playback, self._monitor,
             self._tracking_levers, self._tracking_tolerance,
             self._q_measured, self._command_dq, self._step_flags,
-            self._contact_steps)
+            self._contact_steps, self._shield.robot)
       except ValueError:
         pass   # The Python loop runs every physics step.
     self._qvel_index = np.array(joints.dofadr)

@@ -8,7 +8,8 @@ the shield's precomputed set-point, the controller's torque
 (control/controller.py's kernels around mj_mulM), MuJoCo's mj_step2 and
 mj_step1 (dm_control's legacy step; libmujoco's own functions, called
 by name from compiled code), dm_control's warning check, then the task's
-after_substep: the tracking bound and the contacts' classification,
+after_substep: the tracking bound (over the tolerance, the exact
+distance, Shield.tracking_error's kernel) and the contacts' classification,
 robot-human contacts judged by the commanded speed at the contact point
 (mj_jac, as tasks/contacts.py). The arithmetic is the Python loop's,
 operation for operation, so both give the same states bit for bit
@@ -18,9 +19,9 @@ The call stops and hands back to Python, which runs the rest exactly as
 before, at a step that needs it:
 
 * the person changes clip (the capsules are resized in the model);
-* the tracking bound exceeds the shield's tolerance (a push: the exact
-  check, rewind and resync, and contacts judged at the commanded pose,
-  are Python's);
+* the robot's capsules are farther than the shield's tolerance from
+  where the shield put them (a push: rewind and resync, and contacts
+  judged at the commanded pose, are Python's);
 * a physics step that raised a MuJoCo warning (the task raises
   dm_control's PhysicsError, as the Python loop does).
 
@@ -54,6 +55,7 @@ from numba.core import types
 import numpy as np
 
 from hrc_suite.control import controller as controller_lib
+from hrc_suite.safety import kernels
 from hrc_suite.tasks import contacts
 
 _jit = numba.njit(cache=True, fastmath=False)
@@ -215,8 +217,8 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
         q_measured, levers, tolerance, ncon, contact_slot, arena,
         arena_ints, stride, geom, stride_bytes, pos_bytes, pair_types,
         categories, geom_body, dofs, jacobian, critical_speed, flags,
-        step_flags, contact_steps, out, target0, index0, rows0, target1,
-        index1, rows1):
+        step_flags, contact_steps, out, fixed, points, frame_index,
+        target0, index0, rows0, target1, index1, rows1):
   """Physics steps k0..k1-1 (module doc); returns (k, status): the step
   it stopped at and why (DONE: k = k1). out[0]: the largest tracking
   bound, out[2]: the largest robot-human contact speed (both updated);
@@ -256,8 +258,11 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
       if warnings[w] > before[w]:
         return k, PHYSICS_WARNING
     distance = tracking_bound(q_measured, expected_rows[i], levers)
-    if distance > tolerance:
-      return k, PYTHON_AFTER
+    if distance > tolerance:   # The exact distance decides (after_substep).
+      distance = kernels.tracking_error(q_measured, expected_rows[i], fixed,
+                                        points, frame_index)
+      if distance > tolerance:
+        return k, PYTHON_AFTER
     flags[:] = False
     count = ncon[0]
     if count:
@@ -307,7 +312,7 @@ class CompiledSteps:
 
   def __init__(self, physics, controller, playback, monitor, tracking_levers,
                tracking_tolerance, q_measured, command_dq, step_flags,
-               contact_steps):
+               contact_steps, robot_reach):
     """Raises ValueError where this physics cannot run compiled (MjData's
     layout unchecked, the person's mocap rows not consecutive)."""
     model, data = physics.model.ptr, physics.data.ptr
@@ -330,7 +335,8 @@ class CompiledSteps:
         np.uint64(memory.arena), memory.arena_ints, memory.stride,
         memory.geom, memory.stride_bytes, memory.pos_bytes,
         *monitor.kernel_arguments(), self._flags, step_flags,
-        contact_steps, self.out)
+        contact_steps, self.out, *robot_reach._kernel_model,
+        robot_reach._kernel_frames)
 
   def has_headroom(self):
     """Whether MuJoCo's arena is far enough from full (module doc)."""

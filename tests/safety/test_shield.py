@@ -367,6 +367,9 @@ def test_tracking_error_and_its_bound(name):
                            - _axis_points(shield, q), axis=1).max()
     exact = shield.tracking_error(q + error, q)
     assert exact == pytest.approx(moved, rel=1e-12, abs=1e-15)
+    # The kernel (both paths of the task use it) and the NumPy version.
+    assert exact == pytest.approx(
+        shield.tracking_error_reference(q + error, q), rel=1e-12, abs=1e-15)
     assert exact <= shield.tracking_bound(q + error, q) + 1e-12
   # Every joint but the last (the tool turns about its own axis).
   best = np.zeros(description.dof - 1)
