@@ -832,9 +832,10 @@ class HrcTask(composer.Task):
     if compiled is not None and (not steps.idle()
                                  or not compiled.has_headroom()):
       compiled = None
-    writes = ()
+    writes, hold = (), None
     if compiled is not None and self._works_before_physics_steps():
       writes = self._physics_step_writes(physics)
+      hold = self._physics_step_hold(physics)
       if writes is None:
         compiled = None
     while self._substep < stop:
@@ -843,7 +844,7 @@ class HrcTask(composer.Task):
         end = self._playback.same_clip_until(k, stop)
         if end > k:
           self._run_compiled(physics, random_state, compiled, k, end,
-                             writes)
+                             writes, hold)
           continue
       self._prepare_physics_step(physics)
       steps.step(physics, action, random_state)
@@ -851,7 +852,7 @@ class HrcTask(composer.Task):
       steps.after(physics, random_state)
 
   def _run_compiled(self, physics, random_state, compiled, k, end,
-                    writes):
+                    writes, hold):
     """Physics steps k..end-1 in the compiled call, then what it left to
     Python (physics_loop.run's status)."""
     self._plan_setpoints(k)
@@ -862,7 +863,7 @@ class HrcTask(composer.Task):
     stopped, status = compiled.run(k, end, self._setpoints,
                                    self._setpoint_flags,
                                    self._setpoints_from, self._expected_rows,
-                                   writes)
+                                   writes, hold)
     self._completed_substeps += stopped - k
     self._max_tracking_error = float(out[0])
     self._intervened |= bool(out[1])
@@ -890,6 +891,13 @@ class HrcTask(composer.Task):
     (m,), values (L, m): target[indices] = values[k] before physics step
     k), the same values as `_before_physics_step` writes; None where they
     cannot be computed ahead (the Python loop runs then)."""
+    del physics
+    return None
+
+  def _physics_step_hold(self, physics):
+    """The compliant hold (tool_hold.CompliantHold.kernel_arguments) that
+    `_before_physics_step` applies after its writes before every physics
+    step, for the compiled loop; None if there is none."""
     del physics
     return None
 

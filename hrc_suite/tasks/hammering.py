@@ -312,8 +312,25 @@ class Hammering(NailOutcome, base.HrcTask):
   def _before_physics_step(self, physics):
     hold = self._hammer_hold(physics)
     if AIM_AT_NAIL:
-      hold.aim(physics.bind(self._board.nail_head_site).xpos)
+      # MjData's row, not the binding's xpos: reading a binding after a
+      # write through one runs mj_forward first (dm_control's dirty flag),
+      # which would change the step (the compiled loop reads the row).
+      site = physics.bind(self._board.nail_head_site).element_id
+      hold.aim(physics.data.site_xpos[site])
     hold.apply(physics)
+
+  def _physics_step_writes(self, physics):
+    del physics
+    return ()   # The hold is all (_physics_step_hold).
+
+  def _physics_step_hold(self, physics):
+    """The hold with its aim read at every physics step, as
+    _before_physics_step does."""
+    aim = None
+    if AIM_AT_NAIL:
+      site = physics.bind(self._board.nail_head_site).element_id
+      aim = physics.data.site_xpos[site]   # a view: read at every step
+    return self._hammer_hold(physics).kernel_arguments(physics, aim)
 
   def _task_state(self, physics):
     state = super()._task_state(physics)

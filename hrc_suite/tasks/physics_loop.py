@@ -57,6 +57,7 @@ import numpy as np
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.safety import kernels
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import tool_hold_kernels
 
 _jit = numba.njit(cache=True, fastmath=False)
 
@@ -218,13 +219,18 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
         arena_ints, stride, geom, stride_bytes, pos_bytes, pair_types,
         categories, geom_body, dofs, jacobian, critical_speed, flags,
         step_flags, contact_steps, out, fixed, points, frame_index,
-        target0, index0, rows0, target1, index1, rows1):
+        target0, index0, rows0, target1, index1, rows1, hold_params,
+        hold_indices, hold_aim, hold_aim_source, hold_history, hold_omega,
+        hold_fresh, hold_mocap_pos, hold_mocap_quat, hold_eq_data,
+        hold_qpos, hold_qvel, hold_xfrc):
   """Physics steps k0..k1-1 (module doc); returns (k, status): the step
   it stopped at and why (DONE: k = k1). out[0]: the largest tracking
   bound, out[2]: the largest robot-human contact speed (both updated);
   out[1]: set to 1 if a set-point run had the shield intervene. target,
   index, rows (two groups): the task's writes before each physics step,
-  target[index] = rows[k] (HrcTask._physics_step_writes)."""
+  target[index] = rows[k] (HrcTask._physics_step_writes). hold_*: a
+  compliant hold's force on its tool after them (tool_hold_kernels.apply;
+  a hold that is off does nothing)."""
   rows, segments = mocap_rows.shape[1], quaternions.shape[1]
   dof = q.shape[0]
   for k in range(k0, k1):
@@ -250,6 +256,10 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
       target0[index0[j]] = rows0[k, j]
     for j in range(index1.shape[0]):
       target1[index1[j]] = rows1[k, j]
+    tool_hold_kernels.apply(hold_params, hold_indices, hold_aim,
+                            hold_aim_source, hold_history, hold_omega,
+                            hold_fresh, hold_mocap_pos, hold_mocap_quat,
+                            hold_eq_data, hold_qpos, hold_qvel, hold_xfrc)
     for w in range(warnings.shape[0]):
       before[w] = warnings[w]
     _STEP2(model, data)
@@ -327,6 +337,14 @@ class CompiledSteps:
     self.out = np.zeros(3)
     self._no_writes = (np.zeros(0), np.zeros(0, dtype=np.int64),
                        np.zeros((max(len(playback.times), 1), 0)))
+    physics_data = physics.data
+    self._no_hold = (   # tool_hold_kernels.apply's arguments, hold off
+        np.zeros(tool_hold_kernels.NUM_PARAMS),
+        np.zeros(tool_hold_kernels.NUM_INDICES, dtype=np.int64),
+        np.zeros(3), np.zeros(0), np.zeros((2, 7)), np.zeros(3),
+        np.zeros(1, dtype=np.int64), physics_data.mocap_pos,
+        physics_data.mocap_quat, physics.model.eq_data, physics_data.qpos,
+        physics_data.qvel, physics_data.xfrc_applied)
     self._head = (model._address, data._address) + mocap
     self._tail = controller.kernel_arguments() + (
         command_dq, physics.data.warning.number, self._before, q_measured,
@@ -348,12 +366,13 @@ class CompiledSteps:
     return self._before
 
   def run(self, k0, k1, setpoints, setpoint_flags, setpoints_from,
-          expected_rows, writes=()):
+          expected_rows, writes=(), hold=None):
     """Physics steps k0..k1-1 (see `run`): (k, status). writes: up to two
-    (target, index, rows) groups (HrcTask._physics_step_writes)."""
+    (target, index, rows) groups (HrcTask._physics_step_writes); hold:
+    tool_hold.CompliantHold.kernel_arguments, or None."""
     if len(writes) > 2:
       raise ValueError(f'at most two groups of writes, got {len(writes)}')
     groups = list(writes) + [self._no_writes] * (2 - len(writes))
     return run(k0, k1, *self._head, setpoints, setpoint_flags,
                setpoints_from, expected_rows, *self._tail,
-               *groups[0], *groups[1])
+               *groups[0], *groups[1], *(hold or self._no_hold))

@@ -19,13 +19,16 @@ set by `Human.hold`) but is switched off; the hold applies forces through
 
 The target's velocity and acceleration are finite differences of its poses
 at consecutive physics steps; `state()` / `set_state()` carry them through
-snapshots.
+snapshots. The arithmetic is tasks/tool_hold_kernels.py's, which the
+compiled physics loop calls too (`kernel_arguments`).
 """
 
 import math
 
 import mujoco
 import numpy as np
+
+from hrc_suite.tasks import tool_hold_kernels as kernels
 
 # Hand stiffness of a relaxed human arm: of the order of a few hundred N/m
 # (Mussa-Ivaldi, Hogan & Bizzi 1985, J. Neurosci. 5(10): 2732-2743, hand
@@ -65,10 +68,6 @@ MAX_AIM = np.radians(20.0)   # rad
 MAX_REACH = 0.03             # m
 
 
-_NEXT = np.array([1, 2, 0])   # cross products by index (a x b)_i =
-_PREV = np.array([2, 0, 1])   # a_next b_prev - a_prev b_next
-
-
 def _quat_to_mat(quat):
   matrix = np.empty(9)
   mujoco.mju_quat2Mat(matrix, quat)
@@ -81,16 +80,7 @@ def _quat_mul(a, b):
   return out
 
 
-def _rotation_vector(q_to, q_from):
-  """World-frame rotation vector (rad) turning orientation q_from to q_to."""
-  difference = _quat_mul(q_to, q_from * np.array([1.0, -1.0, -1.0, -1.0]))
-  if difference[0] < 0.0:
-    difference = -difference
-  vector = difference[1:]
-  sine = math.sqrt(vector @ vector)
-  if sine < 1e-12:
-    return 2.0 * difference[1:]
-  return difference[1:] * (2.0 * np.arctan2(sine, difference[0]) / sine)
+_NO_AIM_SOURCE = np.zeros(0)
 
 
 class CompliantHold:
@@ -142,13 +132,29 @@ class CompliantHold:
     self._k_rot = np.minimum(float(rotational_stiffness),
                              self._inertia * MAX_FREQUENCY ** 2)
     self._b_rot = 2.0 * damping_ratio * np.sqrt(self._k_rot * self._inertia)
-    self._hand = None          # (mocap id, eq id) while holding
-    self._aim = None           # world point the tool's origin heads for
+    self._params = np.zeros(kernels.NUM_PARAMS)
+    for slot, value in (
+        (kernels.MASS, self._mass), (kernels.DT, self._dt),
+        (kernels.K, self._k), (kernels.B, self._b),
+        (kernels.K_ROT, self._k_rot), (kernels.B_ROT, self._b_rot),
+        (kernels.INERTIA, self._inertia),
+        (kernels.COM_LOCAL, self._com_local),
+        (kernels.INERTIA_QUAT, self._inertia_quat),
+        (kernels.OFFSET_POS, offset_pos), (kernels.OFFSET_QUAT, offset_quat),
+        (kernels.GRAVITY, self._gravity), (kernels.MAX_AIM, MAX_AIM),
+        (kernels.MAX_REACH, MAX_REACH), (kernels.MAX_FORCE, MAX_FORCE),
+        (kernels.MAX_TORQUE, MAX_TORQUE)):
+      value = np.atleast_1d(value)
+      self._params[slot:slot + value.size] = value
+    self._indices = np.zeros(kernels.NUM_INDICES, dtype=np.int64)
+    self._indices[[kernels.BODY, kernels.QPOS, kernels.QVEL]] = (
+        self._body, self._qpos, self._qvel)
+    self._aim = np.zeros(3)    # world point the tool's origin heads for
     # Target history: centre-of-mass positions and orientations at the last
     # two physics steps, and the last target angular velocity.
     self._history = np.zeros((2, 7))
     self._omega = np.zeros(3)
-    self._fresh = 0            # steps of history collected since `start`
+    self._fresh = np.zeros(1, dtype=np.int64)   # steps since `start`
 
   # -------------------------------------------------------------- holding
 
@@ -163,20 +169,21 @@ class CompliantHold:
     if mocap < 0:
       raise ValueError(f'weld {weld.name!r} does not start at a mocap body')
     physics.data.eq_active[eq_id] = 0
-    self._hand = (mocap, eq_id)
-    self._aim = None           # A new hold aims nowhere until told.
-    self._fresh = 0
-    self._history[:] = 0.0     # A new hold starts as a fresh one would.
+    self._indices[[kernels.MOCAP, kernels.EQ, kernels.HOLDING,
+                   kernels.AIMING]] = (mocap, eq_id, 1, 0)
+    # A new hold aims nowhere until told, and starts as a fresh one would.
+    self._fresh[0] = 0
+    self._history[:] = 0.0
     self._omega[:] = 0.0
     physics.data.xfrc_applied[self._body] = 0.0
 
   def stop(self, physics):
-    self._hand = None
+    self._indices[kernels.HOLDING] = 0
     physics.data.xfrc_applied[self._body] = 0.0
 
   @property
   def holding(self):
-    return self._hand is not None
+    return bool(self._indices[kernels.HOLDING])
 
   def aim(self, point):
     """Turns the held pose about the vertical through the hand (within
@@ -185,116 +192,72 @@ class CompliantHold:
     MAX_REACH onto `point`'s horizontal distance from the hand, as a person
     aims a hammer at a nail; None holds at the plain relative pose."""
     if point is None:
-      self._aim = None
+      self._indices[kernels.AIMING] = 0
       return
     point = np.asarray(point, dtype=float)
-    if point.shape != (3,) or not np.all(np.isfinite(point)):
+    if point.shape != (3,) or not np.isfinite(point).all():
       raise ValueError(f'aim point must be a finite (3,) position, got '
                        f'{point!r}')
-    self._aim = point.copy()
+    self._aim[:] = point
+    self._indices[kernels.AIMING] = 1
 
   def target(self, physics):
     """(centre of mass (3,), orientation (4,) of the free joint's frame)
-    the hand wants the body at."""
-    mocap, eq_id = self._hand
-    data, model = physics.data, physics.model
-    hand_quat = data.mocap_quat[mocap]
-    rel_pos, rel_quat = model.eq_data[eq_id, 3:6], model.eq_data[eq_id, 6:10]
-    quat = _quat_mul(hand_quat, rel_quat)   # the held body's orientation
-    hand = data.mocap_pos[mocap]
-    origin = hand + _quat_to_mat(hand_quat) @ rel_pos
-    if self._aim is not None:
-      arm, want = origin[:2] - hand[:2], self._aim[:2] - hand[:2]
-      turn = np.arctan2(arm[0] * want[1] - arm[1] * want[0], arm @ want)
-      turn = min(max(turn, -MAX_AIM), MAX_AIM)
-      c, s = np.cos(turn), np.sin(turn)
-      origin = origin.copy()
-      origin[:2] = hand[:2] + [c * arm[0] - s * arm[1],
-                               s * arm[0] + c * arm[1]]
-      quat = _quat_mul(np.array([np.cos(turn / 2), 0.0, 0.0,
-                                 np.sin(turn / 2)]), quat)
-      distance = math.sqrt(want @ want)
-      error = distance - math.sqrt(arm @ arm)
-      size = abs(error)
-      if size > MAX_REACH:
-        error = np.sign(error) * max(0.0, 2.0 * MAX_REACH - size)
-      if distance > 0.0:
-        origin[:2] += error * want / distance
-    offset_pos, offset_quat = self._offset
-    frame_quat = _quat_mul(quat, offset_quat * np.array([1.0, -1.0, -1.0,
-                                                         -1.0]))
-    frame_rotation = _quat_to_mat(frame_quat)
-    frame_origin = origin - frame_rotation @ offset_pos
-    return frame_origin + frame_rotation @ self._com_local, frame_quat
+    the hand wants the body at (the hold must be on)."""
+    if not self.holding:
+      raise ValueError('target: the hold is off (start it first)')
+    com, quat = np.empty(3), np.empty(4)
+    data = physics.data
+    kernels.target(self._params, self._indices, self._aim, data.mocap_pos,
+                   data.mocap_quat, physics.model.eq_data, com, quat)
+    return com, quat
 
   def apply(self, physics):
     """Sets the body's applied force and torque for the next physics step
-    (call after the hand's mocap pose for that step is set)."""
-    if self._hand is None:
-      return
+    (call after the hand's mocap pose for that step is set). The body is
+    now where the target was a step ago; the feed-forward accelerates it
+    onto the new target during this step (semi-implicit Euler), the
+    spring and damper correct its deviation from the target of a step
+    ago (tool_hold_kernels.apply)."""
     data = physics.data
-    com_target, quat_target = self.target(physics)
-    dt = self._dt
-    if self._fresh == 0:
-      self._history[:] = np.concatenate([com_target, quat_target])
-    # The body is now where the target was a step ago; the feed-forward
-    # accelerates it onto the new target during this step (semi-implicit
-    # Euler), the spring and damper correct its deviation from the target
-    # of a step ago.
-    previous, before = self._history[0].copy(), self._history[1].copy()
-    previous_velocity = (previous[:3] - before[:3]) / dt
-    velocity = (com_target - previous[:3]) / dt
-    acceleration = (velocity - previous_velocity) / dt
-    previous_omega = self._omega.copy()
-    omega = _rotation_vector(quat_target, previous[3:]) / dt
-    alpha = (omega - previous_omega) / dt
-    if self._fresh < 2:      # no full history yet: no feed-forward
-      acceleration[:] = 0.0
-      alpha[:] = 0.0
-    self._history[1] = previous
-    self._history[0, :3] = com_target
-    self._history[0, 3:] = quat_target
-    self._omega[:] = omega
-    self._fresh = min(self._fresh + 1, 2)
+    kernels.apply(*self.kernel_arguments(physics, None))
 
-    quat = data.qpos[self._qpos + 3:self._qpos + 7]
-    rotation = _quat_to_mat(quat)
-    lever = rotation @ self._com_local
-    com = data.qpos[self._qpos:self._qpos + 3] + lever
-    body_omega = rotation @ data.qvel[self._qvel + 3:self._qvel + 6]
-    com_velocity = data.qvel[self._qvel:self._qvel + 3] + (   # + w x r
-        body_omega[_NEXT] * lever[_PREV] - body_omega[_PREV] * lever[_NEXT])
-
-    force = (self._mass * (acceleration - self._gravity)
-             + self._k * (previous[:3] - com)
-             + self._b * (previous_velocity - com_velocity))
-    principal = rotation @ _quat_to_mat(self._inertia_quat)
-    inertia = (principal * self._inertia) @ principal.T
-    rotation_error = principal.T @ _rotation_vector(previous[3:], quat)
-    omega_error = principal.T @ (previous_omega - body_omega)
-    torque = inertia @ alpha + principal @ (
-        self._k_rot * rotation_error + self._b_rot * omega_error)
-    force_norm = math.sqrt(force @ force)
-    if force_norm > MAX_FORCE:
-      force *= MAX_FORCE / force_norm
-    torque_norm = math.sqrt(torque @ torque)
-    if torque_norm > MAX_TORQUE:
-      torque *= MAX_TORQUE / torque_norm
-    data.xfrc_applied[self._body, :3] = force
-    data.xfrc_applied[self._body, 3:] = torque
+  def kernel_arguments(self, physics, aim_source):
+    """`tool_hold_kernels.apply`'s arguments for this physics (the hold's
+    own arrays): as `apply` does, or with aim_source (a (3,) array, e.g. a
+    site's xpos row) aimed at before every step as `aim` would."""
+    data = physics.data
+    if aim_source is None:
+      aim_source = _NO_AIM_SOURCE
+    else:
+      self._indices[kernels.AIMING] = 1
+    return (self._params, self._indices, self._aim, aim_source,
+            self._history, self._omega, self._fresh, data.mocap_pos,
+            data.mocap_quat, physics.model.eq_data, data.qpos, data.qvel,
+            data.xfrc_applied)
 
   # ------------------------------------------------------------ snapshots
 
   def state(self):
-    return {'holding': None if self._hand is None else list(self._hand),
-            'aim': None if self._aim is None else self._aim.copy(),
+    holding = self.holding
+    return {'holding': ([int(self._indices[kernels.MOCAP]),
+                         int(self._indices[kernels.EQ])] if holding
+                        else None),
+            'aim': (self._aim.copy() if self._indices[kernels.AIMING]
+                    else None),
             'history': self._history.copy(), 'omega': self._omega.copy(),
-            'fresh': self._fresh}
+            'fresh': int(self._fresh[0])}
 
   def set_state(self, state):
     hand = state['holding']
-    self._hand = None if hand is None else (int(hand[0]), int(hand[1]))
-    self._aim = None if state['aim'] is None else np.array(state['aim'])
+    self._indices[kernels.HOLDING] = hand is not None
+    if hand is not None:
+      self._indices[[kernels.MOCAP, kernels.EQ]] = (int(hand[0]),
+                                                    int(hand[1]))
+    aim = state['aim']
+    self._indices[kernels.AIMING] = aim is not None
+    if aim is not None:
+      self._aim[:] = aim
     self._history[:] = state['history']
     self._omega[:] = state['omega']
-    self._fresh = int(state['fresh'])
+    self._fresh[0] = int(state['fresh'])

@@ -162,10 +162,9 @@ def test_a_blow_is_an_impulse_not_a_press():
   env = _env('panda', seed=1, time_limit=9.0)
   task = env.task
   forces = []
-  after_substep = task.after_substep
 
-  def record(physics, random_state):
-    after_substep(physics, random_state)
+  def record(physics, random_state):   # After every physics step.
+    del random_state
     model, data = physics.model, physics.data
     head = physics.bind(task.board.nail_head).element_id
     hammer = physics.bind(task.hammer.body).element_id
@@ -178,7 +177,7 @@ def test_a_blow_is_an_impulse_not_a_press():
         total += force[0]
     forces.append(total)
 
-  task.after_substep = record
+  env.add_extra_hook('after_substep', record)
   policy = _oracle(env)
   timestep = env.reset()
   weld = env.physics.bind(task._hammer_welds[task.player.clip.holding_hand])

@@ -56,7 +56,8 @@ def _count_writes(env, writes):
 
   def counted(*args, **kwargs):
     groups = args[6] if len(args) > 6 else kwargs.get('writes', ())
-    writes.append(len(groups))
+    hold = args[7] if len(args) > 7 else kwargs.get('hold')
+    writes.append(len(groups) + (hold is not None))
     return run(*args, **kwargs)
   compiled.run = counted
 
@@ -96,7 +97,8 @@ def test_robot_human_contacts_are_judged_as_on_the_reference():
 
 @pytest.mark.parametrize('domain,task,steps', [
     ('handover', 'human_to_robot', 200),    # the presenting grip
-    ('hammering', 'robot_hammers', 60)])    # the carried plank
+    ('hammering', 'robot_hammers', 60),     # the carried plank
+    ('hammering', 'default', 150)])         # the hand's compliant hold
 def test_work_before_physics_steps_computed_ahead_agrees(domain, task, steps):
   writes = []
   fast_q, fast = _expert_episode(domain, task, True, steps, writes=writes)
@@ -161,18 +163,25 @@ def test_a_physics_warning_inside_the_compiled_call_ends_the_episode():
   assert [t.reward for t in fast] == [t.reward for t in slow]
 
 
-@pytest.mark.parametrize('domain,task,compiled', [
-    ('hammering', 'default', False),       # the hand's hold, every step
-    ('reach', 'dense', True)])
-def test_work_before_each_physics_step_keeps_the_python_loop(
-    domain, task, compiled):
-  env = suite.load(domain, task, task_kwargs=dict(robot='schunk', seed=0))
+@pytest.mark.parametrize('own_work,compiled', [(True, False),
+                                                (False, True)])
+def test_work_before_each_physics_step_keeps_the_python_loop(own_work,
+                                                             compiled):
+  # A task with work before every physics step that it does not hand to
+  # the compiled call (_physics_step_writes: None) runs them in Python.
+  env = suite.load('reach', 'dense', task_kwargs=dict(robot='schunk',
+                                                      seed=0))
+  calls = []
+  if own_work:
+    env.task.__class__ = type('WithOwnWork', (type(env.task),), {
+        '_before_physics_step': lambda self, physics: calls.append(1)})
   statuses = []
   env.reset()
   _count_runs(env, statuses)
   for _ in range(3):
     env.step(np.zeros(env.action_spec().shape))
   assert bool(statuses) == compiled
+  assert len(calls) == (75 if own_work else 0)
 
 
 def test_a_full_arena_keeps_the_python_loop():

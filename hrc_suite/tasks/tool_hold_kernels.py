@@ -1,0 +1,235 @@
+"""The compliant hold's force and torque on the held tool, compiled.
+
+`tool_hold.CompliantHold.apply` (the maths and the reasons for its numbers
+are there) calls `apply` on every physics step; the compiled physics loop
+(tasks/physics_loop.py) calls the same function between its physics steps,
+so both paths give the same forces bit for bit. Quaternions are (w, x, y,
+z); arithmetic in scalars, in a fixed order.
+
+`params` (NUM_PARAMS,): the named slots below. `indices` (NUM_INDICES,):
+body, its free joint's qpos and qvel addresses, the hand's mocap id, the
+weld's id, and whether the hold is on and whether it aims. `history` (2, 7)
+(the targets of the last two physics steps: centre of mass, orientation),
+`omega` (3,) (the last target angular velocity), `fresh` (1,) (steps of
+history since the hold started, at most 2).
+"""
+
+import math
+
+import numba
+import numpy as np
+
+_jit = numba.njit(cache=True, fastmath=False)
+
+# params slots.
+MASS, DT, K, B = 0, 1, 2, 3
+K_ROT, B_ROT, INERTIA, COM_LOCAL = 4, 7, 10, 13
+INERTIA_QUAT, OFFSET_POS, OFFSET_QUAT, GRAVITY = 16, 20, 23, 27
+MAX_AIM, MAX_REACH, MAX_FORCE, MAX_TORQUE = 30, 31, 32, 33
+NUM_PARAMS = 34
+# indices slots.
+BODY, QPOS, QVEL, MOCAP, EQ, HOLDING, AIMING = range(7)
+NUM_INDICES = 7
+
+
+@_jit
+def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
+  """Quaternion product a b."""
+  return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+          a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+          a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+          a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
+
+
+@_jit
+def _matrix(q0, q1, q2, q3, out):
+  """Rotation matrix (3, 3) of a unit quaternion, into out."""
+  out[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
+  out[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
+  out[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
+  out[1, 0] = 2.0 * (q1 * q2 + q0 * q3)
+  out[1, 1] = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+  out[1, 2] = 2.0 * (q2 * q3 - q0 * q1)
+  out[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
+  out[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
+  out[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+
+
+@_jit
+def _times(m, v0, v1, v2, out):
+  """out = m @ v."""
+  for i in range(3):
+    out[i] = m[i, 0] * v0 + m[i, 1] * v1 + m[i, 2] * v2
+
+
+@_jit
+def _times_transposed(m, v0, v1, v2, out):
+  """out = m.T @ v."""
+  for i in range(3):
+    out[i] = m[0, i] * v0 + m[1, i] * v1 + m[2, i] * v2
+
+
+@_jit
+def _rotation_vector(t0, t1, t2, t3, f0, f1, f2, f3, out):
+  """World-frame rotation vector (rad) turning orientation f to t."""
+  d0, d1, d2, d3 = _mul(t0, t1, t2, t3, f0, -f1, -f2, -f3)
+  if d0 < 0.0:
+    d0, d1, d2, d3 = -d0, -d1, -d2, -d3
+  sine = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
+  scale = 2.0 if sine < 1e-12 else 2.0 * math.atan2(sine, d0) / sine
+  out[0], out[1], out[2] = d1 * scale, d2 * scale, d3 * scale
+
+
+@_jit
+def target(params, indices, aim, mocap_pos, mocap_quat, eq_data, com, quat):
+  """The centre of mass (com, 3) and free-joint frame orientation (quat,
+  4) the hand wants the body at (CompliantHold.target)."""
+  mocap, eq = indices[MOCAP], indices[EQ]
+  h0, h1, h2, h3 = (mocap_quat[mocap, 0], mocap_quat[mocap, 1],
+                    mocap_quat[mocap, 2], mocap_quat[mocap, 3])
+  r0, r1, r2, r3 = eq_data[eq, 6], eq_data[eq, 7], eq_data[eq, 8], eq_data[
+      eq, 9]
+  q0, q1, q2, q3 = _mul(h0, h1, h2, h3, r0, r1, r2, r3)
+  rotation = np.empty((3, 3))
+  _matrix(h0, h1, h2, h3, rotation)
+  origin = np.empty(3)
+  _times(rotation, eq_data[eq, 3], eq_data[eq, 4], eq_data[eq, 5], origin)
+  hand = mocap_pos[mocap]
+  for i in range(3):
+    origin[i] += hand[i]
+  if indices[AIMING]:
+    arm0, arm1 = origin[0] - hand[0], origin[1] - hand[1]
+    want0, want1 = aim[0] - hand[0], aim[1] - hand[1]
+    turn = math.atan2(arm0 * want1 - arm1 * want0, arm0 * want0 + arm1 * want1)
+    turn = min(max(turn, -params[MAX_AIM]), params[MAX_AIM])
+    c, s = math.cos(turn), math.sin(turn)
+    origin[0] = hand[0] + (c * arm0 - s * arm1)
+    origin[1] = hand[1] + (s * arm0 + c * arm1)
+    q0, q1, q2, q3 = _mul(math.cos(turn / 2.0), 0.0, 0.0,
+                          math.sin(turn / 2.0), q0, q1, q2, q3)
+    distance = math.sqrt(want0 * want0 + want1 * want1)
+    error = distance - math.sqrt(arm0 * arm0 + arm1 * arm1)
+    size = abs(error)
+    reach = params[MAX_REACH]
+    if size > reach:
+      error = math.copysign(max(0.0, 2.0 * reach - size), error)
+    if distance > 0.0:
+      origin[0] += error * want0 / distance
+      origin[1] += error * want1 / distance
+  o = OFFSET_QUAT
+  f0, f1, f2, f3 = _mul(q0, q1, q2, q3, params[o], -params[o + 1],
+                        -params[o + 2], -params[o + 3])
+  _matrix(f0, f1, f2, f3, rotation)
+  offset = np.empty(3)
+  _times(rotation, params[OFFSET_POS], params[OFFSET_POS + 1],
+         params[OFFSET_POS + 2], offset)
+  lever = np.empty(3)
+  _times(rotation, params[COM_LOCAL], params[COM_LOCAL + 1],
+         params[COM_LOCAL + 2], lever)
+  for i in range(3):
+    com[i] = (origin[i] - offset[i]) + lever[i]
+  quat[0], quat[1], quat[2], quat[3] = f0, f1, f2, f3
+
+
+@_jit
+def apply(params, indices, aim, aim_source, history, omega, fresh, mocap_pos,
+          mocap_quat, eq_data, qpos, qvel, xfrc_applied):
+  """Sets the body's applied force and torque for the next physics step
+  (CompliantHold.apply); nothing while the hold is off. aim_source: (3,)
+  copied into aim first (CompliantHold.aim at every step, e.g. a site's
+  xpos row), or (0,)."""
+  if not indices[HOLDING]:
+    return
+  if aim_source.shape[0] == 3:
+    aim[:] = aim_source
+  com_target, quat_target = np.empty(3), np.empty(4)
+  target(params, indices, aim, mocap_pos, mocap_quat, eq_data, com_target,
+         quat_target)
+  dt = params[DT]
+  if fresh[0] == 0:
+    for i in range(3):
+      history[0, i] = history[1, i] = com_target[i]
+    for i in range(4):
+      history[0, 3 + i] = history[1, 3 + i] = quat_target[i]
+  previous = history[0].copy()
+  before = history[1].copy()
+  previous_velocity, acceleration = np.empty(3), np.empty(3)
+  for i in range(3):
+    previous_velocity[i] = (previous[i] - before[i]) / dt
+    velocity = (com_target[i] - previous[i]) / dt
+    acceleration[i] = (velocity - previous_velocity[i]) / dt
+  previous_omega = omega.copy()
+  turned = np.empty(3)
+  _rotation_vector(quat_target[0], quat_target[1], quat_target[2],
+                   quat_target[3], previous[3], previous[4], previous[5],
+                   previous[6], turned)
+  alpha = np.empty(3)
+  for i in range(3):
+    omega[i] = turned[i] / dt
+    alpha[i] = (omega[i] - previous_omega[i]) / dt
+  if fresh[0] < 2:   # no full history yet: no feed-forward
+    acceleration[:] = 0.0
+    alpha[:] = 0.0
+  history[1] = previous
+  history[0, :3] = com_target
+  history[0, 3:] = quat_target
+  fresh[0] = min(fresh[0] + 1, 2)
+
+  a, v = indices[QPOS], indices[QVEL]
+  rotation = np.empty((3, 3))
+  _matrix(qpos[a + 3], qpos[a + 4], qpos[a + 5], qpos[a + 6], rotation)
+  lever, body_omega = np.empty(3), np.empty(3)
+  _times(rotation, params[COM_LOCAL], params[COM_LOCAL + 1],
+         params[COM_LOCAL + 2], lever)
+  _times(rotation, qvel[v + 3], qvel[v + 4], qvel[v + 5], body_omega)
+  force = np.empty(3)
+  for i in range(3):
+    n, p = (i + 1) % 3, (i + 2) % 3
+    com = qpos[a + i] + lever[i]
+    com_velocity = qvel[v + i] + (body_omega[n] * lever[p]
+                                  - body_omega[p] * lever[n])
+    force[i] = (params[MASS] * (acceleration[i] - params[GRAVITY + i])
+                + params[K] * (previous[i] - com)
+                + params[B] * (previous_velocity[i] - com_velocity))
+  axes = np.empty((3, 3))
+  o = INERTIA_QUAT
+  _matrix(params[o], params[o + 1], params[o + 2], params[o + 3], axes)
+  principal = np.empty((3, 3))
+  for i in range(3):
+    _times_transposed(axes, rotation[i, 0], rotation[i, 1], rotation[i, 2],
+                      principal[i])   # row i of rotation @ axes
+  error = np.empty(3)
+  _rotation_vector(previous[3], previous[4], previous[5], previous[6],
+                   qpos[a + 3], qpos[a + 4], qpos[a + 5], qpos[a + 6], turned)
+  _times_transposed(principal, turned[0], turned[1], turned[2], error)
+  omega_error = np.empty(3)
+  _times_transposed(principal, previous_omega[0] - body_omega[0],
+                    previous_omega[1] - body_omega[1],
+                    previous_omega[2] - body_omega[2], omega_error)
+  # torque = principal diag(I) principal.T alpha
+  #          + principal (k_rot rotation_error + b_rot omega_error)
+  local, spring = np.empty(3), np.empty(3)
+  _times_transposed(principal, alpha[0], alpha[1], alpha[2], local)
+  for i in range(3):
+    spring[i] = (params[INERTIA + i] * local[i]
+                 + (params[K_ROT + i] * error[i]
+                    + params[B_ROT + i] * omega_error[i]))
+  torque = np.empty(3)
+  _times(principal, spring[0], spring[1], spring[2], torque)
+  _limit(force, params[MAX_FORCE])
+  _limit(torque, params[MAX_TORQUE])
+  body = indices[BODY]
+  for i in range(3):
+    xfrc_applied[body, i] = force[i]
+    xfrc_applied[body, 3 + i] = torque[i]
+
+
+@_jit
+def _limit(vector, largest):
+  """Scales vector (3,) down to norm `largest` if longer."""
+  norm = math.sqrt(vector[0] * vector[0] + vector[1] * vector[1]
+                   + vector[2] * vector[2])
+  if norm > largest:
+    scale = largest / norm
+    for i in range(3):
+      vector[i] *= scale
