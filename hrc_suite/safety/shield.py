@@ -659,8 +659,10 @@ class Shield:
     # cache of recent plans is not tabled twice.
     cached = plan.__dict__.get('_pfl_tables')
     if cached is None or cached[0] is not self.robot:
-      cached = (self.robot,) + pfl_speed_tables(
-          self.robot.surface_speeds(plan.q, plan.dq))
+      robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
+      cached = (robot,) + kernels.plan_speed_tables(
+          plan._all(), *robot._kernel_model, robot._kernel_frames,
+          robot._kernel_radii, PFL_WINDOW)
       plan._pfl_tables = cached
     return cached[1], cached[2]
 
