@@ -43,6 +43,11 @@ _inline = numba.njit(cache=True, fastmath=False, nogil=True, inline='always')
 
 # Speeds below this (m/s) have no direction (human_reach._MIN_SPEED).
 _MIN_SPEED = 1e-12
+# plan_speed_tables skips a capsule whose speed bound, grown by these
+# (relative, absolute in m/s), is below the largest speed found: far above
+# the round-off of the computed speeds and bounds (about 1e-15 relative).
+_PRUNE_RELATIVE = 1e-6
+_PRUNE_ABSOLUTE = 1e-9
 
 
 @_jit
@@ -305,10 +310,9 @@ def robot_reach(q_edges, s_edges, fixed, points, frame_index, alpha,
 
 
 @_inline
-def _sample_speeds(frames, dq, points, frame_index, radii, omega, offset,
-                   out):
-  """surface_speeds of one sample into out (L,): its frames (dof, 3, 4)
-  (`_chain`) and dq (dof,); omega, offset (dof, 3): scratch."""
+def _spins(frames, dq, omega, offset):
+  """One sample's w_i = sum_{k<=i} dq_k z_k and U_i = sum_{k<=i} dq_k
+  z_k x o_k into omega, offset (dof, 3); frames (dof, 3, 4) (`_chain`)."""
   w0 = w1 = w2 = u0 = u1 = u2 = 0.0
   for i in range(dq.shape[0]):
     z0 = frames[i, 0, 2] * dq[i]
@@ -323,21 +327,23 @@ def _sample_speeds(frames, dq, points, frame_index, radii, omega, offset,
     u2 += z0 * o1 - z1 * o0
     omega[i, 0], omega[i, 1], omega[i, 2] = w0, w1, w2
     offset[i, 0], offset[i, 1], offset[i, 2] = u0, u1, u2
-  for l in range(points.shape[0]):
-    f = frame_index[l]
-    a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
-    best = 0.0
-    for j in range(2):
-      p0 = _world(frames[f], points[l, j], 0)   # The end (_endpoints).
-      p1 = _world(frames[f], points[l, j], 1)
-      p2 = _world(frames[f], points[l, j], 2)
-      v0 = a1 * p2 - a2 * p1 - offset[f, 0]
-      v1 = a2 * p0 - a0 * p2 - offset[f, 1]
-      v2 = a0 * p1 - a1 * p0 - offset[f, 2]
-      best = max(best, v0 * v0 + v1 * v1 + v2 * v2)
-    out[l] = (math.sqrt(best)
-              + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * radii[l])
-  return out
+
+
+@_inline
+def _capsule_speed(frames, omega, offset, points, radii, l, f):
+  """surface_speeds of capsule l (on frame f) of one sample (`_spins`)."""
+  a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
+  best = 0.0
+  for j in range(2):
+    p0 = _world(frames[f], points[l, j], 0)   # The end (_endpoints).
+    p1 = _world(frames[f], points[l, j], 1)
+    p2 = _world(frames[f], points[l, j], 2)
+    v0 = a1 * p2 - a2 * p1 - offset[f, 0]
+    v1 = a2 * p0 - a0 * p2 - offset[f, 1]
+    v2 = a0 * p1 - a1 * p0 - offset[f, 2]
+    best = max(best, v0 * v0 + v1 * v1 + v2 * v2)
+  return (math.sqrt(best)
+          + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * radii[l])
 
 
 @_jit
@@ -351,8 +357,10 @@ def surface_speeds(q, dq, fixed, points, frame_index, radii):
   offset = np.empty((dof, 3))
   for n in range(count):
     _chain(q[n], fixed, frames)
-    _sample_speeds(frames, dq[n], points, frame_index, radii, omega, offset,
-                   out[n])
+    _spins(frames, dq[n], omega, offset)
+    for l in range(points.shape[0]):
+      out[n, l] = _capsule_speed(frames, omega, offset, points, radii, l,
+                                 frame_index[l])
   return out
 
 
@@ -535,19 +543,50 @@ def speed_tables(speeds, width):
 @_jit
 def plan_speed_tables(samples, fixed, points, frame_index, radii, width):
   """speed_tables(surface_speeds(q, dq), width) of a plan's samples (N, 4,
-  dof) (q = samples[:, 0], dq = samples[:, 1]) in one pass, without the
-  (N, dof, 3, 4) frames and (N, L) speeds in memory: the same values."""
+  dof) (q = samples[:, 0], dq = samples[:, 1]) in one pass: the same
+  values. Only each sample's largest speed is kept: the capsule with the
+  largest speed bound is computed first, and a capsule whose bound is
+  below the largest speed found is skipped. The bound: at a point p of a
+  capsule on a frame with origin o, |v(p)| <= |v(o)| + |w| |p - o|, and
+  |p - o| is at most the farther end's distance from o in the frame (the
+  frames are rigid) plus the radius."""
   count, _, dof = samples.shape
+  count_l = points.shape[0]
+  reach = np.empty(count_l)
+  for l in range(count_l):
+    far = 0.0
+    for j in range(2):
+      x, y, z = points[l, j, 0], points[l, j, 1], points[l, j, 2]
+      far = max(far, math.sqrt(x * x + y * y + z * z))
+    reach[l] = far + radii[l]
   frames = np.empty((dof, 3, 4))
   omega = np.empty((dof, 3))
   offset = np.empty((dof, 3))
-  speeds = np.empty(points.shape[0])
+  bound = np.empty(count_l)
   top = np.empty(count)
   for n in range(count):
     _chain(samples[n, 0], fixed, frames)
-    _sample_speeds(frames, samples[n, 1], points, frame_index, radii, omega,
-                   offset, speeds)
-    top[n] = speeds.max()
+    _spins(frames, samples[n, 1], omega, offset)
+    first = 0
+    for l in range(count_l):
+      f = frame_index[l]
+      a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
+      o0, o1, o2 = frames[f, 0, 3], frames[f, 1, 3], frames[f, 2, 3]
+      v0 = a1 * o2 - a2 * o1 - offset[f, 0]
+      v1 = a2 * o0 - a0 * o2 - offset[f, 1]
+      v2 = a0 * o1 - a1 * o0 - offset[f, 2]
+      bound[l] = ((math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+                   + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * reach[l])
+                  * (1.0 + _PRUNE_RELATIVE) + _PRUNE_ABSOLUTE)
+      if bound[l] > bound[first]:
+        first = l
+    best = _capsule_speed(frames, omega, offset, points, radii, first,
+                          frame_index[first])
+    for l in range(count_l):
+      if l != first and bound[l] >= best:
+        best = max(best, _capsule_speed(frames, omega, offset, points,
+                                        radii, l, frame_index[l]))
+    top[n] = best
   return _tables(top, width)
 
 
