@@ -143,7 +143,7 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
                     human.num_measurements], dtype=float)
   positions = np.array(human.positions, dtype=float)
   velocities = np.array(human.velocities, dtype=float)
-  total, check, adopted = 0, None, False
+  total, check = 0, None
   while total < len(times):
     tables = _speed_tables(shield, plan) + _speed_tables(shield, candidate)
     samples = _samples(plan, shield, len(times))
@@ -164,7 +164,7 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
       total += done
       check = (status, first, distance, s_edges, t_edges, q_edges)
     if flags[ck.ADOPTED_AT] >= 0:   # The candidate was adopted (Shield._adopt).
-      plan, candidate, adopted = candidate, None, True
+      plan, candidate = candidate, None
       flags[ck.ADOPTED_AT] = -1
     if not missing:
       break
@@ -178,8 +178,6 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
     return 0
   status, first, distance, s_edges, t_edges, q_edges = check
   shield._plan = plan
-  if adopted:
-    shield._pfl_speeds = {}
   shield._goal_pending = bool(flags[ck.GOAL_PENDING])
   if not flags[ck.HAS_CANDIDATE]:
     shield._candidate = None

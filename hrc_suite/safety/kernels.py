@@ -16,7 +16,8 @@ reference, tested against it on random inputs to 1e-12):
   phases (shield.Shield._human_horizon_balls,
   shield.balls_capsules_distance_reference);
 * `plan_positions`: long_term_plan.LongTermPlan.positions_reference;
-* `speed_tables`: shield.pfl_speed_tables(compiled=False).
+* `speed_tables`: shield.pfl_speed_tables(compiled=False);
+  `plan_speed_tables`: the same from a plan's samples in one pass.
 
 Compiled with cache=True (the machine code is stored in __pycache__ and
 reloaded by later processes) and fastmath=False (IEEE arithmetic, no
@@ -37,9 +38,16 @@ from hrc_suite.safety.geometry import _PARALLEL_SIN_SQUARED
 from hrc_suite.safety.geometry import _TINY_DISTANCE
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
+# Helpers of the kernels below, inlined into them (numba IR).
+_inline = numba.njit(cache=True, fastmath=False, nogil=True, inline='always')
 
 # Speeds below this (m/s) have no direction (human_reach._MIN_SPEED).
 _MIN_SPEED = 1e-12
+# plan_speed_tables skips a capsule whose speed bound, grown by these
+# (relative, absolute in m/s), is below the largest speed found: far above
+# the round-off of the computed speeds and bounds (about 1e-15 relative).
+_PRUNE_RELATIVE = 1e-6
+_PRUNE_ABSOLUTE = 1e-9
 
 
 @_jit
@@ -184,57 +192,72 @@ def ssm_first_unsafe(rc1, rc2, rr, hc1, hc2, hr):
   return -1
 
 
+@_inline
+def _chain(q, fixed, out):
+  """Link frames (dof, 3, 4) (top rows of the 4x4 transforms) of one
+  configuration q (dof,) into out; fixed (dof, 3, 4) are the fixed
+  transforms A_i (base folded into A_0). A_i Rz(q_i) has the columns
+  c F0 + s F1, c F1 - s F0, F2, F3 of A_i = [F0 F1 F2 F3] (the
+  reference's rest + c cos + s sin term by term, without its zero terms);
+  frames chain by products of affine 3x4 transforms, the running frame
+  kept in scalars."""
+  p00 = p01 = p02 = p03 = p10 = p11 = p12 = p13 = 0.0
+  p20 = p21 = p22 = p23 = 0.0
+  for i in range(q.shape[0]):
+    c = math.cos(q[i])
+    s = math.sin(q[i])
+    f = fixed[i]
+    l00 = c * f[0, 0] + s * f[0, 1]
+    l01 = c * f[0, 1] - s * f[0, 0]
+    l10 = c * f[1, 0] + s * f[1, 1]
+    l11 = c * f[1, 1] - s * f[1, 0]
+    l20 = c * f[2, 0] + s * f[2, 1]
+    l21 = c * f[2, 1] - s * f[2, 0]
+    l02, l03 = f[0, 2], f[0, 3]
+    l12, l13 = f[1, 2], f[1, 3]
+    l22, l23 = f[2, 2], f[2, 3]
+    if i == 0:
+      p00, p01, p02, p03 = l00, l01, l02, l03
+      p10, p11, p12, p13 = l10, l11, l12, l13
+      p20, p21, p22, p23 = l20, l21, l22, l23
+    else:
+      p00, p01, p02, p03 = (
+          p00 * l00 + p01 * l10 + p02 * l20,
+          p00 * l01 + p01 * l11 + p02 * l21,
+          p00 * l02 + p01 * l12 + p02 * l22,
+          p00 * l03 + p01 * l13 + p02 * l23 + p03)
+      p10, p11, p12, p13 = (
+          p10 * l00 + p11 * l10 + p12 * l20,
+          p10 * l01 + p11 * l11 + p12 * l21,
+          p10 * l02 + p11 * l12 + p12 * l22,
+          p10 * l03 + p11 * l13 + p12 * l23 + p13)
+      p20, p21, p22, p23 = (
+          p20 * l00 + p21 * l10 + p22 * l20,
+          p20 * l01 + p21 * l11 + p22 * l21,
+          p20 * l02 + p21 * l12 + p22 * l22,
+          p20 * l03 + p21 * l13 + p22 * l23 + p23)
+    o = out[i]
+    o[0, 0], o[0, 1], o[0, 2], o[0, 3] = p00, p01, p02, p03
+    o[1, 0], o[1, 1], o[1, 2], o[1, 3] = p10, p11, p12, p13
+    o[2, 0], o[2, 1], o[2, 2], o[2, 3] = p20, p21, p22, p23
+  return out
+
+
 @_jit
 def _frames(q, fixed):
-  """Link frames (N, dof, 3, 4) (top rows of the 4x4 transforms) for q
-  (N, dof); fixed (dof, 3, 4) are the fixed transforms A_i (base folded
-  into A_0). A_i Rz(q_i) has the columns c F0 + s F1, c F1 - s F0, F2, F3
-  of A_i = [F0 F1 F2 F3] (the reference's rest + c cos + s sin term by
-  term, without its zero terms); frames chain by products of affine 3x4
-  transforms, the running frame kept in scalars."""
+  """Link frames (N, dof, 3, 4) for q (N, dof) (`_chain` of each)."""
   count, dof = q.shape
   out = np.empty((count, dof, 3, 4))
   for n in range(count):
-    p00 = p01 = p02 = p03 = p10 = p11 = p12 = p13 = 0.0
-    p20 = p21 = p22 = p23 = 0.0
-    for i in range(dof):
-      c = math.cos(q[n, i])
-      s = math.sin(q[n, i])
-      f = fixed[i]
-      l00 = c * f[0, 0] + s * f[0, 1]
-      l01 = c * f[0, 1] - s * f[0, 0]
-      l10 = c * f[1, 0] + s * f[1, 1]
-      l11 = c * f[1, 1] - s * f[1, 0]
-      l20 = c * f[2, 0] + s * f[2, 1]
-      l21 = c * f[2, 1] - s * f[2, 0]
-      l02, l03 = f[0, 2], f[0, 3]
-      l12, l13 = f[1, 2], f[1, 3]
-      l22, l23 = f[2, 2], f[2, 3]
-      if i == 0:
-        p00, p01, p02, p03 = l00, l01, l02, l03
-        p10, p11, p12, p13 = l10, l11, l12, l13
-        p20, p21, p22, p23 = l20, l21, l22, l23
-      else:
-        p00, p01, p02, p03 = (
-            p00 * l00 + p01 * l10 + p02 * l20,
-            p00 * l01 + p01 * l11 + p02 * l21,
-            p00 * l02 + p01 * l12 + p02 * l22,
-            p00 * l03 + p01 * l13 + p02 * l23 + p03)
-        p10, p11, p12, p13 = (
-            p10 * l00 + p11 * l10 + p12 * l20,
-            p10 * l01 + p11 * l11 + p12 * l21,
-            p10 * l02 + p11 * l12 + p12 * l22,
-            p10 * l03 + p11 * l13 + p12 * l23 + p13)
-        p20, p21, p22, p23 = (
-            p20 * l00 + p21 * l10 + p22 * l20,
-            p20 * l01 + p21 * l11 + p22 * l21,
-            p20 * l02 + p21 * l12 + p22 * l22,
-            p20 * l03 + p21 * l13 + p22 * l23 + p23)
-      o = out[n, i]
-      o[0, 0], o[0, 1], o[0, 2], o[0, 3] = p00, p01, p02, p03
-      o[1, 0], o[1, 1], o[1, 2], o[1, 3] = p10, p11, p12, p13
-      o[2, 0], o[2, 1], o[2, 2], o[2, 3] = p20, p21, p22, p23
+    _chain(q[n], fixed, out[n])
   return out
+
+
+@_inline
+def _world(frame, point, r):
+  """Coordinate r of a point (3+,) given in a frame (3, 4), in the world."""
+  return (frame[r, 0] * point[0] + frame[r, 1] * point[1]
+          + frame[r, 2] * point[2] + frame[r, 3])
 
 
 @_jit
@@ -248,10 +271,7 @@ def _endpoints(frames, points, frame_index):
       f = frame_index[l]
       for j in range(2):
         for r in range(3):
-          out[n, l, j, r] = (frames[n, f, r, 0] * points[l, j, 0]
-                             + frames[n, f, r, 1] * points[l, j, 1]
-                             + frames[n, f, r, 2] * points[l, j, 2]
-                             + frames[n, f, r, 3])
+          out[n, l, j, r] = _world(frames[n, f], points[l, j], r)
   return out
 
 
@@ -289,44 +309,58 @@ def robot_reach(q_edges, s_edges, fixed, points, frame_index, alpha,
   return c1, c2, radius
 
 
+@_inline
+def _spins(frames, dq, omega, offset):
+  """One sample's w_i = sum_{k<=i} dq_k z_k and U_i = sum_{k<=i} dq_k
+  z_k x o_k into omega, offset (dof, 3); frames (dof, 3, 4) (`_chain`)."""
+  w0 = w1 = w2 = u0 = u1 = u2 = 0.0
+  for i in range(dq.shape[0]):
+    z0 = frames[i, 0, 2] * dq[i]
+    z1 = frames[i, 1, 2] * dq[i]
+    z2 = frames[i, 2, 2] * dq[i]
+    o0, o1, o2 = frames[i, 0, 3], frames[i, 1, 3], frames[i, 2, 3]
+    w0 += z0
+    w1 += z1
+    w2 += z2
+    u0 += z1 * o2 - z2 * o1
+    u1 += z2 * o0 - z0 * o2
+    u2 += z0 * o1 - z1 * o0
+    omega[i, 0], omega[i, 1], omega[i, 2] = w0, w1, w2
+    offset[i, 0], offset[i, 1], offset[i, 2] = u0, u1, u2
+
+
+@_inline
+def _capsule_speed(frames, omega, offset, points, radii, l, f):
+  """surface_speeds of capsule l (on frame f) of one sample (`_spins`)."""
+  a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
+  best = 0.0
+  for j in range(2):
+    p0 = _world(frames[f], points[l, j], 0)   # The end (_endpoints).
+    p1 = _world(frames[f], points[l, j], 1)
+    p2 = _world(frames[f], points[l, j], 2)
+    v0 = a1 * p2 - a2 * p1 - offset[f, 0]
+    v1 = a2 * p0 - a0 * p2 - offset[f, 1]
+    v2 = a0 * p1 - a1 * p0 - offset[f, 2]
+    best = max(best, v0 * v0 + v1 * v1 + v2 * v2)
+  return (math.sqrt(best)
+          + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * radii[l])
+
+
 @_jit
 def surface_speeds(q, dq, fixed, points, frame_index, radii):
   """Upper bounds (N, L) of the capsules' surface speeds at (q, dq) (N,
   dof): |w x p - U| at both ends (maximum) plus |w| r."""
-  frames = _frames(q, fixed)
-  ends = _endpoints(frames, points, frame_index)
   count, dof = q.shape
-  count_l = points.shape[0]
-  out = np.empty((count, count_l))
+  out = np.empty((count, points.shape[0]))
+  frames = np.empty((dof, 3, 4))
   omega = np.empty((dof, 3))
   offset = np.empty((dof, 3))
   for n in range(count):
-    w0 = w1 = w2 = u0 = u1 = u2 = 0.0
-    for i in range(dof):
-      z0 = frames[n, i, 0, 2] * dq[n, i]
-      z1 = frames[n, i, 1, 2] * dq[n, i]
-      z2 = frames[n, i, 2, 2] * dq[n, i]
-      o0, o1, o2 = frames[n, i, 0, 3], frames[n, i, 1, 3], frames[n, i, 2, 3]
-      w0 += z0
-      w1 += z1
-      w2 += z2
-      u0 += z1 * o2 - z2 * o1
-      u1 += z2 * o0 - z0 * o2
-      u2 += z0 * o1 - z1 * o0
-      omega[i, 0], omega[i, 1], omega[i, 2] = w0, w1, w2
-      offset[i, 0], offset[i, 1], offset[i, 2] = u0, u1, u2
-    for l in range(count_l):
-      f = frame_index[l]
-      a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
-      best = 0.0
-      for j in range(2):
-        p0, p1, p2 = ends[n, l, j, 0], ends[n, l, j, 1], ends[n, l, j, 2]
-        v0 = a1 * p2 - a2 * p1 - offset[f, 0]
-        v1 = a2 * p0 - a0 * p2 - offset[f, 1]
-        v2 = a0 * p1 - a1 * p0 - offset[f, 2]
-        best = max(best, v0 * v0 + v1 * v1 + v2 * v2)
-      out[n, l] = (math.sqrt(best)
-                   + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * radii[l])
+    _chain(q[n], fixed, frames)
+    _spins(frames, dq[n], omega, offset)
+    for l in range(points.shape[0]):
+      out[n, l] = _capsule_speed(frames, omega, offset, points, radii, l,
+                                 frame_index[l])
   return out
 
 
@@ -503,6 +537,63 @@ def speed_tables(speeds, width):
   top = np.empty(count)
   for i in range(count):
     top[i] = speeds[i].max()
+  return _tables(top, width)
+
+
+@_jit
+def plan_speed_tables(samples, fixed, points, frame_index, radii, width):
+  """speed_tables(surface_speeds(q, dq), width) of a plan's samples (N, 4,
+  dof) (q = samples[:, 0], dq = samples[:, 1]) in one pass: the same
+  values. Only each sample's largest speed is kept: the capsule with the
+  largest speed bound is computed first, and a capsule whose bound is
+  below the largest speed found is skipped. The bound: at a point p of a
+  capsule on a frame with origin o, |v(p)| <= |v(o)| + |w| |p - o|, and
+  |p - o| is at most the farther end's distance from o in the frame (the
+  frames are rigid) plus the radius."""
+  count, _, dof = samples.shape
+  count_l = points.shape[0]
+  reach = np.empty(count_l)
+  for l in range(count_l):
+    far = 0.0
+    for j in range(2):
+      x, y, z = points[l, j, 0], points[l, j, 1], points[l, j, 2]
+      far = max(far, math.sqrt(x * x + y * y + z * z))
+    reach[l] = far + radii[l]
+  frames = np.empty((dof, 3, 4))
+  omega = np.empty((dof, 3))
+  offset = np.empty((dof, 3))
+  bound = np.empty(count_l)
+  top = np.empty(count)
+  for n in range(count):
+    _chain(samples[n, 0], fixed, frames)
+    _spins(frames, samples[n, 1], omega, offset)
+    first = 0
+    for l in range(count_l):
+      f = frame_index[l]
+      a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
+      o0, o1, o2 = frames[f, 0, 3], frames[f, 1, 3], frames[f, 2, 3]
+      v0 = a1 * o2 - a2 * o1 - offset[f, 0]
+      v1 = a2 * o0 - a0 * o2 - offset[f, 1]
+      v2 = a0 * o1 - a1 * o0 - offset[f, 2]
+      bound[l] = ((math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+                   + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * reach[l])
+                  * (1.0 + _PRUNE_RELATIVE) + _PRUNE_ABSOLUTE)
+      if bound[l] > bound[first]:
+        first = l
+    best = _capsule_speed(frames, omega, offset, points, radii, first,
+                          frame_index[first])
+    for l in range(count_l):
+      if l != first and bound[l] >= best:
+        best = max(best, _capsule_speed(frames, omega, offset, points,
+                                        radii, l, frame_index[l]))
+    top[n] = best
+  return _tables(top, width)
+
+
+@_jit
+def _tables(top, width):
+  """speed_tables from each sample's largest speed top (N,)."""
+  count = top.shape[0]
   window = np.empty(count)
   suffix = np.empty(count)
   best = -np.inf
@@ -576,6 +667,10 @@ def warm_up():
   c1, c2, r = robot_reach(q, np.arange(2.0), fixed, points, frame_index,
                           ones, ones)
   speed_tables(surface_speeds(q, q, fixed, points, frame_index, ones), 6)
+  samples = np.zeros((2, 4, dof))
+  for writeable in (True, False):   # Plans made by Ruckig, from samples.
+    samples.flags.writeable = writeable
+    plan_speed_tables(samples, fixed, points, frame_index, ones, 6)
   positions = np.zeros((count_n, 3))
   ends = np.zeros(2 * count_b, dtype=np.int64)
   rates = np.ones(count_n)

@@ -133,7 +133,6 @@ class Shield:
     # Clip bounds of a state's (dq, ddq, dddq) rows (docs/shield_maths.md, 2).
     self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
     self._clip_low = -self._clip
-    self._pfl_speeds = {}
     # Every robot point stays within this ball around the base (rotations
     # keep lengths: sum of the fixed translations up to the link, plus the
     # capsule's farther end, radius and secure radius).
@@ -194,7 +193,6 @@ class Shield:
     self._goal = None
     self._goal_pending = False
     self._candidate = None       # (plan, start state key) awaiting approval.
-    self._pfl_speeds = {}
     self.time = float(t)
     self._is_safe = self.mode == 'off'
     self.intervened = False
@@ -241,7 +239,6 @@ class Shield:
     self._state = self._plan.state(s, 0.0, 0.0, 0.0)
     self._goal_pending = self._goal is not None
     self._candidate = None
-    self._pfl_speeds = {}
     self._lazy = {}
 
   @property
@@ -497,7 +494,6 @@ class Shield:
                   if scalar('has_goal') else None)
     self._goal_pending = bool(scalar('goal_pending'))
     self._candidate = None
-    self._pfl_speeds = {}
     self._is_safe = bool(scalar('is_safe'))
     self.intervened = bool(scalar('intervened'))
     self._first_unsafe_interval = int(scalar('first_unsafe_interval'))
@@ -662,25 +658,21 @@ class Shield:
     self._plan = plan
     self._goal_pending = False
     self._candidate = None
-    self._pfl_speeds = {}
 
   def _plan_speeds(self, plan):
     """PFL tables of a plan's largest capsule surface speed at nominal path
     speed: over the next PFL_WINDOW samples, and from each sample to the
     end (both (N,), m/s)."""
-    cached = self._pfl_speeds.get(id(plan))
-    if cached is None or cached[0] is not plan:
-      cached = (plan,) + pfl_speed_tables(
-          self.robot.surface_speeds(plan.q, plan.dq))
-      # Kept for the plan and the pending candidate, both asked for in
-      # every cycle while a candidate waits (one entry alone made each
-      # evict the other).
-      alive = {id(self._plan)}
-      if self._candidate is not None:
-        alive.add(id(self._candidate[0]))
-      self._pfl_speeds = {key: value for key, value in
-                          self._pfl_speeds.items() if key in alive}
-      self._pfl_speeds[id(plan)] = cached
+    # Kept on the plan (for this robot): a candidate's tables stay its
+    # own when it is adopted, and a plan shared through long_term_plan's
+    # cache of recent plans is not tabled twice.
+    cached = plan.__dict__.get('_pfl_tables')
+    if cached is None or cached[0] is not self.robot:
+      robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
+      cached = (robot,) + kernels.plan_speed_tables(
+          plan._all(), *robot._kernel_model, robot._kernel_frames,
+          robot._kernel_radii, PFL_WINDOW)
+      plan._pfl_tables = cached
     return cached[1], cached[2]
 
   def _s_dot_limit(self, plan, s):

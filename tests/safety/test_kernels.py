@@ -222,6 +222,45 @@ def test_pfl_speed_tables_match_reference():
       np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+@pytest.mark.parametrize('tool', [None, TOOL])
+def test_plan_speed_tables_equal_tables_of_surface_speeds(name, tool):
+  description = robot_description.load(name)
+  robot = robot_reach.RobotReach(description, tool_capsule=tool,
+                                 base_pose=(0.1, -0.2, 0.7, 0.1, 0.2, 0.3))
+  limits = description.limits
+  rotations = robot._kernel_model[0][:, :, :3]   # Rigid frames (the bound).
+  np.testing.assert_allclose(rotations @ rotations.transpose(0, 2, 1),
+                             np.broadcast_to(np.eye(3), rotations.shape),
+                             rtol=0, atol=1e-12)
+  rng = np.random.RandomState(3)
+  for _ in range(5):
+    goal = np.clip(description.q_home + rng.uniform(-1, 1, description.dof),
+                   limits.q_min, limits.q_max)
+    plan = ltp.plan_to_goal(description.q_home, np.zeros(description.dof),
+                            np.zeros(description.dof), goal, limits, 0.004)
+    expected = shield_lib.pfl_speed_tables(
+        robot.surface_speeds(plan.q, plan.dq))
+    got = kernels.plan_speed_tables(
+        plan._all(), *robot._kernel_model, robot._kernel_frames,
+        robot._kernel_radii, shield_lib.PFL_WINDOW)
+    for got_table, expected_table in zip(got, expected):
+      np.testing.assert_array_equal(got_table, expected_table)
+  # Random states: each capsule is the fastest somewhere (the skipped
+  # capsules' bound is exercised).
+  samples = rng.uniform(-3, 3, (400, 4, description.dof))
+  samples[:, 0] = rng.uniform(limits.q_min, limits.q_max,
+                              (400, description.dof))
+  speeds = robot.surface_speeds(samples[:, 0], samples[:, 1])
+  assert len(set(speeds.argmax(axis=1).tolist())) > 1
+  for got_table, expected_table in zip(
+      kernels.plan_speed_tables(samples, *robot._kernel_model,
+                                robot._kernel_frames, robot._kernel_radii,
+                                shield_lib.PFL_WINDOW),
+      shield_lib.pfl_speed_tables(speeds)):
+    np.testing.assert_array_equal(got_table, expected_table)
+
+
 def test_warm_up_compiles_every_signature_the_shield_uses():
   kernels.warm_up()
   dispatchers = {name: getattr(kernels, name) for name in dir(kernels)
