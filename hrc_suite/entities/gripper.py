@@ -198,7 +198,11 @@ class ParallelGripper(composer.Entity):
     u = float(u)
     if not np.isfinite(u):
       raise ValueError(f'gripper command must be finite, got {u}')
-    physics.bind(self._actuator).ctrl = min(max(u, -1.0), 1.0)
+    # MjData's row, not the binding: a ctrl write through a binding marks
+    # dm_control's physics dirty, and the next binding read then runs a
+    # whole mj_forward (a control changes no position or velocity).
+    actuator = physics.bind(self._actuator).element_id
+    physics.data.ctrl[actuator] = min(max(u, -1.0), 1.0)
 
   def aperture(self, physics) -> float:
     """Opening between the pads, normalised: 0 closed, 1 fully open."""
