@@ -211,21 +211,31 @@ class ParallelGripper(composer.Entity):
 
   def is_grasping(self, physics, body) -> bool:
     """True if both fingers touch geoms of `body` (and its subtree)."""
+    return bool(self.grasping(physics, (body,))[0])
+
+  def grasping(self, physics, bodies):
+    """is_grasping for each of `bodies`, (n,) bools, from one pass over
+    the contacts."""
     data, model = physics.data, physics.model
+    grasped = np.zeros(len(bodies), dtype=bool)
     ncon = data.ncon
     if ncon == 0:
-      return False
-    target = physics.bind(body).element_id
-    body1 = model.geom_bodyid[data.contact.geom1[:ncon]]
-    body2 = model.geom_bodyid[data.contact.geom2[:ncon]]
-    in_target1 = self._in_subtree(model, body1, target)
-    in_target2 = self._in_subtree(model, body2, target)
-    for finger in physics.bind(self._fingers).element_id:
-      touches = ((body1 == finger) & in_target2) | ((body2 == finger)
-                                                    & in_target1)
-      if not touches.any():
-        return False
-    return True
+      return grasped
+    contact = data.contact
+    body1 = model.geom_bodyid[contact.geom1[:ncon]]
+    body2 = model.geom_bodyid[contact.geom2[:ncon]]
+    fingers = physics.bind(self._fingers).element_id
+    on1, on2 = np.isin(body1, fingers), np.isin(body2, fingers)
+    if len(fingers) and not (on1.any() or on2.any()):
+      return grasped   # No finger touches anything.
+    for i, body in enumerate(bodies):
+      target = physics.bind(body).element_id
+      in_target1 = self._in_subtree(model, body1, target)
+      in_target2 = self._in_subtree(model, body2, target)
+      grasped[i] = all(
+          (((body1 == finger) & in_target2)
+           | ((body2 == finger) & in_target1)).any() for finger in fingers)
+    return grasped
 
   @staticmethod
   def _in_subtree(model, bodies, target):

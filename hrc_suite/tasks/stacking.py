@@ -308,8 +308,8 @@ class Stacking(base.HrcTask):
     # physics.forward() after the step (as restoring a snapshot does).
     self._move_human_cubes(physics)
     positions = np.array([physics.bind(c.body).xpos for c in self._cubes])
-    self._gripped[:] = [self._gripper.is_grasping(physics, c.body)
-                        for c in self._cubes]
+    self._gripped[:] = self._gripper.grasping(
+        physics, [c.body for c in self._cubes])
     free = ~(np.array([s == HELD for s in self._human_state])
              | self._gripped)
     # The stack grows from where the human put cube 1: each slot is one
@@ -375,9 +375,8 @@ class Stacking(base.HrcTask):
     tcp = self._robot.tcp_site
     return {
         'object_gripped': observable.Generic(
-            lambda physics: np.array([float(any(
-                self._gripper.is_grasping(physics, c.body)
-                for c in self._cubes))])),
+            lambda physics: np.array([float(self._gripper.grasping(
+                physics, [c.body for c in self._cubes]).any())])),
         'eef_to_cubes': observable.Generic(
             lambda physics: self._cube_positions(physics)
             - physics.bind(tcp).xpos),
