@@ -214,10 +214,18 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     physics.forward()
     q = physics.data.qpos[self._qpos_index].copy()
     zeros = np.zeros_like(q)
+    # The plank's free-joint rows _carry_board writes (the person stands
+    # still): written directly, not through composer's set_pose each step.
+    joint = physics.bind(mjcf.get_frame_freejoint(self._board.mjcf_model))
+    rows = slice(int(joint.qposadr), int(joint.qposadr) + 7)
+    velocity = slice(int(joint.dofadr), int(joint.dofadr) + 6)
+    data = physics.data
+    carried = data.qpos[rows].copy()
     for _ in range(SETTLE_STEPS):
       self._controller(physics, q, zeros, zeros)
       physics.step()
-      self._carry_board(physics, self._player.positions)
+      data.qpos[rows] = carried
+      data.qvel[velocity] = 0.0
       physics.forward()
     physics.data.time = 0.0    # The settling is not part of the episode.
     physics.forward()
