@@ -225,8 +225,8 @@ class ParallelGripper(composer.Entity):
     body1 = model.geom_bodyid[contact.geom1[:ncon]]
     body2 = model.geom_bodyid[contact.geom2[:ncon]]
     fingers = physics.bind(self._fingers).element_id
-    on1, on2 = np.isin(body1, fingers), np.isin(body2, fingers)
-    if len(fingers) and not (on1.any() or on2.any()):
+    if len(fingers) and not ((body1[:, None] == fingers).any()
+                             or (body2[:, None] == fingers).any()):
       return grasped   # No finger touches anything.
     for i, body in enumerate(bodies):
       target = physics.bind(body).element_id

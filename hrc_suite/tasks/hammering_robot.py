@@ -221,12 +221,15 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     velocity = slice(int(joint.dofadr), int(joint.dofadr) + 6)
     data = physics.data
     carried = data.qpos[rows].copy()
+    model_ptr, data_ptr = physics.model.ptr, data.ptr
     for _ in range(SETTLE_STEPS):
       self._controller(physics, q, zeros, zeros)
       physics.step()
       data.qpos[rows] = carried
       data.qvel[velocity] = 0.0
-      physics.forward()
+      # What the next step needs of a forward pass (the positions' and
+      # velocities' stages; mj_step2 makes the accelerations).
+      mujoco.mj_step1(model_ptr, data_ptr)
     physics.data.time = 0.0    # The settling is not part of the episode.
     physics.forward()
     self._gripped = self._gripper.is_grasping(physics, self._hammer.body)
