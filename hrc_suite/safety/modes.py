@@ -87,7 +87,7 @@ def names():
 
 def get(name):
   """The registered ShieldMode called `name`."""
-  if name not in _MODES:
+  if isinstance(name, str) and name not in _MODES:
     extensions.load()
   if not isinstance(name, str) or name not in _MODES:
     raise ValueError(f'Unknown shield mode {name!r}: expected one of '
