@@ -113,6 +113,8 @@ def register(domain, task, tags=(), **fixed):
     if key in _REGISTRY:
       raise ValueError(f'Task {domain}/{task} is already registered')
     if isinstance(target, type):
+      target.defaults()   # Its class constants, checked (tasks/defaults.py).
+
       def factory(**task_kwargs):
         return target(**fixed_kwargs(task_kwargs, **fixed))
       factory.__doc__ = target.__doc__

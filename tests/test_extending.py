@@ -189,6 +189,15 @@ def test_the_task_is_registered_with_its_tags_and_fixed_reward():
     suite.load('joint_pose', 'dense', task_kwargs={'reward': 'sparse'})
   with pytest.raises(ValueError, match='already registered'):
     suite.register('joint_pose', 'dense')(JointPose)
+  # A class constant out of range fails at registration, named.
+  assert JointPose.defaults().horizon == 50
+
+  class NoSteps(JointPose):
+    HORIZON = 0
+  with pytest.raises(ValueError, match='NoSteps.HORIZON: expected an '
+                     'integer >= 1, got 0'):
+    suite.register('joint_pose', 'no_steps')(NoSteps)
+  assert ('joint_pose', 'no_steps') not in suite.all_tasks()
 
 
 def test_the_task_loads_and_its_expert_solves_it():

@@ -101,6 +101,7 @@ from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import defaults as defaults_lib
 from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
@@ -149,6 +150,7 @@ class HrcTask(composer.Task):
   """A robot, a gripper and a human in the workcell, shielded."""
 
   # Task facts (docs/reference_benchmark.md, Tasks); subclasses override.
+  # `defaults()` checks them all (tasks/defaults.py).
   MOTIONS = 'reach'                          # shipped library name
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   TABLE = layout.DEFAULT_TABLE               # layout.Table
@@ -240,6 +242,7 @@ class HrcTask(composer.Task):
         and composer's substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
+    type(self).defaults()   # The class constants, checked.
     robot = robot_description.resolve(robot)   # A name or a .json path.
     action_space = _choice('action_space',
                            action_space or self.DEFAULT_ACTION_SPACE,
@@ -373,6 +376,11 @@ class HrcTask(composer.Task):
     observations_lib.configure_noise_and_delay(
         self._task_obs, observation_noise, observation_delay,
         physics_timestep)
+
+  @classmethod
+  def defaults(cls):
+    """The task's class constants, checked (`defaults.TaskDefaults`)."""
+    return defaults_lib.TaskDefaults.of(cls)
 
   # ------------------------------------------------------------ properties
 
