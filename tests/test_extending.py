@@ -367,6 +367,11 @@ def test_the_binaries_take_the_extensions(tmp_path):
           if line.startswith('| joint_pose/dense |')]
   assert len(rows) == 1, table.read_text()
   assert rows[0][4:8] == ['pfl_slow', 'joint', '2', '1.00 [1.00, 1.00]']
+  picture = tmp_path / 'robot.gif'
+  done = _run_binary('hrc_suite.render_robot', f'--robot={robot}',
+                     f'--out={picture}', '--width=64', '--height=48',
+                     '--fps=5')
+  assert done.returncode == 0 and picture.stat().st_size > 0, done.stderr
   # Names are checked when the command line is parsed, against the
   # registries (the extension's names are valid, others are not).
   done = _run_binary('hrc_suite.render', '--domain=joint_pose',
