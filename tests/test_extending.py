@@ -324,6 +324,18 @@ def test_a_shield_mode_in_one_module():
     suite.load('joint_pose', 'dense', task_kwargs={'shield': 'fast'})
 
 
+def test_bad_extension_entries_are_named(monkeypatch):
+  monkeypatch.setattr(extensions, '_loaded', set())
+  monkeypatch.setenv(extensions.ENV_VAR, 'no_such_module_here')
+  with pytest.raises(ImportError, match="HRC_SUITE_EXTENSIONS entry "
+                     "'no_such_module_here': cannot import"):
+    suite.all_tasks()
+  monkeypatch.setenv(extensions.ENV_VAR, 'json:no_function')
+  with pytest.raises(ValueError, match="entry 'json:no_function': json has "
+                     "no function 'no_function'"):
+    modes.names()
+
+
 def _extension_env():
   """The environment of a binary that loads this module as an extension."""
   module = sys.modules[__name__]
