@@ -103,7 +103,7 @@ def register(domain, task, tags=(), **fixed):
   if isinstance(tags, str):
     raise ValueError(f'tags must be a tuple of tags, got the string '
                      f'{tags!r}')
-  valid = globals()['tags']()
+  valid = TASK_TAGS + modes.names()   # tags(), which `tags` shadows here.
   unknown = [t for t in tags if t not in valid]
   if unknown:
     raise ValueError(f'Unknown tags {unknown}: expected some of '
