@@ -51,6 +51,7 @@ from agents import loop as loop_lib
 from agents import plot as plot_lib
 from agents import specs as specs_lib
 from agents.sac import agent as agent_lib
+from hrc_suite import registry_flags
 from hrc_suite import render
 from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
@@ -402,7 +403,11 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_string('domain', 'reach', 'Task domain.', flag_values=fv)
   flags.DEFINE_string('task', 'dense', 'Task name within the domain.',
                       flag_values=fv)
-  flags.DEFINE_string('robot', 'schunk', 'Robot name.', flag_values=fv)
+  flags.DEFINE_string('robot', 'schunk', 'Robot name or description file.',
+                      flag_values=fv)
+  # Names are checked against the registries at parse time.
+  registry_flags.check_task('domain', 'task', fv)
+  registry_flags.check_robot('robot', fv)
   flags.DEFINE_enum('action_space', 'cartesian', ['joint', 'cartesian'],
                     'Action space.', flag_values=fv)
   flags.DEFINE_string('task_kwargs', '{}', 'JSON dict of further task '

@@ -19,6 +19,7 @@ from absl import flags
 import mujoco
 import numpy as np
 
+from hrc_suite import registry_flags
 from hrc_suite import robot_description
 
 SECTIONS = ('physics', 'shield', 'tasks', 'profile')
@@ -29,6 +30,8 @@ _ROBOTS = flags.DEFINE_list('robots', list(robot_description.ROBOT_NAMES),
 _STEPS = flags.DEFINE_integer('steps', 2000, 'Physics steps per measurement.')
 _TASK_ROBOTS = flags.DEFINE_list('task_robots', ['schunk', 'panda'],
                                  'Robots of the RL-step throughput section.')
+registry_flags.check_robot('robots')
+registry_flags.check_robot('task_robots')
 _RL_STEPS = flags.DEFINE_integer('rl_steps', 300,
                                  'RL steps per task throughput measurement.')
 _REFERENCE = flags.DEFINE_boolean(
@@ -232,10 +235,6 @@ def main(argv):
   if unknown:
     raise app.UsageError(f'Unknown sections {sorted(unknown)}: expected '
                          f'{", ".join(SECTIONS)}')
-  for name in _ROBOTS.value:
-    if name not in robot_description.ROBOT_NAMES:
-      raise app.UsageError(f'Unknown robot {name!r}: expected one of '
-                           f'{", ".join(robot_description.ROBOT_NAMES)}')
   if 'physics' in sections:
     run_physics(_ROBOTS.value, _STEPS.value)
   if 'shield' in sections:

@@ -38,7 +38,7 @@ import numpy as np
 
 from hrc_suite import render_overlay
 from hrc_suite import rendering
-from hrc_suite import robot_description
+from hrc_suite import registry_flags
 
 POLICIES = ('expert', 'noisy_expert', 'random', 'zero')
 # Scene room for the overlay's capsules beyond dm_control's own estimate
@@ -402,15 +402,15 @@ def define_flags(flag_values=flags.FLAGS):
                       flag_values=fv)
   flags.DEFINE_string('task', None, f'Task name (default: {DEFAULT_TASK}, '
                       'or the checkpoint\'s).', flag_values=fv)
-  flags.DEFINE_enum('robot', None, robot_description.ROBOT_NAMES,
-                    f'Robot (default: {DEFAULT_ROBOT}, or the checkpoint\'s).',
-                    flag_values=fv)
+  flags.DEFINE_string('robot', None, 'Robot name or description file '
+                      f'(default: {DEFAULT_ROBOT}, or the checkpoint\'s).',
+                      flag_values=fv)
   flags.DEFINE_string('policy', 'random',
                       f'Policy to run: {", ".join(POLICIES)}, or a trained '
                       'checkpoint (run or checkpoint directory).',
                       flag_values=fv)
-  flags.DEFINE_enum('shield', None, ('ssm', 'pfl', 'off'),
-                    'Shield mode (default: the task\'s).', flag_values=fv)
+  flags.DEFINE_string('shield', None, 'Shield mode (default: the task\'s).',
+                      flag_values=fv)
   flags.DEFINE_string('out', 'episode.mp4', 'Video (.mp4 or .gif).',
                       flag_values=fv)
   flags.DEFINE_string('camera', 'side',
@@ -437,6 +437,10 @@ def define_flags(flag_values=flags.FLAGS):
       flag_values=fv)
   flags.DEFINE_float('gif_scale', 1.0, 'Scale of .gif frames, in (0, 1].',
                      flag_values=fv)
+  # Names are checked against the registries at parse time.
+  registry_flags.check_task('domain', 'task', fv)
+  registry_flags.check_robot('robot', fv)
+  registry_flags.check_shield('shield', fv)
 
 
 def main(argv, flag_values=flags.FLAGS):

@@ -14,10 +14,11 @@ from absl import flags
 import numpy as np
 
 from hrc_suite import rendering
-from hrc_suite import robot_description
+from hrc_suite import registry_flags
 
-_ROBOT = flags.DEFINE_enum('robot', 'panda', robot_description.ROBOT_NAMES,
-                           'Which robot to render.')
+_ROBOT = flags.DEFINE_string('robot', 'panda', 'Which robot to render: a name '
+                             'or a description file (robot_description).')
+registry_flags.check_robot('robot')
 _OUT = flags.DEFINE_string('out', 'robot.mp4', 'Output video (.mp4 or .gif).')
 _CAMERA = flags.DEFINE_string('camera', 'front', 'Camera name.')
 _WIDTH = flags.DEFINE_integer('width', 640, 'Frame width in pixels.')

@@ -5,6 +5,11 @@ chain, limits, link capsules and link dynamics of one robot. The MuJoCo model
 (`hrc_suite.entities.robot`), the pinocchio model (`hrc_suite.control`) and
 the shield (`hrc_suite.safety`) are all built from it.
 
+The robot registry is that folder: every `<name>.json` in it is a robot
+(`ROBOT_NAMES`). A description file kept elsewhere joins with
+`register(path)`, or wherever a robot name is taken, by giving its path
+(`resolve`; docs/extending.md, "A robot").
+
 Conventions (from the SaRA robot configurations; docs/shield_maths.md, 5.1):
 * every joint is revolute about its local z axis;
 * chain: T_i = T_{i-1} · A_i · Rz(q_i), starting from the robot base frame,
@@ -25,10 +30,25 @@ from typing import Sequence, Union
 
 import numpy as np
 
+from hrc_suite import extensions
+
 ROBOTS_DIR = pathlib.Path(__file__).resolve().parent / 'assets' / 'robots'
 
-# The robots of the benchmark, in the order of the paper.
-ROBOT_NAMES = ('panda', 'sawyer', 'iiwa', 'jaco', 'kinova3', 'ur5e', 'schunk')
+# Order of the paper's robots (docs/robots.md); other description files in
+# ROBOTS_DIR follow them by name. Only an order: the folder is the registry.
+_PAPER_ORDER = ('panda', 'sawyer', 'iiwa', 'jaco', 'kinova3', 'ur5e',
+                'schunk')
+
+
+def _shipped_names():
+  stems = [path.stem for path in ROBOTS_DIR.glob('*.json')]
+  rank = {name: i for i, name in enumerate(_PAPER_ORDER)}
+  return tuple(sorted(stems, key=lambda n: (rank.get(n, len(rank)), n)))
+
+
+# The robots of the benchmark: the description files in ROBOTS_DIR.
+ROBOT_NAMES = _shipped_names()
+_REGISTERED = {}   # name -> path of a description registered from elsewhere
 
 
 class DescriptionError(ValueError):
@@ -159,12 +179,69 @@ def _path_for(name_or_path: Union[str, os.PathLike]) -> pathlib.Path:
   text = os.fspath(name_or_path)
   if text in ROBOT_NAMES:
     return ROBOTS_DIR / f'{text}.json'
+  if text not in _REGISTERED:
+    extensions.load()
+  if text in _REGISTERED:
+    return _REGISTERED[text]
   path = pathlib.Path(text)
   if path.suffix == '.json':
     return path
   raise DescriptionError(
-      f'Unknown robot {text!r}: expected one of {", ".join(ROBOT_NAMES)} '
+      f'Unknown robot {text!r}: expected one of {", ".join(names())} '
       'or the path of a .json description file.')
+
+
+def names():
+  """Every robot: the shipped ROBOT_NAMES, then those registered."""
+  extensions.load()
+  return ROBOT_NAMES + tuple(_REGISTERED)
+
+
+def register(path: Union[str, os.PathLike]) -> str:
+  """Registers the description file at `path` (validated) under its name,
+  which must be the file's stem; returns the name. Registering the same
+  file again is allowed; another file under a taken name is an error."""
+  path = pathlib.Path(path).resolve()
+  if path.suffix != '.json':
+    raise DescriptionError(f'{path}: expected a .json description file')
+  description = load(path)
+  name = description.name
+  if name != path.stem:
+    raise DescriptionError(f'{path}: its name {name!r} must be the file '
+                           f'name without .json ({path.stem!r})')
+  taken = ROBOTS_DIR / f'{name}.json' if name in ROBOT_NAMES else (
+      _REGISTERED.get(name))
+  if taken is not None and taken != path:
+    raise DescriptionError(f'{path}: robot {name!r} is already described '
+                           f'by {taken}')
+  _REGISTERED[name] = path
+  return name
+
+
+def unregister(name: str):
+  """Forgets a description registered with `register`."""
+  if name not in _REGISTERED:
+    raise DescriptionError(f'Robot {name!r} was not registered: registered '
+                           f'are {", ".join(_REGISTERED) or "none"}')
+  del _REGISTERED[name]
+
+
+def resolve(name_or_path: Union[str, os.PathLike]) -> str:
+  """The robot name of a name or of a description file's path (which is
+  registered); unknown names raise a DescriptionError listing `names()`."""
+  if not isinstance(name_or_path, (str, os.PathLike)):
+    raise DescriptionError(f'robot: expected a name ({", ".join(names())}) '
+                           f'or a .json file path, got {name_or_path!r}')
+  text = os.fspath(name_or_path)
+  if text in ROBOT_NAMES or text in _REGISTERED:
+    return text
+  if text.endswith('.json'):
+    return register(text)
+  if text not in names():
+    raise DescriptionError(
+        f'Unknown robot {text!r}: expected one of {", ".join(names())} '
+        'or the path of a .json description file.')
+  return text
 
 
 class _Reader:

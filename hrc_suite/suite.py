@@ -1,29 +1,40 @@
 """Task registry: `suite.load(domain, task)` returns a composer Environment.
 
-Tasks register with the `register` decorator on a factory that takes the
-task kwargs and returns an `HrcTask`; tags (e.g. 'coexistence', 'dense')
+Tasks register with the `register` decorator, on an `HrcTask` subclass
+(with the task kwargs it fixes) or on a factory that takes the task kwargs
+and returns an `HrcTask`; tags (e.g. 'coexistence', 'dense', a shield mode)
 group them. Names are (domain, task) pairs, e.g. ('reach', 'dense').
 
   env = suite.load('reach', 'dense', task_kwargs={'robot': 'schunk'},
                    environment_kwargs={'random_state': 0})
+
+The registry finds its tasks itself: every module of hrc_suite/tasks with a
+line starting `@suite.register`, and the extension modules named by
+HRC_SUITE_EXTENSIONS (`extensions`); adding a task edits no list
+(docs/extending.md).
 """
 
 import collections
 import collections.abc
 import importlib
+import pathlib
+import re
 
 from dm_control import composer
 import numpy as np
 
+from hrc_suite import extensions
+from hrc_suite.safety import modes
 from hrc_suite.tasks import substeps
 
-# Modules whose import registers tasks (one per benchmark task).
-_TASK_MODULES = tuple(f'hrc_suite.tasks.{name}' for name in (
-    'reach', 'pick_place', 'handover', 'inspection', 'lifting', 'hammering',
-    'hammering_robot', 'stacking'))
+_TASKS_DIR = pathlib.Path(__file__).resolve().parent / 'tasks'
+# How a module of hrc_suite/tasks shows that it registers tasks.
+_REGISTERS = re.compile(r'^@suite\.register\(', re.MULTILINE)
 
-TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
-        'assembly', 'dense', 'sparse', 'delayed', 'ssm', 'pfl')
+# Tags of what a task is about and of its reward; each shield mode's name
+# (safety/modes.py) is a tag too (`tags()`).
+TASK_TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
+             'assembly', 'dense', 'sparse', 'delayed')
 
 _REGISTRY = collections.OrderedDict()   # (domain, task) -> factory
 _TAGGED = collections.defaultdict(list)   # tag -> [(domain, task)]
@@ -68,23 +79,68 @@ class Environment(composer.Environment):
       super().add_extra_hook(hook_name, hook_callable)
 
 
-def register(domain, task, tags=()):
-  """Decorator registering `factory(**task_kwargs) -> HrcTask`."""
-  unknown = [t for t in tags if t not in TAGS]
+def tags():
+  """Every valid tag: TASK_TAGS and the shield modes' names."""
+  return TASK_TAGS + modes.names()
+
+
+def _name(what, value):
+  if not (isinstance(value, str) and value.isidentifier()):
+    raise ValueError(f'{what} must be an identifier string (e.g. '
+                     f"'reach'), got {value!r}")
+  return value
+
+
+def register(domain, task, tags=(), **fixed):
+  """Decorator registering the task `domain`/`task`.
+
+  On an HrcTask subclass: the task is the class built with the task kwargs
+  and `fixed` (kwargs the name fixes, e.g. reward='dense'; a conflicting
+  task kwarg is an error); the class is returned, so decorators stack.
+  On a function: `factory(**task_kwargs) -> HrcTask` (no `fixed`).
+  """
+  key = (_name('domain', domain), _name('task', task))
+  if isinstance(tags, str):
+    raise ValueError(f'tags must be a tuple of tags, got the string '
+                     f'{tags!r}')
+  valid = TASK_TAGS + modes.names()   # tags(), which `tags` shadows here.
+  unknown = [t for t in tags if t not in valid]
   if unknown:
     raise ValueError(f'Unknown tags {unknown}: expected some of '
-                     f'{", ".join(TAGS)}')
+                     f'{", ".join(valid)}')
 
-  def decorator(factory):
-    key = (domain, task)
+  def decorator(target):
     if key in _REGISTRY:
       raise ValueError(f'Task {domain}/{task} is already registered')
+    if isinstance(target, type):
+      target.defaults()   # Its class constants, checked (tasks/defaults.py).
+
+      def factory(**task_kwargs):
+        return target(**fixed_kwargs(task_kwargs, **fixed))
+      factory.__doc__ = target.__doc__
+    elif callable(target) and not fixed:
+      factory = target
+    else:
+      raise ValueError(f'register({domain!r}, {task!r}) decorates an '
+                       f'HrcTask subclass or a factory function (fixed '
+                       f'kwargs only with a class), got {target!r}')
     _REGISTRY[key] = factory
     for tag in tags:
       _TAGGED[tag].append(key)
-    return factory
+    return target
 
   return decorator
+
+
+def unregister(domain, task):
+  """Removes a registered task (e.g. one a test registered)."""
+  key = (domain, task)
+  if key not in _REGISTRY:
+    raise ValueError(f'Task {domain}/{task} is not registered')
+  del _REGISTRY[key]
+  for keys in _TAGGED.values():
+    if key in keys:
+      keys.remove(key)
 
 
 def fixed_kwargs(task_kwargs, **fixed):
@@ -96,12 +152,20 @@ def fixed_kwargs(task_kwargs, **fixed):
   return {**task_kwargs, **fixed}
 
 
+def task_modules():
+  """The modules of hrc_suite/tasks that register tasks, by name."""
+  return tuple(f'hrc_suite.tasks.{path.stem}'
+               for path in sorted(_TASKS_DIR.glob('*.py'))
+               if _REGISTERS.search(path.read_text()))
+
+
 def _load_modules():
   global _LOADED
   if not _LOADED:
-    for module in _TASK_MODULES:
+    for module in task_modules():
       importlib.import_module(module)   # Registers its tasks.
     _LOADED = True
+  extensions.load()
 
 
 def all_tasks():
@@ -112,16 +176,18 @@ def all_tasks():
 
 def tasks_with_tag(tag):
   """The (domain, task) pairs carrying `tag`."""
-  if tag not in TAGS:
-    raise ValueError(f'Unknown tag {tag!r}: expected one of '
-                     f'{", ".join(TAGS)}')
   _load_modules()
+  if tag not in tags():
+    raise ValueError(f'Unknown tag {tag!r}: expected one of '
+                     f'{", ".join(tags())}')
   return tuple(_TAGGED[tag])
 
 
 def __getattr__(name):
   if name == 'ALL_TASKS':   # Computed on first use (registration imports).
     return all_tasks()
+  if name == 'TAGS':   # Shield modes may register later.
+    return tags()
   raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from hrc_suite import robot_description
 from hrc_suite.entities import collision_groups
 
+# The shipped robots (more register: robot_description.names()).
 ROBOTS = robot_description.ROBOT_NAMES
 
 # Joint drive model. The descriptions give no rotor data, so reflected rotor
@@ -47,11 +48,9 @@ _BASE_HEIGHT = 0.02   # m
 
 
 def make_robot(name: str) -> 'Robot':
-  """A `Robot` by name; unknown names raise a ValueError listing the valid."""
-  if name not in ROBOTS:
-    raise ValueError(f'Unknown robot {name!r}: expected one of '
-                     f'{", ".join(ROBOTS)}')
-  return Robot(robot_description.load(name))
+  """A `Robot` by name or description path (`robot_description.resolve`);
+  unknown names raise a ValueError listing the valid."""
+  return Robot(robot_description.load(robot_description.resolve(name)))
 
 
 def rotation_to_quat(rotation: np.ndarray) -> np.ndarray:
@@ -88,10 +87,8 @@ class Robot(composer.Entity):
              description: Union[robot_description.RobotDescription, str],
              name: Union[str, None] = None):
     if isinstance(description, str):
-      if description not in ROBOTS:
-        raise ValueError(f'Unknown robot {description!r}: expected one of '
-                         f'{", ".join(ROBOTS)} or a RobotDescription')
-      description = robot_description.load(description)
+      description = robot_description.load(
+          robot_description.resolve(description))
     if not isinstance(description, robot_description.RobotDescription):
       raise TypeError('description must be a RobotDescription or a robot '
                       f'name, got {type(description).__name__}')

@@ -5,46 +5,88 @@
   noise = experts.noise.OrnsteinUhlenbeckNoise.reference(4, 'cartesian')
   noisy = experts.make(env, noise=noise, seed=0)   # reference OU noise
   timestep = env.reset(); action = expert(timestep)
+
+An expert registers with a decorator on its class,
+`@experts.register('reach', 'dense', 'sparse')`; the modules of this
+package that do are found by that line, others are extension modules
+(`hrc_suite.extensions`; docs/extending.md).
 """
 
 import importlib
+import pathlib
+import re
 
-# (domain, task) -> 'module:Class' (modules imported on first use).
-_EXPERTS = {}
+from hrc_suite import extensions
+
+_EXPERTS_DIR = pathlib.Path(__file__).resolve().parent
+# How a module of hrc_suite/experts shows that it registers experts.
+_REGISTERS = re.compile(r'^@experts\.register\(', re.MULTILINE)
+
+_EXPERTS = {}          # (domain, task) -> expert class
+_IMPORT_ERRORS = {}    # module -> error of an expert module that failed
+_LOADED = False
 
 
-def register(domain, task, path):
-  _EXPERTS[(domain, task)] = path
+def register(domain, *tasks):
+  """Class decorator: the class is the expert of domain/task for each of
+  `tasks` (built as cls(env) by `make`)."""
+  if not tasks:
+    raise ValueError(f'experts.register({domain!r}): name at least one task')
+
+  def decorator(cls):
+    for task in tasks:
+      key = (domain, task)
+      if key in _EXPERTS and _EXPERTS[key] is not cls:
+        raise ValueError(f'An expert for {domain}/{task} is already '
+                         f'registered ({_EXPERTS[key].__name__})')
+      _EXPERTS[key] = cls
+    return cls
+
+  return decorator
+
+
+def unregister(domain, task):
+  """Removes a registered expert (e.g. one a test registered)."""
+  if (domain, task) not in _EXPERTS:
+    raise ValueError(f'No expert for {domain}/{task} is registered')
+  del _EXPERTS[(domain, task)]
+
+
+def _load():
+  """Imports the expert modules of this package (each registers its
+  experts with the decorator; one that fails to import is recorded) and
+  the extension modules (`extensions`)."""
+  global _LOADED
+  if not _LOADED:
+    _LOADED = True
+    for path in sorted(_EXPERTS_DIR.glob('*.py')):
+      if not _REGISTERS.search(path.read_text()):
+        continue
+      module = f'hrc_suite.experts.{path.stem}'
+      try:
+        importlib.import_module(module)
+      except ImportError as e:
+        _IMPORT_ERRORS[module] = f'{type(e).__name__}: {e}'
+  extensions.load()
 
 
 def registered():
-  """The (domain, task) pairs with an expert."""
-  return tuple(_EXPERTS)
+  """The (domain, task) pairs with an expert, sorted."""
+  _load()
+  return tuple(sorted(_EXPERTS))
 
 
 def expert_class(domain, task):
+  _load()
   key = (domain, task)
   if key not in _EXPERTS:
     valid = ', '.join(f'{d}/{t}' for d, t in sorted(_EXPERTS))
-    raise ValueError(f'No expert for {domain}/{task}: experts exist for '
-                     f'{valid}')
-  module, name = _EXPERTS[key].split(':')
-  return getattr(importlib.import_module(f'hrc_suite.experts.{module}'), name)
-
-
-for _domain, _task, _path in (
-    ('reach', 'dense', 'reach:ReachExpert'),
-    ('reach', 'sparse', 'reach:ReachExpert'),
-    ('pick_place', 'default', 'pick_place:PickPlaceExpert'),
-    ('pick_place', 'close', 'pick_place:PickPlaceExpert'),
-    ('handover', 'robot_to_human', 'handover:RobotToHumanExpert'),
-    ('handover', 'human_to_robot', 'handover:HumanToRobotExpert'),
-    ('inspection', 'default', 'inspection:InspectionExpert'),
-    ('lifting', 'default', 'lifting:LiftingExpert'),
-    ('hammering', 'default', 'hammering:HammeringExpert'),
-    ('hammering', 'robot_hammers', 'hammering_robot:RobotHammersExpert'),
-    ('stacking', 'default', 'stacking:StackingExpert')):
-  register(_domain, _task, _path)
+    message = f'No expert for {domain}/{task}: experts exist for {valid}'
+    if _IMPORT_ERRORS:   # It may be in a module that did not import.
+      raise ImportError(message + ''.join(
+          f'; {m} did not import ({e})' for m, e in _IMPORT_ERRORS.items()))
+    raise ValueError(message)
+  return _EXPERTS[key]
 
 
 def make(env, noise=None, seed=0):

@@ -78,16 +78,16 @@ from hrc_suite import suite
 from hrc_suite.experts import adversary
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.safety import shield as shield_lib
+from hrc_suite import registry_flags
+from hrc_suite.safety import modes as modes_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
 EXPERT_POLICIES = ('expert', 'noisy_expert')
 TEST_POLICIES = ('random', 'chase')   # Safety checks, no success bar.
 POLICIES = EXPERT_POLICIES + TEST_POLICIES
-# --shield values: the task's default (DEFAULT_SHIELD) or a mode of
-# hrc_suite/safety/shield.py.
+# --shield values: the task's default (DEFAULT_SHIELD) or a registered
+# shield mode (hrc_suite/safety/modes.py).
 DEFAULT_SHIELD = 'default'
-SHIELDS = (DEFAULT_SHIELD,) + shield_lib.MODES
 # The people of rows run without --motions: the shipped library.
 SYNTHETIC = 'synthetic'
 # The bar every expert must reach (issue 6): success in at least 80 % of
@@ -429,6 +429,12 @@ def summarise(results):
   return rows
 
 
+def _gates(shield):
+  """Whether the row's shield mode decides the robot's motion (not 'off';
+  None, a row whose episodes raised before reporting it, counts as on)."""
+  return shield is None or modes_lib.get(shield).gates
+
+
 def below_bar(row):
   """Reasons a row misses the bar (empty if it passes): experts must
   succeed (SUCCESS_BAR); with the shield on no policy may touch the person
@@ -436,7 +442,7 @@ def below_bar(row):
   reasons = []
   if row['policy'] in EXPERT_POLICIES and row['success'] < SUCCESS_BAR:
     reasons.append(f'success {row["success"]:.2f} < {SUCCESS_BAR:.2f}')
-  if row['shield'] != 'off' and row['critical_episodes']:
+  if _gates(row['shield']) and row['critical_episodes']:
     reasons.append(f'critical human contacts in {row["critical_episodes"]} '
                    f'of {row["episodes"]} episodes')
   if row['errors']:
@@ -656,7 +662,7 @@ def _shield_off_lines(rows):
   """The rows with the shield off and their critical contacts."""
   lines = []
   for row in rows:
-    if row['shield'] != 'off':
+    if _gates(row['shield']):
       continue
     closest = _cell(row['min_human_distance'], 3)
     if row['critical_episodes']:
@@ -794,8 +800,10 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_list('policies', list(EXPERT_POLICIES),
                     f'Some of {", ".join(POLICIES)}.', flag_values=fv)
   flags.DEFINE_list('shield', [DEFAULT_SHIELD], 'Shield modes, each a row: '
-                    f'some of {", ".join(SHIELDS)} ({DEFAULT_SHIELD}: the '
-                    "task's own).", flag_values=fv)
+                    f'{DEFAULT_SHIELD} (the task\'s own) or registered modes '
+                    '(ssm, pfl, off, ...).', flag_values=fv)
+  registry_flags.check_shield('shield', fv, extra=(DEFAULT_SHIELD,))
+  registry_flags.check_robot('robots', fv)
   flags.DEFINE_string('motions', None, 'A folder of motions for every task '
                       "(task_kwargs['motions'], e.g. the reference's "
                       'human-robot-animations folder; played with '
@@ -901,10 +909,9 @@ def main(argv, flag_values=flags.FLAGS):
     _print_below_bar(rows)
     return
   policies, pairs = _policies(f)
-  unknown = [s for s in f.shield if s not in SHIELDS]
-  if unknown or not f.shield:
-    raise app.UsageError(f'--shield {f.shield}: expected some of '
-                         f'{", ".join(SHIELDS)}')
+  if not f.shield:
+    raise app.UsageError(f'--shield: expected some of {DEFAULT_SHIELD}, '
+                         f'{", ".join(modes_lib.names())}')
   shields = [None if s == DEFAULT_SHIELD else s for s in f.shield]
   motions = None
   if f.motions is not None:

@@ -27,6 +27,7 @@ the nail). Measured results are in docs/tasks.md (hammering).
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.tasks import hammering
@@ -60,6 +61,7 @@ def tcp_yaw(quaternion):
   return float(np.arctan2(2 * (x * y + z * w), 1 - 2 * (y * y + z * z)))
 
 
+@experts.register('hammering', 'default')
 class HammeringExpert(base.Expert):
   """Brings the nail head to the nail target and holds it there
   (hammering/default). Reads observables only."""

@@ -20,6 +20,7 @@ plank's handle 0.235 m from the nail (tasks/hammering_robot.py).
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite.experts import base
 from hrc_suite.experts import hammering as hammering_expert
 from hrc_suite.experts import steering
@@ -45,6 +46,7 @@ NEAR = 0.15
 STEP = 0.02
 
 
+@experts.register('hammering', 'robot_hammers')
 class RobotHammersExpert(base.Expert):
   """Drives the nail with blows (hammering/robot_hammers). Reads
   observables only, plus its own blow phase."""

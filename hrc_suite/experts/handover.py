@@ -34,6 +34,7 @@ forgotten at reset, so it can take over from any state.
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite import layout
 from hrc_suite.entities import props
 from hrc_suite.experts import base
@@ -251,6 +252,7 @@ class _HammerExpert(base.Expert):
                       1.0 if close else -1.0)
 
 
+@experts.register('handover', 'robot_to_human')
 class RobotToHumanExpert(_HammerExpert):
   """Presents the handle's end at the person's palm, lets go when held.
 
@@ -356,6 +358,7 @@ class RobotToHumanExpert(_HammerExpert):
         far = middle
     return aim + near * back
 
+@experts.register('handover', 'human_to_robot')
 class HumanToRobotExpert(_HammerExpert):
   """Takes the presented hammer and places it on the table target.
 

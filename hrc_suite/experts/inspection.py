@@ -15,6 +15,7 @@ when allowed. Privileged: none (observables only).
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite import layout
 from hrc_suite.experts import pick_place as pick_place_expert
 from hrc_suite.tasks import inspection
@@ -30,6 +31,7 @@ HOVER = inspection.HOVER_HEIGHT
 RESTING_Z = layout.TABLE_TOP_Z + 0.02   # m, centre of a 4 cm cube on it
 
 
+@experts.register('inspection', 'default')
 class InspectionExpert(pick_place_expert.PickPlaceExpert):
   """Picks the cube and presents it at the inspection target."""
 

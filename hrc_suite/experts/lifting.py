@@ -37,6 +37,7 @@ Measured (docs/results/experts.md): 50 of 50 episodes on the Schunk
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
@@ -92,6 +93,7 @@ def _wrap(angle):
   return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
+@experts.register('lifting', 'default')
 class LiftingExpert(base.Expert):
   """Keeps the board level with the person's hands (lifting/default).
 

@@ -39,6 +39,7 @@ one-step gripper-down IK). Privileged: none (observables only).
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.tasks import pick_place
@@ -83,6 +84,7 @@ def cone_aim(point, tcp, hover, slope=CONE_SLOPE, radius=CONE_RADIUS,
   return np.array([point[0], point[1], height])
 
 
+@experts.register('pick_place', 'default', 'close')
 class PickPlaceExpert(base.Expert):
   """Picks the cube and puts it on the target (both action spaces)."""
 

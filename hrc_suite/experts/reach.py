@@ -37,6 +37,7 @@ robot's capsules and the workcell boxes) and the shield's command
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite import layout
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
@@ -52,6 +53,7 @@ VIA_SEED = 0
 GOAL_TOLERANCE = 1e-9
 
 
+@experts.register('reach', 'dense', 'sparse')
 class ReachExpert(base.Expert):
   """Moves the joints (joint space) or the TCP (Cartesian) to the goal."""
 

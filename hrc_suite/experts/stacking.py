@@ -39,6 +39,7 @@ IK step at the task's yaw at a time).
 
 import numpy as np
 
+from hrc_suite import experts
 from hrc_suite import layout
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
@@ -127,6 +128,7 @@ OPEN, CLOSED = -1.0, 1.0
 _HANDS = np.array(keypoints.index(['left_hand', 'right_hand']))
 
 
+@experts.register('stacking', 'default')
 class StackingExpert(base.Expert):
   """Fetches, carries, places cubes 2 and 4 in turn (stacking/default).
 

@@ -3,14 +3,16 @@
 `step_many(shield, frames, times)` is `Shield.step` for each cycle of a
 sequence whose human keypoints are known in advance (a task's RL step:
 the playback's frames for its L physics steps). With compiled=True the
-cycles the compiled kernel covers (`cycle_kernels.ssm_cycles`: SSM and
-PFL, the combined human model without Kalman filter, a measured human with a
-velocity; a pending goal's candidate plan made here beforehand, as
-Shield.step makes it) run in one call; a call that stops for a candidate
-plan from a moved state is followed by one that makes it (Ruckig, in
-Python) and goes on; every other cycle (no candidate can be made, mode
-'off', the first measurements) runs `Shield.step`, the readable
-reference. compiled=False runs the reference for all.
+cycles the compiled kernel covers (`cycle_kernels.ssm_cycles`: every
+mode that gates the motion, `modes`, its speed limit if any as the
+kernel's PFL parameter; the combined human model without Kalman filter, a
+measured human with a velocity; a pending goal's candidate plan made here
+beforehand, as Shield.step makes it) run in one call; a call that stops
+for a candidate plan from a moved state is followed by one that makes it
+(Ruckig, in Python) and goes on; every other cycle (no candidate can be
+made, a mode that does not gate such as 'off', the first measurements)
+runs `Shield.step`, the readable reference. compiled=False runs the
+reference for all.
 
 `checkpoint(shield)` / `restore(shield, saved)` save and restore the
 shield's state between cycles cheaply (the reference replaces its arrays
@@ -73,8 +75,10 @@ def _constants(shield):
   params[ck.SAME] = shield_lib._SAME_COMMAND
   params[ck.REST] = shield_lib.REST_TOLERANCE
   params[ck.SLACK] = shield_lib._BROAD_PHASE_SLACK
-  params[ck.PFL] = float(shield.mode == 'pfl')
-  params[ck.ALLOWED] = shield_lib.PFL_SPEED_MARGIN * shield.v_safe
+  # The mode (safety/modes.py): a speed limit where contact is possible
+  # (PFL) or none (SSM).
+  params[ck.PFL] = float(shield.speed_limit is not None)
+  params[ck.ALLOWED] = shield.speed_limit or 0.0
   params[ck.S_DOT_TOLERANCE] = shield_lib._S_DOT_TOLERANCE
   s = shield
   limits = np.ascontiguousarray([
@@ -95,7 +99,7 @@ def _constants(shield):
 def compiled_eligible(shield):
   """Whether the next cycle may run compiled (see the module)."""
   human = shield.human
-  return (shield.mode in ('ssm', 'pfl') and human.use_combined_model
+  return (shield._gates and human.use_combined_model
           and not human.use_kalman_filter and human.positions is not None
           and human.has_velocity)
 
@@ -114,7 +118,7 @@ def _samples(plan, shield, count):
 
 def _speed_tables(shield, plan):
   """PFL's speed tables of a plan (Shield._plan_speeds; SSM: unused)."""
-  if shield.mode != 'pfl' or plan is None:
+  if shield.speed_limit is None or plan is None:
     return _NO_TABLE, _NO_TABLE
   return shield._plan_speeds(plan)
 

@@ -26,6 +26,7 @@ import numpy as np
 from hrc_suite import robot_description
 from hrc_suite.human import keypoints
 from hrc_suite.safety import batch
+from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import shield as shield_lib
 
 # Policy period in shield cycles: 20 Hz at 4 ms (docs/shield_maths.md, 4).
@@ -163,7 +164,7 @@ def main(argv=None):
   parser.add_argument('--cycles', type=int, default=1500)
   parser.add_argument('--robots', nargs='*',
                       default=list(robot_description.ROBOT_NAMES))
-  parser.add_argument('--mode', choices=shield_lib.MODES, default='ssm')
+  parser.add_argument('--mode', choices=modes_lib.names(), default='ssm')
   parser.add_argument('--rl_step', action='store_true',
                       help='Time the RL step\'s cycles in one call.')
   parser.add_argument('--rl_steps', type=int, default=200)

@@ -49,19 +49,16 @@ from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import robot_reach as robot_reach_lib
 from hrc_suite.safety import verification
 
-MODES = ('ssm', 'pfl', 'off')
 # Default shield cycle (s): human-robot-gym's control_sample_time
 # (docs/shield_maths.md, 4).
 DEFAULT_CYCLE_TIME = 0.004
-# PFL: speeds are compared with this fraction of v_safe. Surface speeds are
-# taken at the plan's samples; between samples (2 ms either side) they change
-# by at most the surface acceleration times 2 ms, a few percent of v_safe at
-# the path speeds PFL allows. A design margin of this port.
-PFL_SPEED_MARGIN = 0.9
+# PFL: speeds are compared with this fraction of v_safe (safety/modes.py).
+PFL_SPEED_MARGIN = modes_lib.PFL_SPEED_MARGIN
 # PFL: samples over which a reachable-set slice can extend (one slice is
 # reachability_interval_cycles = 5 cycles of plan time at s_dot <= 1; one
 # more for the Taylor step past the last sample).
@@ -84,7 +81,8 @@ def _joint_list(values):
 
 
 class Shield:
-  """SaRA-style reachability shield for one robot (SSM, PFL or off)."""
+  """SaRA-style reachability shield for one robot in a registered mode
+  (`modes`: 'ssm', 'pfl', 'off' or one registered elsewhere)."""
 
   def __init__(self, robot_description, mode='ssm',
                cycle_time=DEFAULT_CYCLE_TIME, human_model=None,
@@ -95,18 +93,16 @@ class Shield:
       robot_description = robot_description_lib.load(robot_description)
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
     cycle_kernels.warm_up()
-    if mode not in MODES:
-      raise ValueError(f'mode: expected one of {MODES}, got {mode!r}')
     if not cycle_time > 0:
       raise ValueError(f'cycle_time: expected > 0 s, got {cycle_time}')
     self.description = robot_description
-    self.mode = mode
     self.cycle_time = float(cycle_time)
     self.dof = robot_description.dof
     params = robot_description.shield
     self.v_safe = float(params.v_safe if v_safe is None else v_safe)
     if not self.v_safe > 0:
       raise ValueError(f'v_safe: expected > 0 m/s, got {v_safe}')
+    self.mode = mode   # After v_safe: the mode's speed limit depends on it.
     self.interval = params.reachability_interval_cycles * self.cycle_time
     self.max_s_stop = params.max_s_stop
     self.robot = robot_reach_lib.RobotReach(
@@ -173,6 +169,17 @@ class Shield:
     self._human_error_pos = float(config.measurement_error_pos)
     self.reset(robot_description.q_home if q_init is None else q_init)
 
+  @property
+  def mode(self):
+    """The name of the shield's mode (`modes`); settable."""
+    return self._mode.name
+
+  @mode.setter
+  def mode(self, name):
+    self._mode = modes_lib.get(name)
+    self._gates = self._mode.gates
+    self.speed_limit = self._mode.speed_limit(self.v_safe)
+
   # --------------------------------------------------------------- commands
 
   def reset(self, q, t=0.0):
@@ -194,7 +201,7 @@ class Shield:
     self._goal_pending = False
     self._candidate = None       # (plan, start state key) awaiting approval.
     self.time = float(t)
-    self._is_safe = self.mode == 'off'
+    self._is_safe = not self._gates
     self.intervened = False
     self._first_unsafe_interval = -1
     self._reach_distance = np.inf
@@ -552,7 +559,7 @@ class Shield:
         break
     self._is_safe = safe
 
-    follow = failsafe is not None and (safe or self.mode == 'off')
+    follow = failsafe is not None and (safe or not self._gates)
     if follow:
       if candidate is not None:
         self._adopt(candidate)
@@ -618,7 +625,7 @@ class Shield:
       self._reach_arguments = None
       self._first_unsafe_interval, self._reach_distance = 0, -np.inf
       return False
-    if self.mode == 'off':
+    if not self._gates:
       # Unshielded: the check only feeds read-outs; run it when one is
       # read (its inputs do not change until the next step).
       self._reach_arguments = None
@@ -681,10 +688,10 @@ class Shield:
     The robot keeps moving at this path velocity after the failsafe, so the
     bound covers the plan's fastest capsule surface from s to its end.
     """
-    if self.mode != 'pfl':
+    allowed = self.speed_limit
+    if allowed is None:
       return None
     remaining = self._plan_speeds(plan)[1][plan.sample_index(s)]
-    allowed = PFL_SPEED_MARGIN * self.v_safe
     return 1.0 if remaining <= allowed else allowed / remaining
 
   def _slow_enough(self, plan, current, failsafe, times, s_edges, first,
@@ -693,7 +700,7 @@ class Shield:
     on (and after the failsafe, coasting at its final path velocity).
     pieces: failsafe.segments()."""
     window, suffix = self._plan_speeds(plan)
-    allowed = PFL_SPEED_MARGIN * self.v_safe * (1.0 + _S_DOT_TOLERANCE)
+    allowed = self.speed_limit * (1.0 + _S_DOT_TOLERANCE)
     for i in range(first, len(times)):
       if i == 0:
         s_dot = max(current.s_dot, failsafe.s_dot)

@@ -85,6 +85,7 @@ import mujoco
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import robot_description
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
@@ -96,9 +97,11 @@ from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import batch
 from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import defaults as defaults_lib
 from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
@@ -147,6 +150,7 @@ class HrcTask(composer.Task):
   """A robot, a gripper and a human in the workcell, shielded."""
 
   # Task facts (docs/reference_benchmark.md, Tasks); subclasses override.
+  # `defaults()` checks them all (tasks/defaults.py).
   MOTIONS = 'reach'                          # shipped library name
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   TABLE = layout.DEFAULT_TABLE               # layout.Table
@@ -183,9 +187,12 @@ class HrcTask(composer.Task):
     """Builds the scene; every argument is checked, errors list valid values.
 
     Args:
-      robot: one of robot_description.ROBOT_NAMES.
+      robot: a robot name (`robot_description.names()`: the description
+        files of hrc_suite/assets/robots and those registered) or the path
+        of a .json description file (registered under its name).
       action_space: 'joint' or 'cartesian' (None: the task's default).
-      shield: 'ssm', 'pfl' or 'off' (None: the task's default).
+      shield: a shield mode of safety/modes.py ('ssm', 'pfl', 'off' or
+        one registered elsewhere; None: the task's default).
       shield_substeps: L, physics steps (= shield cycles) per RL step.
       physics_timestep: s, also the shield's cycle time.
       control_timestep: s, must equal shield_substeps x physics_timestep.
@@ -218,7 +225,8 @@ class HrcTask(composer.Task):
         physics_timestep.
       v_safe: m/s, PFL's safe robot speed at a human contact.
       critical_speed: m/s, robot speed above which a human contact is
-        critical (None: v_safe with PFL, contacts.SSM_STOPPED_SPEED else).
+        critical (None: v_safe in modes that allow contact, such as PFL;
+        contacts.SSM_STOPPED_SPEED else).
       collision_reward: <= 0, added at RL steps with a static, self or
         critical human contact.
       fast_path: run an RL step's shield cycles at its start in one call
@@ -234,12 +242,13 @@ class HrcTask(composer.Task):
         and composer's substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
-    _choice('robot', robot, robot_lib.ROBOTS)
+    type(self).defaults()   # The class constants, checked.
+    robot = robot_description.resolve(robot)   # A name or a .json path.
     action_space = _choice('action_space',
                            action_space or self.DEFAULT_ACTION_SPACE,
                            actions.ACTION_SPACES)
     shield = _choice('shield', shield or self.DEFAULT_SHIELD,
-                     shield_lib.MODES)
+                     modes_lib.names())
     if not isinstance(shield_substeps, int) or shield_substeps < 1:
       raise ValueError('shield_substeps must be a positive integer, got '
                        f'{shield_substeps!r}')
@@ -272,7 +281,7 @@ class HrcTask(composer.Task):
     self.horizon = max(1, int(round(self.time_limit / control_timestep)))
     v_safe = _positive('v_safe', v_safe)
     if critical_speed is None:
-      critical_speed = v_safe if shield == 'pfl' else (
+      critical_speed = v_safe if modes_lib.get(shield).allows_contact else (
           contacts.SSM_STOPPED_SPEED)
     critical_speed = _positive('critical_speed', critical_speed)
     if not (isinstance(collision_reward, (int, float))
@@ -367,6 +376,11 @@ class HrcTask(composer.Task):
     observations_lib.configure_noise_and_delay(
         self._task_obs, observation_noise, observation_delay,
         physics_timestep)
+
+  @classmethod
+  def defaults(cls):
+    """The task's class constants, checked (`defaults.TaskDefaults`)."""
+    return defaults_lib.TaskDefaults.of(cls)
 
   # ------------------------------------------------------------ properties
 

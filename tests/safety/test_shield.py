@@ -52,7 +52,8 @@ def _blocking_human(shield):
 
 
 def test_bad_arguments_are_named(panda):
-  with pytest.raises(ValueError, match="mode: expected one of"):
+  with pytest.raises(ValueError, match="Unknown shield mode 'fast': "
+                     "expected one of 'ssm', 'pfl', 'off'"):
     shield_lib.Shield(panda, mode='fast')
   with pytest.raises(ValueError, match='cycle_time'):
     shield_lib.Shield(panda, cycle_time=0.0)

@@ -1,0 +1,48 @@
+"""Extension modules: tasks, experts, robots and shield modes defined
+outside the package, registered by importing their modules.
+
+The environment variable HRC_SUITE_EXTENSIONS lists them, comma-separated:
+each entry is a module name (imported, so its decorators register what it
+defines) or 'module:function' (imported, then function() is called), e.g.
+
+  HRC_SUITE_EXTENSIONS=my_tasks,my_lab.shields:register \\
+    python -m hrc_suite.render --domain=toy --task=default
+
+The registries (`suite`, `experts`, `robot_description`, `safety.modes`)
+load them the first time they are asked for names, so every binary and
+each of its worker processes sees them (docs/extending.md).
+"""
+
+import importlib
+import os
+
+ENV_VAR = 'HRC_SUITE_EXTENSIONS'
+
+_loaded = set()   # entries imported (or being imported) in this process
+
+
+def entries():
+  """The entries named by HRC_SUITE_EXTENSIONS, in order."""
+  return [e.strip() for e in os.environ.get(ENV_VAR, '').split(',')
+          if e.strip()]
+
+
+def load():
+  """Imports the extension modules not yet imported in this process."""
+  for entry in entries():
+    if entry in _loaded:
+      continue
+    _loaded.add(entry)   # First: an extension may ask a registry itself.
+    module_name, _, function = entry.partition(':')
+    try:
+      module = importlib.import_module(module_name)
+    except ImportError as e:
+      _loaded.discard(entry)
+      raise ImportError(f'{ENV_VAR} entry {entry!r}: cannot import '
+                        f'{module_name!r} ({e})') from e
+    if function:
+      register = getattr(module, function, None)
+      if not callable(register):
+        raise ValueError(f'{ENV_VAR} entry {entry!r}: {module_name} has no '
+                         f'function {function!r}')
+      register()

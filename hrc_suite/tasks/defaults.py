@@ -1,0 +1,119 @@
+"""A task's facts and defaults, checked in one place.
+
+An `HrcTask` subclass states them as class constants (MOTIONS, HORIZON,
+REWARDS, ...; tasks/base.py); `TaskDefaults.of(task_class)` gathers them
+into one frozen dataclass whose construction checks every one, with an
+error naming the class, the constant and what was expected.
+`suite.register` and `HrcTask.__init__` build it, so a task class with a
+bad constant fails where it is registered (at import), not in an episode
+(docs/extending.md).
+"""
+
+import dataclasses
+import math
+from typing import Mapping, Optional, Tuple
+
+from hrc_suite import layout
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.safety import modes
+from hrc_suite.tasks import actions
+
+# The class constant of each field, in field order.
+CONSTANTS = {
+    'motions': 'MOTIONS', 'human_station': 'HUMAN_STATION',
+    'table': 'TABLE', 'human_placement_range': 'HUMAN_PLACEMENT_RANGE',
+    'shield': 'DEFAULT_SHIELD', 'action_space': 'DEFAULT_ACTION_SPACE',
+    'rewards': 'REWARDS', 'reward_delay': 'DEFAULT_REWARD_DELAY',
+    'horizon': 'HORIZON', 'has_gripper_action': 'HAS_GRIPPER_ACTION',
+    'observation_presets': 'OBSERVATION_PRESETS',
+    'extra_counters': 'EXTRA_COUNTERS',
+    'fingertip_table_clearance': 'FINGERTIP_TABLE_CLEARANCE',
+    'cartesian_yaw': 'CARTESIAN_YAW', 'grip_force': 'GRIP_FORCE',
+    'task_state': 'TASK_STATE',
+}
+
+
+def _number(value):
+  return (isinstance(value, (int, float)) and not isinstance(value, bool)
+          and math.isfinite(value))
+
+
+def _names(value):
+  return isinstance(value, tuple) and all(
+      isinstance(v, str) and v for v in value)
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskDefaults:
+  """The class constants of a task (see HrcTask for their meaning)."""
+  motions: str                      # a shipped motion library
+  human_station: Tuple[float, float, float]
+  table: layout.Table
+  human_placement_range: Tuple[float, float, float]
+  shield: str                       # a registered shield mode
+  action_space: str
+  rewards: Tuple[str, ...]          # the first is the default
+  reward_delay: int                 # RL steps
+  horizon: int                      # RL steps
+  has_gripper_action: bool
+  observation_presets: Mapping[str, Tuple[str, ...]]
+  extra_counters: Tuple[str, ...]
+  fingertip_table_clearance: Optional[float]
+  cartesian_yaw: float
+  grip_force: float
+  task_state: Tuple[str, ...]
+  owner: str = 'HrcTask'            # the class, for error messages
+
+  def _fail(self, field, expected):
+    raise ValueError(f'{self.owner}.{CONSTANTS[field]}: expected '
+                     f'{expected}, got {getattr(self, field)!r}')
+
+  def __post_init__(self):
+    if self.motions not in clip_lib.MOTION_TASKS:
+      self._fail('motions', 'a shipped motion library, one of '
+                 + ', '.join(clip_lib.MOTION_TASKS))
+    for field in ('human_station', 'human_placement_range'):
+      value = getattr(self, field)
+      if not (isinstance(value, tuple) and len(value) == 3
+              and all(_number(v) for v in value)):
+        self._fail(field, '(x, y, yaw): three finite numbers')
+    if any(v < 0 for v in self.human_placement_range):
+      self._fail('human_placement_range', 'half-widths >= 0')
+    if not isinstance(self.table, layout.Table):
+      self._fail('table', 'a layout.Table')
+    if self.shield not in modes.names():
+      self._fail('shield', 'a shield mode, one of '
+                 + ', '.join(modes.names()))
+    if self.action_space not in actions.ACTION_SPACES:
+      self._fail('action_space', 'one of ' + ', '.join(actions.ACTION_SPACES))
+    if not (_names(self.rewards) and self.rewards):
+      self._fail('rewards', 'a non-empty tuple of reward names')
+    for field, low in (('reward_delay', 0), ('horizon', 1)):
+      value = getattr(self, field)
+      if not (isinstance(value, int) and not isinstance(value, bool)
+              and value >= low):
+        self._fail(field, f'an integer >= {low}')
+    if not isinstance(self.has_gripper_action, bool):
+      self._fail('has_gripper_action', 'True or False')
+    presets = self.observation_presets
+    if not (isinstance(presets, Mapping) and all(
+        isinstance(k, str) and _names(v) for k, v in presets.items())):
+      self._fail('observation_presets',
+                 'a dict of preset name -> tuple of observable names')
+    for field in ('extra_counters', 'task_state'):
+      if not _names(getattr(self, field)):
+        self._fail(field, 'a tuple of names')
+    clearance = self.fingertip_table_clearance
+    if clearance is not None and not (_number(clearance) and clearance >= 0):
+      self._fail('fingertip_table_clearance', 'None or a distance >= 0 (m)')
+    if not _number(self.cartesian_yaw):
+      self._fail('cartesian_yaw', 'a finite angle (rad)')
+    if not (_number(self.grip_force) and self.grip_force > 0):
+      self._fail('grip_force', 'a force > 0 (N)')
+
+  @classmethod
+  def of(cls, task_class):
+    """The checked defaults of an HrcTask subclass."""
+    return cls(owner=task_class.__name__, **{
+        field: getattr(task_class, constant)
+        for field, constant in CONSTANTS.items()})
