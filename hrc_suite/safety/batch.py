@@ -171,7 +171,17 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
       plan, candidate = candidate, None
       flags[ck.ADOPTED_AT] = -1
     if not missing:
-      break
+      if not (done and total < len(times) and flags[ck.GOAL_PENDING]):
+        break
+      # The kernel stopped for a candidate from the moved command
+      # (Shield._candidate_plan): made here, the cycles go on.
+      made = shield.candidate_from(command, verified[0], verified[1])
+      if made is None:
+        break   # step_many's next call runs the cycle as Shield.step.
+      candidate, key = made
+      shield._candidate = made
+      flags[ck.HAS_CANDIDATE] = 1
+      continue
     if plan._filled > plan._last and (candidate is None
                                       or candidate._filled > candidate._last):
       break

@@ -649,17 +649,21 @@ class Shield:
     key = (self._verified.s, self._verified.s_dot)
     if self._candidate is not None and self._candidate[1] == key:
       return self._candidate[0]   # The robot has not moved: still valid.
-    self._candidate = None
-    state = self._state
+    self._candidate = self.candidate_from(self._state, *key)
+    return None if self._candidate is None else self._candidate[0]
+
+  def candidate_from(self, state, s, s_dot):
+    """(plan to the pending goal from command `state` (q, dq, ddq rows
+    first) at verified path position s and velocity s_dot, its key (s,
+    s_dot)), or None where none can be made."""
     if (np.abs(state[2]) > self.limits.a_max_ltt).any():
       return None   # Braking too hard to plan here (docs/shield_maths.md, 1).
     try:
       plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
-                              self.limits, self.cycle_time, self._verified.s)
+                              self.limits, self.cycle_time, s)
     except ltp.PlanningError:
       return None
-    self._candidate = (plan, key)
-    return plan
+    return plan, (s, s_dot)
 
   def _adopt(self, plan):
     self._plan = plan
