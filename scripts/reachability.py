@@ -14,7 +14,7 @@ uniform random joint vectors (fixed seed). Points:
   at least GOAL_MIN_HEIGHT above the table), GOALS uniform samples (as the
   task draws its goals, keeping the reached ones);
 * pick_place, inspection: the cube region (base frame, the modules'
-  REGION constants) as a GRID^2 grid at the grasp (TCP 1 cm above the
+  REGION constants or the robot's layout.cube_region_x) as a GRID^2 grid at the grasp (TCP 1 cm above the
   cube's centre) and APPROACH above it;
 * handover: every clip's `handover_point` (the person's palm) at the
   station and at both ends of its y placement range, moved the handle's
