@@ -54,6 +54,9 @@ class RobotMount:
   # Scale of the table workspace boxes about the base (ik.table_workspace_box);
   # None: from the robot's home TCP distance.
   workspace_scale: Optional[float] = None
+  # x range (m, base frame) of the table cubes of pick_place and inspection
+  # for this robot; None: the tasks' own (cube_region_x).
+  cube_region_x: Optional[tuple] = None
 
   @property
   def height_above_table(self) -> float:
@@ -104,13 +107,32 @@ KINOVA3_MOUNT = RobotMount(
     base_position=(0.15, 0.0, TABLE_TOP_Z + 0.20),
     pedestal_center_xy=(-0.02, 0.0))
 
+# KUKA iiwa (issue 17): on the default mount its gripper-down IK reaches
+# the table's centre line (y = 0) only from x 0.40 m ahead of the base at
+# the cube's grasp height and from 0.375 m at the pick-and-place hover
+# (0.2 m above), its elbow (joint 4, +-2.09 rad) folded to the limit
+# nearer in (reachability grid, 30 IK restarts, issue 17's 30-episode
+# sweep). The tasks' cube regions (x 0.30-0.45 m) keep only cubes the arm
+# can grasp, but pick and place carries the cube across y = 0 at the
+# hover: from cubes at x 0.33-0.37 m every Cartesian step failed IK for
+# the rest of the episode (seeds 4, 8, 15 of 30, default and close). Its
+# cube regions lie 0.1 m further out, as wide as the others'.
+IIWA_MOUNT = RobotMount(ROBOT_BASE_POS, cube_region_x=(0.40, 0.55))
+
 ROBOT_MOUNTS = {'schunk': SCHUNK_MOUNT, 'jaco': JACO_MOUNT,
-                'kinova3': KINOVA3_MOUNT}
+                'kinova3': KINOVA3_MOUNT, 'iiwa': IIWA_MOUNT}
 
 
 def robot_mount(robot_name: str) -> RobotMount:
   """The mount of the named robot (DEFAULT_MOUNT unless listed)."""
   return ROBOT_MOUNTS.get(robot_name, DEFAULT_MOUNT)
+
+
+def cube_region_x(robot_name: str, task_region_x: tuple) -> tuple:
+  """x range (m, base frame) of a task's table cubes for the named robot:
+  its mount's cube_region_x, else the task's own `task_region_x`."""
+  own = robot_mount(robot_name).cube_region_x
+  return tuple(task_region_x if own is None else own)
 
 # Human stations: (x, y, yaw) of the clip frame's origin on the floor. A clip
 # is authored with the person at the origin facing +x; yaw turns it.

@@ -14,7 +14,7 @@ uniform random joint vectors (fixed seed). Points:
   at least GOAL_MIN_HEIGHT above the table), GOALS uniform samples (as the
   task draws its goals, keeping the reached ones);
 * pick_place, inspection: the cube region (base frame, the modules'
-  REGION constants) as a GRID^2 grid at the grasp (TCP 1 cm above the
+  REGION constants or the robot's layout.cube_region_x) as a GRID^2 grid at the grasp (TCP 1 cm above the
   cube's centre) and APPROACH above it;
 * handover: every clip's `handover_point` (the person's palm) at the
   station and at both ends of its y placement range, moved the handle's
@@ -120,8 +120,7 @@ def task_points(env, domain, task_name):
     local = np.random.RandomState(SEED).uniform(low, high, (GOALS, 3))
     return [('goal box', p) for p in _base_points(task, local)]
   if domain == 'pick_place':
-    return _cube_region(task, pick_place.REGION_X, pick_place.REGION_ABS_Y,
-                        True)
+    return _cube_region(task, task.region_x, pick_place.REGION_ABS_Y, True)
   if domain == 'handover':
     points = _clip_points(task, 'handover_point',
                           towards_base=handover_expert.GRIP_TO_HANDLE_END)
@@ -132,7 +131,8 @@ def task_points(env, domain, task_name):
       points += [('put-down region', np.r_[p, release]) for p in table]
     return points
   if domain == 'inspection':
-    return (_cube_region(task, inspection.OBJECT_REGION_X,
+    return (_cube_region(task, layout.cube_region_x(
+        task.robot.description.name, inspection.OBJECT_REGION_X),
                          inspection.OBJECT_REGION_Y, False)
             + _clip_points(task, 'inspection_point'))
   if domain == 'lifting':

@@ -14,7 +14,13 @@ values (in that order; the first that works), then VIA_SAMPLES random
 configurations within the task's joint goal range (explicit seed VIA_SEED,
 the same every plan), shortest total joint path first: the UR5e and the
 Sawyer had goals that no one-joint-at-a-time via point reaches (issue 17,
-docs/robots.md, "Reach goals"). Each step it steers straight
+docs/robots.md, "Reach goals"). A path counts as free only if it also
+keeps every capsule on the robot's side of the table edge beside the
+person (y <= layout.REACH_GOAL_MAX_Y, the goals' own rule; a start
+already beyond it may not go further): the straight joint path to a goal
+there can swing the arm into the person, where SSM holds it for the rest
+of the episode (issue 17's 30-episode sweep, docs/robots.md, "Reach
+goals"). Each step it steers straight
 to the goal if that path is free, else to the via point (planned again when
 the path to it is no longer free, e.g. after the shield braked off the line).
 
@@ -51,6 +57,10 @@ VIA_SAMPLES = 400
 VIA_SEED = 0
 # rad: goals read as q + (q_goal - q) from observations differ by rounding.
 GOAL_TOLERANCE = 1e-9
+# rad (largest joint motion) between the configurations at which a path's
+# capsules are held to layout.REACH_GOAL_MAX_Y: at most ~5 cm of motion at
+# a 1 m lever, below the capsules' radii (planning, not a safety check).
+SIDE_STEP = 0.05
 
 
 @experts.register('reach', 'dense', 'sparse')
@@ -80,7 +90,25 @@ class ReachExpert(base.Expert):
     return None if self._via is None else self._via.copy()
 
   def _free(self, q_start, q_goals):
-    return self._checker.paths_free(q_start, np.atleast_2d(q_goals))
+    q_goals = np.atleast_2d(q_goals)
+    ok = self._checker.paths_free(q_start, q_goals)
+    ok[ok] = self._robot_side(q_start, q_goals[ok])
+    return ok
+
+  def _robot_side(self, q_start, q_goals):
+    """Flags (G,): the straight joint paths q_start -> q_goals keep every
+    capsule at y <= layout.REACH_GOAL_MAX_Y (or, from a start beyond it,
+    no further than the start's)."""
+    if not len(q_goals):
+      return np.zeros(0, dtype=bool)
+    delta = q_goals - q_start
+    samples = max(1, int(np.ceil(np.abs(delta).max() / SIDE_STEP)))
+    fraction = np.linspace(0.0, 1.0, samples + 1)[None, :, None]
+    p1, p2, radii = self._checker.reach.capsules(
+        q_start + fraction * delta[:, None, :])
+    side = np.maximum(p1[..., 1], p2[..., 1]) + radii      # (G, S, L)
+    bound = max(layout.REACH_GOAL_MAX_Y, side[0, 0].max())
+    return np.all(side.max(axis=-1) <= bound, axis=-1)
 
   def _step_free(self, q, aims):
     """Flags: the one-step joint goals towards each aim pass the task's own

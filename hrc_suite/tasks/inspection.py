@@ -57,7 +57,8 @@ GRIPPED_REWARD = common.GRIPPED_REWARD   # reference: as pick and place
 SUCCESS_REWARD = common.SUCCESS_REWARD
 IDLE_REWARD = common.IDLE_REWARD
 OBJECT_ATTEMPTS = 100        # cube placements tried before giving up
-# Cube region in the robot base frame (m); see the module doc.
+# Cube region in the robot base frame (m); see the module doc. x: the
+# robot's own where its layout gives one (layout.cube_region_x: the iiwa's).
 OBJECT_REGION_X = (0.30, 0.45)
 OBJECT_REGION_Y = (-0.2, 0.2)
 HOVER_HEIGHT = 0.1           # m above the grasp, checked for IK
@@ -171,7 +172,8 @@ class Inspection(base.HrcTask):
     self._reset_progress()
     q_home = self._robot.description.q_home
     position = common.sample_table_point(
-        random_state, self._kinematics.base_pose, OBJECT_REGION_X,
+        random_state, self._kinematics.base_pose,
+        layout.cube_region_x(self._robot.description.name, OBJECT_REGION_X),
         OBJECT_REGION_Y, layout.TABLE_TOP_Z + self._cube.size / 2,
         lambda point: common.top_grasp_reachable(
             self._ik, self._collision_checker, point, q_home,

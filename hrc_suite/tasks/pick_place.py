@@ -3,7 +3,8 @@ beside the robot (docs/reference_benchmark.md, Tasks).
 
 * Scene: a 4 cm cube (`props.Cube`) and a flat target disc on the table,
   one on each side of the robot's centre line (the side is drawn per
-  episode). Both are drawn uniformly in REGION_X x REGION_ABS_Y (robot base
+  episode). Both are drawn uniformly in REGION_X (or the robot's own,
+  `layout.cube_region_x`: the iiwa's) x REGION_ABS_Y (robot base
   frame) and kept only if gripper-down IK reaches the point above them
   (APPROACH_HEIGHT) and the grasp height from there without static or self
   collision, so every robot (the Schunk included) can do the task.
@@ -114,6 +115,8 @@ class PickPlace(base.HrcTask):
              rgba=TARGET_RGBA, group=0)
     self._target_body = body
     self._ik = ik_lib.InverseKinematics(self._kinematics)
+    self._region_x = layout.cube_region_x(self._robot.description.name,
+                                          REGION_X)
     self._target = np.zeros(3)
     self._object_side = 1.0
     self._reset_progress()
@@ -128,6 +131,12 @@ class PickPlace(base.HrcTask):
   @property
   def cube(self):
     return self._cube
+
+  @property
+  def region_x(self):
+    """x range (m, base frame) of the cube and target: REGION_X, or the
+    robot's own (layout.cube_region_x)."""
+    return self._region_x
 
   @property
   def target_position(self):
@@ -148,7 +157,7 @@ class PickPlace(base.HrcTask):
   def _sample_point(self, side, random_state):
     region_y = (side * REGION_ABS_Y[0], side * REGION_ABS_Y[1])
     return common.sample_table_point(
-        random_state, self._kinematics.base_pose, REGION_X, region_y,
+        random_state, self._kinematics.base_pose, self.region_x, region_y,
         layout.TABLE_TOP_Z + self._cube.size / 2, self._reachable,
         SAMPLE_ATTEMPTS, f'PickPlace point on side {side:+.0f} for '
         f'{self._robot.description.name}')

@@ -11,8 +11,9 @@ from hrc_suite import suite
 from hrc_suite.tasks import metrics
 
 SHORT_STEPS = 3     # RL steps of the fast check
-# Slow: full expert episodes per robot on these tasks (seeds 0..n-1); the
-# sweep behind docs/results/robots_sweep.md measured them all at 3 of 3.
+# Slow: full expert episodes per robot on these tasks (seeds 0..n-1);
+# docs/results/experts.md: every episode of theirs succeeds (30 per
+# robot, the Schunk and the Panda 50).
 FULL_TASKS = (('pick_place', 'default'), ('lifting', 'default'))
 FULL_SEEDS = 2
 

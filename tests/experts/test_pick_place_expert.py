@@ -101,3 +101,17 @@ def test_noisy_expert_still_succeeds():
 def test_same_seed_same_actions():
   expert_checks.assert_same_seed_same_actions(
       lambda: _env('panda', 'joint', seed=5, time_limit=3.0))
+
+
+def test_iiwa_carries_the_cube_across_its_centre_line():
+  # KUKA iiwa seed 4 from the tasks' own region (x 0.30-0.45 m): the cube
+  # at x 0.33 m, carried at the hover across y = 0, where the iiwa's
+  # gripper-down IK reaches only from x 0.375 m: every step failed IK for
+  # the rest of the episode. Its layout's cube region (x 0.40-0.55 m) lies
+  # where the carry is reachable (issue 17).
+  env = suite.load('pick_place', 'default', task_kwargs={'robot': 'iiwa'},
+                   environment_kwargs={'random_state': 0})
+  env.random_state.seed(4)
+  result = metrics.run_episode(env, experts.make(env))
+  assert result['success'] == 1.0
+  assert result['ik_failures'] == 0

@@ -106,3 +106,18 @@ def test_random_via_point_when_no_structured_one_is_free():
   result = metrics.run_episode(env, experts.make(env))
   assert result['success'] == 1.0
   assert result['action_replacements'] == 0
+
+
+def test_path_stays_on_the_robots_side_of_the_table_edge():
+  # Kinova Gen3 joint seed 6: the goal lies high behind the base, but the
+  # straight joint path from home swings the arm out over the table edge
+  # beside the person (TCP at y 0.68 m), where SSM held it for 83 of the
+  # 100 RL steps (no success, issue 17's 30-episode sweep). Paths are now
+  # held to the goals' own bound (layout.REACH_GOAL_MAX_Y).
+  env = _env('kinova3', 'joint', reward='dense', seed=0)
+  env.random_state.seed(6)
+  expert = experts.make(env)
+  result = metrics.run_episode(env, expert)
+  assert result['success'] == 1.0
+  assert result['shield_interventions'] <= 5
+  assert result['contacts_human_critical'] == 0

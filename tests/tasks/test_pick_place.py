@@ -168,7 +168,7 @@ def test_cube_and_target_on_either_side_within_reach(robot):
     sides.add(np.sign(cube[1]))
     for point in (cube, target):
       local = point - task.kinematics.base_pose[:3, 3]
-      assert pick_place.REGION_X[0] <= local[0] <= pick_place.REGION_X[1]
+      assert task.region_x[0] <= local[0] <= task.region_x[1]
       assert (pick_place.REGION_ABS_Y[0] <= abs(local[1])
               <= pick_place.REGION_ABS_Y[1])
       yaw = actions.GRIPPER_YAW
