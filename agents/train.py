@@ -49,6 +49,7 @@ from agents import imitation
 from agents import logging as logging_lib
 from agents import loop as loop_lib
 from agents import plot as plot_lib
+from agents import precompile
 from agents import specs as specs_lib
 from agents.sac import agent as agent_lib
 from hrc_suite import render
@@ -439,6 +440,9 @@ def define_flags(flag_values=flags.FLAGS):
                     'logdir/curves.png (and .svg, .csv).', flag_values=fv)
   flags.DEFINE_bool('video', False, 'At the end, render an episode of the '
                     'final policy as logdir/episode.mp4.', flag_values=fv)
+  flags.DEFINE_bool('precompile', True, 'First compile (or load) '
+                    "hrc_suite's numba kernels on two cores "
+                    '(agents.precompile).', flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):
@@ -451,6 +455,9 @@ def main(argv, flag_values=flags.FLAGS):
       eval_every=f.eval_every, eval_episodes=f.eval_episodes,
       checkpoint_every=f.checkpoint_every, dataset=f.dataset,
       imitation_kwargs=json.loads(f.imitation_kwargs))
+  if f.precompile:
+    logging.info('Kernels compiled or loaded in %.1f s',
+                 precompile.warm_up(f.robot))
   _, state = train(run_config, f.logdir, resume=f.resume,
                    progress=f.progress)
   logging.info('Done: %d steps, %d episodes, %d evaluations in %s',
