@@ -295,6 +295,9 @@ def train(run_config, logdir, resume=False, progress=False):
     eval_env = make_environment(run_config, derived_seed(run_config['seed'],
                                                          _EVAL_ENV))
   agent = make_agent(run_config, env)
+  # The learner compiles while the first evaluation and the replay's
+  # warm-up step the environment.
+  agent.compile_update_in_background()
   observer = metrics_lib.EpisodeMetricsObserver()
   loop = loop_lib.EnvironmentLoop(env, agent, observers=[observer])
   state = {'evaluations': 0, 'next_eval': 0,
