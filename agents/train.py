@@ -28,7 +28,7 @@ logdir/curves.png; --video renders one deterministic episode of the final
 policy (`hrc_suite.render`, with the shield overlay) as logdir/episode.mp4.
 The README's quickstart:
 
-  python -m agents.train --config=quick --steps=20000 --eval_every=5000 \
+  python -m agents.train --config=quick --steps=25000 --eval_every=5000 \
       --logdir=runs/quickstart --plot --video
 """
 
