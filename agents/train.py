@@ -28,7 +28,7 @@ logdir/curves.png; --video renders one deterministic episode of the final
 policy (`hrc_suite.render`, with the shield overlay) as logdir/episode.mp4.
 The README's quickstart:
 
-  python -m agents.train --config=quick --steps=20000 --eval_every=5000 \
+  python -m agents.train --config=quick --steps=25000 --eval_every=5000 \
       --logdir=runs/quickstart --plot --video
 """
 
@@ -49,6 +49,7 @@ from agents import imitation
 from agents import logging as logging_lib
 from agents import loop as loop_lib
 from agents import plot as plot_lib
+from agents import precompile
 from agents import specs as specs_lib
 from agents.sac import agent as agent_lib
 from hrc_suite import registry_flags
@@ -295,6 +296,9 @@ def train(run_config, logdir, resume=False, progress=False):
     eval_env = make_environment(run_config, derived_seed(run_config['seed'],
                                                          _EVAL_ENV))
   agent = make_agent(run_config, env)
+  # The learner compiles while the first evaluation and the replay's
+  # warm-up step the environment.
+  agent.compile_update_in_background()
   observer = metrics_lib.EpisodeMetricsObserver()
   loop = loop_lib.EnvironmentLoop(env, agent, observers=[observer])
   state = {'evaluations': 0, 'next_eval': 0,
@@ -444,6 +448,9 @@ def define_flags(flag_values=flags.FLAGS):
                     'logdir/curves.png (and .svg, .csv).', flag_values=fv)
   flags.DEFINE_bool('video', False, 'At the end, render an episode of the '
                     'final policy as logdir/episode.mp4.', flag_values=fv)
+  flags.DEFINE_bool('precompile', True, 'First compile (or load) '
+                    "hrc_suite's numba kernels on two cores "
+                    '(agents.precompile).', flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):
@@ -456,6 +463,9 @@ def main(argv, flag_values=flags.FLAGS):
       eval_every=f.eval_every, eval_episodes=f.eval_episodes,
       checkpoint_every=f.checkpoint_every, dataset=f.dataset,
       imitation_kwargs=json.loads(f.imitation_kwargs))
+  if f.precompile:
+    logging.info('Kernels compiled or loaded in %.1f s',
+                 precompile.warm_up(f.robot))
   _, state = train(run_config, f.logdir, resume=f.resume,
                    progress=f.progress)
   logging.info('Done: %d steps, %d episodes, %d evaluations in %s',

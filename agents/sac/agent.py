@@ -196,6 +196,22 @@ class SACAgent:
         for field in batch))
     return self._learner.update_steps(batches)
 
+  def compile_update_in_background(self):
+    """Starts compiling the learner call `update` makes (fused_steps
+    gradient steps on batches of batch_size) on a background thread
+    (learning.SACLearner.compile_in_background); returns the thread."""
+    config = self._config
+    leading = (config.batch_size,)
+    if config.fused_steps > 1:
+      leading = (config.fused_steps,) + leading
+    sizes = {'observation': (self._flattener.size,),
+             'action': (self._scaler.size,),
+             'next_observation': (self._flattener.size,)}
+    batches = replay_lib.Transition(**{
+        field: np.zeros(leading + sizes.get(field, ()), np.float32)
+        for field in replay_lib.Transition._fields})
+    return self._learner.compile_in_background(batches)
+
   # Evaluation.
 
   def policy(self, deterministic=True, seed=0):

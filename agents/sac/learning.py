@@ -19,6 +19,7 @@ computation.
 import collections
 import collections.abc
 import functools
+import threading
 
 import jax
 import jax.numpy as jnp
@@ -301,6 +302,23 @@ class SACLearner:
     self._check_batch(batches, leading=2)
     self._state, metrics = self._functions.sgd_steps(self._state, batches)
     return UpdateMetrics(metrics)
+
+  def compile_in_background(self, batches):
+    """Compiles the update for batches shaped like `batches` (leading axes
+    (batch,) as `update` takes them, (steps, batch) as `update_steps`) on
+    a daemon thread, leaving the state alone; returns the thread. XLA
+    compiles outside the GIL, so the caller steps its environment in the
+    meantime instead of waiting at its first update."""
+    fused = np.ndim(batches.reward) == 2
+    self._check_batch(batches, leading=2 if fused else 1)
+    function = (self._functions.sgd_steps if fused
+                else self._functions.sgd_step)
+    state = self._state
+    thread = threading.Thread(
+        target=lambda: jax.block_until_ready(function(state, batches)),
+        name='compile_update', daemon=True)
+    thread.start()
+    return thread
 
   @property
   def policy_params(self):

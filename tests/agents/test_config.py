@@ -34,6 +34,16 @@ def test_default_preset():
   assert default.reward_scale == 1.0
 
 
+def test_quick_preset():
+  quick = config.quick_config()
+  assert quick.hidden_sizes == (64, 64) and quick.reward_scale == 100.0
+  assert quick.initial_temperature == 0.01 and quick.discount == 0.95
+  # Everything else is the default's.
+  assert dataclasses.replace(
+      quick, hidden_sizes=(256, 256), reward_scale=1.0,
+      initial_temperature=1.0, discount=0.99) == config.default_config()
+
+
 def test_config_from_name_applies_overrides():
   cfg = config.config_from_name('reference', batch_size=64,
                                 hidden_sizes=[32, 32])

@@ -103,6 +103,23 @@ def test_scanned_steps_equal_single_steps():
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5)
 
 
+def test_background_compilation_leaves_the_state_and_serves_updates():
+  # A batch size no other test uses: the compilation is this test's own.
+  learner, reference = _learner(seed=5), _learner(seed=5)
+  stacked = replay.Transition(*(np.stack(field) for field in zip(
+      _batch(size=24, seed=0), _batch(size=24, seed=1))))
+  compiled = learner._functions.sgd_steps   # pylint: disable=protected-access
+  before = compiled._cache_size()
+  learner.compile_in_background(stacked).join()
+  assert compiled._cache_size() == before + 1
+  assert learner.steps == 0
+  for a, b in zip(_leaves(learner.training_state),
+                  _leaves(reference.training_state)):
+    np.testing.assert_array_equal(a, b)
+  learner.update_steps(stacked)   # Served by that compilation.
+  assert compiled._cache_size() == before + 1 and learner.steps == 2
+
+
 def test_state_round_trip_is_exact_and_continues_identically():
   original = _learner(seed=0)
   for i in range(3):

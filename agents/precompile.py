@@ -1,0 +1,98 @@
+"""Compiles hrc_suite's numba kernels on two cores before a run starts.
+
+A fresh checkout has no numba cache, so the first environment of a process
+compiles its kernels, one function at a time: on reach/dense (Schunk) the
+shield's (`safety.kernels`, `safety.cycle_kernels`) about 25 s of a core,
+collision prevention's (`safety.cp_kernels`) 15 s and inverse kinematics'
+(`control.ik_kernels`) 6 s (docs/benchmarks.md, "SAC training
+throughput"). `warm_up` compiles collision prevention and IK in a second
+Python process while this one compiles the shield, then waits for it. Both
+write numba's on-disk cache (the kernels are `cache=True`), from which
+this process's environment loads what the other process compiled. With a
+warm cache both halves only load (about a second).
+
+  python -m agents.precompile --robot=schunk   # The second process's half.
+"""
+
+import os
+import subprocess
+import sys
+import time
+
+from absl import app
+from absl import flags
+from absl import logging
+
+from hrc_suite import layout
+from hrc_suite import robot_description
+from hrc_suite.control import ik as ik_lib
+from hrc_suite.control import kinematics
+from hrc_suite.safety import cp_kernels
+from hrc_suite.safety import cycle_kernels
+from hrc_suite.safety import kernels
+
+
+def compile_collision_prevention_and_ik(robot):
+  """Compiles (or loads) collision prevention's and IK's kernels for the
+  argument types the tasks pass (`cp_kernels.warm_up`; one IK solve
+  through `control.ik`, as the tasks' goal sampling calls it)."""
+  cp_kernels.warm_up()
+  description = robot_description.load(robot)
+  model = kinematics.KinematicModel(
+      description, layout.robot_mount(description.name).base_pose())
+  # A contiguous target, as the tasks pass (a column view compiles anew).
+  target = model.tcp_pose(description.q_home)[:3, 3].copy()
+  ik_lib.InverseKinematics(model).solve(target, description.q_home)
+
+
+def _compiled_here():
+  """True if this process compiled the shield's cycle kernel rather than
+  loading it from numba's cache."""
+  return bool(cycle_kernels.ssm_cycles.stats.cache_misses)
+
+
+def warm_up(robot):
+  """Compiles (or loads) the shield's kernels here and those of collision
+  prevention and IK in a second process at the same time; returns the
+  seconds it took.
+
+  If this half loaded from the cache (nothing compiled here), the second
+  process is stopped instead of waited for: its half is cached too and
+  loads in this process when first called (the second process's start
+  would cost more). If it fails, its kernels compile when the environment
+  first calls them (a warning says so).
+  """
+  start = time.perf_counter()
+  # The child imports hrc_suite from where this process does.
+  environ = dict(os.environ, PYTHONPATH=os.pathsep.join(
+      path for path in sys.path if path))
+  child = subprocess.Popen(
+      [sys.executable, '-m', 'agents.precompile', f'--robot={robot}'],
+      env=environ)
+  try:
+    kernels.warm_up()
+    cycle_kernels.warm_up()
+  except BaseException:
+    child.kill()
+    child.wait()
+    raise
+  if not _compiled_here():
+    child.kill()
+    child.wait()
+    return time.perf_counter() - start
+  status = child.wait()
+  if status:
+    logging.warning('agents.precompile for %s exited with status %d: its '
+                    'kernels compile in this process instead', robot,
+                    status)
+  return time.perf_counter() - start
+
+
+def main(argv):
+  del argv
+  compile_collision_prevention_and_ik(flags.FLAGS.robot)
+
+
+if __name__ == '__main__':
+  flags.DEFINE_string('robot', 'schunk', 'Robot whose IK model is used.')
+  app.run(main)
