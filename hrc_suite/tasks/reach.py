@@ -112,6 +112,7 @@ class Reach(base.HrcTask):
     self._goal_q, self._goal_position = self._sample_goal(random_state)
     physics.bind(self._goal_body).mocap_pos = self._goal_position
     self._success = False
+    self._tcp_site = physics.bind(self._robot.tcp_site).element_id
 
   # ------------------------------------------------------------ progress
 
@@ -119,7 +120,7 @@ class Reach(base.HrcTask):
     if self._action_space.name == 'joint':
       q = physics.data.qpos[self._qpos_index]
       return float(np.linalg.norm(self._goal_q - q))
-    tcp = physics.bind(self._robot.tcp_site).xpos
+    tcp = physics.data.site_xpos[self._tcp_site]   # the binding's xpos
     return float(np.linalg.norm(self._goal_position - tcp))
 
   def _update_task(self, physics):
