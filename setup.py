@@ -26,7 +26,7 @@ setuptools.setup(
         include=['hrc_suite', 'hrc_suite.*', 'agents', 'agents.*'],
         exclude=['*.__pycache__']),
     package_data={'hrc_suite.assets': ['**/*.json', '**/*.npz']},
-    # `python -m hrc_suite.render --policy=<checkpoint>` finds the agents'
+    # `python -m hrc_suite.rendering.episode --policy=<checkpoint>` finds the agents'
     # checkpoint loader here (hrc_suite does not import agents).
     entry_points={'hrc_suite.checkpoint_policies': [
         'sac = agents.checkpoint_policy:load']},
@@ -47,7 +47,7 @@ setuptools.setup(
         'ruckig>=0.12',      # jerk-limited trajectory generation.
         'imageio>=2.30',
         'imageio-ffmpeg>=0.4.9',  # ships its own ffmpeg binary.
-        # Video captions and event markers (hrc_suite/render_overlay.py);
+        # Video captions and event markers (hrc_suite/rendering/overlay.py);
         # load_default(size=...) needs Pillow >= 10.1.
         'Pillow>=10.1',
         'tqdm',

@@ -1,9 +1,9 @@
-"""Trained checkpoints as `hrc_suite.render` policies.
+"""Trained checkpoints as `hrc_suite.rendering.episode` policies.
 
 Registered in setup.py under the entry-point group
 `hrc_suite.checkpoint_policies` (name `sac`), so that
 
-  python -m hrc_suite.render --policy=runs/reach_dense/seed0 --out=x.mp4
+  python -m hrc_suite.rendering.episode --policy=runs/reach_dense/seed0 --out=x.mp4
 
 renders a training run's latest checkpoint (or a given one) while hrc_suite
 never imports agents. The episode runs in the run's evaluation environment
@@ -15,7 +15,7 @@ import os
 
 from agents import checkpoints
 from agents.sac import agent as agent_lib
-from hrc_suite import render
+from hrc_suite.rendering import episode as render
 
 
 def load(path):

@@ -25,7 +25,7 @@ previous checkpoint.
 
 --plot writes the run's learning curve (`agents.plot`) as
 logdir/curves.png; --video renders one deterministic episode of the final
-policy (`hrc_suite.render`, with the shield overlay) as logdir/episode.mp4.
+policy (`hrc_suite.rendering.episode`, with the shield overlay) as logdir/episode.mp4.
 The README's quickstart:
 
   python -m agents.train --config=quick --steps=25000 --eval_every=5000 \
@@ -53,7 +53,7 @@ from agents import precompile
 from agents import specs as specs_lib
 from agents.sac import agent as agent_lib
 from hrc_suite import registry_flags
-from hrc_suite import render
+from hrc_suite.rendering import episode as render
 from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
 from hrc_suite.tasks import metrics as metrics_lib
@@ -483,7 +483,7 @@ def main(argv, flag_values=flags.FLAGS):
 
 def render_final_policy(logdir, seed=0):
   """Renders one deterministic episode of the run's latest checkpoint as
-  logdir/episode.mp4 (hrc_suite.render.run); returns (video path, episode
+  logdir/episode.mp4 (hrc_suite.rendering.episode.run); returns (video path, episode
   metrics)."""
   trained = checkpoint_policy.load(logdir)
   return render.run(trained.domain, trained.task, trained.robot,

@@ -6,7 +6,7 @@ each entry is a module name (imported, so its decorators register what it
 defines) or 'module:function' (imported, then function() is called), e.g.
 
   HRC_SUITE_EXTENSIONS=my_tasks,my_lab.shields:register \\
-    python -m hrc_suite.render --domain=toy --task=default
+    python -m hrc_suite.rendering.episode --domain=toy --task=default
 
 The registries (`suite`, `experts`, `robot_description`, `safety.modes`)
 load them the first time they are asked for names, so every binary and

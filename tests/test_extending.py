@@ -359,7 +359,7 @@ def _run_binary(module, *args):
 def test_the_binaries_take_the_extensions(tmp_path):
   robot = write_robot(tmp_path)
   video = tmp_path / 'episode.gif'
-  done = _run_binary('hrc_suite.render', '--domain=joint_pose',
+  done = _run_binary('hrc_suite.rendering.episode', '--domain=joint_pose',
                      '--task=dense', f'--robot={robot}', '--shield=pfl_slow',
                      '--policy=expert', '--max_steps=3', '--width=64',
                      '--height=48', f'--out={video}')
@@ -380,13 +380,13 @@ def test_the_binaries_take_the_extensions(tmp_path):
   assert len(rows) == 1, table.read_text()
   assert rows[0][4:8] == ['pfl_slow', 'joint', '2', '1.00 [1.00, 1.00]']
   picture = tmp_path / 'robot.gif'
-  done = _run_binary('hrc_suite.render_robot', f'--robot={robot}',
+  done = _run_binary('hrc_suite.rendering.robot', f'--robot={robot}',
                      f'--out={picture}', '--width=64', '--height=48',
                      '--fps=5')
   assert done.returncode == 0 and picture.stat().st_size > 0, done.stderr
   # Names are checked when the command line is parsed, against the
   # registries (the extension's names are valid, others are not).
-  done = _run_binary('hrc_suite.render', '--domain=joint_pose',
+  done = _run_binary('hrc_suite.rendering.episode', '--domain=joint_pose',
                      '--task=dense', '--shield=pfl_fast')
   assert done.returncode != 0
   assert "unknown shield mode 'pfl_fast'" in done.stderr

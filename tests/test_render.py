@@ -9,8 +9,8 @@ from dm_control.mujoco import engine
 import numpy as np
 import pytest
 
-from hrc_suite import render
-from hrc_suite import render_overlay
+from hrc_suite.rendering import episode as render
+from hrc_suite.rendering import overlay as render_overlay
 from hrc_suite import rendering
 from hrc_suite import layout
 from hrc_suite import suite

@@ -55,7 +55,7 @@ def test_rejects_unknown_format(tmp_path):
 
 
 def test_render_command_writes_video_and_metrics(tmp_path):
-  from hrc_suite import render
+  from hrc_suite.rendering import episode as render
   import json
   path, metrics = render.run('reach', 'dense', robot='schunk',
                              policy='random', out=tmp_path / 'reach.mp4',
@@ -70,6 +70,6 @@ def test_render_command_writes_video_and_metrics(tmp_path):
 
 
 def test_render_rejects_unknown_policy():
-  from hrc_suite import render
+  from hrc_suite.rendering import episode as render
   with pytest.raises(ValueError, match="'nope'.*random"):
     render.make_policy('nope', None, 0)

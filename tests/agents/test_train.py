@@ -16,7 +16,7 @@ from agents import logging as logging_lib
 from agents import plot
 from agents import train
 from agents.sac import agent as agent_lib
-from hrc_suite import render
+from hrc_suite.rendering import episode as render
 from hrc_suite.experts import dataset as dataset_lib
 
 # Ten-step episodes of reach/dense and a tiny SAC, so that runs take seconds.
@@ -216,7 +216,7 @@ def test_policy_of_a_run_for_rendering(two_runs):
 
 def test_render_renders_a_checkpoint_in_its_training_environment(
     two_runs, tmp_path):
-  # hrc_suite.render finds agents' loader through the installed entry point.
+  # hrc_suite.rendering.episode finds agents' loader through the installed entry point.
   out = tmp_path / 'trained.gif'
   path, metrics = render.run(policy=two_runs[0], out=str(out), max_steps=3,
                              width=64, height=48)

@@ -1,6 +1,6 @@
 """Runs one episode of a task with a policy and writes a video and its metrics.
 
-    MUJOCO_GL=egl python -m hrc_suite.render --domain=handover \
+    python -m hrc_suite.rendering.episode --domain=handover \
         --task=robot_to_human --policy=expert --out=handover.mp4
 
 One frame per RL step (10 Hz), or one every --substeps_per_frame physics
@@ -36,7 +36,7 @@ from absl import app
 from absl import flags
 import numpy as np
 
-from hrc_suite import render_overlay
+from hrc_suite.rendering import overlay as render_overlay
 from hrc_suite import rendering
 from hrc_suite import registry_flags
 

@@ -1,6 +1,6 @@
 """Renders one picture per registered task for docs/tasks.md.
 
-  MUJOCO_GL=egl python -m hrc_suite.tasks.render_scenes --out=docs/images/tasks
+  python -m hrc_suite.rendering.scenes --out=docs/images/tasks
 
 Each task is loaded with a fixed seed (Panda, the task's defaults) and
 stepped with a still arm until the human is in a characteristic pose:

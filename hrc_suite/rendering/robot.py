@@ -1,6 +1,6 @@
 """Renders a robot in the workcell following a jerk-limited trajectory.
 
-    MUJOCO_GL=egl python -m hrc_suite.render_robot --robot=panda --out=panda.mp4
+    python -m hrc_suite.rendering.robot --robot=panda --out=panda.mp4
 
 The arm is simulated (MuJoCo physics at 4 ms, torque control by the joint
 tracking controller) while it visits a few configurations around its home

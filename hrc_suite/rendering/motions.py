@@ -1,6 +1,6 @@
 """Renders the human performing one shipped motion of each task.
 
-  MUJOCO_GL=egl python -m hrc_suite.human.render_motions --out=DIR
+  python -m hrc_suite.rendering.motions --out=DIR
       [--clip_index=0] [--camera=NAME] [--fps=25] [--robot=panda]
 
 Writes DIR/<task>.mp4 per task and DIR/all_tasks.mp4 (all in a row). The
