@@ -134,6 +134,26 @@ def cube_region_x(robot_name: str, task_region_x: tuple) -> tuple:
   own = robot_mount(robot_name).cube_region_x
   return tuple(task_region_x if own is None else own)
 
+
+# A point a person chooses for the robot (a clip's inspection point) that
+# the robot cannot reach: it is moved towards the robot's home TCP along
+# the straight line, to the first of FIT_STEPS evenly spaced points the
+# robot reaches (issue 17: the layout decides; docs/robots.md,
+# "Reachability", counts each robot's moved points).
+FIT_STEPS = 21
+
+
+def fit_into_reach(point, home, reachable, steps=FIT_STEPS):
+  """`point` (world, m) moved towards `home` (the robot's home TCP) to the
+  first of `steps` points on the line between them (point first, home
+  last) for which reachable(candidate) holds; home if none does."""
+  point, home = np.asarray(point, dtype=float), np.asarray(home, dtype=float)
+  for s in np.linspace(0.0, 1.0, steps):
+    candidate = point + s * (home - point)
+    if reachable(candidate):
+      return candidate
+  return home
+
 # Human stations: (x, y, yaw) of the clip frame's origin on the floor. A clip
 # is authored with the person at the origin facing +x; yaw turns it.
 # The shared stations stand this far behind the table's edge.

@@ -67,8 +67,6 @@ HOVER_HEIGHT = 0.1           # m above the grasp, checked for IK
 GRASP_TCP_ABOVE_CENTRE = 0.005   # m
 TABLE_CLEARANCE = 0.005      # m, fingertips above the table (see doc)
 OBJECT_MAX_YAW = 0.3         # rad, cube heading about the fingers' axes
-# Candidates from the clip's inspection point towards the home TCP.
-TARGET_CANDIDATES = 21
 # How far a gripped cube slides down in the pads while it is carried: the
 # TCP was 0.015-0.020 m above the centre of a carried cube (Panda, recorded
 # inspection clips; docs/tasks.md), 0.010-0.015 m below the grasp's.
@@ -153,19 +151,15 @@ class Inspection(base.HrcTask):
     return True
 
   def _clip_target(self):
-    """The current clip's inspection target, moved into the robot's reach."""
+    """The current clip's inspection point where the robot reaches it
+    (layout.fit_into_reach decides where a point out of reach moves)."""
     clip = self._player.clip
     if clip.name not in self._target_cache:
       point = np.asarray(self._player.targets_world['inspection_point'])
       q_home = self._robot.description.q_home
-      home = self._kinematics.tcp_pose(q_home)[:3, 3]
-      target = home
-      for s in np.linspace(0.0, 1.0, TARGET_CANDIDATES):
-        candidate = point + s * (home - point)
-        if self._reachable(candidate, q_home):
-          target = candidate
-          break
-      self._target_cache[clip.name] = target
+      self._target_cache[clip.name] = layout.fit_into_reach(
+          point, self._kinematics.tcp_pose(q_home)[:3, 3],
+          lambda candidate: self._reachable(candidate, q_home))
     return self._target_cache[clip.name].copy()
 
   def _initialize_task(self, physics, random_state):

@@ -7,6 +7,7 @@ from dm_env import test_utils
 import numpy as np
 import pytest
 
+from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import inspection
@@ -79,6 +80,17 @@ def test_target_is_the_clip_point_when_reachable():
   assert np.linalg.norm(target - home) < np.linalg.norm(point - home)
   cross = np.cross(point - home, target - home)
   assert np.linalg.norm(cross) < 1e-9
+
+
+def test_layout_fits_a_point_into_reach():
+  point, home = np.array([1.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0])
+  np.testing.assert_array_equal(
+      layout.fit_into_reach(point, home, lambda p: True), point)
+  # Reached only from x <= 0.5: the first of the 21 points (steps of 0.05).
+  fitted = layout.fit_into_reach(point, home, lambda p: p[0] <= 0.5)
+  np.testing.assert_allclose(fitted, [0.5, 0.0, 1.0])
+  np.testing.assert_array_equal(
+      layout.fit_into_reach(point, home, lambda p: False), home)
 
 
 @pytest.mark.parametrize('space', SPACES)
