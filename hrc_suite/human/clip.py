@@ -11,6 +11,7 @@ amplitudes u_i in seconds of clip time and S_i the dimensionless slope at t_I.
 """
 
 import dataclasses
+import enum
 import json
 import math
 import pathlib
@@ -27,6 +28,27 @@ MOTION_TASKS = ('reach', 'pick_place', 'inspection', 'lifting',
                 'hammering', 'stacking', 'hammering_board')
 CLIP_TASKS = MOTION_TASKS + ('other',)
 
+class Event(str, enum.Enum):
+  """An event that ends a clip's idle phase; each is its name as a string
+  (clips store the string: Event('nail_hammered') is Event.nail_hammered,
+  and the two compare and hash alike)."""
+  # The robot holds the object in the inspection zone in front of the human.
+  object_presented = 'object_presented'
+  # The human has the object from the robot's gripper.
+  object_received = 'object_received'
+  # The robot has grasped the presented object; then has placed it.
+  object_taken = 'object_taken'
+  object_placed = 'object_placed'
+  # The robot has driven the nail (the human holds the board, or brought it).
+  nail_hammered = 'nail_hammered'
+  # The robot has placed the second cube; then the fourth cube.
+  second_cube_placed = 'second_cube_placed'
+  fourth_cube_placed = 'fourth_cube_placed'
+
+  def __str__(self):
+    return self.value
+
+
 # Events that end idle phases, per task, in the order the phases occur. A
 # task's clips may only wait for these; the task triggers them on the player.
 # 'other' clips may use any identifier-like event name.
@@ -34,19 +56,13 @@ TASK_EVENTS = {
     'reach': (),
     'pick_place': (),
     'lifting': (),
-    # The robot holds the object in the inspection zone in front of the human.
-    'inspection': ('object_presented',),
-    # The human has the object from the robot's gripper.
-    'handover_robot_to_human': ('object_received',),
-    # The robot has grasped the presented object; then has placed it.
-    'handover_human_to_robot': ('object_taken', 'object_placed'),
-    # The robot has driven the nail the human holds.
-    'hammering': ('nail_hammered',),
-    # The robot has placed the second cube; then the fourth cube.
-    'stacking': ('second_cube_placed', 'fourth_cube_placed'),
-    # hammering/robot_hammers: the robot has driven the nail in the board
-    # the person brought.
-    'hammering_board': ('nail_hammered',),
+    'inspection': (Event.object_presented,),
+    'handover_robot_to_human': (Event.object_received,),
+    'handover_human_to_robot': (Event.object_taken, Event.object_placed),
+    'hammering': (Event.nail_hammered,),
+    'stacking': (Event.second_cube_placed, Event.fourth_cube_placed),
+    # hammering/robot_hammers: the board the person brought.
+    'hammering_board': (Event.nail_hammered,),
 }
 HANDS = ('left', 'right')
 

@@ -76,7 +76,7 @@ HOLD_YAW = np.pi / 2
 # without aiming the torso's sway scatters the face's landing points by
 # +-3 cm sideways (clip hammering_07), more than the face and head radii.
 AIM_AT_NAIL = True
-EVENT = clip_lib.TASK_EVENTS['hammering'][0]
+EVENT = clip_lib.Event.nail_hammered
 GOAL_RADIUS = 0.01             # m, visual marker of the nail target
 GOAL_RGBA = (0.1, 0.8, 0.2, 0.5)
 _HAND_SEGMENTS = {hand: [s[0] for s in human_lib.SEGMENTS].index(

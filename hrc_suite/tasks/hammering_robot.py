@@ -53,7 +53,7 @@ BLOW_PROGRESS = hammering.BLOW_PROGRESS
 # RL steps without the hammer before failure: as hammering/default's
 # (hammering.NailOutcome).
 DROP_STEPS = hammering.DROP_STEPS
-EVENT = clip_lib.TASK_EVENTS['hammering_board'][0]
+EVENT = clip_lib.Event.nail_hammered
 # The nail plank: 30 x 10 x 4 cm of pine (0.8 kg with its handle), the
 # handle at its person end (-x), the nail 5 cm from its robot end: the
 # recordings' resting hands lie 0.70-0.89 m from the robot base, so the

@@ -55,6 +55,7 @@ from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import props
+from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.safety import geometry
 from hrc_suite.tasks import base
@@ -283,7 +284,7 @@ class RobotToHuman(_Handover):
   """The robot hands the hammer to the human."""
 
   MOTIONS = 'handover_robot_to_human'
-  EVENT = 'object_received'
+  EVENT = clip_lib.Event.object_received
 
   def _initialize_task(self, physics, random_state):
     self._reset_flags()
@@ -354,7 +355,7 @@ class HumanToRobot(_Handover):
   """The human hands the hammer to the robot, which places it on the table."""
 
   MOTIONS = 'handover_human_to_robot'
-  EVENT = 'object_placed'
+  EVENT = clip_lib.Event.object_placed
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
   TASK_STATE = _Handover.TASK_STATE + ('_picked', '_pick_grip',
                                        '_at_target', '_turn')
@@ -549,7 +550,7 @@ class HumanToRobot(_Handover):
     # sides of the hammer while the gripper is commanded open.
     closing = float(physics.bind(self._gripper.actuator).ctrl) > 0.0
     if self._holder() is not None and self._gripped and closing and (
-        self._player.waiting_for == 'object_taken'):
+        self._player.waiting_for == clip_lib.Event.object_taken):
       self._release(physics, self._hammer.body)
       self._pick_grip = None
       handovers = 1
@@ -565,7 +566,7 @@ class HumanToRobot(_Handover):
     del physics
     events = []
     if self._holder() is None and self._gripped:
-      events.append('object_taken')
+      events.append(clip_lib.Event.object_taken)
     if self._event_time is not None and self._at_target:
       events.append(self.EVENT)
     return events

@@ -51,7 +51,7 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
 from hrc_suite.tasks import common
 
-EVENT = clip_lib.TASK_EVENTS['inspection'][0]   # 'object_presented'
+EVENT = clip_lib.Event.object_presented
 SUCCESS_DISTANCE = 0.1       # m, object to inspection target (reference)
 GRIPPED_REWARD = common.GRIPPED_REWARD   # reference: as pick and place
 SUCCESS_REWARD = common.SUCCESS_REWARD

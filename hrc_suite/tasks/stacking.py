@@ -89,7 +89,8 @@ WITHDRAWN_DISTANCE = 0.15      # m
 TABLE_CLEARANCE = 0.018        # m
 HUMAN_CUBES = (0, 2)           # cubes 1 and 3
 ROBOT_CUBES = (1, 3)           # cubes 2 and 4
-EVENTS = clip_lib.TASK_EVENTS['stacking']
+EVENTS = (clip_lib.Event.second_cube_placed,
+          clip_lib.Event.fourth_cube_placed)
 _GRIP = np.array([0.0, 0.0, task_motions.GRIP_ABOVE_CENTRE])
 _HAND_KEYPOINTS = np.array(keypoints.index(
     [f'{hand}_hand' for hand in human_lib.HANDS]))
