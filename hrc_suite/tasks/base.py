@@ -124,8 +124,7 @@ DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
 _SEED_RANGE = 2**31 - 1
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 # Flag positions of the contacts that cost collision_reward.
-_ILLEGAL_FLAGS = np.array([contacts.TYPE_INDEX[name]
-                           for name in contacts.ILLEGAL_TYPES])
+_ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
 
 
 def _choice(name, value, valid):

@@ -46,26 +46,39 @@ NumPy calls; robot-human contacts are then judged as above (the same
 flags, tests/tasks/test_base.py).
 """
 
+import enum
+
 import mujoco
 import numba
 import numpy as np
 
+# Geom categories (what a geom belongs to; not contact types).
 NONE, STATIC, ROBOT, OBJECT, HUMAN = range(5)
-# Contact types, in the order of the monitor's flags; new types go last, so
-# flags stored in older snapshots keep their positions.
-CONTACT_TYPES = ('static', 'human_allowed', 'human_critical', 'robot_object',
-                 'human_object', 'human_pushed')
-TYPE_INDEX = {name: index for index, name in enumerate(CONTACT_TYPES)}
+
+
+class ContactType(enum.IntEnum):
+  """Contact types: each is its position among the monitor's flags. New
+  types go last, so flags stored in older snapshots keep their positions."""
+  static = 0
+  human_allowed = 1
+  human_critical = 2
+  robot_object = 3
+  human_object = 4
+  human_pushed = 5
+
+
+CONTACT_TYPES = tuple(kind.name for kind in ContactType)
+TYPE_INDEX = {kind.name: int(kind) for kind in ContactType}
 # Contacts that cost the task's collision reward (with self-collisions).
-ILLEGAL_TYPES = ('static', 'human_critical')
+ILLEGAL_TYPES = (ContactType.static, ContactType.human_critical)
 # Types decided by the pair of geom categories; robot-human contacts are
 # then split by speed (and push) into allowed, critical and pushed.
 _PAIR_TYPES = (((ROBOT, STATIC), 'static'), ((ROBOT, HUMAN), 'human_allowed'),
                ((ROBOT, OBJECT), 'robot_object'),
                ((HUMAN, OBJECT), 'human_object'))
-_ALLOWED = TYPE_INDEX['human_allowed']
-_CRITICAL = TYPE_INDEX['human_critical']
-_PUSHED = TYPE_INDEX['human_pushed']
+_ALLOWED = int(ContactType.human_allowed)
+_CRITICAL = int(ContactType.human_critical)
+_PUSHED = int(ContactType.human_pushed)
 # SSM: the shield stops the robot before any contact, so a contact with the
 # robot moving is a violation. The reference's threshold (1 mm/s) is kept:
 # judged on the commanded velocity, which is exactly zero once the shield's

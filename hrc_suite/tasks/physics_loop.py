@@ -68,8 +68,8 @@ PHYSICS_WARNING = 2   # step k's physics raised a MuJoCo warning counter
 # The arena's high-water mark, as a share of its size, up to which the
 # compiled call runs (module doc: MuJoCo errors need the Python loop).
 ARENA_HEADROOM = 0.5
-_ALLOWED = contacts.TYPE_INDEX['human_allowed']
-_CRITICAL = contacts.TYPE_INDEX['human_critical']
+_ALLOWED = int(contacts.ContactType.human_allowed)
+_CRITICAL = int(contacts.ContactType.human_critical)
 # Two spheres resting on a plane and touching each other: three contacts,
 # to locate mjContact's fields (_contact_fields).
 _PROBE_XML = """
