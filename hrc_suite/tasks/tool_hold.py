@@ -112,43 +112,35 @@ class CompliantHold:
             rtol=1e-3):
       raise ValueError(f'{body.full_identifier!r} must be a free body (or '
                        'hang alone from a massless free body)')
-    self._qpos = int(model.jnt_qposadr[joint])
-    self._qvel = int(model.jnt_dofadr[joint])
-    self._mass = float(model.body_mass[self._body])
-    # Centre of mass and principal axes in the free joint's frame.
-    offset_rotation = _quat_to_mat(offset_quat)
-    self._com_local = offset_pos + offset_rotation @ model.body_ipos[
+    mass = float(model.body_mass[self._body])
+    # Centre of mass and principal axes in the free joint's frame (the
+    # weld's relative pose is the held body's; offset_* turn it into the
+    # free joint's frame).
+    com_local = offset_pos + _quat_to_mat(offset_quat) @ model.body_ipos[
         self._body]
-    self._inertia = model.body_inertia[self._body].copy()
-    self._inertia_quat = _quat_mul(offset_quat, model.body_iquat[self._body])
-    # The weld's relative pose is the held body's; this turns it into the
-    # free joint's frame.
-    self._offset = (offset_pos, offset_quat)
-    self._gravity = model.opt.gravity.copy()
-    self._dt = float(model.opt.timestep)
-    self._k = float(stiffness)
-    self._b = 2.0 * damping_ratio * np.sqrt(stiffness * self._mass)
+    inertia = model.body_inertia[self._body].copy()
     # Per principal axis: stiffness (capped, MAX_FREQUENCY) and damping.
-    self._k_rot = np.minimum(float(rotational_stiffness),
-                             self._inertia * MAX_FREQUENCY ** 2)
-    self._b_rot = 2.0 * damping_ratio * np.sqrt(self._k_rot * self._inertia)
-    self._params = np.zeros(kernels.NUM_PARAMS)
+    k_rot = np.minimum(float(rotational_stiffness),
+                       inertia * MAX_FREQUENCY ** 2)
+    self._params = np.zeros(kernels.NUM_PARAMS)   # tool_hold_kernels' slots
     for slot, value in (
-        (kernels.MASS, self._mass), (kernels.DT, self._dt),
-        (kernels.K, self._k), (kernels.B, self._b),
-        (kernels.K_ROT, self._k_rot), (kernels.B_ROT, self._b_rot),
-        (kernels.INERTIA, self._inertia),
-        (kernels.COM_LOCAL, self._com_local),
-        (kernels.INERTIA_QUAT, self._inertia_quat),
+        (kernels.MASS, mass), (kernels.DT, model.opt.timestep),
+        (kernels.K, stiffness),
+        (kernels.B, 2.0 * damping_ratio * np.sqrt(stiffness * mass)),
+        (kernels.K_ROT, k_rot),
+        (kernels.B_ROT, 2.0 * damping_ratio * np.sqrt(k_rot * inertia)),
+        (kernels.INERTIA, inertia), (kernels.COM_LOCAL, com_local),
+        (kernels.INERTIA_QUAT,
+         _quat_mul(offset_quat, model.body_iquat[self._body])),
         (kernels.OFFSET_POS, offset_pos), (kernels.OFFSET_QUAT, offset_quat),
-        (kernels.GRAVITY, self._gravity), (kernels.MAX_AIM, MAX_AIM),
+        (kernels.GRAVITY, model.opt.gravity), (kernels.MAX_AIM, MAX_AIM),
         (kernels.MAX_REACH, MAX_REACH), (kernels.MAX_FORCE, MAX_FORCE),
         (kernels.MAX_TORQUE, MAX_TORQUE)):
       value = np.atleast_1d(value)
       self._params[slot:slot + value.size] = value
     self._indices = np.zeros(kernels.NUM_INDICES, dtype=np.int64)
     self._indices[[kernels.BODY, kernels.QPOS, kernels.QVEL]] = (
-        self._body, self._qpos, self._qvel)
+        self._body, model.jnt_qposadr[joint], model.jnt_dofadr[joint])
     self._aim = np.zeros(3)    # world point the tool's origin heads for
     # Target history: centre-of-mass positions and orientations at the last
     # two physics steps, and the last target angular velocity.
