@@ -69,6 +69,14 @@ _DIAGONAL_SIGNS = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0],
                             [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])
 
 
+def row_norms(vectors):
+  """np.linalg.norm of each row of (n, k) vectors, each exactly as on one
+  row (np.linalg.norm takes a row's dot product through BLAS; a stacked
+  np.matmul does the same row by row, where a sum of squares would round
+  differently)."""
+  return np.sqrt(np.matmul(vectors[:, None, :], vectors[:, :, None])[:, 0, 0])
+
+
 def _row_dots(x, y):
   """Row-wise dot products of (N, 3) or (N, 4) arrays, summed in a fixed
   order (terms 0 + 2, then 1 (+ 3)): the order np.einsum('ij,ij->i')
@@ -440,9 +448,7 @@ class Human(composer.Entity):
     quaternions = np.asarray(quaternions, dtype=np.float64)
     norms = np.full(len(quaternions), np.nan)
     if quaternions.ndim == 2 and quaternions.shape[1] == 4:
-      # np.linalg.norm of each row (a stacked product: a row's own dot).
-      norms = np.sqrt(np.matmul(quaternions[:, None, :],
-                                quaternions[:, :, None])[:, 0, 0])
+      norms = row_norms(quaternions)
     bad = ~(np.isfinite(norms) & (norms > 0))
     if (positions.shape != (len(norms), 3) or not np.isfinite(positions).all()
         or bad.any()):

@@ -41,6 +41,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
@@ -295,9 +296,7 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     positions, quaternions = self._carry_poses(self._playback.positions)
     qpos = np.empty((len(positions), 7))
     qpos[:, :3] = positions
-    # np.linalg.norm of each row (its own dot product, stacked).
-    qpos[:, 3:] = quaternions / np.sqrt(np.matmul(
-        quaternions[:, None, :], quaternions[:, :, None]))[:, 0]
+    qpos[:, 3:] = quaternions / human_lib.row_norms(quaternions)[:, None]
     data = physics.data
     return ((data.qpos, int(joint.qposadr) + np.arange(7), qpos),
             (data.qvel, int(joint.dofadr) + np.arange(6),

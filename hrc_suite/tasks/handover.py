@@ -137,10 +137,6 @@ def _slerp(q0, q1, t):
         math.sin(angle))
   return q / np.linalg.norm(q)
 
-def _norms(vectors):
-  """np.linalg.norm of each row of (n, k) vectors, as on one row (its dot
-  product, by stacked np.matmul)."""
-  return np.sqrt(np.matmul(vectors[:, None, :], vectors[:, :, None])[:, 0, 0])
 
 class _Handover(base.HrcTask):
   """Hammer, table region, human holding logic shared by both handovers."""
@@ -409,12 +405,12 @@ class HumanToRobot(_Handover):
     r_hand_t = r_hand.transpose(0, 2, 1)
     axis = r_hand[:, :, 2]
     heading = axis * (1.0, 1.0, 0.0)
-    upright = _norms(heading) < MIN_HEADING
+    upright = human_lib.row_norms(heading) < MIN_HEADING
     if upright.any():
       # A hand pointing straight up or down: the person's facing.
       yaw = self._player.placement[2]
       heading[upright] = (math.cos(yaw), math.sin(yaw), 0.0)
-    heading /= _norms(heading)[:, None]
+    heading /= human_lib.row_norms(heading)[:, None]
     end = centres + half * axis
     lowest = (layout.TABLE_TOP_Z + PRESENT_CLEARANCE - end[:, 2]) / (
         props.HAMMER_HUMAN_GRIP)
