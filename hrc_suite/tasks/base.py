@@ -833,14 +833,9 @@ class HrcTask(composer.Task):
   def run_physics_steps(self, physics, action, random_state):
     """The RL step's physics steps, each with the hooks composer runs
     around a substep (`one_substep`: suite.Environment's only substep;
-    tasks/substeps.py)."""
-    self._run_physics_steps(physics, action, random_state,
-                            self.shield_substeps)
-
-  def _run_physics_steps(self, physics, action, random_state, stop):
-    """Physics steps _substep..stop-1 with their hooks: stretches in one
-    compiled call where nothing needs Python (tasks/physics_loop.py),
-    the others one by one."""
+    tasks/substeps.py): stretches in one compiled call where nothing needs
+    Python (tasks/physics_loop.py), the others one by one."""
+    stop = self.shield_substeps
     steps, compiled = self._physics_steps, self._compiled_steps
     if compiled is not None and (not steps.idle()
                                  or not compiled.has_headroom()):

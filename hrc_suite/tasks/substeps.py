@@ -110,7 +110,8 @@ class PhysicsSteps:
     task's own parts are run by the caller before and after."""
     for hook in self._entity['before_substep']:
       hook(physics, random_state)
-    self.last_before(physics, action, random_state)
+    for hook in self._extra['before_substep']:
+      hook(physics, action, random_state)
     if self._raw:
       before = self._warnings.tobytes()   # cheaper than a copy and compare
       mujoco.mj_step2(self._model, self._data)
@@ -132,16 +133,5 @@ class PhysicsSteps:
     """The entity and extra after_substep hooks of a physics step."""
     for hook in self._entity['after_substep']:
       hook(physics, random_state)
-    self.last_after(physics, random_state)
-
-  def last_before(self, physics, action, random_state):
-    """The extra before_substep hooks, the last hooks before a physics
-    step."""
-    for hook in self._extra['before_substep']:
-      hook(physics, action, random_state)
-
-  def last_after(self, physics, random_state):
-    """The extra after_substep hooks, the last hooks after a physics
-    step."""
     for hook in self._extra['after_substep']:
       hook(physics, random_state)
