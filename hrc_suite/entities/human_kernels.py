@@ -91,6 +91,33 @@ def segment_frames(positions, proximal, distal, reference, middles,
 
 
 @_jit
+def playback_frames(positions, proximal, distal, left, right, reference,
+                    middles, quaternions, mocap_rows):
+  """human_playback's frames of an RL step: the reference lines
+  reference[r] = positions[left[r]] - positions[right[r]] (rows with
+  left[r] < 0 keep theirs), then `segment_frames` of all rows; if
+  mocap_rows (L, S + K, 3) is not empty, each substep's middles (S) and
+  keypoints (K) copied into its row."""
+  for r in range(left.shape[0]):
+    if left[r] >= 0:
+      for c in range(3):
+        reference[r, c] = positions[left[r], c] - positions[right[r], c]
+  segment_frames(positions, proximal, distal, reference, middles,
+                 quaternions)
+  if mocap_rows.shape[0]:
+    steps = mocap_rows.shape[0]
+    count = middles.shape[0] // steps
+    keypoints = positions.shape[0] // steps
+    for k in range(steps):
+      for s in range(count):
+        for c in range(3):
+          mocap_rows[k, s, c] = middles[k * count + s, c]
+      for j in range(keypoints):
+        for c in range(3):
+          mocap_rows[k, count + j, c] = positions[k * keypoints + j, c]
+
+
+@_jit
 def faster_than(frames, dt, v_max):
   """Whether a keypoint moves faster than v_max (K,) m/s between
   consecutive frames (L, K, 3) dt seconds apart: the reference's
@@ -113,4 +140,7 @@ def warm_up():
   ends = np.zeros(1, dtype=np.int64)
   segment_frames(positions.reshape(-1, 3), ends, ends, np.ones((1, 3)),
                  np.empty((1, 3)), np.empty((1, 4)))
+  playback_frames(positions.reshape(-1, 3), ends, ends, ends, ends,
+                  np.ones((1, 3)), np.empty((1, 3)), np.empty((1, 4)),
+                  np.empty((0, 2, 3)))
   faster_than(positions, 1.0, np.ones(1))

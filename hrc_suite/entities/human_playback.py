@@ -23,6 +23,7 @@ from hrc_suite.entities import human_kernels
 from hrc_suite.human import keypoints
 
 _LEG_PARTS = ('thigh', 'shin')
+_NO_ROWS = np.zeros((0, 1, 3))   # playback_frames without mocap rows
 
 
 def _as_slice(ids):
@@ -57,6 +58,13 @@ class HumanPlayback:
     self._shoulder_line = ~(self._hip_line | self._vertical)
     self._shoulders = (index['left_shoulder'], index['right_shoulder'])
     self._hips = (index['left_hip'], index['right_hip'])
+    # The kernel's reference lines: keypoint rows (of positions (L * K, 3))
+    # whose difference is each of the L x S segments' line (-1: vertical).
+    left = np.where(self._hip_line, self._hips[0], self._shoulders[0])
+    right = np.where(self._hip_line, self._hips[1], self._shoulders[1])
+    left = np.where(self._vertical, -1, left[None] + offsets)
+    self._line_left = left.ravel()
+    self._line_right = (right[None] + offsets).ravel()
     self.positions = np.zeros((self.substeps, k, 3))
     self.times = np.zeros(self.substeps)
     self.clips = [None] * self.substeps
@@ -74,11 +82,13 @@ class HumanPlayback:
       human_kernels.warm_up()
 
   def _frames_compiled(self):
-    """The segment frames of `positions` by the kernel."""
-    human_kernels.segment_frames(
+    """The reference lines, segment frames and mocap rows of `positions`
+    by the kernel."""
+    human_kernels.playback_frames(
         self.positions.reshape(-1, 3), self._proximal, self._distal,
-        self._reference.reshape(-1, 3), self._middles.reshape(-1, 3),
-        self._quaternions.reshape(-1, 4))
+        self._line_left, self._line_right, self._reference.reshape(-1, 3),
+        self._middles.reshape(-1, 3), self._quaternions.reshape(-1, 4),
+        self._mocap_rows if self._together is not None else _NO_ROWS)
 
   def bind(self, physics):
     """Mocap indices of the human's capsules and keypoints in `physics`."""
@@ -121,6 +131,9 @@ class HumanPlayback:
   def advance(self, dt):
     """Advances the player through the RL step's substeps."""
     self._player.advance_many(dt, self.positions, self.times, self.clips)
+    if self._compiled:
+      self._frames_compiled()
+      return
     reference = self._reference
     left, right = self._shoulders
     reference[:, self._shoulder_line] = (self.positions[:, left]
@@ -128,14 +141,11 @@ class HumanPlayback:
     left, right = self._hips
     reference[:, self._hip_line] = (self.positions[:, left]
                                    - self.positions[:, right])[:, None]
-    if self._compiled:
-      self._frames_compiled()
-    else:
-      middles, _, quaternions = human_lib.segment_frames(
-          self.positions.reshape(-1, 3), self._proximal, self._distal,
-          reference.reshape(-1, 3))
-      self._middles[:] = middles.reshape(self._middles.shape)
-      self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
+    middles, _, quaternions = human_lib.segment_frames(
+        self.positions.reshape(-1, 3), self._proximal, self._distal,
+        reference.reshape(-1, 3))
+    self._middles[:] = middles.reshape(self._middles.shape)
+    self._quaternions[:] = quaternions.reshape(self._quaternions.shape)
     if self._together is not None:
       count = self._middles.shape[1]
       self._mocap_rows[:, :count] = self._middles

@@ -24,6 +24,7 @@ import numpy as np
 
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
+from hrc_suite.human import player_kernels
 
 # Peak keypoint speed while blending from one clip's last pose to the next
 # clip's first pose: half the 2 m/s the shield assumes
@@ -167,12 +168,15 @@ class Player:
     self._waiting = False
     self._anchor = 0.0
     clip = self._current.clip
-    self._targets_world = {
-        name: p @ self._rot_t + self._trans for name, p in clip.targets.items()}
+    self._targets_world = {}
+    for name, point in clip.targets.items():
+      placed = np.empty((1, 3))
+      self._place(np.asarray(point, dtype=float).reshape(1, 3), placed)
+      self._targets_world[name] = placed[0]
 
   def _place(self, local, out):
-    np.matmul(local, self._rot_t, out=out)
-    out += self._trans
+    """out = local @ rot_t + trans (rows (n, 3); player_kernels.place)."""
+    player_kernels.place(local, self._rot_t, self._trans, out)
 
   # ------------------------------------------------------------------ time
   def _warped(self, s):
@@ -243,8 +247,8 @@ class Player:
     for prepared, (rows, index, fraction) in frames.items():
       local = prepared.steps[index] * np.array(fraction)[:, None, None]
       local += prepared.positions[index]
-      placed = np.matmul(local, self._rot_t)
-      placed += self._trans
+      placed = np.empty_like(local)
+      self._place(local.reshape(-1, 3), placed.reshape(-1, 3))
       positions[rows] = placed
     for rows, weights, start, delta, _ in blends:
       blended = delta * np.array(weights)[:, None, None]
@@ -254,39 +258,27 @@ class Player:
 
   def _advance_within_clip(self, dt, positions, times, clips):
     """advance_many where all n steps play the current clip: no blend, no
-    wait, no end, the next anchor and the clip's end not reached. The
-    clocks as n additions of dt (np.add.accumulate adds in order), then
-    _advance_time's and _update_outputs' operations on all rows at once.
-    Returns False, changing nothing, if a step leaves that case."""
+    wait, no end, the next anchor and the clip's end not reached
+    (player_kernels.play_within_clip: _advance_time's and
+    _update_outputs' operations, step by step). Returns False, changing
+    nothing, if a step leaves that case."""
     prepared = self._current
     n = len(positions)
     if (not n or self._transition is not None or self._waiting
         or self._finished):
       return False
-    clock = np.full(n + 1, dt, dtype=float)   # n additions of dt, in order
-    clock[0] = self._linear
-    linear = np.add.accumulate(clock)
-    t = linear[1:] - self._offset
     end = prepared.duration
     if self._phase < len(prepared.anchors):
       end = min(end, prepared.anchors[self._phase])
-    if not t[-1] < end:   # t grows with k: the last step decides.
+    within, linear, episode_time = player_kernels.play_within_clip(
+        self._linear, self._offset, self._episode_time, float(dt), end,
+        prepared.fps, prepared.last, prepared.positions, prepared.steps,
+        self._rot_t, self._trans, positions, times[:n], self._positions,
+        self._velocities)
+    if not within:
       return False
-    clock[0] = self._episode_time
-    clock[1:] = dt
-    episode = np.add.accumulate(clock)
-    times[:n] = episode[1:]
+    self._linear, self._episode_time = linear, episode_time
     clips[:n] = [prepared.clip] * n
-    self._episode_time = float(episode[-1])
-    self._linear = float(linear[-1])
-    frame = np.where(t <= 0.0, 0.0, t) * prepared.fps
-    index = np.minimum(frame.astype(np.intp), prepared.last)
-    local = prepared.steps[index] * (frame - index)[:, None, None]
-    local += prepared.positions[index]
-    placed = np.matmul(local, self._rot_t)
-    placed += self._trans
-    positions[:n] = placed
-    self._update_outputs()
     return True
 
   def _check_advance(self, dt):
@@ -379,7 +371,7 @@ class Player:
     self._local += prepared.positions[i]
     self._place(self._local, self._positions)
     np.multiply(step, rate * prepared.fps, out=self._local_vel)
-    np.matmul(self._local_vel, self._rot_t, out=self._velocities)
+    player_kernels.rotate(self._local_vel, self._rot_t, self._velocities)
 
   @property
   def positions(self):

@@ -1,0 +1,108 @@
+"""Compiled (numba) playback of the player (human/player.py).
+
+`place` is the player's one placement of clip-local points in the world,
+`local @ rot_t + trans`, for both of its paths. np.matmul leaves that
+product to BLAS, whose rounding depends on the BLAS kernel the CPU gets;
+`place` fixes it: each entry is fma(l2, r2, fma(l1, r1, l0 * r0)), the
+order of OpenBLAS's Haswell/Zen kernel (on such CPUs it equals np.matmul
+bit for bit, and it is the same on every CPU). `play_within_clip` is
+`Player._advance_within_clip` (an RL step's frames inside one clip) and
+the outputs after it, the same operations in the same order. Same
+compilation settings as the shield's kernels (safety/kernels.py: cache,
+IEEE arithmetic: no contraction but the explicit fma).
+"""
+
+import numpy as np
+from numba import types
+from numba.extending import intrinsic
+
+from hrc_suite.safety import kernels
+
+_jit = kernels._jit
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+  """a * b + c with one rounding (LLVM's llvm.fma.f64)."""
+  del typingctx
+  if not all(isinstance(x, types.Float) for x in (a, b, c)):
+    return None
+  signature = types.float64(types.float64, types.float64, types.float64)
+
+  def codegen(context, builder, sig, args):
+    del context, sig
+    return builder.fma(*args)
+  return signature, codegen
+
+
+@_jit
+def fma(a, b, c):
+  """a * b + c rounded once (for tests and callers outside kernels)."""
+  return _fma(a, b, c)
+
+
+@_jit
+def _rotated(local, row, rot_t, c):
+  """Entry c of local[row] @ rot_t, see the module doc."""
+  return _fma(local[row, 2], rot_t[2, c],
+              _fma(local[row, 1], rot_t[1, c], local[row, 0] * rot_t[0, c]))
+
+
+@_jit
+def place(local, rot_t, trans, out):
+  """out (n, 3) = local (n, 3) @ rot_t (3, 3) + trans (3,)."""
+  for row in range(local.shape[0]):
+    for c in range(3):
+      out[row, c] = _rotated(local, row, rot_t, c) + trans[c]
+
+
+@_jit
+def rotate(local, rot_t, out):
+  """out (n, 3) = local (n, 3) @ rot_t (3, 3), as `place`."""
+  for row in range(local.shape[0]):
+    for c in range(3):
+      out[row, c] = _rotated(local, row, rot_t, c)
+
+
+@_jit
+def play_within_clip(linear, offset, episode_time, dt, end, fps, last,
+                     clip_positions, clip_steps, rot_t, trans, positions,
+                     times, now_positions, now_velocities):
+  """Player._advance_within_clip for len(times) steps of dt: returns
+  (True, linear, episode time) after writing each step's keypoints
+  (n, K, 3) and episode time, and the player's outputs after the last
+  (positions and velocities (K, 3)); (False, linear, episode_time),
+  writing nothing, if the clip time reaches `end` within the steps."""
+  n = times.shape[0]
+  clock = linear
+  for _ in range(n):
+    clock += dt
+  if not clock - offset < end:   # The clip time grows: the last decides.
+    return False, linear, episode_time
+  keypoints = clip_positions.shape[1]
+  local = np.empty((keypoints, 3))
+  t = 0.0
+  for k in range(n):
+    linear += dt
+    episode_time += dt
+    times[k] = episode_time
+    t = linear - offset
+    frame = (0.0 if t <= 0.0 else t) * fps
+    index = min(int(frame), last)
+    fraction = frame - index
+    for j in range(keypoints):
+      for c in range(3):
+        local[j, c] = (clip_steps[index, j, c] * fraction
+                       + clip_positions[index, j, c])
+    place(local, rot_t, trans, positions[k])
+  # The outputs (Player._update_outputs): the last step's keypoints, and
+  # the interpolation's derivative at clip rate 1 (0 before the clip).
+  now_positions[:] = positions[n - 1]
+  frame = (0.0 if t <= 0.0 else t) * fps
+  index = min(int(frame), last)
+  rate = (0.0 if t < 0.0 else 1.0) * fps
+  for j in range(keypoints):
+    for c in range(3):
+      local[j, c] = clip_steps[index, j, c] * rate
+  rotate(local, rot_t, now_velocities)
+  return True, linear, episode_time
