@@ -348,25 +348,31 @@ class _Solver:
   more than a whole calculation)."""
 
   _by_dof = {}
-  _limits = {}   # dof -> the limits last written into its request
+  # dof -> (the limits last written into its request, their joint ranges
+  # with _LIMIT_SLACK as lists: the check of Ruckig's position extrema).
+  _limits = {}
 
   @classmethod
   def get(cls, dof, limits):
     """(Ruckig, its request with `limits` and rest at the target, a
-    trajectory) for dof joints."""
+    trajectory, lowest and highest admissible positions (lists)) for dof
+    joints."""
     if dof not in cls._by_dof:
       request = ruckig.InputParameter(dof)
       request.target_velocity = [0.0] * dof
       request.target_acceleration = [0.0] * dof
       cls._by_dof[dof] = (ruckig.Ruckig(dof), request, ruckig.Trajectory(dof))
     solver = cls._by_dof[dof]
-    if cls._limits.get(dof) is not limits:   # Read-only arrays: by identity.
+    last = cls._limits.get(dof)
+    if last is None or last[0] is not limits:   # Read-only: by identity.
       request = solver[1]
       request.max_velocity = limits.v_max.tolist()
       request.max_acceleration = limits.a_max_ltt.tolist()
       request.max_jerk = limits.j_max_ltt.tolist()
-      cls._limits[dof] = limits
-    return solver
+      last = (limits, (limits.q_min - _LIMIT_SLACK).tolist(),
+              (limits.q_max + _LIMIT_SLACK).tolist())
+      cls._limits[dof] = last
+    return solver + last[1:]
 
 
 # No brake pre-profile (plan_kernels.piece_table).
@@ -433,12 +439,16 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
       1, or the motion would leave the joint limits on the way.
   """
   dof = len(limits.q_min)
-  inputs = [np.ascontiguousarray(x, dtype=float)
-            for x in (q0, dq0, ddq0, q_goal)]
+  inputs = (q0, dq0, ddq0, q_goal)
+  if not all(type(x) is np.ndarray and x.dtype == np.float64
+             and x.flags.c_contiguous for x in inputs):
+    inputs = [np.ascontiguousarray(x, dtype=float) for x in inputs]
   goal = np.empty(dof)
-  if all(x.shape == (dof,) for x in inputs) and plan_kernels.plan_inputs_ok(
-      *inputs, limits.q_min, limits.q_max, limits.v_max, limits.a_max_ltt,
-      limits.j_max_ltt, _LIMIT_SLACK, GOAL_LIMIT_MARGIN, goal):
+  if (inputs[0].shape == inputs[1].shape == inputs[2].shape
+      == inputs[3].shape == (dof,)) and plan_kernels.plan_inputs_ok(
+          *inputs, limits.q_min, limits.q_max, limits.v_max,
+          limits.a_max_ltt, limits.j_max_ltt, _LIMIT_SLACK,
+          GOAL_LIMIT_MARGIN, goal):
     q0, dq0, ddq0 = inputs[:3]
   else:   # The checks one by one, raising the first failure's error.
     q0 = _check_vector('q0', q0, dof)
@@ -460,7 +470,7 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   """plan_to_goal's plan, computed (arguments checked, goal clamped)."""
   dof = len(limits.q_min)
 
-  otg, request, trajectory = _Solver.get(dof, limits)
+  otg, request, trajectory, low, high = _Solver.get(dof, limits)
   request.current_position = q0.tolist()
   request.current_velocity = dq0.tolist()
   request.current_acceleration = ddq0.tolist()
@@ -503,8 +513,6 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
       duration)
   num = math.ceil(duration / cycle_time - 1e-9) + 1
   # Whole-motion joint extremes (exact, from Ruckig) for the limit check.
-  low = (limits.q_min - _LIMIT_SLACK).tolist()
-  high = (limits.q_max + _LIMIT_SLACK).tolist()
   outside = [i for i, e in enumerate(trajectory.position_extrema)
              if e.min < low[i] or e.max > high[i]]
   if outside:
