@@ -161,6 +161,9 @@ class Player:
   def _start_clip(self, k):
     self._k = k
     self._index, self._u, self._omega, self._speed = self._draw(k)
+    # The idle phases' (amplitudes, omegas, speeds) as arrays (kernels).
+    self._idle_arrays = [tuple(np.array(x, dtype=float) for x in phase)
+                         for phase in zip(self._u, self._omega, self._speed)]
     self._current = self._clips[self._index]
     self._linear = 0.0
     self._offset = 0.0
@@ -221,7 +224,8 @@ class Player:
     if len(times) < n or len(clips) < n:
       raise ValueError(f'times and clips need {n} entries, got '
                        f'{len(times)} and {len(clips)}')
-    if self._advance_within_clip(dt, positions, times, clips):
+    if (self._advance_within_clip(dt, positions, times, clips)
+        or self._advance_waiting(dt, positions, times, clips)):
       return
     frames = {}     # prepared clip -> (rows, frame index, fraction)
     blends = []     # (rows, weights, from, delta, clip number) per blend
@@ -278,6 +282,26 @@ class Player:
     if not within:
       return False
     self._linear, self._episode_time = linear, episode_time
+    clips[:n] = [prepared.clip] * n
+    return True
+
+  def _advance_waiting(self, dt, positions, times, clips):
+    """advance_many where all n steps wait in an idle phase (the wait ends
+    only at an event, between calls): player_kernels.play_waiting, the
+    operations of _advance_time, _clip_time_and_rate and _update_outputs
+    step by step. Returns False, changing nothing, if not waiting."""
+    n = len(positions)
+    if (not n or not self._waiting or self._transition is not None
+        or self._finished):
+      return False
+    prepared = self._current
+    amplitudes, omegas, speeds = self._idle_arrays[self._phase]
+    self._linear, self._episode_time = player_kernels.play_waiting(
+        self._linear, self._offset, self._anchor, self._episode_time,
+        float(dt), amplitudes, omegas, speeds, prepared.duration,
+        prepared.fps, prepared.last, prepared.positions, prepared.steps,
+        self._rot_t, self._trans, positions, times[:n], self._positions,
+        self._velocities)
     clips[:n] = [prepared.clip] * n
     return True
 

@@ -12,6 +12,8 @@ compilation settings as the shield's kernels (safety/kernels.py: cache,
 IEEE arithmetic: no contraction but the explicit fma).
 """
 
+import math
+
 import numpy as np
 from numba import types
 from numba.extending import intrinsic
@@ -65,6 +67,32 @@ def rotate(local, rot_t, out):
 
 
 @_jit
+def _pose(t, fps, last, clip_positions, clip_steps, rot_t, trans, local,
+          out):
+  """The keypoints at clip time t (0 before the clip) into out (K, 3): the
+  frames' linear interpolation, placed; returns the frame index."""
+  frame = (0.0 if t <= 0.0 else t) * fps
+  index = min(int(frame), last)
+  fraction = frame - index
+  for j in range(local.shape[0]):
+    for c in range(3):
+      local[j, c] = (clip_steps[index, j, c] * fraction
+                     + clip_positions[index, j, c])
+  place(local, rot_t, trans, out)
+  return index
+
+
+@_jit
+def _velocities(index, rate, clip_steps, rot_t, local, out):
+  """The interpolation's derivative in frame `index` at clip rate `rate`
+  (clip seconds per second, times fps) into out (K, 3)."""
+  for j in range(local.shape[0]):
+    for c in range(3):
+      local[j, c] = clip_steps[index, j, c] * rate
+  rotate(local, rot_t, out)
+
+
+@_jit
 def play_within_clip(linear, offset, episode_time, dt, end, fps, last,
                      clip_positions, clip_steps, rot_t, trans, positions,
                      times, now_positions, now_velocities):
@@ -79,30 +107,56 @@ def play_within_clip(linear, offset, episode_time, dt, end, fps, last,
     clock += dt
   if not clock - offset < end:   # The clip time grows: the last decides.
     return False, linear, episode_time
-  keypoints = clip_positions.shape[1]
-  local = np.empty((keypoints, 3))
+  local = np.empty((clip_positions.shape[1], 3))
   t = 0.0
+  index = 0
   for k in range(n):
     linear += dt
     episode_time += dt
     times[k] = episode_time
     t = linear - offset
-    frame = (0.0 if t <= 0.0 else t) * fps
-    index = min(int(frame), last)
-    fraction = frame - index
-    for j in range(keypoints):
-      for c in range(3):
-        local[j, c] = (clip_steps[index, j, c] * fraction
-                       + clip_positions[index, j, c])
-    place(local, rot_t, trans, positions[k])
+    index = _pose(t, fps, last, clip_positions, clip_steps, rot_t, trans,
+                  local, positions[k])
   # The outputs (Player._update_outputs): the last step's keypoints, and
   # the interpolation's derivative at clip rate 1 (0 before the clip).
   now_positions[:] = positions[n - 1]
-  frame = (0.0 if t <= 0.0 else t) * fps
-  index = min(int(frame), last)
-  rate = (0.0 if t < 0.0 else 1.0) * fps
-  for j in range(keypoints):
-    for c in range(3):
-      local[j, c] = clip_steps[index, j, c] * rate
-  rotate(local, rot_t, now_velocities)
+  _velocities(index, (0.0 if t < 0.0 else 1.0) * fps, clip_steps, rot_t,
+              local, now_velocities)
   return True, linear, episode_time
+
+
+@_jit
+def play_waiting(linear, offset, anchor, episode_time, dt, amplitudes,
+                 omegas, speeds, duration, fps, last, clip_positions,
+                 clip_steps, rot_t, trans, positions, times, now_positions,
+                 now_velocities):
+  """advance_many for len(times) steps of dt in an idle phase (the wait
+  lasts until an event, which comes between RL steps): each step's clip
+  time t_I + sum u sin(w s) (Player._warped, clamped to the clip as
+  Player._clip_time_and_rate) and keypoints, as play_within_clip.
+  Returns (linear, episode time)."""
+  n = times.shape[0]
+  local = np.empty((clip_positions.shape[1], 3))
+  t = 0.0
+  rate = 0.0
+  index = 0
+  for k in range(n):
+    episode_time += dt
+    linear += dt
+    times[k] = episode_time
+    s = linear - offset - anchor
+    t = anchor
+    for i in range(amplitudes.shape[0]):
+      t += amplitudes[i] * math.sin(omegas[i] * s)
+    rate = 0.0
+    for i in range(speeds.shape[0]):
+      rate += speeds[i] * math.cos(omegas[i] * s)
+    if t <= 0.0:
+      t, rate = 0.0, (0.0 if t < 0.0 else rate)
+    elif t >= duration:
+      t, rate = duration, (0.0 if t > duration else rate)
+    index = _pose(t, fps, last, clip_positions, clip_steps, rot_t, trans,
+                  local, positions[k])
+  now_positions[:] = positions[n - 1]
+  _velocities(index, rate * fps, clip_steps, rot_t, local, now_velocities)
+  return linear, episode_time

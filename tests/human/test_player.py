@@ -319,12 +319,16 @@ def test_advance_many_equals_advance_steps(seed):
     player.reset(np.random.RandomState(seed))
     return player
   single, batched = make(), make()
-  # Both ways of advance_many are taken: whole blocks within one clip
-  # (arrays at once) and blocks with waits, switches or blends (step loop).
-  within_clip = []
+  # Every way of advance_many is taken: whole blocks within one clip or
+  # waiting in an idle phase (compiled) and blocks with waits that end,
+  # switches or blends (step loop).
+  within_clip, waiting = [], []
   whole_block = batched._advance_within_clip
   batched._advance_within_clip = lambda *args: within_clip.append(
       whole_block(*args)) or within_clip[-1]
+  whole_wait = batched._advance_waiting
+  batched._advance_waiting = lambda *args: waiting.append(
+      whole_wait(*args)) or waiting[-1]
   n, blends = 25, 0
   positions, times, clips = np.zeros((n, K, 3)), np.zeros(n), [None] * n
   for block in range(60):
@@ -344,6 +348,8 @@ def test_advance_many_equals_advance_steps(seed):
       assert single.trigger('go') and batched.trigger('go')
   assert blends > 0 and single.clip_index > 3
   assert any(within_clip) and not all(within_clip)
+  # Blocks waiting in an idle phase (compiled), and blocks neither way.
+  assert any(waiting) and not all(waiting)
 
 
 def test_advance_many_needs_room_for_every_step():
