@@ -37,6 +37,7 @@ TASK_TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
              'assembly', 'dense', 'sparse', 'delayed')
 
 _REGISTRY = collections.OrderedDict()   # (domain, task) -> factory
+_CLASSES = {}   # (domain, task) -> HrcTask subclass (class registrations)
 _TAGGED = collections.defaultdict(list)   # tag -> [(domain, task)]
 _LOADED = False
 # Resets tried when initialising an episode hits a MuJoCo physics error
@@ -114,6 +115,7 @@ def register(domain, task, tags=(), **fixed):
       raise ValueError(f'Task {domain}/{task} is already registered')
     if isinstance(target, type):
       target.defaults()   # Its class constants, checked (tasks/defaults.py).
+      _CLASSES[key] = target
 
       def factory(**task_kwargs):
         return target(**fixed_kwargs(task_kwargs, **fixed))
@@ -138,6 +140,7 @@ def unregister(domain, task):
   if key not in _REGISTRY:
     raise ValueError(f'Task {domain}/{task} is not registered')
   del _REGISTRY[key]
+  _CLASSES.pop(key, None)
   for keys in _TAGGED.values():
     if key in keys:
       keys.remove(key)
@@ -191,8 +194,8 @@ def __getattr__(name):
   raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 
-def build_task(domain, task, task_kwargs=None):
-  """The task object of (domain, task) built with task_kwargs."""
+def _registered(domain, task):
+  """(domain, task), registered; else a ValueError listing the names."""
   _load_modules()
   domains = sorted({d for d, _ in _REGISTRY})
   if domain not in domains:
@@ -202,7 +205,19 @@ def build_task(domain, task, task_kwargs=None):
     names = sorted(t for d, t in _REGISTRY if d == domain)
     raise ValueError(f'Unknown task {task!r} for domain {domain!r}: '
                      f'expected one of {", ".join(names)}')
-  hrc_task = _REGISTRY[(domain, task)](
+  return domain, task
+
+
+def task_class(domain, task):
+  """The HrcTask subclass registered as domain/task (its class constants
+  are its facts: MOTIONS, EVENTS, ...), or None where a factory function
+  was registered."""
+  return _CLASSES.get(_registered(domain, task))
+
+
+def build_task(domain, task, task_kwargs=None):
+  """The task object of (domain, task) built with task_kwargs."""
+  hrc_task = _REGISTRY[_registered(domain, task)](
       **_kwargs_dict('task_kwargs', task_kwargs))
   hrc_task.suite_name = (domain, task)   # Experts and datasets key on it.
   return hrc_task
