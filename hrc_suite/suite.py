@@ -8,28 +8,23 @@ group them. Names are (domain, task) pairs, e.g. ('reach', 'dense').
   env = suite.load('reach', 'dense', task_kwargs={'robot': 'schunk'},
                    environment_kwargs={'random_state': 0})
 
-The registry finds its tasks itself: every module of hrc_suite/tasks with a
-line starting `@suite.register`, and the extension modules named by
-HRC_SUITE_EXTENSIONS (`extensions`); adding a task edits no list
-(docs/extending.md).
+The registry finds its tasks itself: it imports every module of the
+hrc_suite.tasks package (those that register tasks do so at import), then
+the extension modules named by HRC_SUITE_EXTENSIONS (`extensions`); adding
+a task edits no list (docs/extending.md).
 """
 
 import collections
 import collections.abc
 import importlib
-import pathlib
-import re
 
 from dm_control import composer
 import numpy as np
 
 from hrc_suite import extensions
+from hrc_suite import tasks as tasks_package
 from hrc_suite.safety import modes
 from hrc_suite.tasks import substeps
-
-_TASKS_DIR = pathlib.Path(__file__).resolve().parent / 'tasks'
-# How a module of hrc_suite/tasks shows that it registers tasks.
-_REGISTERS = re.compile(r'^@suite\.register\(', re.MULTILINE)
 
 # Tags of what a task is about and of its reward; each shield mode's name
 # (safety/modes.py) is a tag too (`tags()`).
@@ -155,18 +150,11 @@ def fixed_kwargs(task_kwargs, **fixed):
   return {**task_kwargs, **fixed}
 
 
-def task_modules():
-  """The modules of hrc_suite/tasks that register tasks, by name."""
-  return tuple(f'hrc_suite.tasks.{path.stem}'
-               for path in sorted(_TASKS_DIR.glob('*.py'))
-               if _REGISTERS.search(path.read_text()))
-
-
 def _load_modules():
   global _LOADED
   if not _LOADED:
-    for module in task_modules():
-      importlib.import_module(module)   # Registers its tasks.
+    for module in extensions.package_modules(tasks_package):
+      importlib.import_module(module)   # Registers its tasks, if any.
     _LOADED = True
   extensions.load()
 
