@@ -15,6 +15,7 @@ each of its worker processes sees them (docs/extending.md).
 
 import importlib
 import os
+import pkgutil
 
 ENV_VAR = 'HRC_SUITE_EXTENSIONS'
 
@@ -25,6 +26,14 @@ def entries():
   """The entries named by HRC_SUITE_EXTENSIONS, in order."""
   return [e.strip() for e in os.environ.get(ENV_VAR, '').split(',')
           if e.strip()]
+
+
+def package_modules(package):
+  """The names of every module of `package` (an imported package), in
+  name order: a registry imports them all, so that their decorators
+  register what they define (only the folder's file names are read)."""
+  return tuple(f'{package.__name__}.{info.name}'
+               for info in pkgutil.iter_modules(package.__path__))
 
 
 def load():

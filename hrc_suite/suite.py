@@ -8,28 +8,23 @@ group them. Names are (domain, task) pairs, e.g. ('reach', 'dense').
   env = suite.load('reach', 'dense', task_kwargs={'robot': 'schunk'},
                    environment_kwargs={'random_state': 0})
 
-The registry finds its tasks itself: every module of hrc_suite/tasks with a
-line starting `@suite.register`, and the extension modules named by
-HRC_SUITE_EXTENSIONS (`extensions`); adding a task edits no list
-(docs/extending.md).
+The registry finds its tasks itself: it imports every module of the
+hrc_suite.tasks package (those that register tasks do so at import), then
+the extension modules named by HRC_SUITE_EXTENSIONS (`extensions`); adding
+a task edits no list (docs/extending.md).
 """
 
 import collections
 import collections.abc
 import importlib
-import pathlib
-import re
 
 from dm_control import composer
 import numpy as np
 
 from hrc_suite import extensions
+from hrc_suite import tasks as tasks_package
 from hrc_suite.safety import modes
 from hrc_suite.tasks import substeps
-
-_TASKS_DIR = pathlib.Path(__file__).resolve().parent / 'tasks'
-# How a module of hrc_suite/tasks shows that it registers tasks.
-_REGISTERS = re.compile(r'^@suite\.register\(', re.MULTILINE)
 
 # Tags of what a task is about and of its reward; each shield mode's name
 # (safety/modes.py) is a tag too (`tags()`).
@@ -37,6 +32,7 @@ TASK_TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
              'assembly', 'dense', 'sparse', 'delayed')
 
 _REGISTRY = collections.OrderedDict()   # (domain, task) -> factory
+_CLASSES = {}   # (domain, task) -> HrcTask subclass (class registrations)
 _TAGGED = collections.defaultdict(list)   # tag -> [(domain, task)]
 _LOADED = False
 # Resets tried when initialising an episode hits a MuJoCo physics error
@@ -114,6 +110,7 @@ def register(domain, task, tags=(), **fixed):
       raise ValueError(f'Task {domain}/{task} is already registered')
     if isinstance(target, type):
       target.defaults()   # Its class constants, checked (tasks/defaults.py).
+      _CLASSES[key] = target
 
       def factory(**task_kwargs):
         return target(**fixed_kwargs(task_kwargs, **fixed))
@@ -138,6 +135,7 @@ def unregister(domain, task):
   if key not in _REGISTRY:
     raise ValueError(f'Task {domain}/{task} is not registered')
   del _REGISTRY[key]
+  _CLASSES.pop(key, None)
   for keys in _TAGGED.values():
     if key in keys:
       keys.remove(key)
@@ -152,18 +150,11 @@ def fixed_kwargs(task_kwargs, **fixed):
   return {**task_kwargs, **fixed}
 
 
-def task_modules():
-  """The modules of hrc_suite/tasks that register tasks, by name."""
-  return tuple(f'hrc_suite.tasks.{path.stem}'
-               for path in sorted(_TASKS_DIR.glob('*.py'))
-               if _REGISTERS.search(path.read_text()))
-
-
 def _load_modules():
   global _LOADED
   if not _LOADED:
-    for module in task_modules():
-      importlib.import_module(module)   # Registers its tasks.
+    for module in extensions.package_modules(tasks_package):
+      importlib.import_module(module)   # Registers its tasks, if any.
     _LOADED = True
   extensions.load()
 
@@ -191,8 +182,8 @@ def __getattr__(name):
   raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 
-def build_task(domain, task, task_kwargs=None):
-  """The task object of (domain, task) built with task_kwargs."""
+def _registered(domain, task):
+  """(domain, task), registered; else a ValueError listing the names."""
   _load_modules()
   domains = sorted({d for d, _ in _REGISTRY})
   if domain not in domains:
@@ -202,7 +193,19 @@ def build_task(domain, task, task_kwargs=None):
     names = sorted(t for d, t in _REGISTRY if d == domain)
     raise ValueError(f'Unknown task {task!r} for domain {domain!r}: '
                      f'expected one of {", ".join(names)}')
-  hrc_task = _REGISTRY[(domain, task)](
+  return domain, task
+
+
+def task_class(domain, task):
+  """The HrcTask subclass registered as domain/task (its class constants
+  are its facts: MOTIONS, EVENTS, ...), or None where a factory function
+  was registered."""
+  return _CLASSES.get(_registered(domain, task))
+
+
+def build_task(domain, task, task_kwargs=None):
+  """The task object of (domain, task) built with task_kwargs."""
+  hrc_task = _REGISTRY[_registered(domain, task)](
       **_kwargs_dict('task_kwargs', task_kwargs))
   hrc_task.suite_name = (domain, task)   # Experts and datasets key on it.
   return hrc_task

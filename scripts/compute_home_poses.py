@@ -21,7 +21,7 @@ table targets, is written. Deterministic (fixed seed).
 """
 
 import json
-import pathlib
+import re
 import sys
 
 import numpy as np
@@ -32,9 +32,6 @@ from hrc_suite import layout
 from hrc_suite import robot_description
 from hrc_suite.control import ik
 from hrc_suite.control import kinematics
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from make_robot_descriptions import to_json  # pylint: disable=g-bad-import-order
 
 # TCP relative to the default mount's base (world offset), m: 0.45 m in
 # front of it, 0.25 m above the table top (issue 2). Every robot's home TCP
@@ -65,6 +62,18 @@ SEED = 0
 _ROBOTS_DIR = robot_description.ROBOTS_DIR
 _SEGMENT_SAMPLES = np.linspace(0.0, 1.0, 11)
 
+
+def to_json(value):
+  """JSON with every list of numbers on one line, for readable diffs (the
+  layout of the description files)."""
+  text = json.dumps(value, indent=1)
+
+  def join(match):
+    return '[' + ', '.join(x.strip() for x in match.group(1).split(',')) + ']'
+  for _ in range(2):  # Inner lists first, then lists of lists.
+    text = re.sub(r'\[([^\[\]{}"]*)\]', join, text)
+    text = re.sub(r'\[((?:\s*\[[^\[\]]*\],?)+\s*)\]', join, text)
+  return text + '\n'
 
 def world_model(description):
   mount = layout.robot_mount(description.name)

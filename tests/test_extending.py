@@ -27,7 +27,9 @@ from hrc_suite import layout
 from hrc_suite import robot_description
 from hrc_suite import suite
 from hrc_suite.experts import base as expert_base
+from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
+from hrc_suite.human import synthesis
 from hrc_suite.safety import batch
 from hrc_suite.safety import modes
 from hrc_suite.safety import shield as shield_lib
@@ -116,7 +118,7 @@ class JointPose(base.HrcTask):
 # ------------------------------------------------ its expert (step 2b)
 
 
-@experts.register('joint_pose', 'dense', 'sparse')
+@experts.register('joint_pose', 'dense', 'sparse', 'wait')
 class JointPoseExpert(expert_base.Expert):
   """Steps the joints straight at the goal (actions: JOINT_STEP rad)."""
 
@@ -124,6 +126,42 @@ class JointPoseExpert(expert_base.Expert):
 
   def action(self, observation):
     return observation['pose_error'] / actions.JOINT_STEP
+
+
+# ------------------------------- an event of the task's own (step 2c)
+
+POSE_REACHED = 'pose_reached'   # a new event (clip.Event names it nowhere)
+WAIT_FRAME = 25                 # the wait starts 1 s into a reach clip
+# The sway while waiting: amplitudes in s of clip time and dimensionless
+# slopes (hrc_suite/human/clip.py), small enough for the human model.
+WAIT_AMPLITUDES = (0.3, 0.1)
+WAIT_SPEEDS = (0.2, 0.1)
+
+
+def waiting_clips():
+  """The shipped reach clips, each waiting at WAIT_FRAME for POSE_REACHED."""
+  wait = clip_lib.IdlePhase(keyframe=0, event=POSE_REACHED,
+                            amplitudes=WAIT_AMPLITUDES, speeds=WAIT_SPEEDS)
+  return [clip.replace(keyframes=(WAIT_FRAME,) + clip.keyframes,
+                       idle_phases=(wait,))
+          for clip in clip_lib.shipped_library('reach')]
+
+
+@suite.register('joint_pose', 'wait', tags=('coexistence', 'sparse', 'ssm'),
+                reward='sparse')
+class PoseWait(JointPose):
+  """JointPose whose person waits 1 s into their clip until the robot
+  holds the goal pose."""
+
+  EVENTS = (POSE_REACHED,)   # what the person's clips wait for, in order
+
+  def __init__(self, motions=None, **kwargs):
+    super().__init__(motions=waiting_clips() if motions is None else motions,
+                     **kwargs)
+
+  def _human_events(self, physics):
+    del physics
+    return self.EVENTS if self._error <= SUCCESS_ERROR else ()
 
 
 # ------------------------------------------------------ a reward (step 3)
@@ -212,6 +250,42 @@ def test_the_task_loads_and_its_expert_solves_it():
                      task_kwargs={'robot': 'panda', 'seed': seed})
     zero = np.zeros(env.action_spec().shape)
     assert _episode(env, lambda timestep: zero)['success'] == 0.0
+
+
+def test_a_task_with_an_event_of_its_own():
+  assert POSE_REACHED not in list(clip_lib.Event)
+  assert suite.task_class('joint_pose', 'wait') is PoseWait
+  wait = waiting_clips()[0].idle_phases[0]
+  wait_time = WAIT_FRAME / waiting_clips()[0].fps
+  clip_times = {}
+  for policy in ('expert', 'zero'):
+    env = suite.load('joint_pose', 'wait', task_kwargs={
+        'robot': 'panda', 'seed': 0, 'done_at_success': False})
+    zero = np.zeros(env.action_spec().shape)
+    act = experts.make(env) if policy == 'expert' else lambda _: zero
+    metrics = _episode(env, act)
+    assert metrics['success'] == float(policy == 'expert'), policy
+    clip_times[policy] = env.task.player.clip_time
+    waiting = env.task.player.waiting_for
+    assert waiting == (POSE_REACHED if policy == 'zero' else None), policy
+  # Without the pose the person still sways about the wait's keyframe at
+  # the end (the wait starts at the first physics step at or after it);
+  # with it they went on with their clip.
+  sway = synthesis.idle_window(wait) + base.DEFAULT_PHYSICS_TIMESTEP
+  assert abs(clip_times['zero'] - wait_time) <= sway
+  assert clip_times['expert'] > wait_time + sway
+  # Clips that do not wait for the task's events are refused, named.
+  with pytest.raises(clip_lib.ClipError, match=r"the task triggers the "
+                     r"events \['pose_reached'\] in this order \(its "
+                     r"EVENTS\), the clip's idle phases wait for \[\]"):
+    suite.load('joint_pose', 'wait', task_kwargs={
+        'motions': clip_lib.shipped_library('reach')})
+
+  class BadEvent(PoseWait):
+    EVENTS = ('pose reached',)
+  with pytest.raises(ValueError, match=r"BadEvent.EVENTS: expected a tuple "
+                     r"of event names"):
+    suite.register('joint_pose', 'bad_event')(BadEvent)
 
 
 def test_a_reward_added_to_a_task():

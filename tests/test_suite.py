@@ -1,10 +1,15 @@
 """The task registry: names, tags, errors and environment construction."""
 
+import pathlib
+import sys
+
 from dm_control import composer
 import numpy as np
 import pytest
 
+from hrc_suite import extensions
 from hrc_suite import suite
+from hrc_suite import tasks as tasks_package
 from hrc_suite.tasks import reach
 
 
@@ -17,12 +22,30 @@ def test_reach_tasks_are_registered():
   assert ('reach', 'dense') in suite.tasks_with_tag('coexistence')
 
 
+def test_every_module_of_the_tasks_package_is_imported():
+  suite.all_tasks()
+  folder = pathlib.Path(tasks_package.__file__).parent
+  names = extensions.package_modules(tasks_package)
+  assert names == tuple(sorted(f'hrc_suite.tasks.{path.stem}'
+                               for path in folder.glob('*.py')
+                               if path.stem != '__init__'))
+  assert all(name in sys.modules for name in names)
+  # Each shipped task is registered by a module of the package.
+  modules = {suite.task_class(*name).__module__ for name in suite.ALL_TASKS}
+  shipped = {m for m in modules if m.startswith('hrc_suite.')}
+  assert 'hrc_suite.tasks.reach' in shipped and shipped <= set(names)
+  assert suite.task_class('reach', 'dense') is reach.Reach
+
+
 def test_unknown_names_list_the_valid_ones():
   with pytest.raises(ValueError, match=r"Unknown domain 'walk'.*reach"):
     suite.load('walk', 'dense')
   with pytest.raises(ValueError, match=r"Unknown task 'shaped'.*dense, "
                      r"sparse"):
     suite.load('reach', 'shaped')
+  with pytest.raises(ValueError, match=r"Unknown task 'shaped'.*dense, "
+                     r"sparse"):
+    suite.task_class('reach', 'shaped')
   with pytest.raises(ValueError, match='Unknown tag'):
     suite.tasks_with_tag('fun')
 

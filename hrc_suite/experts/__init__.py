@@ -7,20 +7,15 @@
   timestep = env.reset(); action = expert(timestep)
 
 An expert registers with a decorator on its class,
-`@experts.register('reach', 'dense', 'sparse')`; the modules of this
-package that do are found by that line, others are extension modules
-(`hrc_suite.extensions`; docs/extending.md).
+`@experts.register('reach', 'dense', 'sparse')`; the registry imports
+every module of this package (those with experts register them), then
+the extension modules (`hrc_suite.extensions`; docs/extending.md).
 """
 
 import importlib
-import pathlib
-import re
+import sys
 
 from hrc_suite import extensions
-
-_EXPERTS_DIR = pathlib.Path(__file__).resolve().parent
-# How a module of hrc_suite/experts shows that it registers experts.
-_REGISTERS = re.compile(r'^@experts\.register\(', re.MULTILINE)
 
 _EXPERTS = {}          # (domain, task) -> expert class
 _IMPORT_ERRORS = {}    # module -> error of an expert module that failed
@@ -53,16 +48,13 @@ def unregister(domain, task):
 
 
 def _load():
-  """Imports the expert modules of this package (each registers its
-  experts with the decorator; one that fails to import is recorded) and
-  the extension modules (`extensions`)."""
+  """Imports the modules of this package (those with experts register
+  them with the decorator; one that fails to import is recorded) and the
+  extension modules (`extensions`)."""
   global _LOADED
   if not _LOADED:
     _LOADED = True
-    for path in sorted(_EXPERTS_DIR.glob('*.py')):
-      if not _REGISTERS.search(path.read_text()):
-        continue
-      module = f'hrc_suite.experts.{path.stem}'
+    for module in extensions.package_modules(sys.modules[__name__]):
       try:
         importlib.import_module(module)
       except ImportError as e:

@@ -166,9 +166,9 @@ def idle_windows(clip):
 
 def time_to_event(clip):
   """s to the first idle phase's keyframe (the person starts waiting for
-  the robot) in tasks with events; to the first keyframe in tasks that
-  need keyframes but wait for nothing (lifting: the grasp); else NaN."""
-  if clip_lib.TASK_EVENTS.get(clip.task) and clip.idle_phases:
+  the robot) in clips that wait for events; to the first keyframe in tasks
+  that need keyframes but wait for nothing (lifting: the grasp); else NaN."""
+  if clip.idle_phases:
     return clip.keyframe_time(clip.idle_phases[0].keyframe)
   if clip_lib.TASK_KEYFRAMES.get(clip.task) and clip.keyframes:
     return clip.keyframe_time(0)

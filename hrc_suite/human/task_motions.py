@@ -96,10 +96,6 @@ def _wait(script, rs, event, idle, sides, after, before=None):
   script.fidget(reach + rs.uniform(*after), sides)
 
 
-# Events each task's idle phases wait for, in order (agreed in clip.py).
-EVENTS = clip_lib.TASK_EVENTS
-
-
 def _side_sign(side):
   return 1.0 if side == 0 else -1.0
 
@@ -244,7 +240,7 @@ def inspection(script, rs):
   point = np.array([rs.uniform(0.62, 0.75), rs.uniform(-0.1, 0.1),
                     rs.uniform(1.15, 1.35)])
   script.targets['inspection_point'] = point
-  _wait(script, rs, EVENTS['inspection'][0], IDLE_INSPECTION, [0, 1],
+  _wait(script, rs, clip_lib.Event.object_presented, IDLE_INSPECTION, [0, 1],
         after=(0.2, 1.0), before='gestures')
   _look_at(script, point, 0.6, advance=True)
   side = _choose_hand(rs, 0.6)
@@ -375,7 +371,7 @@ def handover_robot_to_human(script, rs):
                swivel=rs.uniform(0.0, 0.4))
   script.hold(rs.uniform(0.2, 0.5))
   # A backward warp draws the arm back along the reach and out again.
-  _wait(script, rs, EVENTS['handover_robot_to_human'][0], IDLE_ROBOT_TO_HUMAN,
+  _wait(script, rs, clip_lib.Event.object_received, IDLE_ROBOT_TO_HUMAN,
         [1 - side], after=(2.0, 2.8))
   carry = script.to_world(np.array([rs.uniform(0.2, 0.3),
                                     _side_sign(side) * 0.2,
@@ -406,11 +402,11 @@ def handover_human_to_robot(script, rs):
   script.targets['handover_point'] = point
   _look_at(script, point, 0.6)
   script.reach(side, point, lean=lean, wrist=0.1, pelvis_drop=0.0)
-  _wait(script, rs, EVENTS['handover_human_to_robot'][0],
-        IDLE_HUMAN_TO_ROBOT_PRESENT, [1 - side], after=(2.0, 2.5))
+  _wait(script, rs, clip_lib.Event.object_taken, IDLE_HUMAN_TO_ROBOT_PRESENT,
+        [1 - side], after=(2.0, 2.5))
   script.rest(side, lean=0.0, head_pitch=0.3)
-  _wait(script, rs, EVENTS['handover_human_to_robot'][1],
-        IDLE_HUMAN_TO_ROBOT_WAIT, [0, 1], after=(1.0, 2.0), before='still')
+  _wait(script, rs, clip_lib.Event.object_placed, IDLE_HUMAN_TO_ROBOT_WAIT,
+        [0, 1], after=(1.0, 2.0), before='still')
   script.move(0.6, head_pitch=0.0, head_yaw=0.0)
   _retreat(script, rs)
 
@@ -441,7 +437,7 @@ def hammering(script, rs):
   anchored = False
   while not anchored or script.t < start + 2 * reach_time + 0.5:
     if not anchored and script.t >= start + reach_time:
-      script.idle(EVENTS['hammering'][0], amplitudes, speeds)
+      script.idle(clip_lib.Event.nail_hammered, amplitudes, speeds)
       anchored = True
     top = raised + rs.uniform(-0.02, 0.02, 3)
     script.strike(side, contact, top, up_time=rs.uniform(0.4, 0.6),
@@ -503,7 +499,7 @@ def hammering_board(script, rs):
   script.mark()                               # set down
   script.hold(rs.uniform(0.2, 0.4))
   script.rest(1 - side, head_pitch=0.4)
-  _wait(script, rs, EVENTS['hammering_board'][0], IDLE_WATCHING, [1 - side],
+  _wait(script, rs, clip_lib.Event.nail_hammered, IDLE_WATCHING, [1 - side],
         after=(1.0, 2.0), before='still')
   script.mark()                               # take back
   script.move(rs.uniform(0.8, 1.1), head_pitch=0.0, head_yaw=0.0,
@@ -521,9 +517,10 @@ def stacking(script, rs):
   script.targets['stack_base'] = base
   script.metadata['cube_size'] = CUBE_SIZE
   second_side = side if rs.uniform() < 0.6 else 1 - side
-  waits = (IDLE_STACKING_SECOND, IDLE_STACKING_FOURTH)
-  for n, (hand, cube, wait) in enumerate(
-      ((side, 1, waits[0]), (second_side, 3, waits[1]))):
+  events = clip_lib.Event
+  for hand, cube, wait, event in (
+      (side, 1, IDLE_STACKING_SECOND, events.second_cube_placed),
+      (second_side, 3, IDLE_STACKING_FOURTH, events.fourth_cube_placed)):
     pick = _table_point(rs, (0.36, 0.45), (0.2, 0.35), CUBE_SIZE / 2)
     pick[1] *= _side_sign(hand)
     place = base + [0, 0, CUBE_SIZE * (cube - 0.5)]
@@ -542,7 +539,7 @@ def stacking(script, rs):
     script.reach(hand, place + grip + [0, 0, 0.1],
                  duration=rs.uniform(0.4, 0.6))
     script.rest(hand, lean=0.0, pelvis_drop=0.0, head_pitch=0.3, head_yaw=0.0)
-    _wait(script, rs, EVENTS['stacking'][n], wait, [0, 1], after=(1.0, 2.0),
+    _wait(script, rs, event, wait, [0, 1], after=(1.0, 2.0),
           before='gestures')
   _retreat(script, rs, distance=(0.4, 0.8))
 

@@ -151,6 +151,11 @@ class HrcTask(composer.Task):
   # Task facts (docs/reference_benchmark.md, Tasks); subclasses override.
   # `defaults()` checks them all (tasks/defaults.py).
   MOTIONS = 'reach'                          # shipped library name
+  # The events that end the person's idle phases, in the order the phases
+  # occur: the task triggers them (`_human_events`) and its clips must wait
+  # for exactly these (`motions.check_motions`). Event names are strings
+  # (shipped ones: `clip.Event`), so a task may declare new ones.
+  EVENTS = ()
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   TABLE = layout.DEFAULT_TABLE               # layout.Table
   HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)    # uniform +- (x, y, yaw)
@@ -337,7 +342,7 @@ class HrcTask(composer.Task):
     # steps_outside_human_model like any clip over the model.
     clips = motions_lib.check_motions(
         motions_lib.load_motions(motions, self.MOTIONS), self.MOTIONS,
-        self.HUMAN_STATION, self._shield.human.config.v_max,
+        self.EVENTS, self.HUMAN_STATION, self._shield.human.config.v_max,
         'allow' if motions is None else outside_human_model)
     self._human_v_max = self._shield.human.config.v_max.copy()
     self._player = player_lib.Player(
@@ -466,7 +471,8 @@ class HrcTask(composer.Task):
     return 0.0
 
   def _human_events(self, physics):
-    """Events whose predicates hold now (triggered on the player)."""
+    """Events of EVENTS whose predicates hold now (triggered on the
+    player)."""
     return ()
 
   def _failed(self, physics):

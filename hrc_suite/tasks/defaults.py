@@ -20,7 +20,8 @@ from hrc_suite.tasks import actions
 
 # The class constant of each field, in field order.
 CONSTANTS = {
-    'motions': 'MOTIONS', 'human_station': 'HUMAN_STATION',
+    'motions': 'MOTIONS', 'events': 'EVENTS',
+    'human_station': 'HUMAN_STATION',
     'table': 'TABLE', 'human_placement_range': 'HUMAN_PLACEMENT_RANGE',
     'shield': 'DEFAULT_SHIELD', 'action_space': 'DEFAULT_ACTION_SPACE',
     'rewards': 'REWARDS', 'reward_delay': 'DEFAULT_REWARD_DELAY',
@@ -47,6 +48,7 @@ def _names(value):
 class TaskDefaults:
   """The class constants of a task (see HrcTask for their meaning)."""
   motions: str                      # a shipped motion library
+  events: Tuple[str, ...]           # event names, in the clips' order
   human_station: Tuple[float, float, float]
   table: layout.Table
   human_placement_range: Tuple[float, float, float]
@@ -72,6 +74,10 @@ class TaskDefaults:
     if self.motions not in clip_lib.MOTION_TASKS:
       self._fail('motions', 'a shipped motion library, one of '
                  + ', '.join(clip_lib.MOTION_TASKS))
+    if not (isinstance(self.events, tuple)
+            and all(clip_lib.is_event_name(e) for e in self.events)):
+      self._fail('events', 'a tuple of event names (identifiers, e.g. '
+                 "clip.Event.nail_hammered or 'pose_reached')")
     for field in ('human_station', 'human_placement_range'):
       value = getattr(self, field)
       if not (isinstance(value, tuple) and len(value) == 3

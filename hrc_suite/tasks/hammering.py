@@ -15,7 +15,7 @@ drives its nail in (docs/reference_benchmark.md, Tasks).
   (docs/tasks.md).
 * Goal: the nail head NAIL_ABOVE_TARGET over the clip's 'nail' target, so
   the blows land on it while the hammer is still moving fast. The human's
-  idle phase repeats blows until 'nail_hammered' (clip.TASK_EVENTS).
+  idle phase repeats blows until 'nail_hammered' (EVENTS).
 * Success (delayed by the retreat, reference): the nail is in (progress >
   SUCCESS_PROGRESS, which fires the event) and then the human's clip ends
   (lowering the hammer and retreating, ~5 s; the base's `clip_ended`).
@@ -159,8 +159,8 @@ class NailOutcome:
 
   def _human_events(self, physics):
     del physics
-    # The task's one event ('nail_hammered', clip.TASK_EVENTS).
-    return clip_lib.TASK_EVENTS[self.MOTIONS] if self._nailed else ()
+    # The task's one event: the nail is in.
+    return (EVENT,) if self._nailed else ()
 
   def _failed(self, physics):
     del physics
@@ -174,10 +174,13 @@ class NailOutcome:
     return (-1.0, 1.0)
 
 
+@suite.register('hammering', 'default',
+                tags=('manufacturing', 'sparse', 'delayed', 'ssm'))
 class Hammering(NailOutcome, base.HrcTask):
   """Hold the nail board under the human's hammer until the nail is in."""
 
   MOTIONS = 'hammering'
+  EVENTS = (EVENT,)   # the person hammers until the nail is in
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)
   DEFAULT_SHIELD = 'ssm'
@@ -385,10 +388,3 @@ class Hammering(NailOutcome, base.HrcTask):
         'hammer_head_position': observable.MJCFFeature(
             'xpos', self._hammer.head_site),
     }
-
-
-@suite.register('hammering', 'default',
-                tags=('manufacturing', 'sparse', 'delayed', 'ssm'))
-def default(**task_kwargs):
-  """Hold the nail board while the human hammers; sparse, delayed."""
-  return Hammering(**task_kwargs)

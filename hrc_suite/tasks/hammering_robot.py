@@ -44,7 +44,6 @@ from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
-from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import base
 from hrc_suite.tasks import hammering
@@ -54,7 +53,7 @@ BLOW_PROGRESS = hammering.BLOW_PROGRESS
 # RL steps without the hammer before failure: as hammering/default's
 # (hammering.NailOutcome).
 DROP_STEPS = hammering.DROP_STEPS
-EVENT = clip_lib.Event.nail_hammered
+EVENT = hammering.EVENT
 # The nail plank: 30 x 10 x 4 cm of pine (0.8 kg with its handle), the
 # handle at its person end (-x), the nail 5 cm from its robot end: the
 # recordings' resting hands lie 0.70-0.89 m from the robot base, so the
@@ -126,10 +125,13 @@ def _yaw_matrix(yaw):
   return _yaw_matrices(np.array([yaw], dtype=float))[0]
 
 
+@suite.register('hammering', 'robot_hammers',
+                tags=('manufacturing', 'sparse', 'delayed', 'pfl'))
 class RobotHammers(hammering.NailOutcome, base.HrcTask):
   """Drive the nail of the plank the person brings with the held hammer."""
 
   MOTIONS = 'hammering_board'
+  EVENTS = (EVENT,)   # the person holds the plank until the nail is in
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)
   DEFAULT_SHIELD = SHIELD
@@ -393,10 +395,3 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
         'board_placed': observable.Generic(
             lambda physics: np.array([float(self._phase == PLACED)])),
     }
-
-
-@suite.register('hammering', 'robot_hammers',
-                tags=('manufacturing', 'sparse', 'delayed', 'pfl'))
-def robot_hammers(**task_kwargs):
-  """The robot drives the nail in the plank the person brings; sparse."""
-  return RobotHammers(**task_kwargs)

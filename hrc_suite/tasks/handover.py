@@ -276,11 +276,14 @@ class _Handover(base.HrcTask):
     return observables
 
 
+@suite.register('handover', 'robot_to_human',
+                tags=('handover', 'sparse', 'delayed', 'pfl'))
 class RobotToHuman(_Handover):
   """The robot hands the hammer to the human."""
 
   MOTIONS = 'handover_robot_to_human'
   EVENT = clip_lib.Event.object_received
+  EVENTS = (EVENT,)   # the person holds a hand out until they have it
 
   def _initialize_task(self, physics, random_state):
     self._reset_flags()
@@ -347,11 +350,16 @@ class RobotToHuman(_Handover):
     return self._palm_position(physics)
 
 
+@suite.register('handover', 'human_to_robot',
+                tags=('handover', 'sparse', 'delayed', 'pfl'))
 class HumanToRobot(_Handover):
   """The human hands the hammer to the robot, which places it on the table."""
 
   MOTIONS = 'handover_human_to_robot'
   EVENT = clip_lib.Event.object_placed
+  # The person presents the hammer until the robot has it, then watches
+  # until it is placed.
+  EVENTS = (clip_lib.Event.object_taken, EVENT)
   FINGERTIP_TABLE_CLEARANCE = TABLE_CLEARANCE
   TASK_STATE = _Handover.TASK_STATE + ('_picked', '_pick_grip',
                                        '_at_target', '_turn')
@@ -576,18 +584,3 @@ class HumanToRobot(_Handover):
     if self._gripped:
       return GRIPPED_REWARD
     return -1.0
-
-
-
-@suite.register('handover', 'robot_to_human',
-                tags=('handover', 'sparse', 'delayed', 'pfl'))
-def robot_to_human(**task_kwargs):
-  """The robot brings the hammer to the human's hand."""
-  return RobotToHuman(**task_kwargs)
-
-
-@suite.register('handover', 'human_to_robot',
-                tags=('handover', 'sparse', 'delayed', 'pfl'))
-def human_to_robot(**task_kwargs):
-  """The robot takes the presented hammer and places it at a target."""
-  return HumanToRobot(**task_kwargs)

@@ -75,10 +75,13 @@ TARGET_RADIUS = 0.02         # m, the visual marker
 TARGET_RGBA = (0.2, 0.4, 0.9, 0.4)
 
 
+@suite.register('inspection', 'default',
+                tags=('object_handling', 'sparse', 'delayed', 'ssm'))
 class Inspection(base.HrcTask):
   """Hold a cube at the person's inspection point until they leave."""
 
   MOTIONS = 'inspection'
+  EVENTS = (EVENT,)   # the person waits until the cube is presented
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   DEFAULT_SHIELD = 'ssm'
   DEFAULT_ACTION_SPACE = 'cartesian'
@@ -228,10 +231,3 @@ class Inspection(base.HrcTask):
         self._robot.tcp_site, self._cube.body,
         lambda physics: self._target, lambda: self._gripped,
         SUCCESS_DISTANCE)
-
-
-@suite.register('inspection', 'default',
-                tags=('object_handling', 'sparse', 'delayed', 'ssm'))
-def default(**task_kwargs):
-  """Object inspection with the sparse reward (reference values)."""
-  return Inspection(**task_kwargs)

@@ -108,6 +108,8 @@ HOLD_SOLREF = (0.3, 1.0)
 GRIP_FORCE = 100.0
 
 
+@suite.register('lifting', 'default',
+                tags=('object_handling', 'dense', 'ssm'))
 class Lifting(base.HrcTask):
   """Keep a board level together with a person who lifts and carries it."""
 
@@ -338,10 +340,3 @@ class Lifting(base.HrcTask):
             lambda physics: np.array([float(props.is_gripped(
                 physics, self._gripper, self._board))])),
     }
-
-
-@suite.register('lifting', 'default',
-                tags=('object_handling', 'dense', 'ssm'))
-def default(**task_kwargs):
-  """Collaborative lifting with the dense balance reward."""
-  return Lifting(**task_kwargs)

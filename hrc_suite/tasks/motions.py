@@ -139,7 +139,7 @@ def _clip_source(clip):
   return f'clip {clip.name!r}' + (f' ({source})' if source else '')
 
 
-def _check_task_fields(clip, task, source):
+def _check_task_fields(clip, task, events, source):
   missing = [t for t in clip_lib.TASK_TARGETS.get(task, ())
              if t not in clip.targets]
   if missing:
@@ -151,12 +151,12 @@ def _check_task_fields(clip, task, source):
     raise clip_lib.ClipError(
         f'{source}: task {task!r} needs at least {needed} keyframes, the '
         f'clip has {list(clip.keyframes)}')
-  events = [p.event for p in clip.idle_phases]
-  expected = list(clip_lib.TASK_EVENTS.get(task, events))
-  if events != expected:
+  waits = [str(p.event) for p in clip.idle_phases]
+  expected = [str(e) for e in events]
+  if waits != expected:
     raise clip_lib.ClipError(
-        f'{source}: task {task!r} waits for the events {expected} in this '
-        f'order, the clip\'s idle phases wait for {events}')
+        f'{source}: the task triggers the events {expected} in this order '
+        f'(its EVENTS), the clip\'s idle phases wait for {waits}')
 
 
 def _check_workcell(clip, station, floor_half_size, source):
@@ -197,14 +197,16 @@ def speed_excess(clip, v_max):
   return worst[1:]
 
 
-def check_motions(clips, task, station, v_max, outside_model='refuse',
-                  floor_half_size=4.0):
-  """Raises ClipError unless every clip can be played by `task`.
+def check_motions(clips, task, events, station, v_max,
+                  outside_model='refuse', floor_half_size=4.0):
+  """Raises ClipError unless every clip can be played by a task of the
+  motion library `task` that triggers `events` (its EVENTS, in order).
 
-  Checks the task's targets, keyframes and events, keypoints inside the
-  workcell at `station`, and speeds within the shield's human model
-  (`v_max`, per keypoint); over the model, `outside_model` 'allow' accepts
-  the clip (the task then counts 'steps_outside_human_model').
+  Checks the library's targets and keyframes, the events (the clips' idle
+  phases wait for exactly `events`), keypoints inside the workcell at
+  `station`, and speeds within the shield's human model (`v_max`, per
+  keypoint); over the model, `outside_model` 'allow' accepts the clip (the
+  task then counts 'steps_outside_human_model').
   """
   if outside_model not in OUTSIDE_MODEL_POLICIES:
     raise ValueError(f'Unknown outside_human_model {outside_model!r}: '
@@ -212,7 +214,7 @@ def check_motions(clips, task, station, v_max, outside_model='refuse',
   v_max = np.asarray(v_max, dtype=np.float64)
   for clip in clips:
     source = _clip_source(clip)
-    _check_task_fields(clip, task, source)
+    _check_task_fields(clip, task, events, source)
     _check_workcell(clip, station, floor_half_size, source)
     excess = speed_excess(clip, v_max)
     if excess is not None and outside_model == 'refuse':

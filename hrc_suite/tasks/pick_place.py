@@ -81,6 +81,8 @@ TARGET_HALF_THICKNESS = 0.0005   # m, the drawn disc
 CLOSE_STATION_SHIFT = 0.15   # m
 
 
+@suite.register('pick_place', 'default',
+                tags=('coexistence', 'sparse', 'ssm'))
 class PickPlace(base.HrcTask):
   """Pick a cube up and put it on the target on the other side."""
 
@@ -205,22 +207,10 @@ class PickPlace(base.HrcTask):
         SUCCESS_DISTANCE)
 
 
+@suite.register('pick_place', 'close', tags=('coexistence', 'sparse', 'ssm'))
 class PickPlaceClose(PickPlace):
   """Pick and place with the person CLOSE_STATION_SHIFT closer."""
 
   HUMAN_STATION = (layout.HUMAN_STATION_BESIDE[0],
                    layout.HUMAN_STATION_BESIDE[1] - CLOSE_STATION_SHIFT,
                    layout.HUMAN_STATION_BESIDE[2])
-
-
-@suite.register('pick_place', 'default',
-                tags=('coexistence', 'sparse', 'ssm'))
-def default(**task_kwargs):
-  """Pick and place with the person beside the workspace."""
-  return PickPlace(**task_kwargs)
-
-
-@suite.register('pick_place', 'close', tags=('coexistence', 'sparse', 'ssm'))
-def close(**task_kwargs):
-  """Pick and place with the person working closer to the robot."""
-  return PickPlaceClose(**task_kwargs)

@@ -38,6 +38,11 @@ GOAL_ATTEMPTS = 200            # samples before giving up on a goal
 GOAL_IK_RESTARTS = 5
 
 
+# The lower decorator registers first: reach/dense, then reach/sparse.
+@suite.register('reach', 'sparse',
+                tags=('coexistence', 'sparse', 'ssm'), reward='sparse')
+@suite.register('reach', 'dense', tags=('coexistence', 'dense', 'ssm'),
+                reward='dense')
 class Reach(base.HrcTask):
   """Reach a goal with the TCP (Cartesian) or the joints (joint)."""
 
@@ -187,14 +192,3 @@ class Reach(base.HrcTask):
     }
 
 
-
-@suite.register('reach', 'dense', tags=('coexistence', 'dense', 'ssm'))
-def dense(**task_kwargs):
-  """Reach with the dense reward -0.1 x distance."""
-  return Reach(**suite.fixed_kwargs(task_kwargs, reward='dense'))
-
-
-@suite.register('reach', 'sparse', tags=('coexistence', 'sparse', 'ssm'))
-def sparse(**task_kwargs):
-  """Reach with the sparse reward +1 at the goal, -1 elsewhere."""
-  return Reach(**suite.fixed_kwargs(task_kwargs, reward='sparse'))

@@ -16,7 +16,7 @@ human 3, robot 4 (docs/reference_benchmark.md, Tasks).
   cube i-1 once that one is in its slot. A cube is in place within
   STACK_TOLERANCE of its slot and stacked once in place and nobody holds
   it. The human waits for 'second_cube_placed' and
-  'fourth_cube_placed' (clip.TASK_EVENTS): the robot's cube in its slot,
+  'fourth_cube_placed' (Stacking.EVENTS): the robot's cube in its slot,
   released, the TCP WITHDRAWN_DISTANCE away from it.
 * Station: across the table at layout.HUMAN_STATION_STACKING (x 1.10 m,
   the pelvis 0.18 m from the table's edge), placement +-(0.02 m, 0.1 m,
@@ -89,8 +89,6 @@ WITHDRAWN_DISTANCE = 0.15      # m
 TABLE_CLEARANCE = 0.018        # m
 HUMAN_CUBES = (0, 2)           # cubes 1 and 3
 ROBOT_CUBES = (1, 3)           # cubes 2 and 4
-EVENTS = (clip_lib.Event.second_cube_placed,
-          clip_lib.Event.fourth_cube_placed)
 _GRIP = np.array([0.0, 0.0, task_motions.GRIP_ABOVE_CENTRE])
 _HAND_KEYPOINTS = np.array(keypoints.index(
     [f'{hand}_hand' for hand in human_lib.HANDS]))
@@ -101,10 +99,15 @@ _ARM_SEGMENTS = tuple(f'{hand}_{part}' for hand in human_lib.HANDS
 ON_TABLE, HELD, RELEASED = 0, 1, 2
 
 
+@suite.register('stacking', 'default',
+                tags=('assembly', 'sparse', 'delayed', 'ssm'))
 class Stacking(base.HrcTask):
   """Stack cubes 2 and 4 on the human's cubes 1 and 3."""
 
   MOTIONS = 'stacking'
+  # The person waits for the robot's cube in slot two, then in slot four.
+  EVENTS = (clip_lib.Event.second_cube_placed,
+            clip_lib.Event.fourth_cube_placed)
   HUMAN_STATION = layout.HUMAN_STATION_STACKING
   TABLE = layout.STACKING_TABLE
   HUMAN_PLACEMENT_RANGE = (0.02, 0.1, 0.1)   # reference
@@ -343,9 +346,9 @@ class Stacking(base.HrcTask):
     free = self._in_slot & ~self._gripped & clear
     events = []
     if self._in_slot[0] and free[1]:
-      events.append(EVENTS[0])
+      events.append(clip_lib.Event.second_cube_placed)
     if self._in_slot[:3].all() and free[3]:
-      events.append(EVENTS[1])
+      events.append(clip_lib.Event.fourth_cube_placed)
     return events
 
   def _failed(self, physics):
@@ -389,10 +392,3 @@ class Stacking(base.HrcTask):
         'cubes_stacked': observable.Generic(
             lambda physics: self._stacked.astype(np.float64)),
     }
-
-
-@suite.register('stacking', 'default',
-                tags=('assembly', 'sparse', 'delayed', 'ssm'))
-def default(**task_kwargs):
-  """Stack cubes 2 and 4 on the human's 1 and 3; sparse, delayed."""
-  return Stacking(**task_kwargs)

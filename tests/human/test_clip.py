@@ -94,7 +94,6 @@ def test_validation_names_the_field(changes, field):
 @pytest.mark.parametrize('phase_changes, field', [
     (dict(keyframe=2), 'idle_phases[0].keyframe'),
     (dict(event='not an event'), 'idle_phases[0].event'),
-    (dict(event='nail_hammered'), 'idle_phases[0].event'),
     (dict(amplitudes=np.array([1.0])), 'idle_phases[0].amplitudes'),
     (dict(amplitudes=np.array([1.0, -1.0])), 'idle_phases[0].amplitudes'),
     (dict(speeds=np.array([1.0, 2.0, 3.0])), 'idle_phases[0].speeds'),

@@ -38,8 +38,14 @@ def test_clips_validate_and_belong_to_their_task(library):
     for clip in clips:
       clip_lib.validate(clip, clip.name)
       assert clip.task == task
-      assert tuple(p.event for p in clip.idle_phases) == (
-          clip_lib.TASK_EVENTS[task])
+
+
+def test_clips_wait_for_the_events_of_the_tasks_that_play_them(
+    library, library_events):
+  assert sorted(library_events) == sorted(clip_lib.MOTION_TASKS)
+  for task, events in library_events.items():
+    for clip in library[task]:
+      assert tuple(p.event for p in clip.idle_phases) == events, clip.name
 
 
 def test_no_keypoint_faster_than_2_m_per_s_outside_fast_phases(library):

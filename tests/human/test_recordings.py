@@ -6,6 +6,7 @@ clips made here.
 """
 
 import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -58,13 +59,15 @@ def task_clips(cache):
 
 
 @pytest.mark.parametrize('folder', FOLDERS or ['absent'])
-def test_reference_layout_loads_each_task(task_clips, folder):
+def test_reference_layout_loads_each_task(task_clips, library_events,
+                                          folder):
   task, clips = task_clips[folder]
   assert len(clips) == len(list((MOTIONS / folder).glob('*.bvh')))
   station = {'pick_place': layout.HUMAN_STATION_BESIDE}.get(
       task, layout.HUMAN_STATION_ACROSS)
   # Every task requirement holds (the speed model aside: checked below).
-  motions_lib.check_motions(clips, task, station, V_MAX, 'allow')
+  motions_lib.check_motions(clips, task, library_events[task], station,
+                            V_MAX, 'allow')
   for clip in clips:
     assert clip.task == task
     assert set(clip_lib.TASK_TARGETS[task]) <= set(clip.targets)
@@ -221,11 +224,12 @@ def test_clip_over_the_speed_model_is_refused_or_allowed():
   with pytest.raises(clip_lib.ClipError,
                      match=r"clip 'made': right_hand moves at 5\.00 m/s at "
                      r't = 0\.36 s.*outside_human_model'):
-    motions_lib.check_motions([clip], 'pick_place', station, V_MAX)
-  assert motions_lib.check_motions([clip], 'pick_place', station, V_MAX,
+    motions_lib.check_motions([clip], 'pick_place', (), station, V_MAX)
+  assert motions_lib.check_motions([clip], 'pick_place', (), station, V_MAX,
                                    'allow') == [clip]
   with pytest.raises(ValueError, match="outside_human_model 'maybe'"):
-    motions_lib.check_motions([clip], 'pick_place', station, V_MAX, 'maybe')
+    motions_lib.check_motions([clip], 'pick_place', (), station, V_MAX,
+                              'maybe')
 
 
 def test_clip_outside_the_workcell_is_refused():
@@ -234,7 +238,7 @@ def test_clip_outside_the_workcell_is_refused():
   with pytest.raises(clip_lib.ClipError,
                      match="keypoint 'pelvis' at frame 5 .*outside the "
                      'workcell'):
-    motions_lib.check_motions([_clip(positions=far)], 'pick_place',
+    motions_lib.check_motions([_clip(positions=far)], 'pick_place', (),
                               layout.HUMAN_STATION_BESIDE, V_MAX)
 
 
@@ -246,18 +250,36 @@ def test_non_finite_clip_is_refused():
     clip_lib.validate(_clip(positions=bad), 'x')
 
 
+def test_clip_waiting_for_other_events_than_the_tasks_is_refused():
+  station = layout.HUMAN_STATION_BESIDE
+  taken, placed = clip_lib.Event.object_taken, clip_lib.Event.object_placed
+  phases = tuple(clip_lib.IdlePhase(keyframe=k, event=e, amplitudes=[0.2, 0.1],
+                                    speeds=[0.1, 0.1])
+                 for k, e in enumerate((taken, placed)))
+  clip = _clip(keyframes=(5, 10), idle_phases=phases)
+  assert motions_lib.check_motions([clip], 'pick_place', (taken, placed),
+                                   station, V_MAX) == [clip]
+  for events in ((), (placed, taken), (taken,)):
+    expected = [str(e) for e in events]
+    with pytest.raises(clip_lib.ClipError, match=re.escape(
+        f"clip 'made': the task triggers the events {expected} in this "
+        "order (its EVENTS), the clip's idle phases wait for "
+        "['object_taken', 'object_placed']")):
+      motions_lib.check_motions([clip], 'pick_place', events, station, V_MAX)
+
+
 def test_clip_missing_its_tasks_targets_or_keyframes_is_refused():
   station = layout.HUMAN_STATION_ACROSS
   with pytest.raises(clip_lib.ClipError,
                      match=r"task 'hammering' needs the targets \['nail', "
                      r"'strike_grip'\]; the clip has none"):
-    motions_lib.check_motions([_clip()], 'hammering', station, V_MAX)
+    motions_lib.check_motions([_clip()], 'hammering', (), station, V_MAX)
   grasps = {'board_grasp_left': [0.3, 0.2, 0.9],
             'board_grasp_right': [0.3, -0.2, 0.9]}
   with pytest.raises(clip_lib.ClipError,
                      match="task 'lifting' needs at least 2 keyframes"):
-    motions_lib.check_motions([_clip(targets=grasps)], 'lifting', station,
-                              V_MAX)
+    motions_lib.check_motions([_clip(targets=grasps)], 'lifting', (),
+                              station, V_MAX)
 
 
 @pytest.mark.parametrize('content', [b'', b'PK\x03\x04 truncated',

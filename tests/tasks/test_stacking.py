@@ -11,6 +11,7 @@ import pytest
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import metrics
@@ -20,6 +21,7 @@ import checks   # tests/tasks/checks.py
 
 ROBOTS = ('panda', 'schunk')
 SPACES = ('joint', 'cartesian')
+SECOND_PLACED = clip_lib.Event.second_cube_placed
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
@@ -123,8 +125,8 @@ def test_the_human_carries_cube_1_to_the_stack():
   waits = 0
   for _ in range(100):
     env.step(_still(env))
-    waits += task.player.waiting_for == stacking.EVENTS[0]
-  assert waits > 50 and task.player.waiting_for == stacking.EVENTS[0]
+    waits += task.player.waiting_for == SECOND_PLACED
+  assert waits > 50 and task.player.waiting_for == SECOND_PLACED
 
 
 def test_the_human_takes_cube_3_only_after_putting_cube_1_down():
@@ -177,7 +179,7 @@ def _build_stack(env):
   """Cube 1 put down by the human, then 2-4 set on it (privileged)."""
   task = env.task
   assert _human_puts_down_cube_1(env)
-  while task.player.waiting_for != stacking.EVENTS[0]:   # hands back
+  while task.player.waiting_for != SECOND_PLACED:   # hands back
     env.step(_still(env))
   base = task.cubes[0].position(env.physics)
   for i in (1, 2, 3):
