@@ -76,7 +76,6 @@ Subclasses set the class constants below and override `_build_task`,
 
 import collections
 import copy
-import math
 
 from dm_control import composer
 from dm_control.composer.observation import observable
@@ -85,7 +84,6 @@ import mujoco
 import numpy as np
 
 from hrc_suite import layout
-from hrc_suite import robot_description
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
@@ -97,7 +95,6 @@ from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import batch
 from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
@@ -106,39 +103,22 @@ from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
+from hrc_suite.tasks import options as options_lib
 from hrc_suite.tasks import physics_loop
 from hrc_suite.tasks import self_collision as self_collision_lib
 from hrc_suite.tasks import substeps as substeps_lib
 
-DEFAULT_SHIELD_SUBSTEPS = 25          # L (docs/reference_benchmark.md, Timing)
-DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
-DEFAULT_CONTROL_TIMESTEP = 0.1        # s, 10 Hz RL step
-COLLISION_PREVENTION_POLICIES = cp_lib.POLICIES + ('off',)
-# PFL safe speed: the reference code that produced the paper used 50 mm/s
-# (docs/reference_benchmark.md, Safety).
-DEFAULT_V_SAFE = 0.05                 # m/s
-# Reward of an illegal contact (static, self, critical human): the
-# reference's default (its paper runs used 0).
-DEFAULT_COLLISION_REWARD = -10.0
+# The options' defaults (tasks/options.py), for the signature below.
+DEFAULT_SHIELD_SUBSTEPS = options_lib.DEFAULT_SHIELD_SUBSTEPS
+DEFAULT_PHYSICS_TIMESTEP = options_lib.DEFAULT_PHYSICS_TIMESTEP
+DEFAULT_CONTROL_TIMESTEP = options_lib.DEFAULT_CONTROL_TIMESTEP
+DEFAULT_V_SAFE = options_lib.DEFAULT_V_SAFE
+DEFAULT_COLLISION_REWARD = options_lib.DEFAULT_COLLISION_REWARD
 DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
 _SEED_RANGE = 2**31 - 1
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 # Flag positions of the contacts that cost collision_reward.
 _ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
-
-
-def _choice(name, value, valid):
-  if value not in valid:
-    raise ValueError(f'Unknown {name} {value!r}: expected one of '
-                     f'{", ".join(map(repr, valid))}')
-  return value
-
-
-def _positive(name, value):
-  if not (isinstance(value, (int, float)) and math.isfinite(value)
-          and value > 0):
-    raise ValueError(f'{name} must be a positive number, got {value!r}')
-  return float(value)
 
 
 def _is_integer(value):
@@ -188,7 +168,8 @@ class HrcTask(composer.Task):
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD,
                outside_human_model='refuse', fast_path=True):
-    """Builds the scene; every argument is checked, errors list valid values.
+    """Builds the scene from the checked arguments (`self.options`,
+    tasks/options.py; errors name the argument and the valid values).
 
     Args:
       robot: a robot name (`robot_description.names()`: the description
@@ -246,60 +227,31 @@ class HrcTask(composer.Task):
         and composer's substeps (the readable reference; the two agree,
         tests/tasks/test_fast_path.py).
     """
-    type(self).defaults()   # The class constants, checked.
-    robot = robot_description.resolve(robot)   # A name or a .json path.
-    action_space = _choice('action_space',
-                           action_space or self.DEFAULT_ACTION_SPACE,
-                           actions.ACTION_SPACES)
-    shield = _choice('shield', shield or self.DEFAULT_SHIELD,
-                     modes_lib.names())
-    if not isinstance(shield_substeps, int) or shield_substeps < 1:
-      raise ValueError('shield_substeps must be a positive integer, got '
-                       f'{shield_substeps!r}')
-    physics_timestep = _positive('physics_timestep', physics_timestep)
-    control_timestep = _positive('control_timestep', control_timestep)
-    expected = shield_substeps * physics_timestep
-    if abs(control_timestep - expected) > 1e-9 * expected:
-      raise ValueError(
-          f'control_timestep ({control_timestep} s) must equal '
-          f'shield_substeps ({shield_substeps}) x physics_timestep '
-          f'({physics_timestep} s) = {expected} s: the shield runs once per '
-          'physics step, shield_substeps times per RL step')
-    self.reward_kind = _choice('reward', reward or self.REWARDS[0],
-                               self.REWARDS)
-    delay = self.DEFAULT_REWARD_DELAY if reward_delay is None else reward_delay
-    if not isinstance(delay, int) or delay < 0:
-      raise ValueError(f'reward_delay must be an integer >= 0 (RL steps), '
-                       f'got {reward_delay!r}')
-    self.reward_delay = delay
-    if not isinstance(done_at_success, bool):
-      raise ValueError(f'done_at_success must be True or False, got '
-                       f'{done_at_success!r}')
-    self.done_at_success = done_at_success
-    self.collision_prevention_policy = _choice(
-        'collision_prevention', collision_prevention,
-        COLLISION_PREVENTION_POLICIES)
-    if time_limit is None:
-      time_limit = self.HORIZON * control_timestep
-    self.time_limit = _positive('time_limit', time_limit)
-    self.horizon = max(1, int(round(self.time_limit / control_timestep)))
-    v_safe = _positive('v_safe', v_safe)
-    if critical_speed is None:
-      critical_speed = v_safe if modes_lib.get(shield).allows_contact else (
-          contacts.SSM_STOPPED_SPEED)
-    critical_speed = _positive('critical_speed', critical_speed)
-    if not (isinstance(collision_reward, (int, float))
-            and math.isfinite(collision_reward) and collision_reward <= 0):
-      raise ValueError('collision_reward must be a finite number <= 0, got '
-                       f'{collision_reward!r}')
-    self.collision_reward = float(collision_reward)
-    if not isinstance(fast_path, bool):
-      raise ValueError(f'fast_path must be True or False, got '
-                       f'{fast_path!r}')
-    self.fast_path = fast_path
-    self.shield_mode = shield
-    self.shield_substeps = shield_substeps
-    self.critical_speed = critical_speed
+    options = options_lib.TaskOptions.of(
+        type(self).defaults(), robot=robot, action_space=action_space,
+        shield=shield, shield_substeps=shield_substeps,
+        physics_timestep=physics_timestep,
+        control_timestep=control_timestep, reward=reward,
+        reward_delay=reward_delay, done_at_success=done_at_success,
+        collision_prevention=collision_prevention, time_limit=time_limit,
+        v_safe=v_safe, critical_speed=critical_speed,
+        collision_reward=collision_reward, fast_path=fast_path)
+    self.options = options
+    self.reward_kind = options.reward
+    self.reward_delay = options.reward_delay
+    self.done_at_success = options.done_at_success
+    self.collision_prevention_policy = options.collision_prevention
+    self.time_limit = options.time_limit
+    self.horizon = options.horizon
+    self.collision_reward = options.collision_reward
+    self.fast_path = fast_path = options.fast_path
+    self.shield_mode = shield = options.shield
+    self.shield_substeps = shield_substeps = options.shield_substeps
+    self.critical_speed = options.critical_speed
+    robot, action_space = options.robot, options.action_space
+    physics_timestep = options.physics_timestep
+    control_timestep = options.control_timestep
+    v_safe = options.v_safe
 
     # Scene.
     self._arena = workcell_lib.Workcell(table=self.TABLE)
