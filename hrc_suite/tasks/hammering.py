@@ -43,6 +43,7 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import markers
 from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
@@ -215,11 +216,9 @@ class Hammering(NailOutcome, base.HrcTask):
     self._arena.mjcf_model.contact.add(
         'exclude', name='world_hammer', body1='world',
         body2=self._hammer.body)
-    body = self._arena.mjcf_model.worldbody.add('body', name='nail_target',
-                                                mocap=True)
-    body.add('geom', name='nail_target', type='sphere', size=(GOAL_RADIUS,),
-             rgba=GOAL_RGBA, contype=0, conaffinity=0, group=1)
-    self._target_body = body
+    self._marker = markers.TargetMarker(radius=GOAL_RADIUS, rgba=GOAL_RGBA,
+                                        name='nail_target')
+    self._marker.attach_mocap(self._arena)
     self._nail_target = np.zeros(3)
     self._tool_hold = None    # (physics data pointer, CompliantHold)
     self._reset_progress()
@@ -262,7 +261,7 @@ class Hammering(NailOutcome, base.HrcTask):
     targets = self._player.targets_world
     self._nail_target = np.asarray(targets['nail'], float) + [
         0.0, 0.0, NAIL_ABOVE_TARGET]
-    physics.bind(self._target_body).mocap_pos = self._nail_target
+    self._marker.set_mocap_position(physics, self._nail_target)
     self._give_hammer(physics, targets)
     physics.forward()
 
