@@ -375,14 +375,12 @@ class Hammering(NailOutcome, base.HrcTask):
                 physics, board.body))])),
         'eef_to_object': observable.Generic(eef_to_object),
         'eef_to_target': observable.Generic(eef_to_target),
-        'object_position': observable.MJCFFeature('xpos', board.body),
-        'object_quaternion': observable.MJCFFeature('xquat', board.body),
-        'nail_progress': observable.Generic(
-            lambda physics: np.array([board.progress(physics)])),
+        'object_position': board.observables.position,
+        'object_quaternion': board.observables.quaternion,
+        'nail_progress': board.observables.nail_progress,
         'nail_target': observable.Generic(
             lambda physics: self._nail_target.copy()),
-        'hammer_head_position': observable.MJCFFeature(
-            'xpos', self._hammer.head_site),
+        'hammer_head_position': self._hammer.observables.head_position,
     }
 
 

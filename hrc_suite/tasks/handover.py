@@ -265,8 +265,7 @@ class _Handover(base.HrcTask):
     observables = {
         'object_gripped': observable.Generic(
             lambda physics: np.array([float(self._gripped)])),
-        'object_quaternion': observable.MJCFFeature(
-            'xquat', self._hammer.body),
+        'object_quaternion': self._hammer.observables.quaternion,
         'object_held_by_human': observable.Generic(
             lambda physics: np.array([float(self._holder() is not None)])),
     }
