@@ -32,35 +32,28 @@ class TargetMarker(composer.Entity):
              offset=(0.0, 0.0, 0.0)):
     """radius: of the sphere or disc (m); half_thickness: the disc's (m);
     offset: the site's position in the marker's frame (m)."""
-    if (not isinstance(radius, numbers.Real) or not np.isfinite(radius)
-        or radius <= 0):
-      raise ValueError(f'Marker radius must be a positive finite number, got '
-                       f'{radius!r}')
+    self._radius = _positive(radius, 'radius')
+    half_thickness = _positive(half_thickness, 'half_thickness')
     if shape not in SHAPES:
       raise ValueError(f'Unknown marker shape {shape!r}: expected one of '
                        f'{", ".join(SHAPES)}')
     rgba = np.asarray(rgba, dtype=float)
     if rgba.shape != (4,) or np.any((rgba < 0) | (rgba > 1)):
       raise ValueError(f'rgba must be 4 values in [0, 1], got {rgba.tolist()}')
-    if (not isinstance(half_thickness, numbers.Real)
-        or not np.isfinite(half_thickness) or half_thickness <= 0):
-      raise ValueError('Marker half_thickness must be a positive finite '
-                       f'number, got {half_thickness!r}')
-    offset = np.asarray(offset, dtype=float)
-    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+    site_position = _finite_point(offset)
+    if site_position is None:
       raise ValueError(f'Marker offset must be a finite 3-vector, got '
-                       f'{offset.tolist()}')
-    self._radius = float(radius)
+                       f'{offset!r}')
     self._mjcf_root = mjcf.RootElement(model=name)
     self._body = self._mjcf_root.worldbody.add('body', name=name)
     if shape == 'sphere':
       kind, size = 'sphere', (self._radius,)
     else:
-      kind, size = 'cylinder', (self._radius, float(half_thickness))
+      kind, size = 'cylinder', (self._radius, half_thickness)
     # A site: drawn, but never collides and has no mass.
     self._site = self._body.add('site', name='site', type=kind, size=size,
                                 rgba=rgba, group=MARKER_GROUP,
-                                pos=offset)
+                                pos=site_position)
     self._mocap_frame = None
 
   def _build_observables(self):
@@ -108,6 +101,19 @@ class TargetMarker(composer.Entity):
     return self._mocap(physics).mocap_pos.copy()
 
 
+def _positive(value, what):
+  if not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
+    raise ValueError(f'Marker {what} must be a positive finite number, got '
+                     f'{value!r}')
+  return float(value)
+
+
+def _finite_point(value):
+  """`value` as a float (3,) array, or None if not a finite 3-vector."""
+  point = np.asarray(value, dtype=float)
+  return point if point.shape == (3,) and np.all(np.isfinite(point)) else None
+
+
 class TargetMarkerObservables(composer.Observables):
   """World position of the marker's centre."""
 
@@ -130,8 +136,8 @@ def position_of(physics, thing):
                        f'{thing.full_identifier!r}: expected a body, site or '
                        'geom')
     return physics.bind(thing).xpos
-  position = np.asarray(thing, dtype=float)
-  if position.shape != (3,) or not np.all(np.isfinite(position)):
+  position = _finite_point(thing)
+  if position is None:
     raise ValueError(f'Expected a prop, marker, MJCF body/site/geom or a '
                      f'finite 3-vector, got {thing!r}')
   return position
