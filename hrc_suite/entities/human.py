@@ -497,7 +497,9 @@ class Human(composer.Entity):
   def add_relative_observables(self, site, subset=('head', 'left_hand',
                                                    'right_hand'),
                                name=None):
-    """Observables of keypoints in `site`'s frame and their distances."""
+    """Observables of keypoints in `site`'s frame and their distances;
+    returns both (named 'keypoints_in_{name}_frame' and
+    'keypoint_distances_to_{name}', name defaulting to the site's)."""
     indices = np.array(keypoints.index(subset))
     name = name or site.name
 
@@ -507,8 +509,7 @@ class Human(composer.Entity):
       return (points - frame.xpos) @ frame.xmat.reshape(3, 3)
 
     def distance(physics):
-      points = self.keypoint_positions(physics)[indices]
-      return np.linalg.norm(points - physics.bind(site).xpos, axis=-1)
+      return np.linalg.norm(relative(physics), axis=-1)
 
     rel = observable.Generic(relative)
     dist = observable.Generic(distance)

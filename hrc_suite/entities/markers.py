@@ -1,10 +1,13 @@
 """Visual-only goal markers and the "object at target" check.
 
 A `TargetMarker` is a sphere (or flat disc) drawn as a site on a body
-without joints or geoms, so it has no collision and no mass effect. Attach
-it with `arena.attach(marker)` (fixed) and move it per episode with
-`marker.set_pose(physics, position)`; attached to a moving body's frame it
-follows that body.
+without joints or geoms, so it has no collision and no mass effect. Every
+task's goal marker is one. Attach it with `arena.attach(marker)` (fixed;
+move it with `marker.set_pose(physics, position)`, which edits the model)
+or with `marker.attach_mocap(arena)` (a mocap frame: its position is
+physics state, so snapshots carry it; move it with
+`marker.set_mocap_position`). Attached to a moving body's frame it follows
+that body.
 """
 
 import numbers
@@ -25,27 +28,33 @@ class TargetMarker(composer.Entity):
   """A translucent sphere or disc marking a goal; it touches nothing."""
 
   def _build(self, radius=MARKER_RADIUS, rgba=MARKER_RGBA, shape='sphere',
-             name='target'):
-    if (not isinstance(radius, numbers.Real) or not np.isfinite(radius)
-        or radius <= 0):
-      raise ValueError(f'Marker radius must be a positive finite number, got '
-                       f'{radius!r}')
+             name='target', half_thickness=DISC_HALF_THICKNESS,
+             offset=(0.0, 0.0, 0.0)):
+    """radius: of the sphere or disc (m); half_thickness: the disc's (m);
+    offset: the site's position in the marker's frame (m)."""
+    self._radius = _positive(radius, 'radius')
+    half_thickness = _positive(half_thickness, 'half_thickness')
     if shape not in SHAPES:
       raise ValueError(f'Unknown marker shape {shape!r}: expected one of '
                        f'{", ".join(SHAPES)}')
     rgba = np.asarray(rgba, dtype=float)
     if rgba.shape != (4,) or np.any((rgba < 0) | (rgba > 1)):
       raise ValueError(f'rgba must be 4 values in [0, 1], got {rgba.tolist()}')
-    self._radius = float(radius)
+    site_position = _finite_point(offset)
+    if site_position is None:
+      raise ValueError(f'Marker offset must be a finite 3-vector, got '
+                       f'{offset!r}')
     self._mjcf_root = mjcf.RootElement(model=name)
     self._body = self._mjcf_root.worldbody.add('body', name=name)
     if shape == 'sphere':
       kind, size = 'sphere', (self._radius,)
     else:
-      kind, size = 'cylinder', (self._radius, DISC_HALF_THICKNESS)
+      kind, size = 'cylinder', (self._radius, half_thickness)
     # A site: drawn, but never collides and has no mass.
     self._site = self._body.add('site', name='site', type=kind, size=size,
-                                rgba=rgba, group=MARKER_GROUP)
+                                rgba=rgba, group=MARKER_GROUP,
+                                pos=site_position)
+    self._mocap_frame = None
 
   def _build_observables(self):
     return TargetMarkerObservables(self)
@@ -70,6 +79,40 @@ class TargetMarker(composer.Entity):
   def position(self, physics):
     return physics.bind(self._site).xpos.copy()
 
+  def attach_mocap(self, arena):
+    """Attaches the marker to `arena` on a mocap frame; returns the frame."""
+    frame = arena.attach(self)
+    frame.mocap = 'true'
+    self._mocap_frame = frame
+    return frame
+
+  def _mocap(self, physics):
+    if self._mocap_frame is None:
+      raise ValueError(f'Marker {self._mjcf_root.model!r} has no mocap '
+                       'frame: attach it with attach_mocap(arena)')
+    return physics.bind(self._mocap_frame)
+
+  def set_mocap_position(self, physics, position):
+    """Moves the mocap frame (the site follows at `offset`)."""
+    self._mocap(physics).mocap_pos = position
+
+  def mocap_position(self, physics):
+    """World position of the mocap frame, the marker's goal."""
+    return self._mocap(physics).mocap_pos.copy()
+
+
+def _positive(value, what):
+  if not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
+    raise ValueError(f'Marker {what} must be a positive finite number, got '
+                     f'{value!r}')
+  return float(value)
+
+
+def _finite_point(value):
+  """`value` as a float (3,) array, or None if not a finite 3-vector."""
+  point = np.asarray(value, dtype=float)
+  return point if point.shape == (3,) and np.all(np.isfinite(point)) else None
+
 
 class TargetMarkerObservables(composer.Observables):
   """World position of the marker's centre."""
@@ -93,8 +136,8 @@ def position_of(physics, thing):
                        f'{thing.full_identifier!r}: expected a body, site or '
                        'geom')
     return physics.bind(thing).xpos
-  position = np.asarray(thing, dtype=float)
-  if position.shape != (3,) or not np.all(np.isfinite(position)):
+  position = _finite_point(thing)
+  if position is None:
     raise ValueError(f'Expected a prop, marker, MJCF body/site/geom or a '
                      f'finite 3-vector, got {thing!r}')
   return position

@@ -259,7 +259,8 @@ class RobotObservables(composer.Observables):
   @composer.observable
   def end_effector_position(self):
     # Generic, so the TCP follows a gripper attached after construction.
-    return observable.Generic(lambda physics: self._entity.tcp_pose(physics)[0])
+    return observable.Generic(
+        lambda physics: physics.bind(self._entity.tcp_site).xpos)
 
   @composer.observable
   def end_effector_quaternion(self):

@@ -56,7 +56,9 @@ step is exactly L shield cycles.
 
 Subclasses set the class constants below and override `_build_task`,
 `_initialize_task`, `_update_task`, `_task_reward`, and optionally
-`_human_events`, `_failed` and `_task_observables`. Hooks they use:
+`_human_events`, `_failed` and `_task_observables` (name -> observable;
+an entity's own observable where the entity declares the quantity, e.g.
+`self._board.observables.position`). Hooks they use:
 
 * TASK_STATE names the attributes that hold the task's episode state;
   snapshots copy them (or override `_task_state(physics)` /
@@ -494,10 +496,6 @@ class HrcTask(composer.Task):
     self.observation_names = observations_lib.select(
         obs, self.OBSERVATION_PRESETS, observations)
     self._task_obs = obs
-    # Entity observables are not part of the task's observation.
-    for entity in self._arena.iter_entities():
-      for value in entity.observables.as_dict().values():
-        value.enabled = False
 
   def _add_cameras(self, cameras, camera_size):
     """Enabled RGB observables of named workcell cameras."""
@@ -530,6 +528,14 @@ class HrcTask(composer.Task):
 
   @property
   def task_observables(self):
+    return self._task_obs
+
+  @property
+  def observables(self):
+    """The observation's observables: the task's names only. Entity
+    observables join it under the task's names (e.g. the robot's
+    `joint_positions`, a prop's `position` as 'object_position'), not
+    under composer's 'entity/name'."""
     return self._task_obs
 
   # ---------------------------------------------------------------- episode

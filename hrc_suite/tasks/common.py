@@ -19,11 +19,12 @@ def object_reward(success, gripped):
   return GRIPPED_REWARD if gripped else IDLE_REWARD
 
 
-def point_observables(tcp_site, name, position, eef_name=None):
+def point_observables(tcp_site, name, position, eef_name=None, world=None):
   """Observables of a world point given by `position(physics)`.
 
-  '{name}_position' (world), 'eef_to_{name}' (world vector from the TCP, or
-  `eef_name`), '{name}_in_eef_frame' (that vector in the TCP frame) and
+  '{name}_position' (world; the observable `world` if given, e.g. a prop's
+  own), 'eef_to_{name}' (world vector from the TCP, or `eef_name`),
+  '{name}_in_eef_frame' (that vector in the TCP frame) and
   '{name}_distance' (its length, shape (1,)).
   """
 
@@ -36,24 +37,27 @@ def point_observables(tcp_site, name, position, eef_name=None):
   def distance(physics):
     return np.array([np.linalg.norm(eef_to(physics))])
 
+  if world is None:
+    world = observable.Generic(
+        lambda physics: np.array(position(physics), dtype=float))
   return {
-      f'{name}_position': observable.Generic(
-          lambda physics: np.array(position(physics), dtype=float)),
+      f'{name}_position': world,
       eef_name or f'eef_to_{name}': observable.Generic(eef_to),
       f'{name}_in_eef_frame': observable.Generic(in_eef),
       f'{name}_distance': observable.Generic(distance),
   }
 
 
-def object_target_observables(tcp_site, object_body, target, gripped,
+def object_target_observables(tcp_site, prop, target, gripped,
                               success_distance):
   """The pick-and-place family's observables: 'object_gripped' (the flag
   `gripped()` the reward used), the object's and the target's point
-  observables, 'object_quaternion' and 'object_at_target' (the object's
-  body origin within `success_distance` of `target(physics)`)."""
+  observables, 'object_quaternion' (the prop's own position and quaternion
+  observables) and 'object_at_target' (the prop's body origin within
+  `success_distance` of `target(physics)`)."""
 
   def object_position(physics):
-    return physics.bind(object_body).xpos
+    return physics.bind(prop.body).xpos
 
   def at_target(physics):
     offset = object_position(physics) - target(physics)
@@ -62,10 +66,11 @@ def object_target_observables(tcp_site, object_body, target, gripped,
   observables = {
       'object_gripped': observable.Generic(
           lambda physics: np.array([float(gripped())])),
-      'object_quaternion': observable.MJCFFeature('xquat', object_body),
+      'object_quaternion': prop.observables.quaternion,
       'object_at_target': observable.Generic(at_target),
   }
-  observables.update(point_observables(tcp_site, 'object', object_position))
+  observables.update(point_observables(
+      tcp_site, 'object', object_position, world=prop.observables.position))
   observables.update(point_observables(tcp_site, 'target', target))
   return observables
 

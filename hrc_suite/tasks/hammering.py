@@ -43,6 +43,7 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import markers
 from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
@@ -218,11 +219,9 @@ class Hammering(NailOutcome, base.HrcTask):
     self._arena.mjcf_model.contact.add(
         'exclude', name='world_hammer', body1='world',
         body2=self._hammer.body)
-    body = self._arena.mjcf_model.worldbody.add('body', name='nail_target',
-                                                mocap=True)
-    body.add('geom', name='nail_target', type='sphere', size=(GOAL_RADIUS,),
-             rgba=GOAL_RGBA, contype=0, conaffinity=0, group=1)
-    self._target_body = body
+    self._marker = markers.TargetMarker(radius=GOAL_RADIUS, rgba=GOAL_RGBA,
+                                        name='nail_target')
+    self._marker.attach_mocap(self._arena)
     self._nail_target = np.zeros(3)
     self._tool_hold = None    # (physics data pointer, CompliantHold)
     self._reset_progress()
@@ -265,7 +264,7 @@ class Hammering(NailOutcome, base.HrcTask):
     targets = self._player.targets_world
     self._nail_target = np.asarray(targets['nail'], float) + [
         0.0, 0.0, NAIL_ABOVE_TARGET]
-    physics.bind(self._target_body).mocap_pos = self._nail_target
+    self._marker.set_mocap_position(physics, self._nail_target)
     self._give_hammer(physics, targets)
     physics.forward()
 
@@ -379,12 +378,10 @@ class Hammering(NailOutcome, base.HrcTask):
                 physics, board.body))])),
         'eef_to_object': observable.Generic(eef_to_object),
         'eef_to_target': observable.Generic(eef_to_target),
-        'object_position': observable.MJCFFeature('xpos', board.body),
-        'object_quaternion': observable.MJCFFeature('xquat', board.body),
-        'nail_progress': observable.Generic(
-            lambda physics: np.array([board.progress(physics)])),
+        'object_position': board.observables.position,
+        'object_quaternion': board.observables.quaternion,
+        'nail_progress': board.observables.nail_progress,
         'nail_target': observable.Generic(
             lambda physics: self._nail_target.copy()),
-        'hammer_head_position': observable.MJCFFeature(
-            'xpos', self._hammer.head_site),
+        'hammer_head_position': self._hammer.observables.head_position,
     }

@@ -384,14 +384,11 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
                 physics, hammer.body))])),
         'eef_to_object': observable.Generic(eef_to_object),
         'eef_to_target': observable.Generic(eef_to_target),
-        'object_position': observable.MJCFFeature('xpos', board.body),
-        'object_quaternion': observable.MJCFFeature('xquat', board.body),
-        'nail_progress': observable.Generic(
-            lambda physics: np.array([board.progress(physics)])),
-        'nail_head_position': observable.MJCFFeature(
-            'xpos', board.nail_head_site),
-        'hammer_head_position': observable.MJCFFeature(
-            'xpos', hammer.head_site),
+        'object_position': board.observables.position,
+        'object_quaternion': board.observables.quaternion,
+        'nail_progress': board.observables.nail_progress,
+        'nail_head_position': board.observables.nail_head_position,
+        'hammer_head_position': hammer.observables.head_position,
         'board_placed': observable.Generic(
             lambda physics: np.array([float(self._phase == PLACED)])),
     }

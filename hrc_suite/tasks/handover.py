@@ -54,6 +54,7 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import markers
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
@@ -264,8 +265,7 @@ class _Handover(base.HrcTask):
     observables = {
         'object_gripped': observable.Generic(
             lambda physics: np.array([float(self._gripped)])),
-        'object_quaternion': observable.MJCFFeature(
-            'xquat', self._hammer.body),
+        'object_quaternion': self._hammer.observables.quaternion,
         'object_held_by_human': observable.Generic(
             lambda physics: np.array([float(self._holder() is not None)])),
     }
@@ -366,11 +366,11 @@ class HumanToRobot(_Handover):
 
   def _build_task(self):
     super()._build_task()
-    body = self._arena.mjcf_model.worldbody.add(
-        'body', name='handover_target', mocap=True)
-    body.add('site', name='handover_target', type='cylinder',
-             size=(SUCCESS_DISTANCE, 0.001), rgba=TARGET_RGBA, group=0)
-    self._target_body = body
+    # A disc whose radius is the success distance.
+    self._marker = markers.TargetMarker(
+        radius=SUCCESS_DISTANCE, rgba=TARGET_RGBA, shape='disc',
+        name='handover_target')
+    self._marker.attach_mocap(self._arena)
     self._ik = ik_lib.InverseKinematics(self._kinematics)
     self._picked = False
     self._pick_grip = None
@@ -486,7 +486,7 @@ class HumanToRobot(_Handover):
     self._pick_grip = None
     self._turn = 0.0
     target = self._sample_target(random_state)
-    physics.bind(self._target_body).mocap_pos = target
+    self._marker.set_mocap_position(physics, target)
     # The hammer where this clip's hand picks it, head towards the robot,
     # the palm over its human grip point.
     pick = np.array(self._player.targets_world['object_pick'], dtype=float)
@@ -510,7 +510,7 @@ class HumanToRobot(_Handover):
     self._picked, self._turn = True, 1.0
 
   def _target(self, physics):
-    return physics.bind(self._target_body).mocap_pos.copy()
+    return self._marker.mocap_position(physics)
 
   def _object_at_target(self, physics):
     delta = self._object_position(physics) - self._target(physics)

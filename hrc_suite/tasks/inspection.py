@@ -45,6 +45,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import markers
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.tasks import actions
@@ -102,11 +103,9 @@ class Inspection(base.HrcTask):
     self._arena.add_free_entity(self._cube)
     self._object_geoms.extend(self._cube.geoms)
     # Visual-only mocap marker: its position is physics state.
-    body = self._arena.mjcf_model.worldbody.add(
-        'body', name='inspection_target', mocap=True)
-    body.add('site', name='inspection_target', type='sphere',
-             size=(TARGET_RADIUS,), rgba=TARGET_RGBA, group=0)
-    self._target_body = body
+    self._marker = markers.TargetMarker(
+        radius=TARGET_RADIUS, rgba=TARGET_RGBA, name='inspection_target')
+    self._marker.attach_mocap(self._arena)
     self._ik = ik_lib.InverseKinematics(self._kinematics)
     self._target_cache = {}
     self._target = np.zeros(3)
@@ -181,7 +180,7 @@ class Inspection(base.HrcTask):
     quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
     self._cube.set_pose(physics, position, quat)
     self._target = self._clip_target()
-    physics.bind(self._target_body).mocap_pos = self._target
+    self._marker.set_mocap_position(physics, self._target)
     physics.forward()
 
   # ------------------------------------------------------------ progress
@@ -201,7 +200,7 @@ class Inspection(base.HrcTask):
       self._success = self._inspecting and self._kept
       self._inspecting, self._kept = False, False
       self._target = self._clip_target()
-      physics.bind(self._target_body).mocap_pos = self._target
+      self._marker.set_mocap_position(physics, self._target)
     # The person waits for the cube: the base triggers the event right
     # after this (`_human_events`), which ends the wait.
     self._presented = int(self._gripped and self._at_target
@@ -228,6 +227,6 @@ class Inspection(base.HrcTask):
 
   def _task_observables(self):
     return common.object_target_observables(
-        self._robot.tcp_site, self._cube.body,
+        self._robot.tcp_site, self._cube,
         lambda physics: self._target, lambda: self._gripped,
         SUCCESS_DISTANCE)

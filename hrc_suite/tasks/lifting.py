@@ -314,7 +314,7 @@ class Lifting(base.HrcTask):
   # -------------------------------------------------------- observables
 
   def _task_observables(self):
-    tcp, body = self._robot.tcp_site, self._board.body
+    tcp, board = self._robot.tcp_site, self._board
     head = keypoints.index(('head',))[0]
     hands = np.array(keypoints.index(('left_hand', 'right_hand')))
 
@@ -325,12 +325,12 @@ class Lifting(base.HrcTask):
       return observe
 
     return {
-        'board_quaternion': observable.MJCFFeature('xquat', body),
+        'board_quaternion': board.observables.quaternion,
         'head_distance': observable.Generic(
             lambda physics: np.array([np.linalg.norm(eef_to(head)(physics))])),
         'eef_to_hands': observable.Generic(eef_to(hands)),
-        'board_position': observable.MJCFFeature('xpos', body),
-        'board_normal': observable.Generic(self._board.normal),
+        'board_position': board.observables.position,
+        'board_normal': board.observables.normal,
         'handle_position': observable.MJCFFeature(
             'xpos', self._board.robot_grip_site),
         'eef_to_handle': observable.Generic(

@@ -4,7 +4,8 @@ Shared (docs/reference_benchmark.md, Observations): joint angles and
 velocities, gripper aperture, end-effector (TCP) pose, human keypoints in
 the world, head and hands in the TCP frame and their distances, safe and
 critical human contact and static collision flags of the last RL step.
-Tasks add goals and objects.
+Tasks add goals and objects. The quantities of one entity are that
+entity's observables, named here as the observation names them.
 """
 
 import collections
@@ -12,18 +13,11 @@ import collections
 from dm_control.composer.observation import observable
 import numpy as np
 
-from hrc_suite.human import keypoints
 from hrc_suite.tasks import contacts
 
 # Human keypoints observed relative to the end effector: head and hands
 # (docs/reference_benchmark.md, Observations).
 OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
-
-
-def in_frame(physics, site, points):
-  """Points (N, 3) in the frame of `site`."""
-  frame = physics.bind(site)
-  return (points - frame.xpos) @ frame.xmat.reshape(3, 3)
 
 
 def _flag(contact_flags, *names):
@@ -36,24 +30,17 @@ def _flag(contact_flags, *names):
 def shared_observables(robot, gripper, human, contact_flags):
   """name -> observable; contact_flags: the task's flags of the last RL
   step, one per contacts.CONTACT_TYPES (an array it updates)."""
-  tcp = robot.tcp_site
-  observed = np.array(keypoints.index(OBSERVED_HUMAN_KEYPOINTS))
-
-  def human_in_eef(physics):
-    return in_frame(physics, tcp, human.keypoint_positions(physics)[observed])
-
+  in_eef, distances = human.add_relative_observables(
+      robot.tcp_site, OBSERVED_HUMAN_KEYPOINTS, name='eef')
   obs = collections.OrderedDict()
-  obs['joint_positions'] = observable.MJCFFeature('qpos', robot.joints)
-  obs['joint_velocities'] = observable.MJCFFeature('qvel', robot.joints)
-  obs['gripper_aperture'] = observable.Generic(
-      lambda physics: np.array([gripper.aperture(physics)]))
-  obs['eef_position'] = observable.MJCFFeature('xpos', tcp)
-  obs['eef_quaternion'] = observable.Generic(
-      lambda physics: robot.tcp_pose(physics)[1])
-  obs['human_keypoints'] = observable.Generic(human.keypoint_positions)
-  obs['human_in_eef_frame'] = observable.Generic(human_in_eef)
-  obs['human_distances'] = observable.Generic(
-      lambda physics: np.linalg.norm(human_in_eef(physics), axis=-1))
+  obs['joint_positions'] = robot.observables.joint_positions
+  obs['joint_velocities'] = robot.observables.joint_velocities
+  obs['gripper_aperture'] = gripper.observables.aperture
+  obs['eef_position'] = robot.observables.end_effector_position
+  obs['eef_quaternion'] = robot.observables.end_effector_quaternion
+  obs['human_keypoints'] = human.observables.keypoint_positions
+  obs['human_in_eef_frame'] = in_eef
+  obs['human_distances'] = distances
   obs['static_collision'] = observable.Generic(
       _flag(contact_flags, 'static'))
   # Safe: the robot's own motion was slow, whether or not the person had

@@ -39,6 +39,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import markers
 from hrc_suite.entities import props
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
@@ -107,15 +108,14 @@ class PickPlace(base.HrcTask):
     self._cube = props.Cube()
     self._arena.add_free_entity(self._cube)
     self._object_geoms.extend(self._cube.geoms)
-    # The target is a mocap body: its position is physics state, so
-    # snapshots carry it. A flat disc whose radius is the success distance.
-    body = self._arena.mjcf_model.worldbody.add(
-        'body', name='pick_place_target', mocap=True)
-    body.add('site', name='pick_place_target', type='cylinder',
-             size=(SUCCESS_DISTANCE, TARGET_HALF_THICKNESS),
-             pos=(0.0, 0.0, -self._cube.size / 2 + TARGET_HALF_THICKNESS),
-             rgba=TARGET_RGBA, group=0)
-    self._target_body = body
+    # The target marker's mocap frame is physics state, so snapshots carry
+    # it: a flat disc whose radius is the success distance, on the table
+    # under the target (the cube's centre).
+    self._marker = markers.TargetMarker(
+        radius=SUCCESS_DISTANCE, rgba=TARGET_RGBA, shape='disc',
+        name='pick_place_target', half_thickness=TARGET_HALF_THICKNESS,
+        offset=(0.0, 0.0, -self._cube.size / 2 + TARGET_HALF_THICKNESS))
+    self._marker.attach_mocap(self._arena)
     self._ik = ik_lib.InverseKinematics(self._kinematics)
     self._region_x = layout.cube_region_x(self._robot.description.name,
                                           REGION_X)
@@ -172,7 +172,7 @@ class PickPlace(base.HrcTask):
                         quaternion=np.array([1.0, 0.0, 0.0, 0.0]))
     self._cube.set_velocity(physics, velocity=np.zeros(3),
                             angular_velocity=np.zeros(3))
-    physics.bind(self._target_body).mocap_pos = self._target
+    self._marker.set_mocap_position(physics, self._target)
     physics.forward()
     self._reset_progress()
     self._distance = float(np.linalg.norm(start - self._target))
@@ -202,7 +202,7 @@ class PickPlace(base.HrcTask):
 
   def _task_observables(self):
     return common.object_target_observables(
-        self._robot.tcp_site, self._cube.body,
+        self._robot.tcp_site, self._cube,
         lambda physics: self._target, lambda: self._gripped,
         SUCCESS_DISTANCE)
 

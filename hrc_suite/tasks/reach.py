@@ -61,9 +61,7 @@ class Reach(base.HrcTask):
     # The visual-only marker hangs on a mocap attachment frame: its position
     # is physics state, so snapshots carry the goal.
     self._marker = markers.TargetMarker(name='reach_goal')
-    frame = self._arena.attach(self._marker)
-    frame.mocap = 'true'
-    self._goal_body = frame
+    self._marker.attach_mocap(self._arena)
     self._goal_position = np.zeros(3)
     self._goal_q = self._robot.description.q_home.copy()
     self._ik = ik_lib.InverseKinematics(self._kinematics)
@@ -116,7 +114,7 @@ class Reach(base.HrcTask):
 
   def _initialize_task(self, physics, random_state):
     self._goal_q, self._goal_position = self._sample_goal(random_state)
-    physics.bind(self._goal_body).mocap_pos = self._goal_position
+    self._marker.set_mocap_position(physics, self._goal_position)
     self._success = False
 
   # ------------------------------------------------------------ progress

@@ -111,6 +111,10 @@ def test_bad_arguments_raise_clear_errors():
     markers.TargetMarker(radius=0)
   with pytest.raises(ValueError, match='shape'):
     markers.TargetMarker(shape='cone')
+  with pytest.raises(ValueError, match='half_thickness'):
+    markers.TargetMarker(shape='disc', half_thickness=-0.001)
+  with pytest.raises(ValueError, match='offset'):
+    markers.TargetMarker(offset=(0.0, 1.0))
 
 
 @pytest.mark.parametrize('name', list(PROPS))
@@ -193,6 +197,29 @@ def test_target_marker_compiles_alone_and_with_a_robot(shape):
   marker.set_pose(physics, (0.5, 0.0, 1.0))
   physics.forward()
   np.testing.assert_allclose(marker.position(physics), (0.5, 0.0, 1.0))
+
+
+def test_a_mocap_marker_moves_as_physics_state_with_its_offset_site():
+  offset = np.array([0.0, 0.0, -0.02])
+  marker = markers.TargetMarker(shape='disc', half_thickness=0.0005,
+                                offset=offset)
+  goal = np.array([0.5, 0.1, TOP + 0.3])
+  with pytest.raises(ValueError, match='attach_mocap'):
+    marker.set_mocap_position(None, goal)
+  arena, _, _ = grasping.scene(robot_name=None)
+  marker.attach_mocap(arena)
+  physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+  assert physics.bind(marker.site).size[1] == 0.0005
+  marker.set_mocap_position(physics, goal)
+  physics.forward()
+  # The goal is the mocap frame; the site is drawn at the offset from it.
+  np.testing.assert_array_equal(marker.mocap_position(physics), goal)
+  np.testing.assert_allclose(marker.position(physics), goal + offset)
+  # Physics state: a snapshot of mocap_pos carries the goal.
+  saved = physics.data.mocap_pos.copy()
+  marker.set_mocap_position(physics, goal + 0.1)
+  physics.data.mocap_pos[:] = saved
+  np.testing.assert_array_equal(marker.mocap_position(physics), goal)
 
 
 def test_target_marker_is_visual_only_and_helpers_measure_distance():

@@ -595,6 +595,27 @@ def test_observation_delay_lags_by_the_given_time():
                                   undelayed[k - 1]['joint_positions'])
 
 
+def test_the_observation_is_the_entities_observables_by_task_names():
+  env = _env(observations='full')
+  task = env.task
+  obs, robot, human = task.task_observables, task.robot, task.human
+  # One implementation: what an entity declares, the task enables.
+  assert obs['joint_positions'] is robot.observables.joint_positions
+  assert obs['joint_velocities'] is robot.observables.joint_velocities
+  assert obs['eef_position'] is robot.observables.end_effector_position
+  assert obs['eef_quaternion'] is robot.observables.end_effector_quaternion
+  assert obs['gripper_aperture'] is task.gripper.observables.aperture
+  assert obs['human_keypoints'] is human.observables.keypoint_positions
+  assert obs['human_in_eef_frame'] is human.observables.get_observable(
+      'keypoints_in_eef_frame')
+  # Only the task's names: an entity observable the task does not name
+  # stays out of the observation, even enabled.
+  task._marker.observables.position.enabled = True
+  observation = env.reset().observation
+  assert list(observation) == list(task.observation_names)
+  assert not any('/' in name for name in env.observation_spec())
+
+
 @pytest.mark.parametrize('kwargs, message', [
     ({'observation_noise': {'x_ray': 0.1}}, 'unknown observable'),
     ({'observation_noise': {'eef_position': -1.0}}, '>= 0'),

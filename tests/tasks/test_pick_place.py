@@ -246,6 +246,10 @@ def test_full_observations_are_consistent():
   np.testing.assert_allclose(observation['object_position'],
                              env.task.object_position(env.physics))
   assert observation['object_at_target'][0] == 0.0
+  # The cube's own observables, by the task's names.
+  cube = env.task.cube.observables
+  assert env.task.task_observables['object_position'] is cube.position
+  assert env.task.task_observables['object_quaternion'] is cube.quaternion
 
 
 # ------------------------------------------------------------------ rewards

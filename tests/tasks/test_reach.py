@@ -104,7 +104,7 @@ def test_goals_are_reachable_and_collision_free(robot, space):
       assert np.all(local <= high + 1e-3)
     # The marker shows the goal.
     np.testing.assert_allclose(
-        env.physics.bind(task._goal_body).mocap_pos, task.goal_position)
+        task._marker.mocap_position(env.physics), task.goal_position)
 
 
 def _oracle(env):
