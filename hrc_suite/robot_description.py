@@ -31,6 +31,7 @@ from typing import Sequence, Union
 import numpy as np
 
 from hrc_suite import extensions
+from hrc_suite import rotations
 
 ROBOTS_DIR = pathlib.Path(__file__).resolve().parent / 'assets' / 'robots'
 
@@ -161,13 +162,8 @@ class RobotDescription:
     frame = np.broadcast_to(np.eye(4) if base is None else base,
                             batch + (4, 4)).copy()
     out = np.empty(batch + (self.dof, 4, 4))
-    c, s = np.cos(q), np.sin(q)
     rz = np.zeros(batch + (self.dof, 4, 4))
-    rz[..., 0, 0] = c
-    rz[..., 0, 1] = -s
-    rz[..., 1, 0] = s
-    rz[..., 1, 1] = c
-    rz[..., 2, 2] = 1.0
+    rz[..., :3, :3] = rotations.about_axis(rotations.Z, q)
     rz[..., 3, 3] = 1.0
     for i in range(self.dof):
       frame = frame @ fixed[i] @ rz[..., i, :, :]
@@ -290,15 +286,14 @@ def _check_rotation(reader, rotation, field):
   """Validates a rotation and returns the nearest exact rotation matrix.
 
   Files give rotations to 4 digits (Sawyer's last joint), so they are
-  orthonormalised (SVD) here and MuJoCo, pinocchio and NumPy FK all use the
+  orthonormalised here and MuJoCo, pinocchio and NumPy FK all use the
   same exact matrix.
   """
   if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3) or (
       np.linalg.det(rotation) < 0):
     reader.fail(field, 'expected a proper rotation matrix (orthonormal, '
                 f'det +1), got {rotation.tolist()}')
-  u, _, vt = np.linalg.svd(rotation)
-  return u @ vt
+  return rotations.nearest_rotation(rotation)
 
 
 def _notes(reader, data):

@@ -31,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite.control import ik_kernels
 from hrc_suite.control import kinematics
 
@@ -71,11 +72,6 @@ def gripper_down_rotation(yaw: float) -> np.ndarray:
   c, s = np.cos(yaw), np.sin(yaw)
   # Columns: x = (c, s, 0), y = z cross x = (s, -c, 0), z = (0, 0, -1).
   return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
-
-
-def _wrap(angle):
-  """Angle wrapped into [-pi, pi)."""
-  return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
 class InverseKinematics:
@@ -154,12 +150,12 @@ class InverseKinematics:
                    if self.compiled else self._model.tcp_pose(q))[:2, 0]
     seed_yaw = np.arctan2(seed_x_axis[1], seed_x_axis[0])
     nearer = float(yaw)
-    if abs(_wrap(seed_yaw - yaw)) > np.pi / 2:
-      nearer = float(_wrap(yaw + np.pi))
+    if abs(rotations.wrap_angle(seed_yaw - yaw)) > np.pi / 2:
+      nearer = float(rotations.wrap_angle(yaw + np.pi))
     result = self._solve(target, q, nearer)
     if result.success:
       return result
-    other = self._solve(target, q, float(_wrap(nearer + np.pi)))
+    other = self._solve(target, q, float(rotations.wrap_angle(nearer + np.pi)))
     if other.success or other.position_error < result.position_error:
       return dataclasses.replace(
           other, iterations=other.iterations + result.iterations)

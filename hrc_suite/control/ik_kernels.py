@@ -33,7 +33,7 @@ def forward(q, placements, tcp, frames, pose):
   transforms, world) for q (dof,), written into `frames` and `pose`.
   placements (dof, 3, 4): joint i's placement in joint i-1's frame (the
   first one in the world); tcp (3, 4): the TCP in the last joint's frame.
-  Joint i turns about its frame's z axis."""
+  Joint i turns about its frame's z axis (rotations.about_axis(Z, q[i]))."""
   dof = q.shape[0]
   local = np.empty((3, 4))
   for i in range(dof):
@@ -64,7 +64,8 @@ def _compose(a, b, out):
 @_jit
 def log3(m, out):
   """Rotation vector (3,) of rotation matrix m (3, 3): axis times angle
-  in [0, pi], into `out`."""
+  in [0, pi], into `out` (pinocchio's log3; rotations.quat_to_rotvec of
+  rotations.mat_to_quat(m))."""
   v0 = m[2, 1] - m[1, 2]
   v1 = m[0, 2] - m[2, 0]
   v2 = m[1, 0] - m[0, 1]

@@ -15,6 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from hrc_suite import robot_description
+from hrc_suite import rotations
 
 # Tool centre point of hrc_suite's parallel gripper along the flange z axis,
 # metres; must match `hrc_suite.entities.gripper.ParallelGripper.TCP_OFFSET`.
@@ -24,23 +25,10 @@ FLANGE_FRAME = 'flange'
 TCP_FRAME = 'tcp'
 
 
-def nearest_rotation(matrix: np.ndarray) -> np.ndarray:
-  """The rotation matrix closest (Frobenius) to a nearly orthonormal matrix.
-
-  Description rotations are printed with four digits for some robots (Sawyer's
-  last joint), so they are off SO(3) by ~3e-5; pinocchio and MuJoCo both need
-  proper rotations.
-  """
-  u, _, vt = np.linalg.svd(matrix)
-  rotation = u @ vt
-  if np.linalg.det(rotation) < 0:
-    u[:, -1] *= -1
-    rotation = u @ vt
-  return rotation
-
-
 def _se3(rotation, translation) -> pin.SE3:
-  return pin.SE3(nearest_rotation(np.asarray(rotation, float)),
+  # Description rotations are printed with four digits for some robots
+  # (Sawyer's last joint), off SO(3) by ~3e-5; pinocchio needs proper ones.
+  return pin.SE3(rotations.nearest_rotation(rotation),
                  np.asarray(translation, float))
 
 
@@ -190,9 +178,9 @@ class KinematicModel:
     """World capsule end points (dof, 3) x 2 and radii (dof,) at q."""
     frames = self.link_frames(q)
     p1, p2, radius = self._description.capsule_arrays()
-    rotations, origins = frames[:, :3, :3], frames[:, :3, 3]
-    world_p1 = np.einsum('nij,nj->ni', rotations, p1) + origins
-    world_p2 = np.einsum('nij,nj->ni', rotations, p2) + origins
+    turns, origins = frames[:, :3, :3], frames[:, :3, 3]
+    world_p1 = np.einsum('nij,nj->ni', turns, p1) + origins
+    world_p2 = np.einsum('nij,nj->ni', turns, p2) + origins
     return world_p1, world_p2, radius
 
   def frame_pose(self, q, frame_id: int) -> np.ndarray:

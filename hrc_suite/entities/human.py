@@ -32,6 +32,7 @@ from dm_control import composer
 from dm_control import mjcf
 from dm_control.composer.observation import observable
 
+from hrc_suite import rotations
 from hrc_suite.entities import collision_groups
 from hrc_suite.human import body as body_lib
 from hrc_suite.human import keypoints
@@ -64,9 +65,6 @@ def _part(name):
 
 _NEXT = np.array([1, 2, 0])
 _PREV = np.array([2, 0, 1])
-# Quaternion magnitudes from the rotation's diagonal: 4 |q|^2 = 1 + C diag.
-_DIAGONAL_SIGNS = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0],
-                            [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])
 
 
 def row_norms(vectors):
@@ -78,15 +76,12 @@ def row_norms(vectors):
 
 
 def _row_dots(x, y):
-  """Row-wise dot products of (N, 3) or (N, 4) arrays, summed in a fixed
-  order (terms 0 + 2, then 1 (+ 3)): the order np.einsum('ij,ij->i')
-  took on this machine, written out so that the compiled frames
-  (human_kernels) match on any machine."""
+  """Row-wise dot products of (N, 3) arrays, summed in a fixed order
+  (terms 0 + 2, then 1): the order np.einsum('ij,ij->i') took on this
+  machine, written out so that the compiled frames (human_kernels) match
+  on any machine."""
   products = x * y
-  total = products[:, 0] + products[:, 2]
-  if products.shape[1] == 4:
-    return total + (products[:, 1] + products[:, 3])
-  return total + products[:, 1]
+  return (products[:, 0] + products[:, 2]) + products[:, 1]
 
 
 def segment_frames(positions, proximal, distal, reference):
@@ -111,43 +106,7 @@ def segment_frames(positions, proximal, distal, reference):
     norm[weak] = np.sqrt(_row_dots(fallback, fallback))
   x /= norm[:, None]
   y = z[:, _NEXT] * x[:, _PREV] - z[:, _PREV] * x[:, _NEXT]   # z cross x
-  return 0.5 * (a + b), 0.5 * length, axes_to_quaternion(x, y, z)
-
-
-def axes_to_quaternion(x, y, z):
-  """Quaternions (w, x, y, z) of rotations with columns x, y, z (each (N, 3)).
-
-  Branch-free form: magnitudes from the diagonal, signs from the
-  antisymmetric part (continuous; exact to ~1e-8 for unit frames).
-  """
-  diagonal = np.column_stack([x[:, 0], y[:, 1], z[:, 2]])
-  # diagonal @ _DIAGONAL_SIGNS.T, summed in order (no BLAS order).
-  signed = diagonal[:, None, :] * _DIAGONAL_SIGNS[None]
-  q = 0.5 * np.sqrt(np.maximum(
-      0.0, 1.0 + ((signed[..., 0] + signed[..., 1]) + signed[..., 2])))
-  antisymmetric = np.column_stack([y[:, 2] - z[:, 1],    # m21 - m12
-                                   z[:, 0] - x[:, 2],    # m02 - m20
-                                   x[:, 1] - y[:, 0]])   # m10 - m01
-  np.copysign(q[:, 1:], antisymmetric, out=q[:, 1:])
-  return q / np.sqrt(_row_dots(q, q))[:, None]
-
-
-def matrix_to_quaternion(m):
-  """(N, 3, 3) rotation matrices -> (N, 4) quaternions (w, x, y, z)."""
-  return axes_to_quaternion(m[:, :, 0], m[:, :, 1], m[:, :, 2])
-
-
-def _quat_conj(q):
-  return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def _quat_mul(a, b):
-  w1, x1, y1, z1 = a
-  w2, x2, y2, z2 = b
-  return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                   w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                   w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                   w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+  return 0.5 * (a + b), 0.5 * length, rotations.axes_to_quat(x, y, z)
 
 
 class Human(composer.Entity):
@@ -409,7 +368,8 @@ class Human(composer.Entity):
     data = physics.data
     r1 = data.xmat[hand_body].reshape(3, 3)
     rel_pos = r1.T @ (obj.xpos - data.xpos[hand_body])
-    rel_quat = _quat_mul(_quat_conj(data.xquat[hand_body]), obj.xquat)
+    rel_quat = rotations.quat_mul(
+        rotations.quat_conj(data.xquat[hand_body]), obj.xquat)
     return rel_pos, rel_quat
 
   def set_grip(self, physics, object_body, position, quaternion):

@@ -1,14 +1,15 @@
 """Compiled (numba) capsule frames of the human's segments.
 
 `segment_frames` computes what human.segment_frames (the NumPy reference)
-computes, the same operations in the same order (its dot products and
-the quaternion's diagonal sums in the reference's written-out order,
-human._row_dots), so the two agree bit for bit (tests/entities/
-test_human_kernels.py); `faster_than` is the task's check that no
-keypoint outran the shield's human model (HrcTask._faster_than_model),
-likewise. The task's playback uses them on the fast path
-(entities/human_playback.py). Same compilation settings as the shield's
-kernels (safety/kernels.py: cache, IEEE arithmetic).
+computes, the same operations in the same order (its dot products in
+human._row_dots' written-out order, the quaternion as
+rotations.axes_to_quat sums it), so the two agree bit for bit
+(tests/entities/test_human_kernels.py, tests/test_rotations.py);
+`faster_than` is the task's check that no keypoint outran the shield's
+human model (HrcTask._faster_than_model), likewise. The task's playback
+uses them on the fast path (entities/human_playback.py). Same
+compilation settings as the shield's kernels (safety/kernels.py: cache,
+IEEE arithmetic).
 """
 
 import math
@@ -34,7 +35,7 @@ def _dot3(x0, x1, x2, y0, y1, y2):
 
 @_jit
 def _quaternion(x, y, z, out):
-  """human.axes_to_quaternion for one frame (columns x, y, z) into out."""
+  """rotations.axes_to_quat for one frame (columns x, y, z) into out."""
   d0, d1, d2 = x[0], y[1], z[2]
   # 1 + diagonal @ _DIAGONAL_SIGNS.T, row by row (signs +-1: exact).
   m0 = 0.5 * math.sqrt(max(0.0, 1.0 + (d0 + d1 + d2)))
@@ -44,7 +45,7 @@ def _quaternion(x, y, z, out):
   m1 = math.copysign(m1, y[2] - z[1])
   m2 = math.copysign(m2, z[0] - x[2])
   m3 = math.copysign(m3, x[1] - y[0])
-  # human._row_dots' order for 4 terms: (0 + 2) + (1 + 3).
+  # rotations.axes_to_quat's order: (0 + 2) + (1 + 3).
   norm = math.sqrt((m0 * m0 + m2 * m2) + (m1 * m1 + m3 * m3))
   out[0] = m0 / norm
   out[1] = m1 / norm

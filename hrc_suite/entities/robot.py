@@ -14,10 +14,10 @@ from absl import logging
 from dm_control import composer
 from dm_control import mjcf
 from dm_control.composer.observation import observable
-import mujoco
 import numpy as np
 
 from hrc_suite import robot_description
+from hrc_suite import rotations
 from hrc_suite.entities import collision_groups
 
 # The shipped robots (more register: robot_description.names()).
@@ -51,13 +51,6 @@ def make_robot(name: str) -> 'Robot':
   """A `Robot` by name or description path (`robot_description.resolve`);
   unknown names raise a ValueError listing the valid."""
   return Robot(robot_description.load(robot_description.resolve(name)))
-
-
-def rotation_to_quat(rotation: np.ndarray) -> np.ndarray:
-  """(3, 3) rotation matrix -> unit quaternion (w, x, y, z)."""
-  quat = np.empty(4)
-  mujoco.mju_mat2Quat(quat, np.asarray(rotation, dtype=float).reshape(9))
-  return quat
 
 
 def _inertia_for_mujoco(inertia: np.ndarray):
@@ -118,7 +111,7 @@ class Robot(composer.Entity):
     for i, link in enumerate(description.links):
       body = parent.add('body', name=f'link{i + 1}',
                         pos=link.fixed_translation,
-                        quat=rotation_to_quat(link.fixed_rotation))
+                        quat=rotations.mat_to_quat(link.fixed_rotation))
       full_inertia, fixed = _inertia_for_mujoco(link.inertia)
       if fixed is not None:
         self.inertia_corrections[i] = fixed
@@ -155,7 +148,7 @@ class Robot(composer.Entity):
 
     self._flange_site = parent.add(
         'site', name='flange', pos=description.flange_translation,
-        quat=rotation_to_quat(description.flange_rotation), size=(0.01,),
+        quat=rotations.mat_to_quat(description.flange_rotation), size=(0.01,),
         rgba=(0.9, 0.2, 0.2, 0.0), group=4)
     self._joints = tuple(joints)
     self._actuators = tuple(actuators)
@@ -240,9 +233,8 @@ class Robot(composer.Entity):
   def tcp_pose(self, physics):
     """(position (3,), quaternion (4,) w-first) of the TCP in the world."""
     site = physics.bind(self.tcp_site)
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, np.asarray(site.xmat, dtype=float))
-    return site.xpos.copy(), quat
+    return site.xpos.copy(), rotations.mat_to_quat(
+        np.reshape(site.xmat, (3, 3)))
 
 
 class RobotObservables(composer.Observables):

@@ -28,6 +28,7 @@ the nail). Measured results are in docs/tasks.md (hammering).
 import numpy as np
 
 from hrc_suite import experts
+from hrc_suite import rotations
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.tasks import hammering
@@ -55,12 +56,6 @@ RETREAT = np.array([-0.15, 0.0, -0.1])
 DEADBAND = 0.002
 
 
-def tcp_yaw(quaternion):
-  """World yaw (rad) of the TCP's x axis from its quaternion (w first)."""
-  w, x, y, z = np.asarray(quaternion, float) / np.linalg.norm(quaternion)
-  return float(np.arctan2(2 * (x * y + z * w), 1 - 2 * (y * y + z * z)))
-
-
 @experts.register('hammering', 'default')
 class HammeringExpert(base.Expert):
   """Brings the nail head to the nail target and holds it there
@@ -80,7 +75,7 @@ class HammeringExpert(base.Expert):
     q = observation['joint_positions']
     offset = self.nail_offset(observation)
     if self._steer.space == 'joint':
-      self._steer.yaw = tcp_yaw(observation['eef_quaternion'])
+      self._steer.yaw = rotations.quat_yaw(observation['eef_quaternion'])
     return self._steer.action(tcp + offset, tcp, q, GRIPPER_CLOSED)
 
   def nail_offset(self, observation):

@@ -21,8 +21,8 @@ plank's handle 0.235 m from the nail (tasks/hammering_robot.py).
 import numpy as np
 
 from hrc_suite import experts
+from hrc_suite import rotations
 from hrc_suite.experts import base
-from hrc_suite.experts import hammering as hammering_expert
 from hrc_suite.experts import steering
 from hrc_suite.tasks import hammering_robot
 
@@ -71,8 +71,7 @@ class RobotHammersExpert(base.Expert):
     tcp = observation['eef_position']
     q = observation['joint_positions']
     if self._steer.space == 'joint':
-      self._steer.yaw = hammering_expert.tcp_yaw(
-          observation['eef_quaternion'])
+      self._steer.yaw = rotations.quat_yaw(observation['eef_quaternion'])
     face = observation['hammer_head_position']
     move = self.face_goal(observation) - face
     near = np.linalg.norm(face - observation['nail_head_position']) < NEAR

@@ -36,6 +36,7 @@ import numpy as np
 
 from hrc_suite import experts
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite.entities import props
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
@@ -142,16 +143,6 @@ PULL_BACK = 0.3                          # m
 REACH_TOLERANCE = 0.005                  # m
 
 
-def _rotation(quaternion):
-  """3x3 rotation of a unit quaternion (w, x, y, z), MuJoCo's order."""
-  w, x, y, z = np.asarray(quaternion, dtype=float) / np.linalg.norm(
-      quaternion)
-  return np.array([
-      [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 class _HammerExpert(base.Expert):
   """Steering, home pose and the hammer's geometry shared by both."""
 
@@ -212,13 +203,13 @@ class _HammerExpert(base.Expert):
     if slide:
       steps += [vertical, 0.5 * shift + inward]
     rotation = self._kinematics.tcp_pose(q)[:3, :3]
-    yaw_now = np.arctan2(rotation[1, 0], rotation[0, 0])
+    yaw_now = rotations.mat_yaw(rotation)
     for step in steps:
       target = np.clip(tcp + step, self._box[0], self._box[1])
       result = self._steer.ik.solve(target, q, self._steer.yaw)
       # Not through the other gripper yaw (the IK's yaw + pi fallback):
       # that half turn of the wrist swings the hammer about.
-      turn = (result.yaw - yaw_now + np.pi) % (2 * np.pi) - np.pi
+      turn = rotations.wrap_angle(result.yaw - yaw_now)
       if result.success and abs(turn) < np.pi / 2:
         if self._steer.space == 'cartesian':
           return self._steer.action(target, tcp, q, gripper)
@@ -232,7 +223,7 @@ class _HammerExpert(base.Expert):
     offset = tcp - grip
     # Handle frame: along the handle towards its end (away from the head),
     # across it (horizontal), up.
-    along_axis = -_rotation(obs['object_quaternion'])[:, 0]
+    along_axis = -rotations.quat_to_mat(obs['object_quaternion'])[:, 0]
     along_axis[2] = 0.0
     along_axis /= max(np.linalg.norm(along_axis), 1e-9)
     across_axis = np.array([-along_axis[1], along_axis[0], 0.0])
@@ -313,7 +304,7 @@ class RobotToHumanExpert(_HammerExpert):
     if not self._in_hand(obs):
       # Dropped: the tool may not reach into the table to pick it up.
       return self._go_home(obs, -1.0)
-    rotation = _rotation(obs['object_quaternion'])
+    rotation = rotations.quat_to_mat(obs['object_quaternion'])
     end = obs['object_position'] - GRIP_TO_HANDLE_END * rotation[:, 0]
     palm = self._palm_aim(obs['target_position'], tcp)
     palm[2] = max(palm[2], layout.TABLE_TOP_Z + MIN_HANDLE_END_HEIGHT)
@@ -333,8 +324,8 @@ class RobotToHumanExpert(_HammerExpert):
     """Gripper-down IK reaches `target` from q at the current yaw."""
     result = self._steer.ik.solve(target, q, self._steer.yaw)
     rotation = self._kinematics.tcp_pose(q)[:3, :3]
-    yaw_now = np.arctan2(rotation[1, 0], rotation[0, 0])
-    turn = (result.yaw - yaw_now + np.pi) % (2 * np.pi) - np.pi
+    yaw_now = rotations.mat_yaw(rotation)
+    turn = rotations.wrap_angle(result.yaw - yaw_now)
     return bool(result.success and abs(turn) < np.pi / 2)
 
   def _within_reach(self, aim, towards_end, q):
@@ -393,7 +384,7 @@ class HumanToRobotExpert(_HammerExpert):
     """Held by the person on its side, high above the table; or low above
     it, held there PRESENTED_DWELL steps, by a person who has not presented
     it high (one who has is lowering it while swaying back)."""
-    rotation = _rotation(obs['object_quaternion'])
+    rotation = rotations.quat_to_mat(obs['object_quaternion'])
     height = obs['object_position'][2] - layout.TABLE_TOP_Z
     presented_low = self._last_presented is None or (
         self._last_presented[2] - layout.TABLE_TOP_Z <= PRESENTED_HEIGHT)

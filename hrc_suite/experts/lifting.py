@@ -38,6 +38,7 @@ Measured (docs/results/experts.md): 50 of 50 episodes on the Schunk
 import numpy as np
 
 from hrc_suite import experts
+from hrc_suite import rotations
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
@@ -66,31 +67,6 @@ TILTS = tuple(np.radians((0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)))
 REACH_AWAY = (0.02, 0.04, 0.06)
 GRIPPER_CLOSED = 1.0
 _MJ_EQ_WELD = 1   # mujoco.mjtEq.mjEQ_WELD
-
-
-def rotation_from_quat(quat):
-  """3x3 rotation of a unit quaternion (w, x, y, z)."""
-  w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
-  return np.array([
-      [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _yaw_rotation(angle):
-  c, s = np.cos(angle), np.sin(angle)
-  return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _axis_rotation(axis, angle):
-  """3x3 rotation by `angle` (rad) about the unit vector `axis`."""
-  k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
-                [-axis[1], axis[0], 0.0]])
-  return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
-
-
-def _wrap(angle):
-  return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 @experts.register('lifting', 'default')
@@ -143,18 +119,20 @@ class LiftingExpert(base.Expert):
     if anchors is None:
       return None
     hands = observation['eef_position'] + observation['eef_to_hands']
-    rotation = rotation_from_quat(observation['board_quaternion'])
+    rotation = rotations.quat_to_mat(observation['board_quaternion'])
     handle_local = rotation.T @ (observation['handle_position']
                                  - observation['board_position'])
     # Heading: the line between the hands against the line between the
     # anchors on the board (both horizontal).
     across_world = hands[0] - hands[1]
     across_board = anchors[0] - anchors[1]
-    heading = _wrap(np.arctan2(across_world[1], across_world[0])
-                    - np.arctan2(across_board[1], across_board[0]))
+    heading = float(rotations.wrap_angle(
+        np.arctan2(across_world[1], across_world[0])
+        - np.arctan2(across_board[1], across_board[0])))
     velocity = self._task.player.velocities[self._hand_index].mean(axis=0)
     middle = hands.mean(axis=0) + LOOKAHEAD * velocity
-    offset = _yaw_rotation(heading) @ (handle_local - anchors.mean(axis=0))
+    offset = rotations.yaw_to_mat(heading) @ (
+        handle_local - anchors.mean(axis=0))
     return middle, offset, heading
 
   def board_aim(self, observation):
@@ -175,9 +153,9 @@ class LiftingExpert(base.Expert):
     axis = np.cross([0.0, 0.0, 1.0], offset)
     axis /= max(np.linalg.norm(axis), 1e-9)
     for tilt in TILTS:
-      turned = _axis_rotation(axis, tilt) @ offset
+      turned = rotations.axis_angle_to_mat(axis, tilt) @ offset
       if turned[2] > offset[2]:   # The robot end must go down.
-        turned = _axis_rotation(axis, -tilt) @ offset
+        turned = rotations.axis_angle_to_mat(axis, -tilt) @ offset
       aim = middle + turned
       if self._reaches(np.clip(aim + grasp, *self._box), q):
         return aim
@@ -195,9 +173,9 @@ class LiftingExpert(base.Expert):
     handle = observation['handle_position']
     wanted = self._wanted_board(observation)
     if wanted is None:   # Nobody holds the board: stay on the handle.
-      rotation = rotation_from_quat(observation['board_quaternion'])
+      rotation = rotations.quat_to_mat(observation['board_quaternion'])
       aim = handle
-      heading = float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+      heading = float(rotations.mat_yaw(rotation))
     else:
       middle, offset, heading = wanted
       aim = self._tilted_aim(middle, offset, tcp - handle, q)

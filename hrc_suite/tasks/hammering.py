@@ -36,10 +36,10 @@ drives its nail in (docs/reference_benchmark.md, Tasks).
 """
 
 from dm_control.composer.observation import observable
-import mujoco
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
@@ -84,21 +84,6 @@ _HAND_SEGMENTS = {hand: [s[0] for s in human_lib.SEGMENTS].index(
     f'{hand}_hand') for hand in human_lib.HANDS}
 
 
-def _frame_matrix(xyaxes):
-  """Rotation matrix (columns x, y, z) of an MJCF xyaxes frame."""
-  x, y = np.asarray(xyaxes[:3], float), np.asarray(xyaxes[3:], float)
-  x /= np.linalg.norm(x)
-  y -= x * (x @ y)
-  y /= np.linalg.norm(y)
-  return np.stack([x, y, np.cross(x, y)], axis=1)
-
-
-def matrix_to_quat(matrix):
-  quat = np.empty(4)
-  mujoco.mju_mat2Quat(quat, np.ascontiguousarray(matrix).ravel())
-  return quat
-
-
 _HALF_TURN = np.diag([-1.0, -1.0, 1.0])   # about the TCP's z axis
 
 
@@ -109,10 +94,10 @@ def place_in_gripper(physics, tcp_site, prop, grip_site, turned=False):
   tcp_rotation = tcp.xmat.reshape(3, 3)
   if turned:
     tcp_rotation = tcp_rotation @ _HALF_TURN
-  grip_rotation = _frame_matrix(grip_site.xyaxes)
+  grip_rotation = rotations.xyaxes_to_mat(grip_site.xyaxes)
   rotation = tcp_rotation @ grip_rotation.T
   position = tcp.xpos - rotation @ np.asarray(grip_site.pos, float)
-  prop.set_pose(physics, position, matrix_to_quat(rotation))
+  prop.set_pose(physics, position, rotations.mat_to_quat(rotation))
   prop.set_velocity(physics, np.zeros(3), np.zeros(3))
 
 
@@ -286,14 +271,13 @@ class Hammering(NailOutcome, base.HrcTask):
     frame = int(np.argmin(np.linalg.norm(
         clip.positions[:, hand_index] - strike_local, axis=1)))
     x, y, yaw = self._player.placement
-    c, s = np.cos(yaw), np.sin(yaw)
-    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    strike_pose = clip.positions[frame].astype(float) @ rotation.T + [x, y, 0]
+    strike_pose = (clip.positions[frame].astype(float)
+                   @ rotations.yaw_to_mat(yaw).T + [x, y, 0])
     self._human.set_keypoints(physics, strike_pose)
     strike = np.asarray(targets['strike_grip'], float)
     facing = np.asarray(targets['nail'], float) - strike
     heading = np.arctan2(facing[1], facing[0])
-    quat = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
+    quat = rotations.yaw_to_quat(heading)
     origin = strike + props.HAMMER_HUMAN_GRIP * np.array(
         [np.cos(heading), np.sin(heading), 0.0])
     self._hammer.set_pose(physics, origin, quat)
@@ -351,9 +335,8 @@ class Hammering(NailOutcome, base.HrcTask):
     rel_pos, rel_quat = model.eq_data[eq_id, 3:6], model.eq_data[eq_id, 6:10]
     position = data.xpos[hand_body] + data.xmat[hand_body].reshape(
         3, 3) @ rel_pos
-    quat = np.empty(4)
-    mujoco.mju_mulQuat(quat, data.xquat[hand_body], rel_quat)
-    self._hammer.set_pose(physics, position, quat)
+    self._hammer.set_pose(physics, position,
+                          rotations.quat_mul(data.xquat[hand_body], rel_quat))
     self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
 
   # ------------------------------------------------------------ progress

@@ -39,6 +39,7 @@ import mujoco
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
@@ -109,20 +110,6 @@ def headings(points):
   across = (points[:, keypoints.KEYPOINT_INDEX['left_shoulder']]
             - points[:, keypoints.KEYPOINT_INDEX['right_shoulder']])
   return np.arctan2(-across[:, 0], across[:, 1])
-
-
-def _yaw_matrices(yaws):
-  """(n, 3, 3) rotations about world z by yaws (n,)."""
-  c, s = np.cos(yaws), np.sin(yaws)
-  matrices = np.zeros((len(yaws), 3, 3))
-  matrices[:, 0, 0], matrices[:, 0, 1] = c, -s
-  matrices[:, 1, 0], matrices[:, 1, 1] = s, c
-  matrices[:, 2, 2] = 1.0
-  return matrices
-
-
-def _yaw_matrix(yaw):
-  return _yaw_matrices(np.array([yaw], dtype=float))[0]
 
 
 @suite.register('hammering', 'robot_hammers',
@@ -246,10 +233,10 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     self._hand = clip.holding_hand or 'left'
     x, y, yaw = self._player.placement
     frame = clip.keyframes[0]
-    pose = clip.positions[frame].astype(float) @ _yaw_matrix(yaw).T + [
-        x, y, 0.0]
+    pose = (clip.positions[frame].astype(float)
+            @ rotations.yaw_to_mat(yaw).T + [x, y, 0.0])
     facing = heading(pose)
-    rotation = _yaw_matrix(facing)
+    rotation = rotations.yaw_to_mat(facing)
     handle = np.asarray(self._player.targets_world['board_place'], float)
     centre = handle - rotation[:, 0] * PLANK_HANDLE_X
     centre[2] = (layout.TABLE_TOP_Z + PLANK_HALF_SIZE[2] + SET_DOWN_GAP)
@@ -260,7 +247,7 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
   def _take_back(self, physics):
     """The carrying offset from where the plank lies now."""
     points = self._player.positions
-    rotation = _yaw_matrix(heading(points))
+    rotation = rotations.yaw_to_mat(heading(points))
     board = physics.bind(self._board.body)
     hand = points[keypoints.KEYPOINT_INDEX[f'{self._hand}_hand']]
     self._carry = (rotation.T @ (board.xpos - hand),
@@ -276,14 +263,11 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     """`_carry_pose` of each row of keypoints (n, N_kp, 3): positions
     (n, 3), quaternions (n, 4); stacked np.matmul gives each row what the
     single product gives."""
-    rotations = _yaw_matrices(headings(points))
+    turns = rotations.yaw_to_mat(headings(points))
     offset, relative = self._carry
     hand = points[:, keypoints.KEYPOINT_INDEX[f'{self._hand}_hand']]
-    matrices = np.matmul(rotations, relative)
-    quaternions = np.empty((len(points), 4))
-    for k, matrix in enumerate(matrices):
-      mujoco.mju_mat2Quat(quaternions[k], matrix.ravel())
-    return hand + np.matmul(rotations, offset), quaternions
+    quaternions = rotations.mat_to_quat(np.matmul(turns, relative))
+    return hand + np.matmul(turns, offset), quaternions
 
   def _carry_board(self, physics, points):
     """Puts the plank at the holding hand, at rest."""
@@ -346,7 +330,7 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
       self._phase = PLACED
       centre, rotation = self._place_pose
       self._board.set_pose(physics, centre,
-                           hammering.matrix_to_quat(rotation))
+                           rotations.mat_to_quat(rotation))
       self._board.set_velocity(physics, np.zeros(3), np.zeros(3))
       self._set_board_collisions(physics, True)
       self._model_changed()

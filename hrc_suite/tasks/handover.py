@@ -47,10 +47,10 @@ target is the holding hand's palm (robot to human) or the table target.
 import math
 
 from dm_control.composer.observation import observable
-import mujoco
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import human as human_lib
@@ -121,22 +121,7 @@ MIN_HEADING = 0.3
 def _lying_quaternion(yaw):
   """Hammer on its side (body y up), handle axis (body x) at `yaw`."""
   c, s = math.cos(yaw), math.sin(yaw)
-  rotation = np.array([[c, 0.0, s], [s, 0.0, -c], [0.0, 1.0, 0.0]])
-  return human_lib.matrix_to_quaternion(rotation[None])[0]
-
-
-def _slerp(q0, q1, t):
-  q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
-  dot = float(q0 @ q1)
-  if dot < 0.0:
-    q1, dot = -q1, -dot
-  if dot > 0.9995:
-    q = q0 + t * (q1 - q0)
-  else:
-    angle = math.acos(dot)
-    q = (math.sin((1 - t) * angle) * q0 + math.sin(t * angle) * q1) / (
-        math.sin(angle))
-  return q / np.linalg.norm(q)
+  return rotations.axes_to_quat((c, s, 0.0), (0.0, 0.0, 1.0), (s, -c, 0.0))
 
 
 class _Handover(base.HrcTask):
@@ -298,8 +283,8 @@ class RobotToHuman(_Handover):
     shift = random_state.uniform(-GRASP_SHIFT, GRASP_SHIFT)
     r_body = r_site @ _SITE_IN_BODY.T
     position = tcp.xpos - r_body @ (np.asarray(site.pos) + [shift, 0, 0])
-    self._hammer.set_pose(physics, position,
-                          human_lib.matrix_to_quaternion(r_body[None])[0])
+    self._hammer.set_pose(physics, position, rotations.axes_to_quat(
+        r_body[:, 0], r_body[:, 1], r_body[:, 2]))
     self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
     physics.bind(self._gripper.finger_joints).qpos = (
         props.HAMMER_HANDLE_HALF_SECTION[1] - GRASP_SQUEEZE)
@@ -406,10 +391,7 @@ class HumanToRobot(_Handover):
     gives each row what a single product gives)."""
     n = len(centres)
     half = physics.bind(self._human.geoms[self._hand_segment()]).size[1]
-    r_hand = np.empty((n, 9))
-    for k in range(n):
-      mujoco.mju_quat2Mat(r_hand[k], hand_quaternions[k])
-    r_hand = r_hand.reshape(n, 3, 3)
+    r_hand = rotations.quat_to_mat(hand_quaternions)
     r_hand_t = r_hand.transpose(0, 2, 1)
     axis = r_hand[:, :, 2]
     heading = axis * (1.0, 1.0, 0.0)
@@ -431,8 +413,9 @@ class HumanToRobot(_Handover):
     r_world = np.stack([x, y, np.cross(x, y)], axis=2)
     origin = end + props.HAMMER_HUMAN_GRIP * x
     positions = np.matmul(r_hand_t, (origin - centres)[:, :, None])[:, :, 0]
-    rotations = np.matmul(r_hand_t, r_world)
-    return positions, human_lib.matrix_to_quaternion(rotations)
+    local = np.matmul(r_hand_t, r_world)
+    return positions, rotations.axes_to_quat(local[:, :, 0], local[:, :, 1],
+                                             local[:, :, 2])
 
   def _presenting(self):
     """The person holds the hammer in the presenting grip (turned)."""
@@ -546,7 +529,7 @@ class HumanToRobot(_Handover):
       end_pos, end_quat = self.presenting_grip(physics)
       position = (1 - s) * self._pick_grip[0] + s * end_pos
       self._human.set_grip(physics, self._hammer.body, position,
-                           _slerp(self._pick_grip[1], end_quat, s))
+                           rotations.slerp(self._pick_grip[1], end_quat, s))
       self._model_changed()
       if s >= 1.0:
         self._pick_grip = None

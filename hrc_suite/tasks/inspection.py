@@ -43,6 +43,7 @@ Tasks).
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import markers
@@ -177,8 +178,7 @@ class Inspection(base.HrcTask):
         OBJECT_ATTEMPTS,
         f'Inspection cube position for {self._robot.description.name}')
     yaw = random_state.uniform(-OBJECT_MAX_YAW, OBJECT_MAX_YAW)
-    quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-    self._cube.set_pose(physics, position, quat)
+    self._cube.set_pose(physics, position, rotations.yaw_to_quat(yaw))
     self._target = self._clip_target()
     self._marker.set_mocap_position(physics, self._target)
     physics.forward()

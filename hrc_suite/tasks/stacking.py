@@ -43,6 +43,7 @@ from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import props
@@ -286,10 +287,8 @@ class Stacking(base.HrcTask):
     degrees, and one let go tilted and moving tipped cube 3 off the stack:
     Panda seeds 0, 7, 9 of 10, without the robot touching anything)."""
     rest = self._support(i, centre)
-    w, x, y, z = physics.bind(self._cubes[i].body).xquat
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    self._cubes[i].set_pose(physics, rest, np.array(
-        [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]))
+    yaw = rotations.quat_yaw(physics.bind(self._cubes[i].body).xquat)
+    self._cubes[i].set_pose(physics, rest, rotations.yaw_to_quat(yaw))
     self._cubes[i].set_velocity(physics, np.zeros(3), np.zeros(3))
     if i == HUMAN_CUBES[0]:   # The stack stands where the base cube is.
       self._slots[0] = rest

@@ -23,11 +23,10 @@ snapshots. The arithmetic is tasks/tool_hold_kernels.py's, which the
 compiled physics loop calls too (`kernel_arguments`).
 """
 
-import math
-
 import mujoco
 import numpy as np
 
+from hrc_suite import rotations
 from hrc_suite.tasks import tool_hold_kernels as kernels
 
 # Hand stiffness of a relaxed human arm: of the order of a few hundred N/m
@@ -68,18 +67,6 @@ MAX_AIM = np.radians(20.0)   # rad
 MAX_REACH = 0.03             # m
 
 
-def _quat_to_mat(quat):
-  matrix = np.empty(9)
-  mujoco.mju_quat2Mat(matrix, quat)
-  return matrix.reshape(3, 3)
-
-
-def _quat_mul(a, b):
-  out = np.empty(4)
-  mujoco.mju_mulQuat(out, a, b)
-  return out
-
-
 _NO_AIM_SOURCE = np.zeros(0)
 
 
@@ -99,11 +86,11 @@ class CompliantHold:
     # The free joint sits on the body or, attached with composer's
     # add_free_entity, on its massless attachment frame.
     jointed = self._body
-    offset_pos, offset_quat = np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+    offset_pos, offset_quat = np.zeros(3), rotations.IDENTITY_QUAT
     while model.body_jntnum[jointed] == 0 and jointed != 0:
-      offset_pos = model.body_pos[jointed] + _quat_to_mat(
+      offset_pos = model.body_pos[jointed] + rotations.quat_to_mat(
           model.body_quat[jointed]) @ offset_pos
-      offset_quat = _quat_mul(model.body_quat[jointed], offset_quat)
+      offset_quat = rotations.quat_mul(model.body_quat[jointed], offset_quat)
       jointed = int(model.body_parentid[jointed])
     joint = model.body_jntadr[jointed]
     if jointed == 0 or model.body_jntnum[jointed] != 1 or model.jnt_type[
@@ -116,8 +103,8 @@ class CompliantHold:
     # Centre of mass and principal axes in the free joint's frame (the
     # weld's relative pose is the held body's; offset_* turn it into the
     # free joint's frame).
-    com_local = offset_pos + _quat_to_mat(offset_quat) @ model.body_ipos[
-        self._body]
+    com_local = offset_pos + rotations.quat_to_mat(
+        offset_quat) @ model.body_ipos[self._body]
     inertia = model.body_inertia[self._body].copy()
     # Per principal axis: stiffness (capped, MAX_FREQUENCY) and damping.
     k_rot = np.minimum(float(rotational_stiffness),
@@ -131,7 +118,7 @@ class CompliantHold:
         (kernels.B_ROT, 2.0 * damping_ratio * np.sqrt(k_rot * inertia)),
         (kernels.INERTIA, inertia), (kernels.COM_LOCAL, com_local),
         (kernels.INERTIA_QUAT,
-         _quat_mul(offset_quat, model.body_iquat[self._body])),
+         rotations.quat_mul(offset_quat, model.body_iquat[self._body])),
         (kernels.OFFSET_POS, offset_pos), (kernels.OFFSET_QUAT, offset_quat),
         (kernels.GRAVITY, model.opt.gravity), (kernels.MAX_AIM, MAX_AIM),
         (kernels.MAX_REACH, MAX_REACH), (kernels.MAX_FORCE, MAX_FORCE),

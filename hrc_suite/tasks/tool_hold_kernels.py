@@ -4,7 +4,9 @@
 are there) calls `apply` on every physics step; the compiled physics loop
 (tasks/physics_loop.py) calls the same function between its physics steps,
 so both paths give the same forces bit for bit. Quaternions are (w, x, y,
-z); arithmetic in scalars, in a fixed order.
+z); arithmetic in scalars, in a fixed order: `_mul`, `_matrix` and
+`_rotation_vector` compute rotations.quat_mul, quat_to_mat and
+quat_to_rotvec (tests/test_rotations.py checks they agree).
 
 `params` (NUM_PARAMS,): the named slots below. `indices` (NUM_INDICES,):
 body, its free joint's qpos and qvel addresses, the hand's mocap id, the
@@ -34,7 +36,7 @@ NUM_INDICES = 7
 
 @_jit
 def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
-  """Quaternion product a b."""
+  """Quaternion product a b (rotations.quat_mul)."""
   return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
           a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
           a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
@@ -43,7 +45,8 @@ def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
 
 @_jit
 def _matrix(q0, q1, q2, q3, out):
-  """Rotation matrix (3, 3) of a unit quaternion, into out."""
+  """Rotation matrix (3, 3) of a unit quaternion, into out
+  (rotations.quat_to_mat; MuJoCo's form, which needs a unit one)."""
   out[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
   out[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
   out[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
@@ -71,7 +74,8 @@ def _times_transposed(m, v0, v1, v2, out):
 
 @_jit
 def _rotation_vector(t0, t1, t2, t3, f0, f1, f2, f3, out):
-  """World-frame rotation vector (rad) turning orientation f to t."""
+  """World-frame rotation vector (rad) turning orientation f to t:
+  rotations.quat_to_rotvec(rotations.quat_mul(t, rotations.quat_conj(f)))."""
   d0, d1, d2, d3 = _mul(t0, t1, t2, t3, f0, -f1, -f2, -f3)
   if d0 < 0.0:
     d0, d1, d2, d3 = -d0, -d1, -d2, -d3

@@ -16,21 +16,6 @@ def _env(robot='schunk', space='cartesian', seed=0, time_limit=100.0):
       'observations': 'full'}, environment_kwargs={'random_state': seed})
 
 
-def test_tcp_yaw_of_quaternions():
-  half = np.sqrt(0.5)
-  assert hammering_expert.tcp_yaw([1.0, 0, 0, 0]) == pytest.approx(0.0)
-  assert hammering_expert.tcp_yaw([half, 0, 0, half]) == pytest.approx(
-      np.pi / 2)
-  # Gripper down (half turn about x), then yaw pi/2 about world z.
-  down = np.array([0.0, 1.0, 0.0, 0.0])
-  turn = np.array([half, 0, 0, half])
-  w1, v1 = turn[0], turn[1:]
-  w2, v2 = down[0], down[1:]
-  both = np.concatenate([[w1 * w2 - v1 @ v2],
-                         w1 * v2 + w2 * v1 + np.cross(v1, v2)])
-  assert hammering_expert.tcp_yaw(both) == pytest.approx(np.pi / 2)
-
-
 @pytest.mark.parametrize('space', ('cartesian', 'joint'))
 def test_brings_the_nail_to_the_target_and_holds_it(space):
   env = _env('panda', space, seed=1, time_limit=4.0)
