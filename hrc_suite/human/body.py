@@ -18,7 +18,11 @@ import dataclasses
 
 import numpy as np
 
+from hrc_suite import rotations
 from hrc_suite.human import keypoints
+
+_about = rotations.about_axis
+X, Y, Z = rotations.X, rotations.Y, rotations.Z
 
 # DIN 33402-2:2005-12, stature (Koerperhoehe) in metres: 5th / 50th / 95th
 # percentile of women and of men, German adults 18-65 years.
@@ -193,39 +197,14 @@ class Pose:
   ankles: np.ndarray
 
 
-def _rot_z(angle):
-  c, s = np.cos(angle), np.sin(angle)
-  zero, one = np.zeros_like(c), np.ones_like(c)
-  return np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1),
-                   np.stack([zero, zero, one], -1)], -2)
-
-
-def _rot_y(angle):
-  c, s = np.cos(angle), np.sin(angle)
-  zero, one = np.zeros_like(c), np.ones_like(c)
-  return np.stack([np.stack([c, zero, s], -1), np.stack([zero, one, zero], -1),
-                   np.stack([-s, zero, c], -1)], -2)
-
-
-def _rot_x(angle):
-  c, s = np.cos(angle), np.sin(angle)
-  zero, one = np.zeros_like(c), np.ones_like(c)
-  return np.stack([np.stack([one, zero, zero], -1), np.stack([zero, c, -s], -1),
-                   np.stack([zero, s, c], -1)], -2)
-
-
-def _apply(rotation, vector):
-  return np.einsum('...ij,...j->...i', rotation, vector)
-
-
 def _normalise(v):
   return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def torso_frame(pose):
   """(T, 3, 3) torso orientation: yaw + twist, then lean, then side bend."""
-  return (_rot_z(pose.yaw + pose.twist) @ _rot_y(pose.lean)
-          @ _rot_x(-pose.side))
+  return (_about(Z, pose.yaw + pose.twist) @ _about(Y, pose.lean)
+          @ _about(X, -pose.side))
 
 
 def shoulder_positions(body, pose):
@@ -291,12 +270,12 @@ def forward_kinematics(body, pose):
   out[:, k['chest']] = pelvis + CHEST_KEYPOINT_ALONG_SPINE * body.spine * up
   neck = pelvis + body.spine * up
   out[:, k['neck']] = neck
-  head_frame = frame @ _rot_z(pose.head_yaw) @ _rot_y(pose.head_pitch)
+  head_frame = frame @ _about(Z, pose.head_yaw) @ _about(Y, pose.head_pitch)
   # The head keypoint sits slightly forward of the neck axis (eyes).
   head_dir = _normalise(head_frame[..., :, 2] + 0.25 * head_frame[..., :, 0])
   out[:, k['head']] = neck + body.head * head_dir
   shoulders = shoulder_positions(body, pose)
-  pelvis_frame = _rot_z(pose.yaw)
+  pelvis_frame = rotations.yaw_to_mat(pose.yaw)
   for side, sign in ((0, 1.0), (1, -1.0)):
     name = ('left', 'right')[side]
     shoulder = shoulders[:, side]

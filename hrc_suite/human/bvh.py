@@ -23,8 +23,11 @@ import pathlib
 
 import numpy as np
 
+from hrc_suite import rotations
+
 _POSITION_CHANNELS = {'xposition': 0, 'yposition': 1, 'zposition': 2}
-_ROTATION_CHANNELS = {'xrotation': 0, 'yrotation': 1, 'zrotation': 2}
+_ROTATION_CHANNELS = {'xrotation': rotations.X, 'yrotation': rotations.Y,
+                      'zrotation': rotations.Z}
 
 # Metres per file unit.
 UNITS = {'mm': 1e-3, 'cm': 1e-2, 'm': 1.0}
@@ -287,20 +290,6 @@ def load(path):
   return parse(text, source=str(path))
 
 
-def _axis_rotations(axis, degrees):
-  """(F, 3, 3) rotation matrices about a coordinate axis, angles in degrees."""
-  angle = np.radians(degrees)
-  c, s = np.cos(angle), np.sin(angle)
-  out = np.zeros(angle.shape + (3, 3))
-  i, j = [(1, 2), (2, 0), (0, 1)][axis]
-  out[..., axis, axis] = 1.0
-  out[..., i, i] = c
-  out[..., j, j] = c
-  out[..., i, j] = -s
-  out[..., j, i] = s
-  return out
-
-
 def relabel_channels(motion, channels):
   """The motion with the channel names of some joints replaced.
 
@@ -340,7 +329,7 @@ def forward_kinematics(motion, scale=1.0, composition='intrinsic'):
   skeleton = motion.skeleton
   num_frames = motion.num_frames
   positions = np.zeros((num_frames, skeleton.num_joints, 3))
-  rotations = np.zeros((num_frames, skeleton.num_joints, 3, 3))
+  frames = np.zeros((num_frames, skeleton.num_joints, 3, 3))
   column = 0
   for j, parent in enumerate(skeleton.parents):
     translation = np.broadcast_to(skeleton.offsets[j], (num_frames, 3)).copy()
@@ -352,7 +341,8 @@ def forward_kinematics(motion, scale=1.0, composition='intrinsic'):
       if key in _POSITION_CHANNELS:
         translation[:, _POSITION_CHANNELS[key]] += values
       else:
-        r = _axis_rotations(_ROTATION_CHANNELS[key], values)
+        r = rotations.about_axis(_ROTATION_CHANNELS[key],
+                                 np.radians(values))
         if local is None:
           local = r
         else:
@@ -362,12 +352,12 @@ def forward_kinematics(motion, scale=1.0, composition='intrinsic'):
     translation *= scale
     if parent < 0:
       positions[:, j] = translation
-      rotations[:, j] = local
+      frames[:, j] = local
     else:
       positions[:, j] = positions[:, parent] + np.einsum(
-          'fij,fj->fi', rotations[:, parent], translation)
-      rotations[:, j] = rotations[:, parent] @ local
-  return positions, rotations
+          'fij,fj->fi', frames[:, parent], translation)
+      frames[:, j] = frames[:, parent] @ local
+  return positions, frames
 
 
 def detect_scale(skeleton):

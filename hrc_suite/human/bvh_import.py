@@ -16,6 +16,7 @@ import re
 
 import numpy as np
 
+from hrc_suite import rotations
 from hrc_suite.human import bvh
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
@@ -221,11 +222,6 @@ def _horizontal_unit(vectors, fallback, min_norm=1e-6):
   return np.where(norm > min_norm, flat / np.maximum(norm, 1e-12), fallback)
 
 
-def _yaw_matrix(yaw):
-  c, s = math.cos(yaw), math.sin(yaw)
-  return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def synthesise_legs(pelvis, lateral, body):
   """Hip, knee and ankle keypoints (F, 3) each under the pelvis.
 
@@ -279,7 +275,7 @@ def import_motion(motion, mapping=RECORDINGS_MAPPING, units=None,
   forward0 = np.cross(lateral0, _UP)
   yaw = math.atan2(forward0[1], forward0[0])
   origin = points['pelvis'][:window].mean(axis=0) * np.array([1.0, 1.0, 0.0])
-  turn = _yaw_matrix(-yaw)
+  turn = rotations.yaw_to_mat(-yaw)
   points = {k: (p - origin) @ turn.T for k, p in points.items()}
   if mapping.has_legs:
     floor = min(points[f'{s}_ankle'][:, 2].min() for s in ('left', 'right'))

@@ -28,6 +28,7 @@ from absl import flags
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
@@ -140,10 +141,8 @@ def accelerations(positions, fps=COMMON_FPS, frames=SMOOTHING_FRAMES):
 def world_positions(positions, station):
   """Clip-frame positions (..., 3) in the world at `station` (x, y, yaw)."""
   x, y, yaw = station
-  c, s = math.cos(yaw), math.sin(yaw)
-  p = np.asarray(positions, dtype=np.float64)
-  return np.stack([x + c * p[..., 0] - s * p[..., 1],
-                   y + s * p[..., 0] + c * p[..., 1], p[..., 2]], -1)
+  return (np.asarray(positions, dtype=np.float64)
+          @ rotations.yaw_to_mat(yaw).T + [x, y, 0.0])
 
 
 def _interval_mask(spans, count, fps=COMMON_FPS):

@@ -43,6 +43,7 @@ import math
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite.human import keypoints
 
 _PELVIS = keypoints.KEYPOINT_INDEX['pelvis']
@@ -62,11 +63,6 @@ STATION_SHIFTS = {'stacking': layout.STACKING_STATION_SHIFT}
 def lean_allowance(task):
   """How far past its station the pelvis of a `task` clip may come (m)."""
   return LEAN_ALLOWANCE - STATION_SHIFTS.get(task, 0.0)
-
-
-def _yaw_matrix(yaw):
-  c, s = math.cos(yaw), math.sin(yaw)
-  return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def snapped_turn(estimated_yaw_deg):
@@ -92,7 +88,7 @@ def place_at_station(positions, turn=0.0, anchor=None, reach=None,
   positions = np.asarray(positions, dtype=np.float64)
   # Turning by `turn` moves the facing direction; turning the points by
   # -turn keeps +x the facing.
-  rotation = _yaw_matrix(-turn)
+  rotation = rotations.yaw_to_mat(-turn)
   placed = positions @ rotation.T
   pelvis = placed[:, _PELVIS]
   closest = int(np.argmax(pelvis[:, 0]))

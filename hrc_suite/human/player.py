@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from hrc_suite import rotations
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import player_kernels
@@ -138,8 +139,7 @@ class Player:
 
   def _set_placement(self):
     x, y, yaw = self._placement
-    c, s = math.cos(yaw), math.sin(yaw)
-    self._rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    self._rot_t = rotations.yaw_to_mat(yaw).T.copy()
     self._trans = np.array([x, y, 0.0])
 
   def _draw(self, k):

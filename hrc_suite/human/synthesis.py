@@ -21,6 +21,7 @@ import pathlib
 
 import numpy as np
 
+from hrc_suite import rotations
 from hrc_suite.human import body as body_lib
 from hrc_suite.human import clip as clip_lib
 
@@ -176,15 +177,13 @@ class Script:
     pelvis_xy = self.value('pelvis_xy') if pelvis_xy is None else pelvis_xy
     yaw = self.value('yaw') if yaw is None else yaw
     d = np.asarray(point[:2]) - pelvis_xy
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], point[2]])
+    return rotations.yaw_to_mat(yaw).T @ [d[0], d[1], point[2]]
 
   def to_world(self, local, pelvis_xy=None, yaw=None):
     pelvis_xy = self.value('pelvis_xy') if pelvis_xy is None else pelvis_xy
     yaw = self.value('yaw') if yaw is None else yaw
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([pelvis_xy[0] + c * local[0] - s * local[1],
-                     pelvis_xy[1] + s * local[0] + c * local[1], local[2]])
+    return [pelvis_xy[0], pelvis_xy[1], 0.0] + rotations.yaw_to_mat(
+        yaw) @ np.asarray(local, float)
 
   def hand_world(self, side):
     return self.to_world(self.value(HAND_CHANNELS[side]))
@@ -375,9 +374,8 @@ class Script:
     def stance(t):
       xy = pelvis_xy_at(np.array([t]))[0]
       yaw = yaw_at(np.array([t]))[0]
-      c, s = math.cos(yaw), math.sin(yaw)
-      return [np.array([xy[0] - s * sign * half, xy[1] + c * sign * half,
-                        b.ankle_height]) for sign in (1.0, -1.0)]
+      return [[xy[0], xy[1], b.ankle_height] + rotations.yaw_to_mat(yaw)
+              @ [0.0, sign * half, 0.0] for sign in (1.0, -1.0)]
 
     steps = ([], [])   # per foot: (t0, t1, p0, p1)
     self._step_plans = []
@@ -466,7 +464,7 @@ class Script:
     ankles = self._feet(times, pelvis_channel.sample,
                         lambda t: yaw_channel.sample(t)[:, 0])
     hands = np.empty((num_frames, 2, 3))
-    c, s = np.cos(yaw), np.sin(yaw)
+    turns = rotations.yaw_to_mat(yaw)
     rest = [self.rest_hand(side) for side in range(2)]
     for side, hand in enumerate(HAND_CHANNELS):
       other = ch[HAND_CHANNELS[1 - side]] - rest[1 - side]
@@ -476,8 +474,8 @@ class Script:
       local = local + np.stack([self._idle_noise(
           times, HAND_DRIFT, 4, *HAND_DRIFT_HZ) for _ in range(3)], -1)
       local[:, 0] += self._arm_swing(times, side, ch[hand])
-      hands[:, side, 0] = pelvis_xy[:, 0] + c * local[:, 0] - s * local[:, 1]
-      hands[:, side, 1] = pelvis_xy[:, 1] + s * local[:, 0] + c * local[:, 1]
+      hands[:, side, :2] = pelvis_xy + np.einsum(
+          'fij,fj->fi', turns, local)[:, :2]
       hands[:, side, 2] = local[:, 2]
     pose = body_lib.Pose(
         pelvis=np.concatenate([pelvis_xy, (self.standing_height

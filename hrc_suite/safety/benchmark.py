@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from hrc_suite import robot_description
+from hrc_suite import rotations
 from hrc_suite.human import keypoints
 from hrc_suite.safety import batch
 from hrc_suite.safety import modes as modes_lib
@@ -55,9 +56,8 @@ def standing_person(x, y, yaw):
       points.append((px, py if side == 'left' else -py, pz))
     else:
       points.append(_STANDING[name])
-  c, s = math.cos(yaw), math.sin(yaw)
-  rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-  return np.array(points) @ rotation.T + np.array([x, y, 0.0])
+  return (np.array(points) @ rotations.yaw_to_mat(yaw).T
+          + np.array([x, y, 0.0]))
 
 
 def reaching_person(target, x=1.3, period=1.5):

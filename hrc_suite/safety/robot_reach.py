@@ -16,6 +16,7 @@ chord midpoints of its two end points with radius
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import rotations
 from hrc_suite.safety import kernels
 
 
@@ -37,14 +38,10 @@ def pose_matrix(pose):
     return pose.copy()
   if pose.shape == (6,):
     x, y, z, roll, pitch, yaw = pose
-    cr, sr = np.cos(roll), np.sin(roll)
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
     out = np.eye(4)
-    out[:3, :3] = rz @ ry @ rx
+    out[:3, :3] = (rotations.about_axis(rotations.Z, yaw)
+                   @ rotations.about_axis(rotations.Y, pitch)
+                   @ rotations.about_axis(rotations.X, roll))
     out[:3, 3] = (x, y, z)
     return out
   raise ValueError(f'base_pose: expected None, a 4x4 matrix or (x, y, z, '

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from hrc_suite import rotations
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints as keypoints_lib
 from hrc_suite.human import recording_cache
@@ -161,10 +162,9 @@ def _check_task_fields(clip, task, events, source):
 
 def _check_workcell(clip, station, floor_half_size, source):
   x, y, yaw = station
-  c, s = np.cos(yaw), np.sin(yaw)
   p = clip.positions.astype(np.float64)
-  world_x = x + c * p[..., 0] - s * p[..., 1]
-  world_y = y + s * p[..., 0] + c * p[..., 1]
+  world = p @ rotations.yaw_to_mat(yaw).T
+  world_x, world_y = x + world[..., 0], y + world[..., 1]
   outside = ((np.abs(world_x) > floor_half_size)
              | (np.abs(world_y) > floor_half_size)
              | (p[..., 2] < 0.0) | (p[..., 2] > MAX_KEYPOINT_HEIGHT))
