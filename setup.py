@@ -1,6 +1,16 @@
 """hrc_suite: safe reinforcement learning benchmarks for human-robot collaboration."""
 
+import warnings
+
 import setuptools
+
+# `pip install -e .` builds in this process; setuptools' editable_wheel then
+# emits an InformationOnly warning ("Editable installation ... Please be
+# careful with folders in your working directory with the same name as your
+# package") on every editable install that uses its import hook, which pip
+# prints as a warning box. It is a note about editable installs in general,
+# not about this project: not shown.
+warnings.filterwarnings('ignore', message='Editable installation')
 
 # JAX agents (agents/): networks (flax), optimisers (optax), logs
 # (tensorboardX), learning-curve plots (matplotlib).
