@@ -88,6 +88,7 @@ def _constants(shield):
   cached = (params, limits, np.ascontiguousarray(s._clip, dtype=float),
             *robot._kernel_model, robot._kernel_frames,
             robot._kernel_alpha, robot._kernel_static,
+            robot._kernel_levers, robot._kernel_half_lengths,
             human._kernel_v_max, human._kernel_a_max,
             s._body_ends, human._kernel_ends,
             np.ascontiguousarray(human._half_thickness, dtype=float),

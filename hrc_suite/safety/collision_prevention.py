@@ -172,15 +172,7 @@ class CollisionPrevention:
   def _setup_levers(self):
     """Motion bounds: lever[k, c] >= distance of any point of capsule c from
     joint k's origin (0 if joint k does not move capsule c)."""
-    points = self.reach._points[:, :, :3]                          # (L, 2, 3)
-    extent = np.linalg.norm(points, axis=-1).max(axis=-1) + self.reach.radii
-    hop = np.linalg.norm(self.description.fixed_transforms()[:, :3, 3],
-                         axis=-1)
-    levers = np.zeros((self.dof, self.num_capsules))
-    for c, frame in enumerate(self.reach.frame_index):
-      for k in range(frame + 1):
-        levers[k, c] = hop[k + 1:frame + 1].sum() + extent[c]
-    self.levers = levers
+    self.levers = self.reach.joint_levers(with_radius=True)
 
   def _setup_pairs(self, samples, seed):
     """Non-adjacent capsule pairs to check, with their tolerances."""

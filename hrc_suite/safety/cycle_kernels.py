@@ -127,8 +127,8 @@ def _slow_enough(params, start, inverse, last, window, suffix, current_s_dot,
 def _verify(params, plan, start, inverse, filled, current_s, current_s_dot,
             previous_q, failsafe, now, positions, velocities, last_t,
             last_period, q_min, q_max, fixed, points, frame_index, alpha,
-            static_radius, v_max, a_max, body_ends, ends, half_thickness,
-            base, window, suffix):
+            static_radius, levers, half_lengths, v_max, a_max, body_ends,
+            ends, half_thickness, base, window, suffix):
   """Shield._verify (SSM or PFL, a measured human with a velocity; PFL's
   speed tables window and suffix (N,) of the plan). Returns
   (status, first unsafe slice, reach distance (nan: not computed), s_edges,
@@ -169,6 +169,11 @@ def _verify(params, plan, start, inverse, filled, current_s, current_s_dot,
   bound = gap - params[WORKSPACE]
   if bound > 0.0:
     return 1, -1, bound, s_edges, t_edges, q_edges
+  bound = kernels.swept_balls_gap(
+      q_edges, s_edges, fixed, points, frame_index, alpha, static_radius,
+      levers, half_lengths, centre, radius, params[SLACK]) - params[SLACK]
+  if bound > 0.0:
+    return 1, -1, bound, s_edges, t_edges, q_edges
   rc1, rc2, rr = kernels.robot_reach(q_edges, s_edges, fixed, points,
                                      frame_index, alpha, static_radius)
   bound = (kernels.balls_capsules_distance(centre, radius, rc1, rc2, rr)
@@ -205,9 +210,10 @@ def _stop(c, setpoints, intervened, check, missing):
 def ssm_cycles(params, frames, times, command, previous_q, verified,
                intended, flags, human, positions, velocities, plan,
                plan_meta, candidate, candidate_meta, limits, clip, fixed,
-               points, frame_index, alpha, static_radius, v_max, a_max,
-               body_ends, ends, half_thickness, base, plan_window,
-               plan_suffix, candidate_window, candidate_suffix):
+               points, frame_index, alpha, static_radius, levers,
+               half_lengths, v_max, a_max, body_ends, ends, half_thickness,
+               base, plan_window, plan_suffix, candidate_window,
+               candidate_suffix):
   """Runs SSM cycles for keypoints frames (n, N_kp, 3) at times (n,),
   updating the state arrays in place: command (5, dof), previous_q,
   verified and intended (10,), flags (int64: has_intended, goal_pending,
@@ -218,7 +224,8 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
   and candidate_meta (start time, samples computed, and the s, s_dot of
   the verified path it was planned from: Shield._candidate_plan's key).
   limits (7, dof): den_offset, acc_numerator, jerk_numerator, jerk_acc,
-  q_min, q_max (Shield's per-joint terms) and a_max_ltt. PFL
+  q_min, q_max (Shield's per-joint terms) and a_max_ltt; fixed to
+  half_lengths: the robot's model (RobotReach's _kernel_ arrays). PFL
   (params[PFL] == 1): the plans' speed tables (Shield._plan_speeds).
 
   Returns (cycles done, set-points (n, 3, dof), intervened (n,), the
@@ -340,8 +347,9 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
             params, now_plan, now_start, inverse, now_filled, current[0],
             current[1], command[0], failsafe, t, new_positions,
             new_velocities, last_t, last_period, limits[4], limits[5],
-            fixed, points, frame_index, alpha, static_radius, v_max, a_max,
-            body_ends, ends, half_thickness, base, now_window, now_suffix)
+            fixed, points, frame_index, alpha, static_radius, levers,
+            half_lengths, v_max, a_max, body_ends, ends, half_thickness, base,
+            now_window, now_suffix)
         if c_check[0] < 0:
           return _stop(c, setpoints, intervened, check, True)
         safe = c_check[0] == 1
@@ -434,7 +442,8 @@ def warm_up():
              floats(count_n, 3), plan, floats(2), plan, floats(4),
              floats(7, dof), floats(3, dof), floats(dof, 3, 4),
              floats(count_l, 2, 4), ints(count_l), floats(count_l),
-             floats(count_l), floats(count_n), floats(count_n),
+             floats(count_l), floats(dof, count_l), floats(count_l),
+             floats(count_n), floats(count_n),
              ints(2, count_b), ints(2 * count_b), floats(count_b), floats(3),
              floats(1), floats(1), floats(1), floats(1))
   _warm = True

@@ -12,9 +12,11 @@ reference, tested against it on random inputs to 1e-12):
 * `surface_speeds`: robot_reach.RobotReach.surface_speeds;
 * `human_velocity_capsules`: the velocity model (COMBINED or ACCEL) of
   human_reach.HumanReach.reach_capsules;
-* `horizon_balls`, `balls_capsules_distance`: the shield's two broad
+* `horizon_balls`, `balls_capsules_distance`: the shield's broad
   phases (shield.Shield._human_horizon_balls,
-  shield.balls_capsules_distance_reference);
+  shield.balls_capsules_distance_reference); `swept_balls_gap`, a lower
+  bound of the second from one forward kinematics (its own reference is
+  the bound it must stay below, tested);
 * `plan_positions`: long_term_plan.LongTermPlan.positions_reference;
 * `speed_tables`: shield.pfl_speed_tables(compiled=False);
   `plan_speed_tables`: the same from a plan's samples in one pass.
@@ -469,6 +471,62 @@ def balls_capsules_distance(centre, radius, c1, c2, r):
 
 
 @_jit
+def swept_balls_gap(q_edges, s_edges, fixed, points, frame_index, alpha,
+                    static_radius, levers, half_lengths, centre, radius,
+                    stop):
+  """A lower bound of balls_capsules_distance(centre, radius,
+  *robot_reach(q_edges, s_edges, ...)) from one forward kinematics, at
+  q_edges[0] (docs/shield_maths.md, 5.3): every reach capsule of link l
+  and the ball around its midpoint that balls_capsules_distance uses lie
+  in the ball around the link's midpoint at q_edges[0] of radius
+  sum_j levers[j, l] (D_j + C_j / 2) + alpha_l max(ds)^2 / 8 +
+  static_radius[l] + half_lengths[l] (D_j, C_j: the largest |q_ij - q_0j|
+  and |q_i+1,j - q_ij| over the edges; levers: RobotReach.joint_levers).
+  Minus _BOUND_SLACK (round-off). Returns at the first pair at or below
+  `stop` (then only that it is not above)."""
+  count_k = q_edges.shape[0] - 1
+  dof = q_edges.shape[1]
+  motion = np.empty(dof)
+  for j in range(dof):
+    away = 0.0
+    step = 0.0
+    for k in range(count_k):
+      away = max(away, abs(q_edges[k + 1, j] - q_edges[0, j]))
+      step = max(step, abs(q_edges[k + 1, j] - q_edges[k, j]))
+    motion[j] = away + 0.5 * step
+  curvature = 0.0
+  for k in range(count_k):
+    ds = s_edges[k + 1] - s_edges[k]
+    curvature = max(curvature, ds * ds * 0.125)
+  frames = np.empty((dof, 3, 4))
+  _chain(q_edges[0], fixed, frames)
+  best = np.inf
+  # From the hand to the base: near a person, the first pairs tried are
+  # those most likely to stop the loop.
+  for l in range(levers.shape[1] - 1, -1, -1):
+    grow = curvature * alpha[l] + static_radius[l] + half_lengths[l]
+    for j in range(dof):
+      grow += levers[j, l] * motion[j]
+    f = frame_index[l]
+    m0 = 0.5 * (_world(frames[f], points[l, 0], 0)
+                + _world(frames[f], points[l, 1], 0))
+    m1 = 0.5 * (_world(frames[f], points[l, 0], 1)
+                + _world(frames[f], points[l, 1], 1))
+    m2 = 0.5 * (_world(frames[f], points[l, 0], 2)
+                + _world(frames[f], points[l, 1], 2))
+    for b in range(radius.shape[0]):
+      g0 = m0 - centre[b, 0]
+      g1 = m1 - centre[b, 1]
+      g2 = m2 - centre[b, 2]
+      d = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) - grow - radius[b]
+      if d < best:
+        best = d
+        if best - _BOUND_SLACK <= stop:
+          return best - _BOUND_SLACK
+  return best - _BOUND_SLACK
+
+
+@_jit
 def horizon_balls(positions, velocities, v_max, body_ends, half_thickness,
                   age, error_pos, base):
   """The shield's VEL balls over the whole horizon, one per body: centres
@@ -684,6 +742,8 @@ def warm_up():
                                     ends.reshape(2, count_b),
                                     np.ones(count_b), 0.0, 0.0, np.zeros(3))
   balls_capsules_distance(centre, radius, c1, c2, r)
+  swept_balls_gap(q, np.arange(2.0), fixed, points, frame_index, ones, ones,
+                  np.zeros((dof, count_l)), ones, centre, radius, 0.0)
   capsules_min_distance(q[0], fixed, points, frame_index, ones, positions,
                         ends, np.ones(count_b))
   tracking_error(q[0], q[1], fixed, points, frame_index)

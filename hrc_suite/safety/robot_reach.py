@@ -123,6 +123,29 @@ class RobotReach:
     self._kernel_static = np.ascontiguousarray(self._static_radius,
                                                dtype=float)
     self._kernel_radii = np.ascontiguousarray(self.radii, dtype=float)
+    # The swept broad phase's motion bounds (kernels.swept_balls_gap).
+    self._kernel_levers = np.ascontiguousarray(self.joint_levers())
+    self._kernel_half_lengths = 0.5 * np.linalg.norm(p2 - p1, axis=-1)
+
+  def joint_levers(self, with_radius=False):
+    """(dof, L): lever[k, l] >= the distance of capsule l's end points
+    (with_radius: of any point of the capsule) from joint k's origin in
+    every configuration, 0 where joint k does not move capsule l. Turning
+    joint k by dq_k moves such a point by at most lever[k, l] |dq_k|, so a
+    joint step dq moves it by at most sum_k lever[k, l] |dq_k|: the origin
+    of joint j + 1 is |t_j+1| from that of joint j (t: the translations of
+    the fixed transforms, rotations keep lengths), and the capsule's points
+    are their local norm from their frame's origin."""
+    points = self._points[:, :, :3]                                # (L, 2, 3)
+    extent = np.linalg.norm(points, axis=-1).max(axis=-1)
+    if with_radius:
+      extent = extent + self.radii
+    hop = np.linalg.norm(self._fixed[:, :3, 3], axis=-1)
+    levers = np.zeros((self.dof, self.num_capsules))
+    for c, frame in enumerate(self.frame_index):
+      for k in range(frame + 1):
+        levers[k, c] = hop[k + 1:frame + 1].sum() + extent[c]
+    return levers
 
   def _check_q(self, q, name='q'):
     q = np.asarray(q, dtype=float)

@@ -29,7 +29,10 @@ Differences to the original (docs/shield_maths.md, 10), on purpose:
 * Before the exact check, the maximal-velocity (VEL) model over the whole
   horizon (one ball per body) is tried against the robot's workspace ball
   and reach capsules: a cheap model that, if collision-free, settles the
-  cycle under SSM's "some model is collision-free" rule.
+  cycle under SSM's "some model is collision-free" rule. The reach
+  capsules' test is first bounded from one forward kinematics
+  (kernels.swept_balls_gap, docs/shield_maths.md, 5.3), which settles
+  most such cycles without the reach capsules.
 
 Speed: the per-cycle geometry runs in compiled kernels (`kernels`, numba),
 each tested against its readable NumPy reference (kept in `robot_reach`,
@@ -747,6 +750,18 @@ class Shield:
         self._body_ends, self._half_thickness, age, self._human_error_pos,
         self._base)
     bound = gap - self._workspace_radius
+    if bound > 0.0:
+      self._first_unsafe_interval, self._reach_distance = -1, bound
+      return True
+    # Broad phase 2, bounded from the robot's capsules at q_edges[0] alone
+    # (one forward kinematics instead of one per edge; a lower bound of
+    # the test below, so it settles only cycles that test settles).
+    robot = self.robot
+    bound = kernels.swept_balls_gap(
+        q_edges, np.asarray(s_edges, dtype=float), *robot._kernel_model,
+        robot._kernel_frames, robot._kernel_alpha, robot._kernel_static,
+        robot._kernel_levers, robot._kernel_half_lengths, centre, radius,
+        _BROAD_PHASE_SLACK) - _BROAD_PHASE_SLACK
     if bound > 0.0:
       self._first_unsafe_interval, self._reach_distance = -1, bound
       return True

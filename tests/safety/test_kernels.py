@@ -175,6 +175,105 @@ def test_shield_broad_phases_match_reference():
                 centre, radius, capsules), abs=1e-12))
 
 
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+@pytest.mark.parametrize('tool', [None, TOOL])
+def test_swept_balls_gap_bounds_the_reach_capsules_test(name, tool):
+  """The bound from one forward kinematics (docs/shield_maths.md, 5.3)
+  never exceeds balls_capsules_distance on the reach capsules, so it
+  settles only cycles that test settles; without motion it is that test
+  up to the curvature term and its round-off allowance."""
+  description = robot_description.load(name)
+  robot = robot_reach.RobotReach(description, tool_capsule=tool,
+                                 base_pose=(0.1, -0.2, 0.7, 0.1, 0.2, 0.3))
+  limits = description.limits
+  rng = np.random.RandomState(5)
+  model = (*robot._kernel_model, robot._kernel_frames, robot._kernel_alpha,
+           robot._kernel_static, robot._kernel_levers,
+           robot._kernel_half_lengths)
+  positive = 0
+  for trial in range(300):
+    k = rng.randint(1, 10)
+    start = rng.uniform(limits.q_min, limits.q_max)
+    # Paths of a shield cycle (steps of up to ~0.1 rad between edges)
+    # and, every third trial, wild ones.
+    scale = 1.0 if trial % 3 == 0 else 0.1
+    q = start + np.cumsum(rng.uniform(-scale, scale,
+                                      (k + 1, description.dof)), axis=0)
+    q[0] = start
+    s = np.cumsum(rng.uniform(0, 0.05, k + 1))
+    centre = rng.uniform(-1.5, 1.5, (rng.randint(1, 15), 3))
+    radius = rng.uniform(0.0, 0.4, centre.shape[0])
+    bound = kernels.swept_balls_gap(q, s, *model, centre, radius, -np.inf)
+    test = kernels.balls_capsules_distance(centre, radius,
+                                           *robot.reach_capsules(q, s))
+    assert bound <= test
+    positive += bound > 0.0
+    # Stopped at the first pair at or below 0: the same verdict, and the
+    # same bound where it is positive.
+    early = kernels.swept_balls_gap(q, s, *model, centre, radius, 0.0)
+    assert early == bound if bound > 0.0 else early <= 0.0
+  assert positive > 30   # Not a vacuous bound.
+  # Placed just outside the reach capsules' ball that lies farthest from
+  # the link's midpoint at q[0], a point is within 1 mm of the test's
+  # bound: the bound must not be above (it is, without its radius terms).
+  for _ in range(100):
+    k = rng.randint(1, 10)
+    start = rng.uniform(limits.q_min, limits.q_max)
+    q = start + np.cumsum(rng.uniform(-0.1, 0.1, (k + 1, description.dof)),
+                          axis=0)
+    q[0] = start
+    s = np.cumsum(rng.uniform(0, 0.05, k + 1))
+    c1, c2, r = robot.reach_capsules(q, s)
+    middle = 0.5 * (c1 + c2)
+    ball = 0.5 * np.linalg.norm(c2 - c1, axis=-1) + r
+    p1, p2, _ = robot.capsules(q[0])
+    offset = middle - 0.5 * (p1 + p2)
+    far = np.unravel_index(
+        np.argmax(np.linalg.norm(offset, axis=-1) + ball), ball.shape)
+    direction = offset[far] / max(np.linalg.norm(offset[far]), 1e-12)
+    point = (middle[far] + direction * (ball[far] + 1e-3))[None]
+    no_stop = -np.inf
+    assert (kernels.swept_balls_gap(q, s, *model, point, np.zeros(1), no_stop)
+            <= kernels.balls_capsules_distance(point, np.zeros(1), c1, c2,
+                                               r))
+  still = np.repeat(start[None], 3, axis=0)
+  s = np.array([0.0, 0.02, 0.04])
+  bound = kernels.swept_balls_gap(still, s, *model, centre, radius, -np.inf)
+  test = kernels.balls_capsules_distance(centre, radius,
+                                         *robot.reach_capsules(still, s))
+  curvature = 0.02 ** 2 / 8 * robot.alpha.max()
+  assert test - curvature - 1e-8 <= bound <= test
+
+
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_joint_levers_bound_the_motion_of_capsule_end_points(name):
+  """A step of one joint moves every capsule end point by at most its
+  lever times the step (RobotReach.joint_levers), and the bound is
+  reached: the levers are not loose everywhere."""
+  description = robot_description.load(name)
+  robot = robot_reach.RobotReach(description, tool_capsule=TOOL)
+  levers = robot.joint_levers()
+  np.testing.assert_allclose(   # Collision prevention's (surfaces).
+      robot.joint_levers(with_radius=True),
+      np.where(np.arange(description.dof)[:, None] <= robot.frame_index,
+               levers + robot.radii, 0.0), rtol=1e-15, atol=0)
+  rng = np.random.RandomState(7)
+  worst = 0.0
+  for _ in range(1500):
+    q = rng.uniform(description.limits.q_min, description.limits.q_max)
+    joint = rng.randint(description.dof)
+    step = np.zeros(description.dof)
+    step[joint] = rng.uniform(-1e-3, 1e-3)
+    a1, a2, _ = robot.capsules(q)
+    b1, b2, _ = robot.capsules(q + step)
+    moved = np.maximum(np.linalg.norm(b1 - a1, axis=-1),
+                       np.linalg.norm(b2 - a2, axis=-1))
+    bound = levers[joint] * abs(step[joint])
+    assert np.all(moved <= bound * (1 + 1e-9) + 1e-15)
+    worst = max(worst, float((moved / np.maximum(bound, 1e-300)).max()))
+  assert worst > 0.99
+
+
 def test_plan_positions_match_reference():
   description = robot_description.load('iiwa')
   plan = ltp.plan_to_goal(description.q_home, np.zeros(7), np.zeros(7),
