@@ -444,6 +444,16 @@ def human_velocity_capsules(positions, velocities, v_max, a_max, t,
   return c1, c2, body_r
 
 
+@_inline
+def _ball_gap(m0, m1, m2, grow, centre, radius, b):
+  """Gap between the ball (m0, m1, m2) of radius grow and ball b of
+  centre (B, 3) and radius (B,): centre distance minus both radii."""
+  g0 = m0 - centre[b, 0]
+  g1 = m1 - centre[b, 1]
+  g2 = m2 - centre[b, 2]
+  return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) - grow - radius[b]
+
+
 @_jit
 def balls_capsules_distance(centre, radius, c1, c2, r):
   """Lower bound (before the slack) of the distance between balls (B,) and
@@ -461,10 +471,7 @@ def balls_capsules_distance(centre, radius, c1, c2, r):
       h2 = c2[k, l, 2] - c1[k, l, 2]
       reach = 0.5 * math.sqrt(h0 * h0 + h1 * h1 + h2 * h2) + r[k, l]
       for b in range(count_b):
-        g0 = m0 - centre[b, 0]
-        g1 = m1 - centre[b, 1]
-        g2 = m2 - centre[b, 2]
-        d = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) - reach - radius[b]
+        d = _ball_gap(m0, m1, m2, reach, centre, radius, b)
         if d < best:
           best = d
   return best
@@ -515,10 +522,7 @@ def swept_balls_gap(q_edges, s_edges, fixed, points, frame_index, alpha,
     m2 = 0.5 * (_world(frames[f], points[l, 0], 2)
                 + _world(frames[f], points[l, 1], 2))
     for b in range(radius.shape[0]):
-      g0 = m0 - centre[b, 0]
-      g1 = m1 - centre[b, 1]
-      g2 = m2 - centre[b, 2]
-      d = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) - grow - radius[b]
+      d = _ball_gap(m0, m1, m2, grow, centre, radius, b)
       if d < best:
         best = d
         if best - _BOUND_SLACK <= stop:
