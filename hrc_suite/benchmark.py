@@ -44,6 +44,9 @@ _ACTION_SPACE = flags.DEFINE_string(
 # The throughput is the best of this many equal windows of the RL steps
 # (the least disturbed by other processes sharing the cores).
 _WINDOWS = 3
+# RL steps between two measurements of the bare physics (the alternating
+# ratio: docs/benchmarks.md, 2026-11-28).
+_CHUNK = 10
 
 
 def machine_summary() -> str:
@@ -131,12 +134,18 @@ def run_shield(robots):
 
 def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
                        action_space=None):
-  """(RL steps/s, s per RL step, s per same number of bare mj_steps), CPU
-  time, each the best of _WINDOWS windows of rl_steps / _WINDOWS steps.
+  """(RL steps/s, s per RL step, s per same number of bare mj_steps,
+  median ratio of the two in alternating chunks), CPU time.
 
   Random actions, the task's default shield on, the human moving, L = 25.
-  Resets (at episode ends) are excluded from the time. The bare mj_steps
-  run on a copy of the environment's MjData (same model, same scene).
+  The RL steps run in _WINDOWS windows of rl_steps / _WINDOWS steps, each
+  in chunks of _CHUNK steps, every chunk followed by as many bare
+  mj_steps on a copy of the environment's MjData (same model, same
+  scene). The first three numbers take the best window of each (the
+  least disturbed by other processes); the ratio is the median over the
+  chunks of RL step time over bare time measured moments apart, which
+  holds where the host's own speed drifts between windows. Resets (at
+  episode ends) are excluded from the time.
   """
   from hrc_suite import suite
   kwargs = dict(robot=robot, seed=seed, fast_path=fast_path)
@@ -146,30 +155,36 @@ def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
   spec = env.action_spec()
   rng = np.random.RandomState(seed)
   timestep = env.reset()
-  window = max(1, rl_steps // _WINDOWS)
-  best = np.inf
-  for _ in range(_WINDOWS):
-    elapsed = 0.0
-    for _ in range(window):
-      if timestep.last():
-        timestep = env.reset()
-      action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
-      start = time.process_time()
-      timestep = env.step(action)
-      elapsed += time.process_time() - start
-    best = min(best, elapsed / window)
   substeps = env.task.shield_substeps
   model = env.physics.model.ptr
   data = mujoco.MjData(model)
   mujoco.mj_copyData(data, model, env.physics.data.ptr)
-  bare = np.inf
+  window = max(1, rl_steps // _WINDOWS)
+  best = bare = np.inf
+  ratios = []
   for _ in range(_WINDOWS):
-    start = time.process_time()
-    for _ in range(window * substeps):
-      mujoco.mj_step(model, data)
-    bare = min(bare, (time.process_time() - start) / window)
+    elapsed = bare_elapsed = 0.0
+    for first in range(0, window, _CHUNK):
+      count = min(_CHUNK, window - first)
+      chunk = 0.0
+      for _ in range(count):
+        if timestep.last():
+          timestep = env.reset()
+        action = rng.uniform(spec.minimum, spec.maximum, spec.shape)
+        start = time.process_time()
+        timestep = env.step(action)
+        chunk += time.process_time() - start
+      start = time.process_time()
+      for _ in range(count * substeps):
+        mujoco.mj_step(model, data)
+      chunk_bare = time.process_time() - start
+      elapsed += chunk
+      bare_elapsed += chunk_bare
+      ratios.append(chunk / chunk_bare)
+    best = min(best, elapsed / window)
+    bare = min(bare, bare_elapsed / window)
   env.close()
-  return 1.0 / best, best, bare
+  return 1.0 / best, best, bare, float(np.median(ratios))
 
 
 def run_tasks(robots, rl_steps, tasks=(), reference=False,
@@ -184,8 +199,8 @@ def run_tasks(robots, rl_steps, tasks=(), reference=False,
   print('\n## RL step throughput (CPU time; random actions, shield on, human '
         f'moving, L = 25; actions: {action_space or "task default"})\n')
   head = ('| task | robot | RL steps/s | ms per RL step | ms of 25 bare '
-          'mj_step | ratio |')
-  rule = '|---|---|---|---|---|---|'
+          'mj_step | ratio | ratio, alternating (median) |')
+  rule = '|---|---|---|---|---|---|---|'
   if reference:
     head += ' reference RL steps/s | reference ms | reference ratio |'
     rule += '---|---|---|'
@@ -194,12 +209,12 @@ def run_tasks(robots, rl_steps, tasks=(), reference=False,
   for name in tasks or names:
     domain, task = name.split('/')
     for robot in robots:
-      rate, per_step, bare = rl_step_throughput(
+      rate, per_step, bare, ratio = rl_step_throughput(
           domain, task, robot, rl_steps, action_space=action_space)
       row = (f'| {name} | {robot} | {rate:.0f} | {1e3 * per_step:.2f} '
-             f'| {1e3 * bare:.2f} | {per_step / bare:.1f} |')
+             f'| {1e3 * bare:.2f} | {per_step / bare:.1f} | {ratio:.1f} |')
       if reference:
-        rate, per_step, bare = rl_step_throughput(
+        rate, per_step, bare, _ = rl_step_throughput(
             domain, task, robot, rl_steps, fast_path=False,
             action_space=action_space)
         row += f' {rate:.0f} | {1e3 * per_step:.2f} | {per_step / bare:.1f} |'
