@@ -5,7 +5,7 @@ of cycles whose human keypoints are known in advance (a playback), on the
 shield's state held in arrays (`shield.Shield.step_many` packs and unpacks
 them): the human measurement (no Kalman filter, combined model), the
 monitored path (one intended step, then the failsafe: `path_kernels`), its
-verification (joint limits, the two broad phases, robot and human reach
+verification (joint limits, the broad phases, robot and human reach
 capsules and the SSM verdict: the `kernels` the Python cycle calls) and the
 command from the plan's samples (long_term_plan.LongTermPlan.state).
 
