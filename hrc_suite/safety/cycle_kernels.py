@@ -169,13 +169,20 @@ def _verify(params, plan, start, inverse, filled, current_s, current_s_dot,
   bound = gap - params[WORKSPACE]
   if bound > 0.0:
     return 1, -1, bound, s_edges, t_edges, q_edges
+  # The edges' link frames, the first one for the bound from one forward
+  # kinematics, the others only if the reach capsules are needed.
+  frames = np.empty((count + 2, dof, 3, 4))
+  kernels._chain(q_edges[0], fixed, frames[0])
   bound = kernels.swept_balls_gap(
-      q_edges, s_edges, fixed, points, frame_index, alpha, static_radius,
-      levers, half_lengths, centre, radius, params[SLACK]) - params[SLACK]
+      q_edges, s_edges, frames[0], points, frame_index, alpha,
+      static_radius, levers, half_lengths, centre, radius,
+      params[SLACK]) - params[SLACK]
   if bound > 0.0:
     return 1, -1, bound, s_edges, t_edges, q_edges
-  rc1, rc2, rr = kernels.robot_reach(q_edges, s_edges, fixed, points,
-                                     frame_index, alpha, static_radius)
+  for n in range(1, count + 2):
+    kernels._chain(q_edges[n], fixed, frames[n])
+  rc1, rc2, rr = kernels.reach_from_frames(frames, s_edges, points,
+                                           frame_index, alpha, static_radius)
   bound = (kernels.balls_capsules_distance(centre, radius, rc1, rc2, rr)
            - params[SLACK])
   if bound > 0.0:

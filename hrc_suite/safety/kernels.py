@@ -282,8 +282,17 @@ def robot_reach(q_edges, s_edges, fixed, points, frame_index, alpha,
                 static_radius):
   """Reach capsules c1, c2 (K, L, 3), r (K, L) over the K intervals between
   configurations q_edges (K+1, dof) at path positions s_edges (K+1,)."""
-  ends = _endpoints(_frames(q_edges, fixed), points, frame_index)
-  count_k = q_edges.shape[0] - 1
+  return reach_from_frames(_frames(q_edges, fixed), s_edges, points,
+                           frame_index, alpha, static_radius)
+
+
+@_jit
+def reach_from_frames(frames, s_edges, points, frame_index, alpha,
+                      static_radius):
+  """robot_reach from the edges' link frames (K+1, dof, 3, 4) (`_chain`
+  of each edge's configuration)."""
+  ends = _endpoints(frames, points, frame_index)
+  count_k = frames.shape[0] - 1
   count_l = points.shape[0]
   c1 = np.empty((count_k, count_l, 3))
   c2 = np.empty((count_k, count_l, 3))
@@ -478,12 +487,13 @@ def balls_capsules_distance(centre, radius, c1, c2, r):
 
 
 @_jit
-def swept_balls_gap(q_edges, s_edges, fixed, points, frame_index, alpha,
+def swept_balls_gap(q_edges, s_edges, frames, points, frame_index, alpha,
                     static_radius, levers, half_lengths, centre, radius,
                     stop):
   """A lower bound of balls_capsules_distance(centre, radius,
-  *robot_reach(q_edges, s_edges, ...)) from one forward kinematics, at
-  q_edges[0] (docs/shield_maths.md, 5.3): every reach capsule of link l
+  *robot_reach(q_edges, s_edges, ...)) from one forward kinematics, the
+  link frames (dof, 3, 4) at q_edges[0] (`_chain`; docs/shield_maths.md,
+  5.3): every reach capsule of link l
   and the ball around its midpoint that balls_capsules_distance uses lie
   in the ball around the link's midpoint at q_edges[0] of radius
   sum_j levers[j, l] (D_j + C_j / 2) + alpha_l max(ds)^2 / 8 +
@@ -505,8 +515,6 @@ def swept_balls_gap(q_edges, s_edges, fixed, points, frame_index, alpha,
   for k in range(count_k):
     ds = s_edges[k + 1] - s_edges[k]
     curvature = max(curvature, ds * ds * 0.125)
-  frames = np.empty((dof, 3, 4))
-  _chain(q_edges[0], fixed, frames)
   best = np.inf
   # From the hand to the base: near a person, the first pairs tried are
   # those most likely to stop the loop.
@@ -746,8 +754,9 @@ def warm_up():
                                     ends.reshape(2, count_b),
                                     np.ones(count_b), 0.0, 0.0, np.zeros(3))
   balls_capsules_distance(centre, radius, c1, c2, r)
-  swept_balls_gap(q, np.arange(2.0), fixed, points, frame_index, ones, ones,
-                  np.zeros((dof, count_l)), ones, centre, radius, 0.0)
+  swept_balls_gap(q, np.arange(2.0), _frames(q[:1], fixed)[0], points,
+                  frame_index, ones, ones, np.zeros((dof, count_l)), ones,
+                  centre, radius, 0.0)
   capsules_min_distance(q[0], fixed, points, frame_index, ones, positions,
                         ends, np.ones(count_b))
   tracking_error(q[0], q[1], fixed, points, frame_index)

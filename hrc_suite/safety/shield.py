@@ -757,8 +757,10 @@ class Shield:
     # (one forward kinematics instead of one per edge; a lower bound of
     # the test below, so it settles only cycles that test settles).
     robot = self.robot
+    fixed, points = robot._kernel_model
     bound = kernels.swept_balls_gap(
-        q_edges, np.asarray(s_edges, dtype=float), *robot._kernel_model,
+        q_edges, np.asarray(s_edges, dtype=float),
+        kernels._frames(q_edges[:1], fixed)[0], points,
         robot._kernel_frames, robot._kernel_alpha, robot._kernel_static,
         robot._kernel_levers, robot._kernel_half_lengths, centre, radius,
         _BROAD_PHASE_SLACK) - _BROAD_PHASE_SLACK

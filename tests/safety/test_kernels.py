@@ -187,9 +187,15 @@ def test_swept_balls_gap_bounds_the_reach_capsules_test(name, tool):
                                  base_pose=(0.1, -0.2, 0.7, 0.1, 0.2, 0.3))
   limits = description.limits
   rng = np.random.RandomState(5)
-  model = (*robot._kernel_model, robot._kernel_frames, robot._kernel_alpha,
-           robot._kernel_static, robot._kernel_levers,
-           robot._kernel_half_lengths)
+  fixed, points = robot._kernel_model
+  rest = (points, robot._kernel_frames, robot._kernel_alpha,
+          robot._kernel_static, robot._kernel_levers,
+          robot._kernel_half_lengths)
+
+  def gap(q, s, centre, radius, stop=-np.inf):
+    frames = kernels._frames(q[:1], fixed)[0]   # One forward kinematics.
+    return kernels.swept_balls_gap(q, s, frames, *rest, centre, radius, stop)
+
   positive = 0
   for trial in range(300):
     k = rng.randint(1, 10)
@@ -203,14 +209,14 @@ def test_swept_balls_gap_bounds_the_reach_capsules_test(name, tool):
     s = np.cumsum(rng.uniform(0, 0.05, k + 1))
     centre = rng.uniform(-1.5, 1.5, (rng.randint(1, 15), 3))
     radius = rng.uniform(0.0, 0.4, centre.shape[0])
-    bound = kernels.swept_balls_gap(q, s, *model, centre, radius, -np.inf)
+    bound = gap(q, s, centre, radius)
     test = kernels.balls_capsules_distance(centre, radius,
                                            *robot.reach_capsules(q, s))
     assert bound <= test
     positive += bound > 0.0
     # Stopped at the first pair at or below 0: the same verdict, and the
     # same bound where it is positive.
-    early = kernels.swept_balls_gap(q, s, *model, centre, radius, 0.0)
+    early = gap(q, s, centre, radius, 0.0)
     assert early == bound if bound > 0.0 else early <= 0.0
   assert positive > 30   # Not a vacuous bound.
   # Placed just outside the reach capsules' ball that lies farthest from
@@ -232,13 +238,12 @@ def test_swept_balls_gap_bounds_the_reach_capsules_test(name, tool):
         np.argmax(np.linalg.norm(offset, axis=-1) + ball), ball.shape)
     direction = offset[far] / max(np.linalg.norm(offset[far]), 1e-12)
     point = (middle[far] + direction * (ball[far] + 1e-3))[None]
-    no_stop = -np.inf
-    assert (kernels.swept_balls_gap(q, s, *model, point, np.zeros(1), no_stop)
+    assert (gap(q, s, point, np.zeros(1))
             <= kernels.balls_capsules_distance(point, np.zeros(1), c1, c2,
                                                r))
   still = np.repeat(start[None], 3, axis=0)
   s = np.array([0.0, 0.02, 0.04])
-  bound = kernels.swept_balls_gap(still, s, *model, centre, radius, -np.inf)
+  bound = gap(still, s, centre, radius)
   test = kernels.balls_capsules_distance(centre, radius,
                                          *robot.reach_capsules(still, s))
   curvature = 0.02 ** 2 / 8 * robot.alpha.max()
