@@ -493,9 +493,9 @@ def swept_balls_gap(q_edges, s_edges, frames, points, frame_index, alpha,
   """A lower bound of balls_capsules_distance(centre, radius,
   *robot_reach(q_edges, s_edges, ...)) from one forward kinematics, the
   link frames (dof, 3, 4) at q_edges[0] (`_chain`; docs/shield_maths.md,
-  5.3): every reach capsule of link l
-  and the ball around its midpoint that balls_capsules_distance uses lie
-  in the ball around the link's midpoint at q_edges[0] of radius
+  5.3): every reach capsule of link l and the ball around its midpoint
+  that balls_capsules_distance uses lie in the ball around the link's
+  midpoint at q_edges[0] of radius
   sum_j levers[j, l] (D_j + C_j / 2) + alpha_l max(ds)^2 / 8 +
   static_radius[l] + half_lengths[l] (D_j, C_j: the largest |q_ij - q_0j|
   and |q_i+1,j - q_ij| over the edges; levers: RobotReach.joint_levers).

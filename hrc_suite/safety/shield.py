@@ -756,13 +756,13 @@ class Shield:
     # Broad phase 2, bounded from the robot's capsules at q_edges[0] alone
     # (one forward kinematics instead of one per edge; a lower bound of
     # the test below, so it settles only cycles that test settles).
-    robot = self.robot
-    fixed, points = robot._kernel_model
+    model = self.robot
+    fixed, points = model._kernel_model
     bound = kernels.swept_balls_gap(
         q_edges, np.asarray(s_edges, dtype=float),
         kernels._frames(q_edges[:1], fixed)[0], points,
-        robot._kernel_frames, robot._kernel_alpha, robot._kernel_static,
-        robot._kernel_levers, robot._kernel_half_lengths, centre, radius,
+        model._kernel_frames, model._kernel_alpha, model._kernel_static,
+        model._kernel_levers, model._kernel_half_lengths, centre, radius,
         _BROAD_PHASE_SLACK) - _BROAD_PHASE_SLACK
     if bound > 0.0:
       self._first_unsafe_interval, self._reach_distance = -1, bound
