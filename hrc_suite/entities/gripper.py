@@ -17,6 +17,7 @@ from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite.entities import collision_groups
+from hrc_suite.entities import element_ids
 
 TCP_OFFSET = 0.12        # m along the mount's +z, between the fingertips.
 MAX_APERTURE = 0.085     # m between the pads (Robotiq 2F-85 stroke).
@@ -150,6 +151,12 @@ class ParallelGripper(composer.Entity):
     self._finger_geoms = tuple(pads)
     self._finger_joints = tuple(joints)
     self._geoms = tuple(geoms)
+    # Per-step reads by id (element_ids): the fingers, their joints, the
+    # actuator; the bodies `grasping` is asked about, by their tuple.
+    self._finger_ids = element_ids.ElementIds(fingers)
+    self._finger_joint_ids = element_ids.ElementIds(joints)
+    self._actuator_id = element_ids.ElementIds([self._actuator])
+    self._body_ids = {}
 
   def _build_observables(self):
     return GripperObservables(self)
@@ -201,13 +208,15 @@ class ParallelGripper(composer.Entity):
     # MjData's row, not the binding: a ctrl write through a binding marks
     # dm_control's physics dirty, and the next binding read then runs a
     # whole mj_forward (a control changes no position or velocity).
-    actuator = physics.bind(self._actuator).element_id
-    physics.data.ctrl[actuator] = min(max(u, -1.0), 1.0)
+    physics.data.ctrl[self._actuator_id(physics)[0]] = min(max(u, -1.0), 1.0)
 
   def aperture(self, physics) -> float:
     """Opening between the pads, normalised: 0 closed, 1 fully open."""
-    opening = np.sum(physics.bind(self._finger_joints).qpos)
-    return float(np.clip(opening / MAX_APERTURE, 0.0, 1.0))
+    # The joints' qpos rows (what their binding reads; a qpos read never
+    # runs mj_forward), summed in the binding's order.
+    rows = physics.model.jnt_qposadr[self._finger_joint_ids(physics)]
+    opening = np.sum(physics.data.qpos[rows])
+    return float(min(max(opening / MAX_APERTURE, 0.0), 1.0))
 
   def is_grasping(self, physics, body) -> bool:
     """True if both fingers touch geoms of `body` (and its subtree)."""
@@ -224,12 +233,15 @@ class ParallelGripper(composer.Entity):
     contact = data.contact
     body1 = model.geom_bodyid[contact.geom1[:ncon]]
     body2 = model.geom_bodyid[contact.geom2[:ncon]]
-    fingers = physics.bind(self._fingers).element_id
+    fingers = self._finger_ids(physics)
     if len(fingers) and not ((body1[:, None] == fingers).any()
                              or (body2[:, None] == fingers).any()):
       return grasped   # No finger touches anything.
-    for i, body in enumerate(bodies):
-      target = physics.bind(body).element_id
+    key = tuple(bodies)
+    ids = self._body_ids.get(key)
+    if ids is None:
+      ids = self._body_ids[key] = element_ids.ElementIds(bodies)
+    for i, target in enumerate(ids(physics)):
       in_target1 = self._in_subtree(model, body1, target)
       in_target2 = self._in_subtree(model, body2, target)
       grasped[i] = all(

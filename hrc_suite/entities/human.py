@@ -34,6 +34,7 @@ from dm_control.composer.observation import observable
 
 from hrc_suite import rotations
 from hrc_suite.entities import collision_groups
+from hrc_suite.entities import element_ids
 from hrc_suite.human import body as body_lib
 from hrc_suite.human import keypoints
 
@@ -462,11 +463,13 @@ class Human(composer.Entity):
     'keypoint_distances_to_{name}', name defaulting to the site's)."""
     indices = np.array(keypoints.index(subset))
     name = name or site.name
+    site_id = element_ids.ElementIds([site])
 
     def relative(physics):
-      frame = physics.bind(site)
+      row = site_id(physics)[0]
+      data = element_ids.synced_data(physics)   # The binding's values.
       points = self.keypoint_positions(physics)[indices]
-      return (points - frame.xpos) @ frame.xmat.reshape(3, 3)
+      return (points - data.site_xpos[row]) @ data.site_xmat[row].reshape(3, 3)
 
     def distance(physics):
       return np.linalg.norm(relative(physics), axis=-1)

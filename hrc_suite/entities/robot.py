@@ -19,6 +19,7 @@ import numpy as np
 from hrc_suite import robot_description
 from hrc_suite import rotations
 from hrc_suite.entities import collision_groups
+from hrc_suite.entities import element_ids
 
 # The shipped robots (more register: robot_description.names()).
 ROBOTS = robot_description.ROBOT_NAMES
@@ -87,6 +88,7 @@ class Robot(composer.Entity):
                       f'name, got {type(description).__name__}')
     self._description = description
     self._gripper = None
+    self._tcp_id = (None, None)   # (TCP site, its ElementIds): tcp_frame
     self.inertia_corrections = {}
 
     root = mjcf.RootElement(model=name or description.name)
@@ -229,6 +231,17 @@ class Robot(composer.Entity):
 
   def joint_velocities(self, physics) -> np.ndarray:
     return physics.bind(self._joints).qvel.copy()
+
+  def tcp_frame(self, physics):
+    """(position (3,), rotation matrix (9,) row-major) of the TCP site in
+    the world: copies of MjData's rows, the values its binding reads
+    (element_ids), for code that runs every RL step."""
+    site = self.tcp_site   # Changes when a gripper is attached.
+    if self._tcp_id[0] is not site:
+      self._tcp_id = (site, element_ids.ElementIds([site]))
+    row = self._tcp_id[1](physics)[0]
+    data = element_ids.synced_data(physics)
+    return data.site_xpos[row].copy(), data.site_xmat[row].copy()
 
   def tcp_pose(self, physics):
     """(position (3,), quaternion (4,) w-first) of the TCP in the world."""

@@ -57,7 +57,6 @@ class Reach(base.HrcTask):
   TASK_STATE = ('_goal_q', '_goal_position', '_success')
 
   def _build_task(self):
-    self._tcp_site = (None, -1)   # (MjModel, the TCP site's id): _tcp
     # The visual-only marker hangs on a mocap attachment frame: its position
     # is physics state, so snapshots carry the goal.
     self._marker = markers.TargetMarker(name='reach_goal')
@@ -123,7 +122,8 @@ class Reach(base.HrcTask):
     if self._action_space.name == 'joint':
       q = physics.data.qpos[self._qpos_index]
       return float(np.linalg.norm(self._goal_q - q))
-    return float(np.linalg.norm(self._goal_position - self._tcp(physics)[0]))
+    tcp = self._robot.tcp_frame(physics)[0]
+    return float(np.linalg.norm(self._goal_position - tcp))
 
   def _update_task(self, physics):
     distance = self._distance(physics)
@@ -156,23 +156,13 @@ class Reach(base.HrcTask):
 
   # -------------------------------------------------------- observables
 
-  def _tcp(self, physics):
-    """(xpos (3,), xmat (9,)) of the TCP site: MjData's rows, the values
-    of its binding without building the binding at every read."""
-    model = physics.model.ptr
-    if self._tcp_site[0] is not model:
-      self._tcp_site = (model,
-                        physics.bind(self._robot.tcp_site).element_id)
-    site = self._tcp_site[1]
-    return physics.data.site_xpos[site], physics.data.site_xmat[site]
-
   def _goal_difference(self, physics):
     if self._action_space.name == 'joint':
       return self._goal_q - physics.data.qpos[self._qpos_index]
-    return self._goal_position - self._tcp(physics)[0]
+    return self._goal_position - self._robot.tcp_frame(physics)[0]
 
   def _goal_in_eef(self, physics):
-    xpos, xmat = self._tcp(physics)
+    xpos, xmat = self._robot.tcp_frame(physics)
     return (self._goal_position - xpos) @ xmat.reshape(3, 3)
 
   def _task_observables(self):
@@ -183,7 +173,7 @@ class Reach(base.HrcTask):
         'goal_in_eef_frame': observable.Generic(self._goal_in_eef),
         'goal_distance': observable.Generic(
             lambda physics: np.array([np.linalg.norm(
-                self._goal_position - self._tcp(physics)[0])])),
+                self._goal_position - self._robot.tcp_frame(physics)[0])])),
         'goal_joint_difference': observable.Generic(
             lambda physics: self._goal_q
             - physics.data.qpos[self._qpos_index]),

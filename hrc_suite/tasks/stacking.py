@@ -45,6 +45,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite import rotations
 from hrc_suite import suite
+from hrc_suite.entities import element_ids
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
@@ -131,6 +132,8 @@ class Stacking(base.HrcTask):
 
   def _build_task(self):
     self._cubes = props.make_stacking_cubes()
+    self._cube_bodies = [c.body for c in self._cubes]
+    self._cube_ids = element_ids.ElementIds(self._cube_bodies)
     self._size = self._cubes[0].size
     self._welds = {}
     for i, cube in enumerate(self._cubes):
@@ -247,14 +250,14 @@ class Stacking(base.HrcTask):
                                    for j in HUMAN_CUBES if j < i):
         continue   # One cube at a time: cube 3 only after cube 1 is down.
       if state == ON_TABLE:
-        grip = physics.bind(self._cubes[i].body).xpos + _GRIP
+        grip = self._cube_positions(physics)[i] + _GRIP
         distances = np.linalg.norm(hands - grip, axis=1)
         hand = int(np.argmin(distances))
         if distances[hand] < HAND_TOLERANCE:
           self._grab(physics, i, hand, hands[hand])
           changed = True
       elif state == HELD:
-        centre = np.array(physics.bind(self._cubes[i].body).xpos)
+        centre = self._cube_positions(physics)[i]
         offset = centre - self._places[i]
         # Where the cube comes to rest: its place, or the surface under it
         # where that is higher (a recording's place may lie in our table).
@@ -310,9 +313,8 @@ class Stacking(base.HrcTask):
     # A grab or release changes the model: the base then calls
     # physics.forward() after the step (as restoring a snapshot does).
     self._move_human_cubes(physics)
-    positions = np.array([physics.bind(c.body).xpos for c in self._cubes])
-    self._gripped[:] = self._gripper.grasping(
-        physics, [c.body for c in self._cubes])
+    positions = self._cube_positions(physics)
+    self._gripped[:] = self._gripper.grasping(physics, self._cube_bodies)
     free = ~(np.array([s == HELD for s in self._human_state])
              | self._gripped)
     # The stack grows from where the human put cube 1: each slot is one
@@ -340,7 +342,7 @@ class Stacking(base.HrcTask):
 
   def _human_events(self, physics):
     # The robot has put its cube down and withdrawn its gripper.
-    tcp = physics.bind(self._robot.tcp_site).xpos
+    tcp = self._robot.tcp_frame(physics)[0]
     clear = np.linalg.norm(self._slots - tcp, axis=1) > WITHDRAWN_DISTANCE
     free = self._in_slot & ~self._gripped & clear
     events = []
@@ -372,21 +374,21 @@ class Stacking(base.HrcTask):
   # -------------------------------------------------------- observables
 
   def _cube_positions(self, physics):
-    return np.array([physics.bind(c.body).xpos for c in self._cubes])
+    """(4, 3) world positions of the cubes (a copy)."""
+    return element_ids.synced_data(physics).xpos[self._cube_ids(physics)]
 
   def _task_observables(self):
-    tcp = self._robot.tcp_site
     return {
         'object_gripped': observable.Generic(
             lambda physics: np.array([float(self._gripper.grasping(
-                physics, [c.body for c in self._cubes]).any())])),
+                physics, self._cube_bodies).any())])),
         'eef_to_cubes': observable.Generic(
             lambda physics: self._cube_positions(physics)
-            - physics.bind(tcp).xpos),
+            - self._robot.tcp_frame(physics)[0]),
         'cube_positions': observable.Generic(self._cube_positions),
         'cube_quaternions': observable.Generic(
-            lambda physics: np.array([physics.bind(c.body).xquat
-                                      for c in self._cubes])),
+            lambda physics: element_ids.synced_data(physics).xquat[
+                self._cube_ids(physics)]),
         'stack_slots': observable.Generic(lambda physics: self._slots.copy()),
         'cubes_stacked': observable.Generic(
             lambda physics: self._stacked.astype(np.float64)),
