@@ -1,7 +1,17 @@
-"""The speed benchmark's throughput measurement runs (no timing is
-asserted: speed targets live in the benchmark, docs/benchmarks.md)."""
+"""The speed benchmarks run (no timing is asserted: speed targets live in
+the benchmarks, docs/benchmarks.md)."""
+
+import os
+import pathlib
+import re
+import subprocess
+import sys
+
+import pytest
 
 from hrc_suite import benchmark
+
+_REPOSITORY = pathlib.Path(__file__).resolve().parent.parent
 
 
 def test_rl_step_throughput_reports_rates_and_both_ratios():
@@ -9,3 +19,28 @@ def test_rl_step_throughput_reports_rates_and_both_ratios():
       'reach', 'dense', 'schunk', rl_steps=24)
   assert rate == 1.0 / per_step
   assert per_step > 0.0 and bare > 0.0 and ratio > 0.0
+
+
+
+@pytest.mark.slow   # Compiles the commit's kernels in a new cache (~2 min).
+def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
+  """scripts/compare_speed.py: the commit's package, its imports renamed,
+  runs beside the working tree's; at HEAD both reach the same state."""
+  if subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=_REPOSITORY,
+                    capture_output=True).returncode:
+    pytest.skip('not a git checkout: compare_speed needs git archive')
+  env = dict(os.environ, HOME=str(tmp_path), MUJOCO_GL='egl')
+  result = subprocess.run(
+      [sys.executable, 'scripts/compare_speed.py', '--base=HEAD',
+       '--tasks=reach/dense', '--robots=schunk', '--windows=2'],
+      cwd=_REPOSITORY, env=env, capture_output=True, text=True,
+      timeout=1200)
+  assert result.returncode == 0, result.stderr[-3000:]
+  row = [line for line in result.stdout.splitlines()
+         if line.startswith('| reach/dense | schunk |')]
+  assert len(row) == 1 and row[0].endswith('| True |'), result.stdout
+  package = next((tmp_path / '.cache' / 'hrc_suite_compare').glob(
+      '*/hrc_suite_base'))
+  imports = re.compile(r'^\s*(from|import) hrc_suite\b', re.MULTILINE)
+  for source in package.rglob('*.py'):
+    assert not imports.search(source.read_text()), source
