@@ -53,6 +53,7 @@ from hrc_suite import layout
 from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import element_ids
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import markers
 from hrc_suite.entities import props
@@ -70,6 +71,10 @@ GRIPPED_REWARD = -0.25                   # reference
 TOUCH_TOLERANCE = 0.01
 # Handle capsule radius: its half width (props.HAMMER_HANDLE_HALF_SECTION).
 HANDLE_RADIUS = props.HAMMER_HANDLE_HALF_SECTION[0]
+# The touch test settles "no touch" from the capsules' centres alone only
+# this far (m) beyond TOUCH_TOLERANCE: far beyond the exact distance's
+# round-off, so both give the same verdict wherever the first settles.
+_FAR_MARGIN = 1e-9
 # The hammer lies on its side: body origin this high above the table top.
 REST_HEIGHT = props.HAMMER_HANDLE_HALF_SECTION[0]
 # Below the table top by this much the hammer has fallen off: failure.
@@ -157,6 +162,9 @@ class _Handover(base.HrcTask):
     self._arena.add_free_entity(self._hammer)
     self._add_holdable(self._hammer.body)
     self._object_geoms.extend(self._hammer.geoms)
+    # The human's capsules (by segment) and the handle: palm_touches_handle.
+    self._touch_geoms = element_ids.ElementIds(
+        tuple(self._human.geoms) + (self._hammer.handle,))
     low, high = ik_lib.table_workspace_box(self._kinematics)
     base_pos = self._kinematics.base_pose[:3, 3]
     fx, fy = np.array(REGION_X), np.array(REGION_Y)
@@ -294,13 +302,22 @@ class RobotToHuman(_Handover):
   def palm_touches_handle(self, physics):
     """True if the holding hand's capsule is within TOUCH_TOLERANCE of the
     handle (both as capsules)."""
-    hand = physics.bind(self._human.geoms[self._hand_segment()])
-    axis = hand.xmat.reshape(3, 3)[:, 2] * hand.size[1]
-    handle = physics.bind(self._hammer.handle)
-    half = handle.xmat.reshape(3, 3)[:, 0] * handle.size[0]
+    ids = self._touch_geoms(physics)
+    hand, handle = ids[self._hand_segment()], ids[-1]
+    data, size = element_ids.synced_data(physics), physics.model.geom_size
+    # Every point of a capsule's axis lies within its half length of its
+    # centre: centres farther apart than both half lengths, both radii and
+    # the tolerance cannot touch (most steps: the hand is far).
+    reach = (size[hand, 1] + size[handle, 0] + size[hand, 0] + HANDLE_RADIUS
+             + TOUCH_TOLERANCE + _FAR_MARGIN)
+    if math.dist(data.geom_xpos[hand], data.geom_xpos[handle]) > reach:
+      return False
+    axis = data.geom_xmat[hand].reshape(3, 3)[:, 2] * size[hand, 1]
+    half = data.geom_xmat[handle].reshape(3, 3)[:, 0] * size[handle, 0]
+    hand_centre, handle_centre = data.geom_xpos[hand], data.geom_xpos[handle]
     distance = geometry.capsule_distance(
-        hand.xpos - axis, hand.xpos + axis, hand.size[0],
-        handle.xpos - half, handle.xpos + half, HANDLE_RADIUS)
+        hand_centre - axis, hand_centre + axis, size[hand, 0],
+        handle_centre - half, handle_centre + half, HANDLE_RADIUS)
     return bool(distance <= TOUCH_TOLERANCE)
 
   def _update_task(self, physics):
