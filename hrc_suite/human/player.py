@@ -119,6 +119,7 @@ class Player:
     self._from = np.zeros((k, 3))
     self._delta = np.zeros((k, 3))
     self._ready = False
+    player_kernels.warm_up()   # Once per process, not mid-episode.
 
   # ---------------------------------------------------------------- episode
   def reset(self, random_state):

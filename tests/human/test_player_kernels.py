@@ -39,3 +39,28 @@ def test_place_is_two_fused_multiply_adds_in_order():
   player_kernels.rotate(local, rot_t, rotated)
   np.testing.assert_allclose(rotated, local @ rot_t, rtol=0, atol=1e-14)
   np.testing.assert_array_equal(rotated + trans, out)
+
+
+def test_warm_up_compiles_every_signature_the_player_uses():
+  """A Player warms its kernels up when it is made: playing clips and an
+  idle phase compiles nothing more (no RL step pays for a compilation)."""
+  from hrc_suite.tasks import motions   # pylint: disable=g-import-not-at-top
+  from hrc_suite.human import player as player_lib   # pylint: disable=g-import-not-at-top
+  player = player_lib.Player(motions.load_motions(None, 'stacking'),
+                             station=(1.0, 0.0, 0.0))
+  dispatchers = {name: getattr(player_kernels, name)
+                 for name in dir(player_kernels)
+                 if hasattr(getattr(player_kernels, name), 'signatures')}
+  before = {name: len(f.signatures) for name, f in dispatchers.items()}
+  player.reset(np.random.RandomState(0))
+  positions = np.empty((25, player.positions.shape[0], 3))
+  times, clips = np.empty(25), [None] * 25
+  waited = 0
+  for _ in range(400):   # Into the first idle phase (a wait for an event).
+    player.advance_many(0.004, positions, times, clips)
+    waited += player.waiting_for is not None
+  assert waited > 0
+  player.trigger(player.waiting_for)
+  player.advance_many(0.004, positions, times, clips)
+  assert {name: len(f.signatures)
+          for name, f in dispatchers.items()} == before
