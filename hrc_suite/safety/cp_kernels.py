@@ -491,5 +491,7 @@ def warm_up():
       floats((count_x, 3)), floats((count_x, 3)),
       np.ones((count_x, count_l), dtype=bool), floats((count_x, count_l)),
       np.zeros((count_p, 2), dtype=np.int64))
-  within_limits(floats((1, dof)), floats(dof), floats(dof))
+  limit = floats(dof)
+  limit.flags.writeable = False   # JointLimits' arrays are read-only.
+  within_limits(floats((1, dof)), limit, limit)
   _warm = True
