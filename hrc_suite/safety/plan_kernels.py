@@ -165,3 +165,27 @@ def piece_table(profiles, brakes, duration):
   for r in range(dof * count):
     starts[r] = table[r, 0] + joint_shift[r // count]
   return table, starts, joint_shift
+
+
+_warm = False
+
+
+def warm_up():
+  """Compiles (or loads from the cache) the kernels for the argument types
+  long_term_plan passes (its inputs writeable, the JointLimits' arrays
+  read-only), once per process: the first new goal of a run then does not
+  pay for it inside an RL step."""
+  global _warm
+  if _warm:
+    return
+  dof = 2
+  state = np.zeros(dof)
+  limit = np.ones(dof)
+  limit.flags.writeable = False
+  start_state_ok(state, state, state, limit, limit, limit, limit, limit, 0.0)
+  plan_inputs_ok(state, state, state, state, limit, limit, limit, limit,
+                 limit, 0.0, 0.0, np.empty(dof))
+  table, starts, joint_shift = piece_table(
+      np.zeros((dof, PROFILE_SIZE)), np.zeros((0, 5, 2)), 1.0)
+  sample_pieces(table, starts, joint_shift, state, 1.0, 1.0, 0, 1)
+  _warm = True

@@ -54,6 +54,7 @@ from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import path as path_lib
+from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import robot_reach as robot_reach_lib
 from hrc_suite.safety import verification
 
@@ -96,6 +97,7 @@ class Shield:
       robot_description = robot_description_lib.load(robot_description)
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
     cycle_kernels.warm_up()
+    plan_kernels.warm_up()   # Its plans' (long_term_plan).
     if not cycle_time > 0:
       raise ValueError(f'cycle_time: expected > 0 s, got {cycle_time}')
     self.description = robot_description

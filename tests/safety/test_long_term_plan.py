@@ -336,3 +336,18 @@ def test_compiled_input_check_agrees_with_the_checks_one_by_one(panda):
         ltp.plan_to_goal(q0, dq0, ddq0, q_goal, limits, 0.004)
     outcomes.append(ok)
   assert 0.2 < np.mean(outcomes) < 0.8
+
+
+def test_plan_kernels_warm_up_compiles_what_plan_to_goal_calls(panda):
+  from hrc_suite.safety import plan_kernels   # pylint: disable=g-import-not-at-top
+  plan_kernels.warm_up()
+  dispatchers = {name: getattr(plan_kernels, name)
+                 for name in dir(plan_kernels)
+                 if hasattr(getattr(plan_kernels, name), 'signatures')}
+  before = {name: len(f.signatures) for name, f in dispatchers.items()}
+  rng = np.random.RandomState(5)
+  for _ in range(5):
+    plan = _random_plan(panda, rng)[-1]
+    plan.q, plan.positions(np.array([0.01, 0.02]))
+  assert {name: len(f.signatures)
+          for name, f in dispatchers.items()} == before
