@@ -18,6 +18,7 @@ import numpy as np
 
 from hrc_suite.entities import collision_groups
 from hrc_suite.entities import element_ids
+from hrc_suite.entities import gripper_kernels
 
 TCP_OFFSET = 0.12        # m along the mount's +z, between the fingertips.
 MAX_APERTURE = 0.085     # m between the pads (Robotiq 2F-85 stroke).
@@ -157,6 +158,7 @@ class ParallelGripper(composer.Entity):
     self._finger_joint_ids = element_ids.ElementIds(joints)
     self._actuator_id = element_ids.ElementIds([self._actuator])
     self._body_ids = {}
+    gripper_kernels.warm_up()   # Once per process, not mid-run.
 
   def _build_observables(self):
     return GripperObservables(self)
@@ -224,7 +226,30 @@ class ParallelGripper(composer.Entity):
 
   def grasping(self, physics, bodies):
     """is_grasping for each of `bodies`, (n,) bools, from one pass over
-    the contacts."""
+    the contacts (compiled: gripper_kernels.grasped, the decisions of
+    `grasping_reference`)."""
+    data = physics.data
+    grasped = np.zeros(len(bodies), dtype=bool)
+    ncon = data.ncon
+    if ncon == 0:
+      return grasped
+    contact, model = data.contact, physics.model
+    gripper_kernels.grasped(
+        contact.geom1[:ncon], contact.geom2[:ncon], model.geom_bodyid,
+        model.body_rootid, self._finger_ids(physics),
+        self._target_ids(physics, bodies), grasped)
+    return grasped
+
+  def _target_ids(self, physics, bodies):
+    """Body ids of `bodies`, looked up once per Physics and tuple."""
+    key = tuple(bodies)
+    ids = self._body_ids.get(key)
+    if ids is None:
+      ids = self._body_ids[key] = element_ids.ElementIds(bodies)
+    return ids(physics)
+
+  def grasping_reference(self, physics, bodies):
+    """NumPy reference of `grasping` (same arguments)."""
     data, model = physics.data, physics.model
     grasped = np.zeros(len(bodies), dtype=bool)
     ncon = data.ncon
@@ -237,11 +262,7 @@ class ParallelGripper(composer.Entity):
     if len(fingers) and not ((body1[:, None] == fingers).any()
                              or (body2[:, None] == fingers).any()):
       return grasped   # No finger touches anything.
-    key = tuple(bodies)
-    ids = self._body_ids.get(key)
-    if ids is None:
-      ids = self._body_ids[key] = element_ids.ElementIds(bodies)
-    for i, target in enumerate(ids(physics)):
+    for i, target in enumerate(self._target_ids(physics, bodies)):
       in_target1 = self._in_subtree(model, body1, target)
       in_target2 = self._in_subtree(model, body2, target)
       grasped[i] = all(

@@ -224,3 +224,33 @@ def test_grip_force_outside_the_2f85_range_is_rejected():
   for bad in (10.0, 300.0, float('nan')):
     with pytest.raises(ValueError, match=r'grip_force=.*\[20, 235\] N'):
       gripper_lib.ParallelGripper(grip_force=bad)
+
+
+@pytest.mark.parametrize('domain, task', [('stacking', 'default'),
+                                          ('handover', 'robot_to_human')])
+def test_compiled_grasp_test_decides_as_the_numpy_reference(domain, task):
+  """gripper_kernels.grasped against ParallelGripper.grasping_reference on
+  an expert's episode (cubes picked, a hammer held): free objects (their
+  subtrees) and bodies inside the robot's tree (themselves only)."""
+  from hrc_suite import experts   # pylint: disable=g-import-not-at-top
+  from hrc_suite import suite   # pylint: disable=g-import-not-at-top
+  env = suite.load(domain, task, task_kwargs={'robot': 'panda'},
+                   environment_kwargs={'random_state': 0})
+  policy = experts.make(env)
+  gripper = env.task._gripper
+  objects = (list(env.task._cube_bodies) if domain == 'stacking'
+             else [env.task._hammer.body])
+  robot_bodies = list(env.task._robot.link_bodies[-2:])
+  groups = [objects, objects[:1], robot_bodies, objects + robot_bodies]
+  timestep = env.reset()
+  grasps = 0
+  for _ in range(250):
+    for bodies in groups:
+      got = gripper.grasping(env.physics, bodies)
+      np.testing.assert_array_equal(
+          got, gripper.grasping_reference(env.physics, bodies))
+      grasps += int(got.any())
+    if timestep.last():
+      break
+    timestep = env.step(policy(timestep))
+  assert grasps > 0   # Grasps occurred, so both branches were compared.
