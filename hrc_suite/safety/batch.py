@@ -140,9 +140,10 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
   verified = shield_lib._path_array(shield._verified)
   intended_path = shield._intended
   flags = np.empty(4, dtype=np.int64)   # cycle_kernels.HAS_INTENDED, ...
-  flags[[ck.HAS_INTENDED, ck.GOAL_PENDING, ck.HAS_CANDIDATE,
-         ck.ADOPTED_AT]] = (intended_path is not None, shield.goal_pending,
-                            candidate is not None, -1)
+  flags[ck.HAS_INTENDED] = intended_path is not None
+  flags[ck.GOAL_PENDING] = shield.goal_pending
+  flags[ck.HAS_CANDIDATE] = candidate is not None
+  flags[ck.ADOPTED_AT] = -1
   intended = shield_lib._path_array(intended_path or path_lib.Path())
   state = np.array([human.last_measurement_time, human._last_period,
                     human.num_measurements], dtype=float)
@@ -214,7 +215,9 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
   if count != human.num_measurements:
     # HumanReach.measure keeps the positions of the last velocity update
     # for the POS model's lengths.
-    last = int(np.flatnonzero(times[:total] == state[ck.LAST_T])[-1])
+    last = total - 1   # The last cycle that measured (usually the last).
+    while last > 0 and times[last] != state[ck.LAST_T]:
+      last -= 1
     human._length_positions = (positions if last == total - 1
                                else np.array(frames[last], dtype=float))
   human.positions = positions

@@ -818,7 +818,7 @@ def _path_array(path):
 
 def _path_from_array(values):
   """The `path.Path` of `_path_array` (attributes set as stored)."""
-  values = [float(x) for x in np.asarray(values, dtype=float).ravel()]
+  values = np.asarray(values, dtype=float).ravel().tolist()
   if len(values) != 10:
     raise ValueError(f'path state: expected 10 numbers, got {len(values)}')
   path = path_lib.Path.__new__(path_lib.Path)
