@@ -22,6 +22,7 @@ from dm_control import composer
 import numpy as np
 
 from hrc_suite import extensions
+from hrc_suite import observation_updater
 from hrc_suite import tasks as tasks_package
 from hrc_suite.safety import modes
 from hrc_suite.tasks import substeps
@@ -53,6 +54,16 @@ class Environment(composer.Environment):
   def __init__(self, task, **kwargs):
     task.use_one_substep()   # Before composer reads the substep count.
     super().__init__(task, **kwargs)
+
+  def _make_observation_updater(self):
+    # composer's Updater, without its schedule where an RL step reads each
+    # observable once (observation_updater).
+    # (composer.Environment._make_observation_updater's arguments.)
+    padding = composer.ObservationPadding.INITIAL_VALUE
+    return observation_updater.OneStepUpdater(
+        self._task.observables, self._task.physics_steps_per_control_step,
+        self._strip_singleton_obs_buffer_dim,
+        self._delayed_observation_padding == padding)
 
   def _substep(self, action):
     if self.task.one_substep:   # The task runs them with their hooks.
