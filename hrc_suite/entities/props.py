@@ -24,6 +24,7 @@ from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite.entities import collision_groups
+from hrc_suite.entities import element_ids
 
 # --- Cubes. The reference's pick and place cube: 4 cm, here 0.1 kg (dense
 # plastic or hardwood, ~1.6 g/cm^3). Stacking uses four 5 cm cubes, the size
@@ -100,6 +101,7 @@ class Prop(composer.Entity):
   def _build_root(self, name):
     self._mjcf_root = mjcf.RootElement(model=name)
     self._body = self._mjcf_root.worldbody.add('body', name=name)
+    self._body_ids = element_ids.ElementIds([self._body])
     self._geoms = []
     return self._body
 
@@ -127,11 +129,15 @@ class Prop(composer.Entity):
     return tuple(self._geoms)
 
   def position(self, physics):
-    return physics.bind(self._body).xpos.copy()
+    """World position of the body (a copy of its MjData row, as its
+    binding reads it: element_ids)."""
+    row = self._body_ids(physics)[0]
+    return element_ids.synced_data(physics).xpos[row].copy()
 
   def quaternion(self, physics):
     """World orientation (w, x, y, z)."""
-    return physics.bind(self._body).xquat.copy()
+    row = self._body_ids(physics)[0]
+    return element_ids.synced_data(physics).xquat[row].copy()
 
 
 class PropObservables(composer.Observables):
@@ -330,7 +336,6 @@ class Board(Prop):
     self._human_grip_site = body.add(
         'site', name='human_grip_site', size=(0.005,),
         pos=(length / 2 - HUMAN_GRIP_INSET, 0, thickness / 2), group=4)
-    self._id_cache = None
 
   def _build_observables(self):
     return BoardObservables(self)
@@ -360,9 +365,7 @@ class Board(Prop):
     return self._human_grip_site
 
   def _body_id(self, physics):
-    if self._id_cache is None or self._id_cache[0] is not physics:
-      self._id_cache = (physics, int(physics.bind(self._body).element_id))
-    return self._id_cache[1]
+    return self._body_ids(physics)[0]
 
   def normal(self, physics):
     """World direction of the board's top-face normal."""

@@ -4,6 +4,8 @@ TCP, and sampling of graspable points on the table."""
 from dm_control.composer.observation import observable
 import numpy as np
 
+from hrc_suite.entities import element_ids
+
 # Sparse rewards of pick and place, also object inspection's
 # (docs/reference_benchmark.md, Rewards and success): success, object
 # gripped, otherwise.
@@ -28,11 +30,16 @@ def point_observables(tcp_site, name, position, eef_name=None, world=None):
   '{name}_distance' (its length, shape (1,)).
   """
 
+  site = element_ids.ElementIds([tcp_site])   # MjData rows (element_ids).
+
   def eef_to(physics):
-    return position(physics) - physics.bind(tcp_site).xpos
+    point = position(physics)
+    return point - element_ids.synced_data(physics).site_xpos[
+        site(physics)[0]]
 
   def in_eef(physics):
-    return eef_to(physics) @ physics.bind(tcp_site).xmat.reshape(3, 3)
+    offset = eef_to(physics)
+    return offset @ physics.data.site_xmat[site(physics)[0]].reshape(3, 3)
 
   def distance(physics):
     return np.array([np.linalg.norm(eef_to(physics))])
@@ -56,8 +63,10 @@ def object_target_observables(tcp_site, prop, target, gripped,
   observables) and 'object_at_target' (the prop's body origin within
   `success_distance` of `target(physics)`)."""
 
+  body = element_ids.ElementIds([prop.body])
+
   def object_position(physics):
-    return physics.bind(prop.body).xpos
+    return element_ids.synced_data(physics).xpos[body(physics)[0]]
 
   def at_target(physics):
     offset = object_position(physics) - target(physics)

@@ -186,7 +186,7 @@ class Inspection(base.HrcTask):
   # ------------------------------------------------------------ progress
 
   def _object_position(self, physics):
-    return physics.bind(self._cube.body).xpos
+    return self._cube.position(physics)
 
   def _update_task(self, physics):
     self._gripped = props.is_gripped(physics, self._gripper, self._cube)

@@ -146,7 +146,7 @@ class PickPlace(base.HrcTask):
     return self._target.copy()
 
   def object_position(self, physics):
-    return physics.bind(self._cube.body).xpos.copy()
+    return self._cube.position(physics)
 
   def _reachable(self, centre):
     """True if the TCP reaches above `centre` and down to grasp it, gripper
@@ -184,7 +184,7 @@ class PickPlace(base.HrcTask):
     grasped_now = gripped and not self._gripped
     self._gripped = gripped
     self._distance = float(np.linalg.norm(
-        physics.bind(self._cube.body).xpos - self._target))
+        self._cube.position(physics) - self._target))
     self._success = self._distance <= SUCCESS_DISTANCE
     return {'success': float(self._success),
             'object_distance': self._distance,
