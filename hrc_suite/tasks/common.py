@@ -63,10 +63,8 @@ def object_target_observables(tcp_site, prop, target, gripped,
   observables) and 'object_at_target' (the prop's body origin within
   `success_distance` of `target(physics)`)."""
 
-  body = element_ids.ElementIds([prop.body])
-
   def object_position(physics):
-    return element_ids.synced_data(physics).xpos[body(physics)[0]]
+    return prop.position(physics)
 
   def at_target(physics):
     offset = object_position(physics) - target(physics)
