@@ -42,6 +42,7 @@ from hrc_suite import layout
 from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import element_ids
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import markers
 from hrc_suite.entities import nail_board as nail_board_lib
@@ -347,13 +348,16 @@ class Hammering(NailOutcome, base.HrcTask):
   # -------------------------------------------------------- observables
 
   def _task_observables(self):
-    tcp, board = self._robot.tcp_site, self._board
+    board = self._board
+    sites = element_ids.ElementIds([board.grip_site, board.nail_head_site])
 
     def eef_to_object(physics):
-      return physics.bind(board.grip_site).xpos - physics.bind(tcp).xpos
+      grip = element_ids.synced_data(physics).site_xpos[sites(physics)[0]]
+      return grip - self._robot.tcp_frame(physics)[0]
 
     def eef_to_target(physics):
-      return self._nail_target - physics.bind(board.nail_head_site).xpos
+      head = element_ids.synced_data(physics).site_xpos[sites(physics)[1]]
+      return self._nail_target - head
 
     return {
         'object_gripped': observable.Generic(

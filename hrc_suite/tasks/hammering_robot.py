@@ -42,6 +42,7 @@ from hrc_suite import layout
 from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import element_ids
 from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
@@ -350,17 +351,20 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
   # -------------------------------------------------------- observables
 
   def _task_observables(self):
-    tcp, board, hammer = self._robot.tcp_site, self._board, self._hammer
+    board, hammer = self._board, self._hammer
+    body = element_ids.ElementIds([hammer.body])
+    sites = element_ids.ElementIds([board.nail_head_site, hammer.head_site])
 
     def eef_to_object(physics):
-      grip = physics.bind(hammer.body)
-      point = grip.xpos + grip.xmat.reshape(3, 3) @ np.asarray(
+      data, row = element_ids.synced_data(physics), body(physics)[0]
+      point = data.xpos[row] + data.xmat[row].reshape(3, 3) @ np.asarray(
           HAMMER_GRIP.pos)
-      return point - physics.bind(tcp).xpos
+      return point - self._robot.tcp_frame(physics)[0]
 
     def eef_to_target(physics):
-      return (physics.bind(board.nail_head_site).xpos
-              - physics.bind(hammer.head_site).xpos)
+      nail, head = sites(physics)
+      data = element_ids.synced_data(physics)
+      return data.site_xpos[nail] - data.site_xpos[head]
 
     return {
         'object_gripped': observable.Generic(

@@ -52,6 +52,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.entities import element_ids
 from hrc_suite.entities import props
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import base
@@ -314,15 +315,21 @@ class Lifting(base.HrcTask):
   # -------------------------------------------------------- observables
 
   def _task_observables(self):
-    tcp, board = self._robot.tcp_site, self._board
+    board = self._board
     head = keypoints.index(('head',))[0]
     hands = np.array(keypoints.index(('left_hand', 'right_hand')))
+
+    handle = element_ids.ElementIds([board.robot_grip_site])
 
     def eef_to(indices):
       def observe(physics):
         points = self._human.keypoint_positions(physics)[indices]
-        return points - physics.bind(tcp).xpos
+        return points - self._robot.tcp_frame(physics)[0]
       return observe
+
+    def eef_to_handle(physics):
+      point = element_ids.synced_data(physics).site_xpos[handle(physics)[0]]
+      return point - self._robot.tcp_frame(physics)[0]
 
     return {
         'board_quaternion': board.observables.quaternion,
@@ -333,9 +340,7 @@ class Lifting(base.HrcTask):
         'board_normal': board.observables.normal,
         'handle_position': observable.MJCFFeature(
             'xpos', self._board.robot_grip_site),
-        'eef_to_handle': observable.Generic(
-            lambda physics: physics.bind(self._board.robot_grip_site).xpos
-            - physics.bind(tcp).xpos),
+        'eef_to_handle': observable.Generic(eef_to_handle),
         'board_gripped': observable.Generic(
             lambda physics: np.array([float(props.is_gripped(
                 physics, self._gripper, self._board))])),
