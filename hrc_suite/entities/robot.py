@@ -245,9 +245,8 @@ class Robot(composer.Entity):
 
   def tcp_pose(self, physics):
     """(position (3,), quaternion (4,) w-first) of the TCP in the world."""
-    site = physics.bind(self.tcp_site)
-    return site.xpos.copy(), rotations.mat_to_quat(
-        np.reshape(site.xmat, (3, 3)))
+    position, rotation = self.tcp_frame(physics)
+    return position, rotations.mat_to_quat(rotation.reshape(3, 3))
 
 
 class RobotObservables(composer.Observables):
@@ -265,7 +264,7 @@ class RobotObservables(composer.Observables):
   def end_effector_position(self):
     # Generic, so the TCP follows a gripper attached after construction.
     return observable.Generic(
-        lambda physics: physics.bind(self._entity.tcp_site).xpos)
+        lambda physics: self._entity.tcp_frame(physics)[0])
 
   @composer.observable
   def end_effector_quaternion(self):
