@@ -39,6 +39,8 @@ human 3, robot 4 (docs/reference_benchmark.md, Tasks).
   quaternions, slots and stacked flags.
 """
 
+import math
+
 from dm_control.composer.observation import observable
 import numpy as np
 
@@ -99,6 +101,16 @@ _ARM_SEGMENTS = tuple(f'{hand}_{part}' for hand in human_lib.HANDS
                       for part in ('hand', 'forearm'))
 # Cube states of the human's cubes.
 ON_TABLE, HELD, RELEASED = 0, 1, 2
+
+
+def _distance(a, b):
+  """Euclidean distance between two points given as sequences of floats
+  (the squares summed in order, as NumPy's norm along an axis)."""
+  total = 0.0
+  for x, y in zip(a, b):
+    d = x - y
+    total += d * d
+  return math.sqrt(total)
 
 
 @suite.register('stacking', 'default',
@@ -243,31 +255,31 @@ class Stacking(base.HrcTask):
     """The human grabs a cube the hand reaches and lets go on its place.
     Returns whether anything was grabbed or let go."""
     changed = False
-    hands = self._human.keypoint_positions(physics)[_HAND_KEYPOINTS]
+    hands = self._human.keypoint_positions(physics)[_HAND_KEYPOINTS].tolist()
     for i in HUMAN_CUBES:
       state = self._human_state[i]
       if state == ON_TABLE and any(self._human_state[j] != RELEASED
                                    for j in HUMAN_CUBES if j < i):
         continue   # One cube at a time: cube 3 only after cube 1 is down.
       if state == ON_TABLE:
-        grip = self._cube_positions(physics)[i] + _GRIP
-        distances = np.linalg.norm(hands - grip, axis=1)
-        hand = int(np.argmin(distances))
+        grip = (self._cube_positions(physics)[i] + _GRIP).tolist()
+        distances = [_distance(hand, grip) for hand in hands]
+        hand = 0 if distances[0] <= distances[1] else 1   # np.argmin's
         if distances[hand] < HAND_TOLERANCE:
-          self._grab(physics, i, hand, hands[hand])
+          self._grab(physics, i, hand, np.array(hands[hand]))
           changed = True
       elif state == HELD:
         centre = self._cube_positions(physics)[i]
-        offset = centre - self._places[i]
+        x, y, z = centre.tolist()
+        place = self._places[i].tolist()
         # Where the cube comes to rest: its place, or the surface under it
         # where that is higher (a recording's place may lie in our table).
-        offset[2] = centre[2] - max(self._places[i, 2],
-                                     self._support(i, centre)[2])
-        rising = centre[2] > self._held_height[i]
-        self._held_height[i] = centre[2]
-        if (np.linalg.norm(offset[:2]) < RELEASE_REACH
-            and (abs(offset[2]) < RELEASE_HEIGHT
-                 or (rising and abs(offset[2]) < RELEASE_DROP))):
+        drop = abs(z - max(place[2], float(self._support(i, centre)[2])))
+        rising = z > self._held_height[i]
+        self._held_height[i] = z
+        if (_distance((x, y), place[:2]) < RELEASE_REACH
+            and (drop < RELEASE_HEIGHT
+                 or (rising and drop < RELEASE_DROP))):
           self._release(physics, self._cubes[i].body)
           self._set_down(physics, i, centre)
           self._human_state[i], self._holding_hand[i] = RELEASED, None
@@ -312,43 +324,54 @@ class Stacking(base.HrcTask):
   def _update_task(self, physics):
     # A grab or release changes the model: the base then calls
     # physics.forward() after the step (as restoring a snapshot does).
+    # The four cubes' logic runs on Python floats: NumPy's cost per call
+    # was most of this method's time (docs/benchmarks.md).
     self._move_human_cubes(physics)
-    positions = self._cube_positions(physics)
+    positions = self._cube_positions(physics).tolist()
     self._gripped[:] = self._gripper.grasping(physics, self._cube_bodies)
-    free = ~(np.array([s == HELD for s in self._human_state])
-             | self._gripped)
+    free = [not (state == HELD or gripped) for state, gripped in zip(
+        self._human_state, self._gripped.tolist())]
     # The stack grows from where the human put cube 1: each slot is one
     # cube size above the cube below, once that one is in its own slot.
     below = True
-    for i in range(4):
+    for i, position in enumerate(positions):
       if i > 0 and below:
-        self._slots[i] = positions[i - 1] + [0.0, 0.0, self._size]
-      below = below and (np.linalg.norm(positions[i] - self._slots[i])
+        x, y, z = positions[i - 1]
+        self._slots[i] = (x, y, z + self._size)
+      below = below and (_distance(position, self._slots[i].tolist())
                          < STACK_TOLERANCE)
       self._in_slot[i] = below
-    newly = self._in_slot & free & ~self._stacked
-    self._stacked |= newly
-    self._stacked_at[newly] = positions[newly]
-    moved = np.linalg.norm(positions - self._stacked_at, axis=1)
-    self._toppled = bool(np.any(self._stacked & free
-                                & (moved > TOPPLE_DISTANCE)))
-    self._complete = bool(np.all(self._in_slot & free)) and (
-        not self._toppled)
+    in_slot = self._in_slot.tolist()
+    placed = [in_slot[i] and free[i] for i in range(4)]
+    newly = 0
+    for i in range(4):
+      if placed[i] and not self._stacked[i]:
+        self._stacked[i] = True
+        self._stacked_at[i] = positions[i]
+        newly += 1
+    self._toppled = any(
+        self._stacked[i] and free[i] and _distance(
+            positions[i], self._stacked_at[i].tolist()) > TOPPLE_DISTANCE
+        for i in range(4))
+    self._complete = all(placed) and not self._toppled
     self._success = self._complete and self.clip_ended
     return {'success': float(self._success),
-            'cubes_placed': int(newly.sum()),
-            'stack_height': int(np.sum(self._in_slot & free)),
+            'cubes_placed': newly,
+            'stack_height': sum(placed),
             'object_gripped': float(self._gripped.any())}
 
   def _human_events(self, physics):
     # The robot has put its cube down and withdrawn its gripper.
-    tcp = self._robot.tcp_frame(physics)[0]
-    clear = np.linalg.norm(self._slots - tcp, axis=1) > WITHDRAWN_DISTANCE
-    free = self._in_slot & ~self._gripped & clear
+    tcp = self._robot.tcp_frame(physics)[0].tolist()
+
+    def free(i):
+      return (self._in_slot[i] and not self._gripped[i] and _distance(
+          self._slots[i].tolist(), tcp) > WITHDRAWN_DISTANCE)
+
     events = []
-    if self._in_slot[0] and free[1]:
+    if self._in_slot[0] and free(1):
       events.append(clip_lib.Event.second_cube_placed)
-    if self._in_slot[:3].all() and free[3]:
+    if self._in_slot[:3].all() and free(3):
       events.append(clip_lib.Event.fourth_cube_placed)
     return events
 
