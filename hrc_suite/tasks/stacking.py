@@ -402,9 +402,10 @@ class Stacking(base.HrcTask):
 
   def _task_observables(self):
     return {
+        # The flag the reward used (as the pick-and-place family's): the
+        # robot holds no cube at reset (they start on the table).
         'object_gripped': observable.Generic(
-            lambda physics: np.array([float(self._gripper.grasping(
-                physics, self._cube_bodies).any())])),
+            lambda physics: np.array([float(self._gripped.any())])),
         'eef_to_cubes': observable.Generic(
             lambda physics: self._cube_positions(physics)
             - self._robot.tcp_frame(physics)[0]),
