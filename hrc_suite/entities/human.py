@@ -461,15 +461,17 @@ class Human(composer.Entity):
     """Observables of keypoints in `site`'s frame and their distances;
     returns both (named 'keypoints_in_{name}_frame' and
     'keypoint_distances_to_{name}', name defaulting to the site's)."""
-    indices = np.array(keypoints.index(subset))
     name = name or site.name
-    site_id = element_ids.ElementIds([site])
+    # The frame's site, then the subset's keypoint sites.
+    site_ids = element_ids.ElementIds(
+        [site] + [self._sites[i] for i in keypoints.index(subset)])
 
     def relative(physics):
-      row = site_id(physics)[0]
+      ids = site_ids(physics)
       data = element_ids.synced_data(physics)   # The binding's values.
-      points = self.keypoint_positions(physics)[indices]
-      return (points - data.site_xpos[row]) @ data.site_xmat[row].reshape(3, 3)
+      origin = ids[0]
+      return ((data.site_xpos[ids[1:]] - data.site_xpos[origin])
+              @ data.site_xmat[origin].reshape(3, 3))
 
     def distance(physics):
       return np.linalg.norm(relative(physics), axis=-1)
