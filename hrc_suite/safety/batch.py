@@ -176,8 +176,11 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
       if not (done and total < len(times) and flags[ck.GOAL_PENDING]):
         break
       # The kernel stopped for a candidate from the moved command
-      # (Shield._candidate_plan): made here, the cycles go on.
-      made = shield.candidate_from(command, verified[0], verified[1])
+      # (Shield._candidate_plan): made here (nobody planned from this
+      # command before: not looked up among recent plans), the cycles go
+      # on.
+      made = shield.candidate_from(command, verified[0], verified[1],
+                                   recent=False)
       if made is None:
         break   # step_many's next call runs the cycle as Shield.step.
       candidate, key = made

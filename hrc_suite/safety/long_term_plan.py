@@ -420,7 +420,19 @@ class _RecentPlans:
 _RECENT = _RecentPlans()
 
 
-def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
+_FLOAT64 = np.dtype(np.float64)
+_UNIT_STRIDE = (_FLOAT64.itemsize,)
+
+
+def _is_float_vector(x):
+  """Whether x is a contiguous float64 vector (the kernels' argument
+  type; anything else is converted first)."""
+  return (type(x) is np.ndarray and x.dtype is _FLOAT64
+          and x.strides == _UNIT_STRIDE)
+
+
+def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0,
+                 recent=True):
   """Time-optimal jerk-limited synchronised plan to rest at q_goal.
 
   Args:
@@ -429,6 +441,11 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
     limits: `robot_description.JointLimits` (v_max, a_max_ltt, j_max_ltt).
     cycle_time: sample spacing (s).
     start_time: plan time of the first sample (the current state).
+    recent: look the plan up among the last plans made and keep it there
+      (collision prevention's plan of a goal is the shield's next
+      candidate); False for a state nobody planned from before (the
+      shield's re-plans from a braking command), which only skips the
+      look-up (Ruckig is deterministic: the same plan either way).
 
   Returns:
     A `LongTermPlan` whose first sample is the current state and whose last
@@ -440,8 +457,7 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
   """
   dof = len(limits.q_min)
   inputs = (q0, dq0, ddq0, q_goal)
-  if not all(type(x) is np.ndarray and x.dtype == np.float64
-             and x.flags.c_contiguous for x in inputs):
+  if not all(_is_float_vector(x) for x in inputs):
     inputs = [np.ascontiguousarray(x, dtype=float) for x in inputs]
   goal = np.empty(dof)
   if (inputs[0].shape == inputs[1].shape == inputs[2].shape
@@ -458,6 +474,8 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0):
     check_start_state(q0, dq0, ddq0, limits)
   if not cycle_time > 0:
     raise ValueError(f'cycle_time must be positive, got {cycle_time}')
+  if not recent:
+    return _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time)
   key = _RECENT.key((q0, dq0, ddq0, goal), limits, cycle_time, start_time)
   plan = _RECENT.get(key)
   if plan is None:

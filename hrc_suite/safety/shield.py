@@ -657,15 +657,16 @@ class Shield:
     self._candidate = self.candidate_from(self._state, *key)
     return None if self._candidate is None else self._candidate[0]
 
-  def candidate_from(self, state, s, s_dot):
+  def candidate_from(self, state, s, s_dot, recent=True):
     """(plan to the pending goal from command `state` (q, dq, ddq rows
     first) at verified path position s and velocity s_dot, its key (s,
-    s_dot)), or None where none can be made."""
+    s_dot)), or None where none can be made. recent: as plan_to_goal's
+    (False: a command moved since anyone planned from it)."""
     if (np.abs(state[2]) > self.limits.a_max_ltt).any():
       return None   # Braking too hard to plan here (docs/shield_maths.md, 1).
     try:
       plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
-                              self.limits, self.cycle_time, s)
+                              self.limits, self.cycle_time, s, recent=recent)
     except ltp.PlanningError:
       return None
     return plan, (s, s_dot)
