@@ -351,3 +351,44 @@ def test_plan_kernels_warm_up_compiles_what_plan_to_goal_calls(panda):
     plan.q, plan.positions(np.array([0.01, 0.02]))
   assert {name: len(f.signatures)
           for name, f in dispatchers.items()} == before
+
+
+def test_recent_plans_are_reused_and_recent_false_plans_afresh(panda):
+  """Collision prevention's plan of a goal is the shield's next candidate:
+  the same inputs give the same plan object; recent=False (the shield's
+  re-plans from a braking command) plans afresh, to the same samples, and
+  leaves the recent plans as they were."""
+  rng = np.random.RandomState(3)
+  q0, dq0, ddq0, goal, plan = _random_plan(panda, rng, start_time=0.5)
+  limits = panda.limits
+  again = ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, CYCLE, 0.5)
+  assert again is plan
+  fresh = ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, CYCLE, 0.5,
+                           recent=False)
+  assert fresh is not plan
+  np.testing.assert_array_equal(fresh._all(), plan._all())
+  assert ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, CYCLE, 0.5) is plan
+  # Another start time is another plan.
+  later = ltp.plan_to_goal(q0, dq0, ddq0, goal, limits, CYCLE, 0.6)
+  assert later is not plan and later.start_time == 0.6
+
+
+def test_inputs_of_other_types_and_layouts_give_the_same_plan(panda):
+  """Inputs that are not contiguous float64 vectors (a strided view, float32,
+  lists) are converted: the same samples as from float64 copies."""
+  rng = np.random.RandomState(4)
+  q0, dq0, ddq0, goal, plan = _random_plan(panda, rng)
+  rows = np.stack([q0, dq0, ddq0, goal], axis=1)   # Columns are strided.
+  assert rows[:, 0].strides != (8,)
+  strided = ltp.plan_to_goal(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3],
+                             panda.limits, CYCLE, recent=False)
+  np.testing.assert_array_equal(strided._all(), plan._all())
+  lists = ltp.plan_to_goal(q0.tolist(), dq0.tolist(), ddq0.tolist(),
+                           goal.tolist(), panda.limits, CYCLE, recent=False)
+  np.testing.assert_array_equal(lists._all(), plan._all())
+  single = ltp.plan_to_goal(*(x.astype(np.float32) for x in (q0, dq0, ddq0)),
+                            goal, panda.limits, CYCLE, recent=False)
+  expected = ltp.plan_to_goal(
+      *(x.astype(np.float32).astype(float) for x in (q0, dq0, ddq0)), goal,
+      panda.limits, CYCLE, recent=False)
+  np.testing.assert_array_equal(single._all(), expected._all())
