@@ -223,7 +223,8 @@ def run_tasks(robots, rl_steps, tasks=(), reference=False,
 
 # Tasks of the profile section: (domain, task, robot, action space).
 PROFILED = (('reach', 'dense', 'schunk', 'cartesian'),
-            ('handover', 'robot_to_human', 'schunk', None))
+            ('handover', 'robot_to_human', 'schunk', None),
+            ('stacking', 'default', 'panda', None))   # The slowest task.
 
 
 def run_profile(rl_steps):

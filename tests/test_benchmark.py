@@ -21,6 +21,28 @@ def test_rl_step_throughput_reports_rates_and_both_ratios():
   assert per_step > 0.0 and bare > 0.0 and ratio > 0.0
 
 
+def test_profile_parts_add_up_to_the_step_and_restore_the_code():
+  """benchmark_profile.profile: every part is timed, the top-level parts
+  and 'composer and the rest' add up to the total, nested parts are
+  within their parent, and the timing wrappers are removed afterwards."""
+  from hrc_suite import benchmark_profile
+  from hrc_suite.safety import batch
+  step_many = batch.step_many
+  out = benchmark_profile.profile('reach', 'dense', 'schunk', rl_steps=6,
+                                  action_space='cartesian')
+  assert batch.step_many is step_many
+  labels = [label for label, *_ in benchmark_profile.PARTS]
+  assert set(out) == set(labels) | {'composer and the rest', 'total'}
+  top = {label for label, *_, is_top in benchmark_profile.PARTS if is_top}
+  assert sum(out[label] for label in top) + out['composer and the rest'] == (
+      pytest.approx(out['total']))
+  assert out['total'] > 0.0
+  shield = '  shield: 25 cycles (safety.batch.step_many)'
+  physics = 'task run_physics_steps: the RL step\'s physics steps'
+  # Reach steps the shield every RL step inside its physics steps.
+  assert 0.0 < out[shield] <= out[physics]
+
+
 
 @pytest.mark.slow   # Compiles the commit's kernels in a new cache (~2 min).
 def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
