@@ -156,7 +156,6 @@ class ParallelGripper(composer.Entity):
     # actuator; the bodies `grasping` is asked about, by their tuple.
     self._finger_ids = element_ids.ElementIds(fingers)
     self._finger_joint_ids = element_ids.ElementIds(joints)
-    self._finger_qpos = None   # (physics, the finger joints' qpos rows).
     self._actuator_id = element_ids.ElementIds([self._actuator])
     self._body_ids = {}
     gripper_kernels.warm_up()   # Once per process, not mid-run.
@@ -217,14 +216,8 @@ class ParallelGripper(composer.Entity):
     """Opening between the pads, normalised: 0 closed, 1 fully open."""
     # The joints' qpos rows (what their binding reads; a qpos read never
     # runs mj_forward), summed in the binding's order.
-    if self._finger_qpos is None or self._finger_qpos[0] is not physics:
-      self._finger_qpos = (physics, physics.model.jnt_qposadr[
-          self._finger_joint_ids(physics)].tolist())
-    qpos = physics.data.qpos
-    first, *rest = self._finger_qpos[1]
-    opening = qpos[first]
-    for row in rest:
-      opening += qpos[row]
+    rows = physics.model.jnt_qposadr[self._finger_joint_ids(physics)]
+    opening = np.sum(physics.data.qpos[rows])
     return float(min(max(opening / MAX_APERTURE, 0.0), 1.0))
 
   def is_grasping(self, physics, body) -> bool:

@@ -4,8 +4,6 @@ TCP, and sampling of graspable points on the table."""
 from dm_control.composer.observation import observable
 import numpy as np
 
-from hrc_suite.entities import element_ids
-
 # Sparse rewards of pick and place, also object inspection's
 # (docs/reference_benchmark.md, Rewards and success): success, object
 # gripped, otherwise.
@@ -21,25 +19,24 @@ def object_reward(success, gripped):
   return GRIPPED_REWARD if gripped else IDLE_REWARD
 
 
-def point_observables(tcp_site, name, position, eef_name=None, world=None):
+def point_observables(tcp_frame, name, position, eef_name=None, world=None):
   """Observables of a world point given by `position(physics)`.
 
   '{name}_position' (world; the observable `world` if given, e.g. a prop's
   own), 'eef_to_{name}' (world vector from the TCP, or `eef_name`),
   '{name}_in_eef_frame' (that vector in the TCP frame) and
-  '{name}_distance' (its length, shape (1,)).
+  '{name}_distance' (its length, shape (1,)). tcp_frame: the robot's
+  `Robot.tcp_frame` (the TCP's world position and rotation).
   """
-
-  site = element_ids.ElementIds([tcp_site])   # MjData rows (element_ids).
 
   def eef_to(physics):
     point = position(physics)
-    return point - element_ids.synced_data(physics).site_xpos[
-        site(physics)[0]]
+    return point - tcp_frame(physics)[0]
 
   def in_eef(physics):
-    offset = eef_to(physics)
-    return offset @ physics.data.site_xmat[site(physics)[0]].reshape(3, 3)
+    point = position(physics)
+    tcp, rotation = tcp_frame(physics)
+    return (point - tcp) @ rotation.reshape(3, 3)
 
   def distance(physics):
     return np.array([np.linalg.norm(eef_to(physics))])
@@ -55,7 +52,7 @@ def point_observables(tcp_site, name, position, eef_name=None, world=None):
   }
 
 
-def object_target_observables(tcp_site, prop, target, gripped,
+def object_target_observables(tcp_frame, prop, target, gripped,
                               success_distance):
   """The pick-and-place family's observables: 'object_gripped' (the flag
   `gripped()` the reward used), the object's and the target's point
@@ -77,8 +74,8 @@ def object_target_observables(tcp_site, prop, target, gripped,
       'object_at_target': observable.Generic(at_target),
   }
   observables.update(point_observables(
-      tcp_site, 'object', object_position, world=prop.observables.position))
-  observables.update(point_observables(tcp_site, 'target', target))
+      tcp_frame, 'object', object_position, world=prop.observables.position))
+  observables.update(point_observables(tcp_frame, 'target', target))
   return observables
 
 

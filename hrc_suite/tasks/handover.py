@@ -254,7 +254,7 @@ class _Handover(base.HrcTask):
     raise NotImplementedError
 
   def _task_observables(self):
-    tcp = self._robot.tcp_site
+    tcp = self._robot.tcp_frame
     observables = {
         'object_gripped': observable.Generic(
             lambda physics: np.array([float(self._gripped)])),
@@ -406,7 +406,6 @@ class HumanToRobot(_Handover):
     0.05 m above the table put the hammer into the table. Row by row the
     values of one pose (products and norms by stacked np.matmul, which
     gives each row what a single product gives)."""
-    n = len(centres)
     half = physics.bind(self._human.geoms[self._hand_segment()]).size[1]
     r_hand = rotations.quat_to_mat(hand_quaternions)
     r_hand_t = r_hand.transpose(0, 2, 1)

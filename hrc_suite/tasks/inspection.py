@@ -227,6 +227,6 @@ class Inspection(base.HrcTask):
 
   def _task_observables(self):
     return common.object_target_observables(
-        self._robot.tcp_site, self._cube,
+        self._robot.tcp_frame, self._cube,
         lambda physics: self._target, lambda: self._gripped,
         SUCCESS_DISTANCE)
