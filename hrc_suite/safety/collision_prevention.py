@@ -51,6 +51,8 @@ test is done; tests on random goals, near the table and near
 self-collision).
 """
 
+import typing
+
 import numpy as np
 
 from hrc_suite import layout
@@ -60,6 +62,14 @@ from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
 
 POLICIES = ('zero', 'resample', 'closest')
+
+
+class FilteredAction(typing.NamedTuple):
+  """`CollisionPrevention.filter_action`'s result."""
+  action: np.ndarray
+  q_goal: np.ndarray
+  replaced: bool
+  plan: typing.Optional[ltp.LongTermPlan]   # The goal's plan, if made.
 
 # Default number of replacement samples (reference benchmark: 20;
 # docs/reference_benchmark.md, Safety).
@@ -473,6 +483,11 @@ class CollisionPrevention:
     on its verified path and plans later), the straight path from the
     command is checked instead.
     """
+    return self._planned(q_goals, plan_from)[0]
+
+  def _planned(self, q_goals, plan_from):
+    """(`planned_paths_free`'s flags, the plans made: a `LongTermPlan` or
+    None per goal)."""
     q_goals = np.asarray(q_goals, dtype=float).reshape(-1, self.dof)
     q0, dq0, ddq0 = (np.asarray(x, dtype=float) for x in (
         plan_from.q, plan_from.dq, plan_from.ddq))
@@ -482,7 +497,7 @@ class CollisionPrevention:
     try:
       ltp.check_start_state(q0, dq0, ddq0, limits)
     except ltp.PlanningError:
-      return self.paths_free(q0, q_goals)
+      return self.paths_free(q0, q_goals), [None] * len(q_goals)
     plans, feasible = [], np.zeros(len(q_goals), dtype=bool)
     for g, goal in enumerate(q_goals):
       try:
@@ -504,7 +519,7 @@ class CollisionPrevention:
     if not start_free:   # The reference, and the escape rule.
       collided = self._planned_sweep(q0, plans, cycle)
     self.num_checks += len(q_goals)
-    return self._within(q_goals) & feasible & ~collided
+    return self._within(q_goals) & feasible & ~collided, plans
 
   def _plan_collides(self, plan, start):
     """1 if a plan from start (1, dof) collides, 0 if not, -1 if the start
@@ -572,12 +587,15 @@ class CollisionPrevention:
                     num_samples=DEFAULT_NUM_SAMPLES, action_low=-1.0,
                     action_high=1.0, random_state=None, zero_action=None,
                     plan_from=None):
-    """(action, q_goal, replaced): the action if its goal is safe, else a
-    replacement chosen by `policy`.
+    """FilteredAction(action, q_goal, replaced, plan): the action if its
+    goal is safe, else a replacement chosen by `policy`.
 
     plan_from: the `Shield` that will execute the goal; if given, goals are
     checked along its long-term plan from its command
     (`planned_paths_free`), else along the straight path from q_current.
+    `plan` is the returned goal's long-term plan made for that check
+    (`Shield.new_goal` takes it as its first candidate), None where none
+    was made (no plan_from, the zero action, a start braking too hard).
 
     action_to_goal(action) -> q_goal (dof,) or None (e.g. IK failed: unsafe).
     'zero': the zero action and q_current (stay); 'resample': the first safe
@@ -591,17 +609,21 @@ class CollisionPrevention:
     action = np.asarray(action, dtype=float)
     q_current = np.asarray(q_current, dtype=float)
     if plan_from is None:
-      check = lambda goals: self.paths_free(q_current, goals)
+      check = lambda goals: (self.paths_free(q_current, goals),
+                             [None] * len(goals))
     else:
-      check = lambda goals: self.planned_paths_free(goals, plan_from)
+      check = lambda goals: self._planned(goals, plan_from)
     goal = action_to_goal(action)
-    if goal is not None and check(np.asarray(goal, dtype=float)[None])[0]:
-      return action, np.asarray(goal, dtype=float), False
+    if goal is not None:
+      goal = np.asarray(goal, dtype=float)
+      free, plans = check(goal[None])
+      if free[0]:
+        return FilteredAction(action, goal, False, plans[0])
     self.num_replacements += 1
     zero = (np.zeros_like(action) if zero_action is None
             else np.asarray(zero_action, dtype=float))
     if policy == 'zero':
-      return zero, q_current.copy(), True
+      return FilteredAction(zero, q_current.copy(), True, None)
     if random_state is None:
       raise ValueError(f'policy {policy!r} needs a random_state')
     if not isinstance(random_state, np.random.RandomState):
@@ -613,14 +635,19 @@ class CollisionPrevention:
     goals = [action_to_goal(s) for s in samples]
     valid = [i for i, g in enumerate(goals) if g is not None]
     safe = np.zeros(len(samples), dtype=bool)
+    plans = [None] * len(samples)
     if valid:
-      safe[valid] = check(np.array([goals[i] for i in valid], dtype=float))
+      free, made = check(np.array([goals[i] for i in valid], dtype=float))
+      safe[valid] = free
+      for i, plan in zip(valid, made):
+        plans[i] = plan
     if not safe.any():
-      return zero, q_current.copy(), True
+      return FilteredAction(zero, q_current.copy(), True, None)
     if policy == 'resample':
       pick = int(np.argmax(safe))
     else:
       gaps = np.linalg.norm((samples - action).reshape(len(samples), -1),
                             axis=-1)
       pick = int(np.argmin(np.where(safe, gaps, np.inf)))
-    return samples[pick], np.asarray(goals[pick], dtype=float), True
+    return FilteredAction(samples[pick], np.asarray(goals[pick], dtype=float),
+                          True, plans[pick])

@@ -70,11 +70,13 @@ class LongTermPlan:
     self._inverse_cycle = 1.0 / self.cycle_time
     self._last = coefficients.shape[0] - 1
     self._inputs = None   # plan_to_goal's (q0, dq0, ddq0, goal), (4, dof).
+    self._limits = None   # plan_to_goal's limits.
 
   @classmethod
   def _lazy(cls, num_samples, dof, sampler, cycle_time, start_time):
-    """A plan whose `sampler(a, b) -> (b - a, 4, dof)` computes samples when
-    first needed (most of a plan is replaced before it is used)."""
+    """A plan whose `sampler(a, b, out)` computes samples a..b - 1 into
+    out[a:b] (its samples (num_samples, 4, dof)) when first needed (most
+    of a plan is replaced before it is used)."""
     plan = cls.__new__(cls)
     plan._init(np.empty((num_samples, 4, dof)), 0, cycle_time, start_time,
                sampler)
@@ -83,7 +85,7 @@ class LongTermPlan:
   def _fill(self, k):
     """Computes the samples up to index k (and a chunk beyond)."""
     stop = min(max(k + 1, self._filled + _SAMPLE_CHUNK), self._last + 1)
-    self._coefficients[self._filled:stop] = self._sampler(self._filled, stop)
+    self._sampler(self._filled, stop, self._coefficients)
     self._filled = stop
 
   def _all(self):
@@ -167,6 +169,18 @@ class LongTermPlan:
   @property
   def dof(self):
     return self.q.shape[1]
+
+  def made_from(self, state, goal, limits, cycle_time, start_time):
+    """Whether this is `plan_to_goal`'s plan from state (rows q0, dq0,
+    ddq0 first; C-contiguous float64), to the clamped goal (dof,) with
+    limits (the same object), cycle_time and start_time: the same inputs
+    bit for bit, so the same plan (Ruckig is deterministic)."""
+    inputs = self._inputs
+    return (inputs is not None and self._limits is limits
+            and self.cycle_time == cycle_time
+            and self.start_time == start_time
+            and inputs[:3].tobytes() == state[:3].tobytes()
+            and inputs[3].tobytes() == goal.tobytes())
 
   @property
   def end_time(self):
@@ -313,7 +327,13 @@ def _check_vector(name, value, dof):
 def clamp_goal(q_goal, limits):
   """The goal moved GOAL_LIMIT_MARGIN inside the joint limits
   (docs/shield_maths.md, 1)."""
-  q_goal = _check_vector('q_goal', q_goal, len(limits.q_min))
+  dof = len(limits.q_min)
+  if _is_float_vector(q_goal) and q_goal.shape[0] == dof:   # Compiled.
+    goal = np.empty(dof)
+    if plan_kernels.clamped_goal(q_goal, limits.q_min, limits.q_max,
+                                 GOAL_LIMIT_MARGIN, goal):
+      return goal
+  q_goal = _check_vector('q_goal', q_goal, dof)
   # np.clip's values, cheaper.
   return np.minimum(np.maximum(q_goal, limits.q_min + GOAL_LIMIT_MARGIN),
                     limits.q_max - GOAL_LIMIT_MARGIN)
@@ -383,10 +403,13 @@ _RUCKIG_ERRORS = (RuntimeError, getattr(ruckig, 'RuckigError', RuntimeError))
 
 
 class _RecentPlans:
-  """The last few plans by their inputs: collision prevention checks a new
-  goal's plan from the shield's command, and the shield makes the same plan
-  in its next cycle (Ruckig is deterministic, so a plan from the same
-  inputs is the same plan; plans are read-only once sampled)."""
+  """The last few plans by their inputs: a goal's plan from the shield's
+  command is made more than once where the goal is checked before it is
+  given (an expert's `CollisionPrevention.planned_paths_free`, then the
+  task's collision prevention); Ruckig is deterministic, so a plan from
+  the same inputs is the same plan (plans are read-only once sampled).
+  The shield itself is handed collision prevention's plan
+  (`Shield.new_goal`)."""
 
   SIZE = 32
 
@@ -442,8 +465,8 @@ def plan_to_goal(q0, dq0, ddq0, q_goal, limits, cycle_time, start_time=0.0,
     cycle_time: sample spacing (s).
     start_time: plan time of the first sample (the current state).
     recent: look the plan up among the last plans made and keep it there
-      (collision prevention's plan of a goal is the shield's next
-      candidate); False for a state nobody planned from before (the
+      (a goal checked before it is given is planned again by collision
+      prevention); False for a state nobody planned from before (the
       shield's re-plans from a braking command), which only skips the
       look-up (Ruckig is deterministic: the same plan either way).
 
@@ -540,13 +563,14 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   pieces = (table, starts, joint_shift, goal, float(cycle_time),
             float(duration))
 
-  def sampler(first, stop):
-    return plan_kernels.sample_pieces(*pieces, first, stop)
+  def sampler(first, stop, out):
+    plan_kernels.sample_pieces(*pieces, first, stop, out)
 
   plan = LongTermPlan._lazy(num, dof, sampler, cycle_time, start_time)
   plan._pieces = pieces   # sampler's arguments (tests: the reference)
   plan._goal = goal
   plan._inputs = np.array((q0, dq0, ddq0, goal))
+  plan._limits = limits
   return plan
 
 

@@ -35,9 +35,10 @@ def _last_at_or_before(sorted_values, x):
 
 @_jit
 def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
-                  first, stop):
-  """Samples (stop - first, 4, dof) (q and its three derivatives) at plan
-  times first..stop - 1 cycles. table (dof * P, 5): rows (start time, p,
+                  first, stop, out):
+  """Samples (q and its three derivatives) at plan times first..stop - 1
+  cycles into out[first:stop] (out: (N >= stop, 4, dof), a plan's
+  samples, filled in place). table (dof * P, 5): rows (start time, p,
   v, a, j) of constant-jerk pieces, joint i's P rows from i * P; starts:
   the rows' start times shifted by joint_shift (dof,) per joint (sorted);
   from `duration` on the goal (dof,) at rest.
@@ -47,11 +48,10 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
   joint's row is searched once and then walked forward, to the same row
   the search would give."""
   dof = joint_shift.shape[0]
-  out = np.empty((stop - first, 4, dof))
   rows = np.full(dof, -2, dtype=np.int64)   # -2: not searched yet.
   last = starts.shape[0] - 1
-  for n in range(stop - first):
-    time = (first + n) * cycle_time
+  for n in range(first, stop):
+    time = n * cycle_time
     if time >= duration:
       for i in range(dof):
         out[n, 0, i] = goal[i]
@@ -74,7 +74,6 @@ def sample_pieces(table, starts, joint_shift, goal, cycle_time, duration,
       out[n, 1, i] = v + d * (a + 0.5 * d * j)
       out[n, 2, i] = a + d * j
       out[n, 3, i] = j
-  return out
 
 
 @_jit
@@ -107,7 +106,19 @@ def plan_inputs_ok(q0, dq0, ddq0, q_goal, q_min, q_max, v_max, a_max,
   if not start_state_ok(q0, dq0, ddq0, q_min, q_max, v_max, a_max, j_max,
                         slack):
     return False
-  for i in range(q0.shape[0]):
+  return clamped_goal(q_goal, q_min, q_max, margin, goal)
+
+
+@_jit
+def clamped_goal(q_goal, q_min, q_max, margin, goal):
+  """Whether q_goal (dof,) is finite; if so q_goal clamped `margin` inside
+  the joint limits (np.minimum(np.maximum(q_goal, q_min + margin),
+  q_max - margin)) is written to goal (long_term_plan.clamp_goal's fast
+  path)."""
+  for i in range(q_goal.shape[0]):
+    if not math.isfinite(q_goal[i]):
+      return False
+  for i in range(q_goal.shape[0]):
     goal[i] = min(max(q_goal[i], q_min[i] + margin), q_max[i] - margin)
   return True
 
@@ -185,7 +196,9 @@ def warm_up():
   start_state_ok(state, state, state, limit, limit, limit, limit, limit, 0.0)
   plan_inputs_ok(state, state, state, state, limit, limit, limit, limit,
                  limit, 0.0, 0.0, np.empty(dof))
+  clamped_goal(state, limit, limit, 0.0, np.empty(dof))
   table, starts, joint_shift = piece_table(
       np.zeros((dof, PROFILE_SIZE)), np.zeros((0, 5, 2)), 1.0)
-  sample_pieces(table, starts, joint_shift, state, 1.0, 1.0, 0, 1)
+  sample_pieces(table, starts, joint_shift, state, 1.0, 1.0, 0, 1,
+                np.empty((1, 4, dof)))
   _warm = True

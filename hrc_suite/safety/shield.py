@@ -215,12 +215,25 @@ class Shield:
     self._previous_q = self._state[0]
     self._lazy = {}
 
-  def new_goal(self, q_goal):
+  def new_goal(self, q_goal, plan=None):
     """Plans to rest at q_goal (clamped 0.01 rad inside the limits) from the
-    next step on; the new plan is adopted once a step on it verifies."""
+    next step on; the new plan is adopted once a step on it verifies.
+
+    plan: the plan to q_goal made already from this shield's command
+    (`CollisionPrevention.filter_action` with plan_from=this shield): the
+    first candidate where it is the plan the shield would make now (the
+    same inputs, bit for bit: `LongTermPlan.made_from`), else ignored.
+    """
     self._goal = ltp.clamp_goal(q_goal, self.limits)
     self._goal_pending = True
     self._candidate = None
+    if plan is not None:
+      s = self._verified.s
+      if (not (np.abs(self._state[2]) > self.limits.a_max_ltt).any()
+          and plan.made_from(self._state, self._goal, self.limits,
+                             self.cycle_time, s)):
+        # What _candidate_plan would make (candidate_from's conditions).
+        self._candidate = (plan, (s, self._verified.s_dot))
 
   def resync(self, q):
     """The robot was measured at q, off the command by more than the

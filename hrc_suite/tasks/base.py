@@ -652,15 +652,15 @@ class HrcTask(composer.Task):
       outcome.setdefault('ik_failed', not ok)
       return goal
 
-    replaced = False
+    replaced, plan = False, None
     if self.collision_prevention_policy == 'off':
       goal = to_goal(arm)
     else:
-      _, goal, replaced = self._collision_checker.filter_action(
+      _, goal, replaced, plan = self._collision_checker.filter_action(
           arm, q, to_goal, self.collision_prevention_policy,
           random_state=self._cp_random, plan_from=self._shield)
     self._q_goal = np.asarray(goal, dtype=float).copy()
-    self._shield.new_goal(self._q_goal)
+    self._shield.new_goal(self._q_goal, plan)
     if self.HAS_GRIPPER_ACTION:
       self._gripper.set_command(physics, action[-1])
     self._step_info = {'action_replacements': int(replaced),

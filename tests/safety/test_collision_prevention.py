@@ -190,29 +190,30 @@ def test_replacement_policies(name):
     action = rs.uniform(-1, 1, description.dof)
     if not prevention.is_safe(q, to_goal(action)):
       break
-  out, goal, replaced = prevention.filter_action(action, q, to_goal, 'zero')
+  out, goal, replaced, _ = prevention.filter_action(action, q, to_goal,
+                                                   'zero')
   assert replaced and np.all(out == 0) and np.all(goal == q)
   # Resample: the first safe sample of the seeded sequence.
   samples = np.random.RandomState(5).uniform(-1, 1, (20, description.dof))
   safe = [prevention.is_safe(q, to_goal(s)) for s in samples]
   assert any(safe), 'test needs a safe sample'
-  out, goal, replaced = prevention.filter_action(
+  out, goal, replaced, _ = prevention.filter_action(
       action, q, to_goal, 'resample', random_state=5)
   assert replaced
   np.testing.assert_array_equal(out, samples[safe.index(True)])
   assert prevention.is_safe(q, goal)
   # Closest: the safe sample nearest to the proposed action.
-  out, goal, _ = prevention.filter_action(action, q, to_goal, 'closest',
-                                          random_state=5)
+  out, goal, _, _ = prevention.filter_action(action, q, to_goal,
+                                             'closest', random_state=5)
   gaps = [np.linalg.norm(s - action) if ok else np.inf
           for s, ok in zip(samples, safe)]
   np.testing.assert_array_equal(out, samples[int(np.argmin(gaps))])
   # Deterministic given the seed.
-  again, _, _ = prevention.filter_action(action, q, to_goal, 'closest',
+  again, _, _, _ = prevention.filter_action(action, q, to_goal, 'closest',
                                          random_state=np.random.RandomState(5))
   np.testing.assert_array_equal(out, again)
   # A safe action passes untouched.
-  out, goal, replaced = prevention.filter_action(
+  out, goal, replaced, _ = prevention.filter_action(
       samples[safe.index(True)], q, to_goal, 'closest', random_state=5)
   assert not replaced
   assert prevention.num_replacements == 4
@@ -222,7 +223,7 @@ def test_no_safe_sample_falls_back_to_zero():
   description, prevention = _prevention('iiwa')
   q = description.q_home
   fails = lambda action: None  # E.g. IK never converges.
-  out, goal, replaced = prevention.filter_action(
+  out, goal, replaced, _ = prevention.filter_action(
       np.ones(3), q, fails, 'resample', random_state=0, num_samples=5)
   assert replaced and np.all(out == 0) and np.all(goal == q)
   with pytest.raises(ValueError, match='policy'):
@@ -306,8 +307,8 @@ def test_random_actions_get_the_robot_out_of_the_table(planned):
       break
     action = rs.uniform(-1.0, 1.0, 7)
     plan_from = _moving(q, np.zeros(7), description) if planned else None
-    _, q, _ = prevention.filter_action(action, q, lambda a: q + 0.05 * a,
-                                       plan_from=plan_from)
+    q = prevention.filter_action(action, q, lambda a: q + 0.05 * a,
+                                 plan_from=plan_from).q_goal
   assert not prevention.in_collision(q)
   assert np.all(np.diff(depths) <= 1e-9)    # Never pushed deeper.
   assert prevention.num_replacements < 40
@@ -332,6 +333,9 @@ def test_moving_robot_overshoot_into_the_table_is_rejected():
   assert prevention.in_collision(dense).any()
   assert not prevention.planned_paths_free(home[None], moving)[0]
   # At rest the same goal's plan is the straight path: accepted.
+  plan_from_rest = collision_prevention.ltp.plan_to_goal(
+      q, np.zeros_like(q), np.zeros_like(q), home, description.limits, 0.004,
+      recent=False)
   assert prevention.planned_paths_free(home[None],
                                        _moving(q, 0.0 * _LOWER, description))[0]
   # filter_action with plan_from replaces the action; without, it does not.
@@ -339,6 +343,16 @@ def test_moving_robot_overshoot_into_the_table_is_rejected():
   assert prevention.filter_action(np.ones(1), q, to_goal,
                                   plan_from=moving)[2]
   assert not prevention.filter_action(np.ones(1), q, to_goal)[2]
+  # An accepted goal comes with the plan checked (the shield's first
+  # candidate): made from plan_from's command; no plan without plan_from.
+  resting = _moving(q, 0.0 * _LOWER, description)
+  kept = prevention.filter_action(np.ones(1), q, to_goal, plan_from=resting)
+  assert not kept.replaced and kept.plan is not None
+  goal = collision_prevention.ltp.clamp_goal(home, description.limits)
+  assert kept.plan.made_from(np.array([q, resting.dq, resting.ddq]), goal,
+                             description.limits, 0.004, 0.0)
+  np.testing.assert_array_equal(kept.plan._all(), plan_from_rest._all())
+  assert prevention.filter_action(np.ones(1), q, to_goal).plan is None
 
 
 @pytest.mark.parametrize('name', ['panda', 'ur5e', 'kinova3'])

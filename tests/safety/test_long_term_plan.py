@@ -212,9 +212,12 @@ def test_compiled_sampling_is_the_numpy_reference_bit_for_bit(panda, seed):
   plan = _random_plan(panda, rng)[-1]
   count = plan.num_samples
   for first, stop in ((0, count), (3, min(count, 70)), (count - 1, count + 5)):
-    fast = ltp.plan_kernels.sample_pieces(*plan._pieces, first, stop)
+    out = np.full((stop + 2, 4, plan.dof), np.nan)
+    ltp.plan_kernels.sample_pieces(*plan._pieces, first, stop, out)
     reference = ltp.sample_pieces_reference(*plan._pieces, first, stop)
-    assert np.array_equal(fast, reference)
+    assert np.array_equal(out[first:stop], reference)
+    # Only those rows are written.
+    assert np.isnan(out[:first]).all() and np.isnan(out[stop:]).all()
   assert np.all(reference[-5:, 0] == plan.goal)   # At rest at the goal.
 
 
@@ -336,6 +339,33 @@ def test_compiled_input_check_agrees_with_the_checks_one_by_one(panda):
         ltp.plan_to_goal(q0, dq0, ddq0, q_goal, limits, 0.004)
     outcomes.append(ok)
   assert 0.2 < np.mean(outcomes) < 0.8
+
+
+def test_clamp_goal_is_numpys_clip_bit_for_bit(panda):
+  """clamp_goal's compiled fast path gives np.clip's goal (margin inside
+  the limits) bit for bit, for goals inside, beyond and on the clamped
+  bounds, and converts other inputs; a goal not finite or of the wrong
+  shape is refused with the bad value named."""
+  limits = panda.limits
+  low = limits.q_min + ltp.GOAL_LIMIT_MARGIN
+  high = limits.q_max - ltp.GOAL_LIMIT_MARGIN
+  rng = np.random.RandomState(8)
+  goals = [rng.uniform(limits.q_min - 0.5, limits.q_max + 0.5)
+           for _ in range(200)] + [low.copy(), high.copy(), limits.q_min,
+                                   limits.q_max]
+  for goal in goals:
+    expected = np.clip(goal, low, high)
+    assert ltp.clamp_goal(goal, limits).tobytes() == expected.tobytes()
+    assert (ltp.clamp_goal(goal.tolist(), limits).tobytes()
+            == expected.tobytes())
+    strided = np.stack([goal, goal], axis=1)[:, 0]
+    assert ltp.clamp_goal(strided, limits).tobytes() == expected.tobytes()
+  bad = panda.q_home.copy()
+  bad[3] = np.nan
+  with pytest.raises(ValueError, match='q_goal must be finite'):
+    ltp.clamp_goal(bad, limits)
+  with pytest.raises(ValueError, match=r'q_goal must have shape \(7,\)'):
+    ltp.clamp_goal(np.zeros(6), limits)
 
 
 def test_plan_kernels_warm_up_compiles_what_plan_to_goal_calls(panda):

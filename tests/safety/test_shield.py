@@ -1,5 +1,6 @@
 """Shield step: construction, read-outs, slices, plan adoption, modes."""
 
+import dataclasses
 import json
 import math
 
@@ -11,6 +12,7 @@ from hrc_suite.human import keypoints
 from hrc_suite.safety import benchmark as shield_benchmark
 from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
+from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.safety import verification
 
@@ -201,6 +203,44 @@ def test_new_plan_waits_for_verification_b4(panda):
   assert shield.is_safe and not shield.goal_pending
   assert shield.plan is not old_plan
   np.testing.assert_allclose(shield.plan.goal, new_goal)
+
+
+def test_a_plan_made_from_the_command_is_the_first_candidate(panda):
+  """new_goal(q_goal, plan): a plan made from the shield's command to the
+  goal (collision prevention's) is adopted as it is, not made again, and
+  the robot moves exactly as when the shield plans itself; a plan from
+  another command, to another goal or with other limits is not used."""
+  goal = panda.q_home.copy()
+  goal[1] -= 0.4
+  given, t = _moving(panda)
+  own, _ = _moving(panda)
+  plan = ltp.plan_to_goal(given.q, given.dq, given.ddq, goal, panda.limits,
+                          CYCLE, given.s, recent=False)
+  given.new_goal(goal, plan)
+  own.new_goal(goal)
+  for i in range(40):
+    given.step(None, t + i * CYCLE)
+    own.step(None, t + i * CYCLE)
+    assert given.q.tobytes() == own.q.tobytes()
+    assert given.dq.tobytes() == own.dq.tobytes()
+  assert given.plan is plan and own.plan is not plan
+  # Plans the shield would not make now are made again instead.
+  other_goal = goal.copy()
+  other_goal[0] += 0.1
+  wider = dataclasses.replace(panda.limits, v_max=panda.limits.v_max * 2.0)
+  for state, to, limits in (('moved', goal, panda.limits),
+                            ('now', other_goal, panda.limits),
+                            ('now', goal, wider)):
+    shield, t = _moving(panda)
+    before = (shield.q, shield.dq, shield.ddq, shield.s)
+    shield.step(None, t)
+    q, dq, ddq, s = before if state == 'moved' else (
+        shield.q, shield.dq, shield.ddq, shield.s)
+    stale = ltp.plan_to_goal(q, dq, ddq, to, limits, CYCLE, s, recent=False)
+    shield.new_goal(goal, stale)
+    shield.step(None, t + CYCLE)
+    assert shield.plan is not stale
+    np.testing.assert_allclose(shield.plan.goal, goal)
 
 
 def test_a_robot_stopped_next_to_a_person_starts_again(panda,
