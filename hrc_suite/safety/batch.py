@@ -158,14 +158,13 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
     if candidate is not None:
       candidate_samples = _samples(candidate, shield, len(times))
       candidate_meta[:] = (candidate.start_time, candidate._filled) + key
-    (done, points, flags_out, status, first, distance, s_edges, t_edges,
-     q_edges, missing) = ck.ssm_cycles(
+    (done, status, first, distance, s_edges, t_edges, q_edges,
+     missing) = ck.ssm_cycles(
          constants[0], frames[total:], times[total:], command, previous_q,
          verified, intended, flags, state, positions, velocities, samples,
          np.array([plan.start_time, plan._filled]), candidate_samples,
-         candidate_meta, constants[1], *constants[2:], *tables)
-    setpoints[total:total + done] = points[:done]
-    intervened[total:total + done] = flags_out[:done]
+         candidate_meta, constants[1], *constants[2:], *tables,
+         setpoints[total:], intervened[total:])
     if done:
       total += done
       check = (status, first, distance, s_edges, t_edges, q_edges)

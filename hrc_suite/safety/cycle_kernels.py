@@ -206,11 +206,10 @@ def _verify(params, plan, start, inverse, filled, current_s, current_s_dot,
 
 
 @_jit
-def _stop(c, setpoints, intervened, check, missing):
+def _stop(c, check, missing):
   """ssm_cycles' result when it stops before cycle c."""
   status, first, distance, s_edges, t_edges, q_edges = check
-  return (c, setpoints, intervened, status, first, distance, s_edges,
-          t_edges, q_edges, missing)
+  return c, status, first, distance, s_edges, t_edges, q_edges, missing
 
 
 @_jit
@@ -220,7 +219,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
                points, frame_index, alpha, static_radius, levers,
                half_lengths, v_max, a_max, body_ends, ends, half_thickness,
                base, plan_window, plan_suffix, candidate_window,
-               candidate_suffix):
+               candidate_suffix, setpoints, intervened):
   """Runs SSM cycles for keypoints frames (n, N_kp, 3) at times (n,),
   updating the state arrays in place: command (5, dof), previous_q,
   verified and intended (10,), flags (int64: has_intended, goal_pending,
@@ -235,18 +234,18 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
   half_lengths: the robot's model (RobotReach's _kernel_ arrays). PFL
   (params[PFL] == 1): the plans' speed tables (Shield._plan_speeds).
 
-  Returns (cycles done, set-points (n, 3, dof), intervened (n,), the
-  last cycle's check: status (1 verified, 0 not, 2 no monitored path),
-  first unsafe slice, reach distance (nan: not computed), s_edges,
-  t_edges, q_edges; and whether it stopped for a plan sample not computed
-  yet). Stops before a cycle it cannot run (see the module).
+  Writes each cycle's set-point (q, dq, ddq) to setpoints (>= n, 3, dof)
+  and whether it intervened to intervened (>= n,), from row 0.
+
+  Returns (cycles done, the last cycle's check: status (1 verified, 0
+  not, 2 no monitored path), first unsafe slice, reach distance (nan: not
+  computed), s_edges, t_edges, q_edges; and whether it stopped for a plan
+  sample not computed yet). Stops before a cycle it cannot run (see the module).
   """
   count = frames.shape[0]
   dof = command.shape[1]
   dt = params[CYCLE]
   inverse = 1.0 / dt
-  setpoints = np.zeros((count, 3, dof))
-  intervened = np.zeros(count, dtype=np.bool_)
   check = (2, 0, -np.inf, np.zeros(0), np.zeros(0), np.zeros((0, dof)))
   current = np.empty(pk.PATH_SIZE)
   new_intended = np.empty(pk.PATH_SIZE)
@@ -263,10 +262,10 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
     t = times[c]
     keypoints = frames[c]
     if not np.all(np.isfinite(keypoints)):
-      return _stop(c, setpoints, intervened, check, False)
+      return _stop(c, check, False)
     period = t - human[LAST_T]
     if period < 0.0:
-      return _stop(c, setpoints, intervened, check, False)
+      return _stop(c, check, False)
     # Replanning (Shield._candidate_plan): the candidate made from this
     # verified state, or none while braking harder than the plans allow.
     use_candidate = False
@@ -284,7 +283,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       elif braking:
         drop_candidate = True
       else:
-        return _stop(c, setpoints, intervened, check, False)
+        return _stop(c, check, False)
     if use_candidate:
       now_plan, now_start = candidate, candidate_meta[0]
       now_filled = int(candidate_meta[1])
@@ -358,7 +357,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
             half_lengths, v_max, a_max, body_ends, ends, half_thickness, base,
             now_window, now_suffix)
         if c_check[0] < 0:
-          return _stop(c, setpoints, intervened, check, True)
+          return _stop(c, check, True)
         safe = c_check[0] == 1
       if safe:
         break
@@ -387,7 +386,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
               same = False
         c_intervened = not same
     if not ok:
-      return _stop(c, setpoints, intervened, check, True)
+      return _stop(c, check, True)
     # Commit the cycle.
     positions[:] = new_positions
     velocities[:] = new_velocities
@@ -420,7 +419,7 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
       setpoints[c, row] = state[row]
     intervened[c] = c_intervened
     check = c_check
-  return _stop(count, setpoints, intervened, check, False)
+  return _stop(count, check, False)
 
 
 _warm = False
@@ -452,5 +451,6 @@ def warm_up():
              floats(count_l), floats(dof, count_l), floats(count_l),
              floats(count_n), floats(count_n),
              ints(2, count_b), ints(2 * count_b), floats(count_b), floats(3),
-             floats(1), floats(1), floats(1), floats(1))
+             floats(1), floats(1), floats(1), floats(1), floats(0, 3, dof),
+             np.zeros(0, dtype=np.bool_))
   _warm = True
