@@ -42,8 +42,6 @@ samples' decisions are unchanged.
 
 import math
 
-import numpy as np
-
 from hrc_suite.safety import kernels
 
 _jit = kernels._jit
