@@ -3,6 +3,8 @@
   MUJOCO_GL=egl python scripts/compare_speed.py [--base=COMMIT]
       [--tasks=reach/dense,stacking/default] [--robots=schunk,panda]
       [--action_space=cartesian] [--windows=60]
+  python scripts/compare_speed.py --shield=pfl [--scene=close]
+      [--robots=jaco,kinova3] [--base=COMMIT] [--windows=60]
 
 On a host whose speed drifts from minute to minute (docs/benchmarks.md,
 "2026-11-28"), runs of two checkouts one after the other differ by more
@@ -15,8 +17,16 @@ the same random actions: both see the same host. It prints the medians
 of both and the median over windows of their ratio (new / base), and
 whether the two ended in the same state (same episodes: a change meant to
 keep them bit for bit must print True).
+
+With --shield=ssm or pfl it compares the shield's cycles of an RL step
+instead (issue 16's second target; `python -m hrc_suite.safety.benchmark
+--rl_step`'s scenes): in both packages a shield of each robot in the
+scene, a new random goal before each RL step (the same goals), the RL
+step's 25 cycles in `batch.step_many`, thread CPU time per RL step, in
+alternating windows; "same" compares the shields' commands at the end.
 """
 
+import importlib
 import os
 import pathlib
 import re
@@ -37,6 +47,11 @@ _ROBOTS = flags.DEFINE_list('robots', ['schunk', 'panda'], 'Robots.')
 _ACTION_SPACE = flags.DEFINE_string(
     'action_space', None, "'joint' or 'cartesian' (default: each task's).")
 _WINDOWS = flags.DEFINE_integer('windows', 60, 'Windows per package.')
+_SHIELD = flags.DEFINE_enum(
+    'shield', None, ['ssm', 'pfl'],
+    "Compare the shield's RL-step cycles in this mode instead of tasks.")
+_SCENE = flags.DEFINE_enum('scene', 'close', ['close', 'across', 'far'],
+                           "The shield comparison's scene.")
 
 _WINDOW = 10     # RL steps per window.
 _WARM_UP = 30    # RL steps before the first window.
@@ -109,10 +124,69 @@ def compare(domain, task, robot, action_space, windows, suites):
           np.median(ratio), np.percentile(ratio, [25, 75]), same)
 
 
+def _shield_stepper(package, name, scene, mode):
+  """(shield, steps(count)) of the safety benchmark's RL-step timing
+  (hrc_suite/safety/benchmark.py, time_rl_steps) in `package`."""
+  benchmark = importlib.import_module(f'{package}.safety.benchmark')
+  batch = importlib.import_module(f'{package}.safety.batch')
+  description, shield, human = benchmark._scene(name, mode, scene)   # pylint: disable=protected-access
+  limits = description.limits
+  rng = np.random.RandomState(0)
+  cycles = benchmark.RL_STEP_CYCLES
+  done = [0]
+
+  def steps(count):
+    for _ in range(count):
+      shield.new_goal(np.clip(description.q_home + rng.uniform(
+          -1.0, 1.0, description.dof), limits.q_min, limits.q_max))
+      times = (done[0] * cycles + np.arange(cycles)) * shield.cycle_time
+      frames = np.array([human(t) for t in times])
+      batch.step_many(shield, frames, times)
+      done[0] += 1
+  return shield, steps
+
+
+def compare_shield(name, scene, mode, windows):
+  """compare's tuple for the shield's RL-step cycles (thread CPU time of
+  step_many only, the goal and the frames outside)."""
+  (shield_base, base), (shield_new, new) = (
+      _shield_stepper(p, name, scene, mode)
+      for p in ('hrc_suite_base', 'hrc_suite'))
+  base(_WARM_UP)
+  new(_WARM_UP)
+  times = {base: [], new: []}
+  for w in range(windows):
+    for steps in ((base, new) if w % 2 == 0 else (new, base)):
+      spent = 0.0
+      for _ in range(_WINDOW):
+        start = time.thread_time()
+        steps(1)
+        spent += time.thread_time() - start
+      times[steps].append(spent / _WINDOW)
+  ratio = np.array(times[new]) / np.array(times[base])
+  same = (np.array_equal(shield_base.q, shield_new.q)
+          and np.array_equal(shield_base.dq, shield_new.dq))
+  return (1e6 * np.median(times[base]), 1e6 * np.median(times[new]),
+          np.median(ratio), np.percentile(ratio, [25, 75]), same)
+
+
 def main(argv):
   del argv
   root, sha = _base_package(_BASE.value)
   sys.path.insert(0, str(root))
+  if _SHIELD.value:
+    print(f'base {sha[:7]} against the working tree; the shield '
+          f'({_SHIELD.value}, scene {_SCENE.value}): thread CPU us per RL '
+          f'step (medians of {_WINDOWS.value} alternating windows of '
+          f'{_WINDOW})')
+    print('| robot | base | new | new / base (median, IQR) | same |')
+    print('|---|---|---|---|---|')
+    for robot in _ROBOTS.value:
+      old, new, ratio, (low, high), same = compare_shield(
+          robot, _SCENE.value, _SHIELD.value, _WINDOWS.value)
+      print(f'| {robot} | {old:.0f} | {new:.0f} | {ratio:.3f} '
+            f'({low:.3f}-{high:.3f}) | {same} |', flush=True)
+    return
   from hrc_suite import suite as suite_new   # pylint: disable=g-import-not-at-top
   from hrc_suite_base import suite as suite_base   # pylint: disable=g-import-not-at-top
   print(f'base {sha[:7]} against the working tree; CPU us per RL step '

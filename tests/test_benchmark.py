@@ -47,7 +47,8 @@ def test_profile_parts_add_up_to_the_step_and_restore_the_code():
 @pytest.mark.slow   # Compiles the commit's kernels in a new cache (~2 min).
 def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
   """scripts/compare_speed.py: the commit's package, its imports renamed,
-  runs beside the working tree's; at HEAD both reach the same state."""
+  runs beside the working tree's; at HEAD both reach the same state, for
+  a task and for the shield's cycles (--shield)."""
   if subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=_REPOSITORY,
                     capture_output=True).returncode:
     pytest.skip('not a git checkout: compare_speed needs git archive')
@@ -66,3 +67,13 @@ def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
   imports = re.compile(r'^\s*(from|import) hrc_suite\b', re.MULTILINE)
   for source in package.rglob('*.py'):
     assert not imports.search(source.read_text()), source
+  # The shield's RL-step cycles (--shield), from the same extracted commit.
+  result = subprocess.run(
+      [sys.executable, 'scripts/compare_speed.py', '--base=HEAD',
+       '--shield=pfl', '--robots=jaco', '--windows=2'],
+      cwd=_REPOSITORY, env=env, capture_output=True, text=True,
+      timeout=1200)
+  assert result.returncode == 0, result.stderr[-3000:]
+  row = [line for line in result.stdout.splitlines()
+         if line.startswith('| jaco |')]
+  assert len(row) == 1 and row[0].endswith('| True |'), result.stdout
