@@ -63,14 +63,6 @@ from hrc_suite.safety import robot_reach
 
 POLICIES = ('zero', 'resample', 'closest')
 
-
-class FilteredAction(typing.NamedTuple):
-  """`CollisionPrevention.filter_action`'s result."""
-  action: np.ndarray
-  q_goal: np.ndarray
-  replaced: bool
-  plan: typing.Optional[ltp.LongTermPlan]   # The goal's plan, if made.
-
 # Default number of replacement samples (reference benchmark: 20;
 # docs/reference_benchmark.md, Safety).
 DEFAULT_NUM_SAMPLES = 20
@@ -93,6 +85,14 @@ _ESCAPE_SLACK = 1e-9
 # A pair overlapping in this fraction of random configurations (and at
 # q_home) overlaps by construction.
 _ALWAYS_FRACTION = 1.0
+
+
+class FilteredAction(typing.NamedTuple):
+  """`CollisionPrevention.filter_action`'s result."""
+  action: np.ndarray
+  q_goal: np.ndarray
+  replaced: bool
+  plan: typing.Optional[ltp.LongTermPlan]   # The goal's plan, if made.
 
 
 def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT,

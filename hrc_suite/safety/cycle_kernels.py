@@ -240,7 +240,8 @@ def ssm_cycles(params, frames, times, command, previous_q, verified,
   Returns (cycles done, the last cycle's check: status (1 verified, 0
   not, 2 no monitored path), first unsafe slice, reach distance (nan: not
   computed), s_edges, t_edges, q_edges; and whether it stopped for a plan
-  sample not computed yet). Stops before a cycle it cannot run (see the module).
+  sample not computed yet). Stops before a cycle it cannot run (see the
+  module).
   """
   count = frames.shape[0]
   dof = command.shape[1]
