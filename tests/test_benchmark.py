@@ -43,6 +43,20 @@ def test_profile_parts_add_up_to_the_step_and_restore_the_code():
   assert 0.0 < out[shield] <= out[physics]
 
 
+def _compare_speed_row(env, row_start, *args):
+  """The row of `python scripts/compare_speed.py --base=HEAD ARGS --windows=2`
+  starting with row_start (exactly one)."""
+  result = subprocess.run(
+      [sys.executable, 'scripts/compare_speed.py', '--base=HEAD', *args,
+       '--windows=2'],
+      cwd=_REPOSITORY, env=env, capture_output=True, text=True,
+      timeout=1200)
+  assert result.returncode == 0, result.stderr[-3000:]
+  rows = [line for line in result.stdout.splitlines()
+          if line.startswith(row_start)]
+  assert len(rows) == 1, result.stdout
+  return rows[0]
+
 
 @pytest.mark.slow   # Compiles the commit's kernels in a new cache (~2 min).
 def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
@@ -53,27 +67,14 @@ def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
                     capture_output=True).returncode:
     pytest.skip('not a git checkout: compare_speed needs git archive')
   env = dict(os.environ, HOME=str(tmp_path), MUJOCO_GL='egl')
-  result = subprocess.run(
-      [sys.executable, 'scripts/compare_speed.py', '--base=HEAD',
-       '--tasks=reach/dense', '--robots=schunk', '--windows=2'],
-      cwd=_REPOSITORY, env=env, capture_output=True, text=True,
-      timeout=1200)
-  assert result.returncode == 0, result.stderr[-3000:]
-  row = [line for line in result.stdout.splitlines()
-         if line.startswith('| reach/dense | schunk |')]
-  assert len(row) == 1 and row[0].endswith('| True |'), result.stdout
+  row = _compare_speed_row(env, '| reach/dense | schunk |',
+                           '--tasks=reach/dense', '--robots=schunk')
+  assert row.endswith('| True |'), row
   package = next((tmp_path / '.cache' / 'hrc_suite_compare').glob(
       '*/hrc_suite_base'))
   imports = re.compile(r'^\s*(from|import) hrc_suite\b', re.MULTILINE)
   for source in package.rglob('*.py'):
     assert not imports.search(source.read_text()), source
   # The shield's RL-step cycles (--shield), from the same extracted commit.
-  result = subprocess.run(
-      [sys.executable, 'scripts/compare_speed.py', '--base=HEAD',
-       '--shield=pfl', '--robots=jaco', '--windows=2'],
-      cwd=_REPOSITORY, env=env, capture_output=True, text=True,
-      timeout=1200)
-  assert result.returncode == 0, result.stderr[-3000:]
-  row = [line for line in result.stdout.splitlines()
-         if line.startswith('| jaco |')]
-  assert len(row) == 1 and row[0].endswith('| True |'), result.stdout
+  row = _compare_speed_row(env, '| jaco |', '--shield=pfl', '--robots=jaco')
+  assert row.endswith('| True |'), row
