@@ -201,3 +201,18 @@ def test_ik_kernel_log3_is_the_rotation_vector_of_mat_to_quat():
   np.testing.assert_allclose(frames[0, :, :3],
                              rotations.about_axis(rotations.Z, 0.8),
                              atol=1e-15)
+
+
+def test_ik_kernel_wrap_and_gripper_down_are_the_modules_bit_for_bit():
+  """ik_kernels._wrap is rotations.wrap_angle and ik_kernels._gripper_down
+  ik.gripper_down_rotation, bit for bit (the compiled IK picks its yaw and
+  target rotation with them)."""
+  from hrc_suite.control import ik   # pylint: disable=g-import-not-at-top
+  rng = np.random.RandomState(7)
+  angles = np.concatenate([rng.uniform(-20.0, 20.0, 2000),
+                           [0.0, -0.0, np.pi, -np.pi, 2 * np.pi, 1e-300]])
+  for angle in angles.tolist():
+    assert (np.float64(ik_kernels._wrap(angle)).tobytes()
+            == np.float64(rotations.wrap_angle(angle)).tobytes())
+    assert (ik_kernels._gripper_down(angle).tobytes()
+            == ik.gripper_down_rotation(angle).tobytes())

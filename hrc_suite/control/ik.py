@@ -138,42 +138,44 @@ class InverseKinematics:
     return target
 
   def solve(self, target_position, q_init, yaw: float = 0.0) -> IkResult:
-    """TCP at target_position, gripper down at `yaw`, starting from q_init."""
+    """TCP at target_position, gripper down at `yaw`, starting from q_init.
+
+    With half_turn_symmetric, the yaw or yaw + pi nearer the start's TCP
+    heading is tried first, the other if that fails.
+    """
     target = self._check_target(target_position)
     if not np.isfinite(yaw):
       raise ValueError(f'yaw must be a finite angle in rad, got {yaw!r}')
-    q = np.minimum(np.maximum(self._model.check_q(q_init),
-                              self._model.q_min), self._model.q_max)
+    q = self._model.check_q(q_init)
+    if self.compiled:   # All of it in one call (ik_kernels).
+      q, success, position_error, angle_error, iterations, used = (
+          ik_kernels.solve_gripper_down(
+              np.ascontiguousarray(q), target, float(yaw),
+              self.half_turn_symmetric,
+              self._placements, self._tcp, self._model.q_min,
+              self._model.q_max, self._weights, self._base_damping,
+              self._max_step, self.max_iterations, self.position_tolerance,
+              self.orientation_tolerance, STALL_ITERATIONS, STALL_PROGRESS))
+      return IkResult(q, bool(success), float(position_error),
+                      float(angle_error), int(iterations), float(used))
+    q = np.minimum(np.maximum(q, self._model.q_min), self._model.q_max)
     if not self.half_turn_symmetric:
-      return self._solve(target, q, float(yaw))
-    seed_x_axis = (ik_kernels.tcp_pose(q, self._placements, self._tcp)
-                   if self.compiled else self._model.tcp_pose(q))[:2, 0]
+      return self._solve_reference(target, q, float(yaw))
+    seed_x_axis = self._model.tcp_pose(q)[:2, 0]
     seed_yaw = np.arctan2(seed_x_axis[1], seed_x_axis[0])
     nearer = float(yaw)
     if abs(rotations.wrap_angle(seed_yaw - yaw)) > np.pi / 2:
       nearer = float(rotations.wrap_angle(yaw + np.pi))
-    result = self._solve(target, q, nearer)
+    result = self._solve_reference(target, q, nearer)
     if result.success:
       return result
-    other = self._solve(target, q, float(rotations.wrap_angle(nearer + np.pi)))
+    other = self._solve_reference(
+        target, q, float(rotations.wrap_angle(nearer + np.pi)))
     if other.success or other.position_error < result.position_error:
       return dataclasses.replace(
           other, iterations=other.iterations + result.iterations)
     return dataclasses.replace(
         result, iterations=other.iterations + result.iterations)
-
-  def _solve(self, target, q, yaw):
-    """One LM run for a fixed target rotation (compiled or reference)."""
-    if not self.compiled:
-      return self._solve_reference(target, q, yaw)
-    q, success, position_error, angle_error, iterations = ik_kernels.solve(
-        q, target, gripper_down_rotation(yaw), self._placements, self._tcp,
-        self._model.q_min, self._model.q_max, self._weights,
-        self._base_damping, self._max_step, self.max_iterations,
-        self.position_tolerance, self.orientation_tolerance,
-        STALL_ITERATIONS, STALL_PROGRESS)
-    return IkResult(q, bool(success), float(position_error),
-                    float(angle_error), int(iterations), yaw)
 
   def _solve_reference(self, target, q, yaw):
     """One LM run for a fixed target rotation (NumPy, pinocchio)."""

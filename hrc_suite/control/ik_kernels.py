@@ -8,7 +8,8 @@ computed here (`forward`) from the pinocchio model's own joint and TCP
 placements, the rotation error by the rotation's logarithm (`log3`) and
 the damped normal equations by Cholesky. The results agree with the
 reference to round-off (tests/control/test_ik_kernels.py), not bit for
-bit. Same compilation settings as the shield's kernels (cache, IEEE
+bit. `solve_gripper_down` is InverseKinematics.solve's compiled path in
+one call (the start clipped, the half-turn choice of the yaw, both runs). Same compilation settings as the shield's kernels (cache, IEEE
 arithmetic).
 """
 
@@ -252,3 +253,64 @@ def tcp_pose(q, placements, tcp):
   pose = np.empty((3, 4))
   forward(q, placements, tcp, frames, pose)
   return pose
+
+
+@_jit
+def _wrap(angle):
+  """rotations.wrap_angle of one angle (Python's float remainder)."""
+  return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+@_jit
+def _gripper_down(yaw):
+  """ik.gripper_down_rotation(yaw)."""
+  c, s = math.cos(yaw), math.sin(yaw)
+  rotation = np.empty((3, 3))
+  rotation[0, 0], rotation[0, 1], rotation[0, 2] = c, s, 0.0
+  rotation[1, 0], rotation[1, 1], rotation[1, 2] = s, -c, 0.0
+  rotation[2, 0], rotation[2, 1], rotation[2, 2] = 0.0, 0.0, -1.0
+  return rotation
+
+
+@_jit
+def solve_gripper_down(q_init, target, yaw, half_turn, placements, tcp,
+                       q_min, q_max, weights, base_damping, max_step,
+                       max_iterations, position_tolerance,
+                       orientation_tolerance, stall_iterations,
+                       stall_progress):
+  """ik.InverseKinematics.solve's compiled path in one call: q_init (dof,)
+  clipped to the limits; with `half_turn` the target yaw or yaw + pi,
+  whichever is nearer the start's TCP heading, and the other if that run
+  fails (the run that succeeds, else the one nearer the target; the
+  iterations of both counted). Returns (q, success, position error,
+  angle error, iterations, yaw used)."""
+  dof = q_init.shape[0]
+  q = np.empty(dof)
+  for i in range(dof):
+    q[i] = min(max(q_init[i], q_min[i]), q_max[i])
+  if not half_turn:
+    q_out, success, position, angle, count = solve(
+        q, target, _gripper_down(yaw), placements, tcp, q_min, q_max,
+        weights, base_damping, max_step, max_iterations, position_tolerance,
+        orientation_tolerance, stall_iterations, stall_progress)
+    return q_out, success, position, angle, count, yaw
+  pose = tcp_pose(q, placements, tcp)
+  seed_yaw = math.atan2(pose[1, 0], pose[0, 0])
+  nearer = yaw
+  if abs(_wrap(seed_yaw - yaw)) > math.pi / 2:
+    nearer = _wrap(yaw + math.pi)
+  q_out, success, position, angle, count = solve(
+      q, target, _gripper_down(nearer), placements, tcp, q_min, q_max,
+      weights, base_damping, max_step, max_iterations, position_tolerance,
+      orientation_tolerance, stall_iterations, stall_progress)
+  if success:
+    return q_out, success, position, angle, count, nearer
+  other = _wrap(nearer + math.pi)
+  q_other, success_other, position_other, angle_other, count_other = solve(
+      q, target, _gripper_down(other), placements, tcp, q_min, q_max,
+      weights, base_damping, max_step, max_iterations, position_tolerance,
+      orientation_tolerance, stall_iterations, stall_progress)
+  if success_other or position_other < position:
+    return (q_other, success_other, position_other, angle_other,
+            count_other + count, other)
+  return q_out, success, position, angle, count + count_other, nearer

@@ -10,6 +10,7 @@ import pytest
 
 from hrc_suite import layout
 from hrc_suite import robot_description
+from hrc_suite import rotations
 from hrc_suite.control import ik
 from hrc_suite.control import ik_kernels
 from hrc_suite.control import kinematics
@@ -131,3 +132,57 @@ def test_compiled_ik_agrees_on_unreachable_targets(name):
     result = _agree(fast, reference, base + offset,
                     model.description.q_home)
     assert not result.success
+
+
+def _two_runs(solver, target, q_init, yaw):
+  """InverseKinematics.solve's half-turn rule around ik_kernels.solve,
+  composed in Python (what solve_gripper_down does in one call)."""
+  model = solver.model
+  q = np.minimum(np.maximum(q_init, model.q_min), model.q_max)
+  args = (solver._placements, solver._tcp, model.q_min, model.q_max,   # pylint: disable=protected-access
+          solver._weights, solver._base_damping, solver._max_step,   # pylint: disable=protected-access
+          solver.max_iterations, solver.position_tolerance,
+          solver.orientation_tolerance, ik.STALL_ITERATIONS,
+          ik.STALL_PROGRESS)
+  run = lambda y: ik_kernels.solve(q, target, ik.gripper_down_rotation(y),
+                                   *args) + (y,)
+  seed = ik_kernels.tcp_pose(q, solver._placements, solver._tcp)   # pylint: disable=protected-access
+  nearer = float(yaw)
+  if abs(rotations.wrap_angle(np.arctan2(seed[1, 0], seed[0, 0]) - yaw)) > (
+      np.pi / 2):
+    nearer = float(rotations.wrap_angle(yaw + np.pi))
+  first = run(nearer)
+  if first[1]:
+    return first
+  other = run(float(rotations.wrap_angle(nearer + np.pi)))
+  count = first[4] + other[4]
+  if other[1] or other[2] < first[2]:
+    return other[:4] + (count, other[5])
+  return first[:4] + (count, first[5])
+
+
+@pytest.mark.parametrize('name', ['panda', 'schunk'])
+def test_one_call_is_the_half_turn_rule_around_the_kernel_bit_for_bit(name):
+  """solve_gripper_down (InverseKinematics.solve's compiled path) returns
+  what the half-turn rule composed around ik_kernels.solve returns, bit
+  for bit: reachable, unreachable and clipped starts, random yaws."""
+  model, fast, _ = _solvers(name)
+  q_home = robot_description.load(name).q_home
+  home = model.tcp_pose(q_home)[:3, 3]
+  rng = np.random.RandomState(11)
+  outcomes = set()
+  for i in range(60):
+    # Starts near home (some beyond the limits: clipped) or anywhere.
+    q_init = (q_home + rng.uniform(-0.4, 0.4, model.dof) if i % 2 else
+              rng.uniform(model.q_min - 0.2, model.q_max + 0.2))
+    target = home + rng.uniform(-0.4, 0.4, 3) * (1.0 if i % 3 else 4.0)
+    yaw = rng.uniform(-4.0, 4.0)
+    expected = _two_runs(fast, target, q_init, yaw)
+    got = fast.solve(target, q_init, yaw)
+    assert got.q.tobytes() == expected[0].tobytes()
+    assert (got.success, got.position_error, got.orientation_error,
+            got.iterations, got.yaw) == (bool(expected[1]), expected[2],
+                                         expected[3], expected[4],
+                                         expected[5])
+    outcomes.add(got.success)
+  assert outcomes == {True, False}
