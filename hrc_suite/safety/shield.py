@@ -229,7 +229,7 @@ class Shield:
     self._candidate = None
     if plan is not None:
       s = self._verified.s
-      if (not (np.abs(self._state[2]) > self.limits.a_max_ltt).any()
+      if (self._can_plan_from(self._state)
           and plan.made_from(self._state, self._goal, self.limits,
                              self.cycle_time, s)):
         # What _candidate_plan would make (candidate_from's conditions).
@@ -670,13 +670,19 @@ class Shield:
     self._candidate = self.candidate_from(self._state, *key)
     return None if self._candidate is None else self._candidate[0]
 
+  def _can_plan_from(self, state):
+    """Whether a plan may start at command `state` (q, dq, ddq rows first):
+    not while braking harder than the planning limits
+    (docs/shield_maths.md, 1)."""
+    return not (np.abs(state[2]) > self.limits.a_max_ltt).any()
+
   def candidate_from(self, state, s, s_dot, recent=True):
     """(plan to the pending goal from command `state` (q, dq, ddq rows
     first) at verified path position s and velocity s_dot, its key (s,
     s_dot)), or None where none can be made. recent: as plan_to_goal's
     (False: a command moved since anyone planned from it)."""
-    if (np.abs(state[2]) > self.limits.a_max_ltt).any():
-      return None   # Braking too hard to plan here (docs/shield_maths.md, 1).
+    if not self._can_plan_from(state):
+      return None
     try:
       plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
                               self.limits, self.cycle_time, s, recent=recent)
