@@ -119,6 +119,16 @@ class InverseKinematics:
   def model(self) -> kinematics.KinematicModel:
     return self._model
 
+  def tcp_position(self, q) -> np.ndarray:
+    """TCP position (3,) at joint positions q: the kernel's forward
+    kinematics when compiled (the same bits as pinocchio's:
+    tests/control/test_ik_kernels.py), else the model's (pinocchio)."""
+    q = self._model.check_q(q)
+    if self.compiled:
+      return ik_kernels.tcp_pose(np.ascontiguousarray(q), self._placements,
+                                 self._tcp)[:, 3]
+    return self._model.tcp_pose(q)[:3, 3]
+
   def _error(self, q, target_position, target_rotation):
     """Weighted 6-D error, weighted Jacobian, position and angle errors."""
     pose, jacobian = self._model.tcp_pose_and_jacobian(q)

@@ -109,7 +109,7 @@ class CartesianActionSpace:
 
   def target(self, q, arm_action):
     """TCP target (world) of an action from joint positions q."""
-    tcp = self._model.tcp_pose(q)[:3, 3]
+    tcp = self._ik.tcp_position(q)
     return np.minimum(np.maximum(tcp + self.step * arm_action, self.low),
                       self.high)
 

@@ -71,6 +71,25 @@ def test_kinematics_match_pinocchio(name):
     np.testing.assert_allclose(kernel_jacobian, jacobian, atol=1e-12)
 
 
+@pytest.mark.parametrize('name', robot_description.ROBOT_NAMES)
+def test_tcp_position_is_pinocchios_bit_for_bit(name):
+  # The Cartesian action's TCP (actions.CartesianActionSpace.target) comes
+  # from the kernel's forward kinematics: the same operations as
+  # pinocchio's, so the same bits, inside the limits, at them and beyond.
+  model, fast, reference = _solvers(name)
+  rs = np.random.RandomState(2)
+  span = model.q_max - model.q_min
+  for k in range(400):
+    q = rs.uniform(model.q_min - 0.1 * span, model.q_max + 0.1 * span)
+    if k % 4 == 0:
+      q = _near_limits(model, rs)
+    expected = model.tcp_pose(q)[:3, 3]
+    assert fast.tcp_position(q).tobytes() == expected.tobytes(), q.tolist()
+    assert reference.tcp_position(q).tobytes() == expected.tobytes()
+  with pytest.raises(ValueError, match='finite'):
+    fast.tcp_position(np.full(model.dof, np.nan))
+
+
 def test_log3_matches_pinocchio_including_near_pi_and_zero():
   rs = np.random.RandomState(1)
   out = np.empty(3)
