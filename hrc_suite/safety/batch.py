@@ -175,7 +175,8 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
       if not (done and total < len(times) and flags[ck.GOAL_PENDING]):
         break
       # The kernel stopped for a candidate from the moved command
-      # (Shield._candidate_plan): made here (nobody planned from this
+      # (Shield._candidate_plan; it stops only where a plan may start
+      # there, Shield._can_plan_from): made here (nobody planned from this
       # command before: not looked up among recent plans), the cycles go
       # on.
       made = shield.candidate_from(command, verified[0], verified[1],

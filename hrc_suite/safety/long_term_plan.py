@@ -400,6 +400,9 @@ _NO_BRAKES = np.zeros((0, 5, 2))
 
 # Ruckig >= 0.13 raises RuckigError (an Exception, not a RuntimeError).
 _RUCKIG_ERRORS = (RuntimeError, getattr(ruckig, 'RuckigError', RuntimeError))
+# Ruckig's results of a calculation that made a trajectory (a set: a
+# tuple's `in` compares Python enums by their slow __eq__).
+_PLANNED = frozenset((ruckig.Result.Working, ruckig.Result.Finished))
 
 
 class _RecentPlans:
@@ -522,7 +525,7 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
     # Invalid input, and (rarely) valid input where Ruckig's time
     # synchronisation fails numerically ("error in step 2 ... for t sync").
     raise PlanningError(f'Ruckig failed: {e}') from None
-  if result not in (ruckig.Result.Working, ruckig.Result.Finished):
+  if result not in _PLANNED:
     raise PlanningError(f'Ruckig failed with {result}')
 
   # Pieces of constant jerk of all joints, (dof * P, 5) rows, padded to P

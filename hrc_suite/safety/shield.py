@@ -667,22 +667,23 @@ class Shield:
     key = (self._verified.s, self._verified.s_dot)
     if self._candidate is not None and self._candidate[1] == key:
       return self._candidate[0]   # The robot has not moved: still valid.
-    self._candidate = self.candidate_from(self._state, *key)
+    self._candidate = (self.candidate_from(self._state, *key)
+                       if self._can_plan_from(self._state) else None)
     return None if self._candidate is None else self._candidate[0]
 
   def _can_plan_from(self, state):
     """Whether a plan may start at command `state` (q, dq, ddq rows first):
     not while braking harder than the planning limits
-    (docs/shield_maths.md, 1)."""
+    (docs/shield_maths.md, 1). The compiled cycles make the same test
+    (cycle_kernels.ssm_cycles stops for a candidate only where it holds)."""
     return not (np.abs(state[2]) > self.limits.a_max_ltt).any()
 
   def candidate_from(self, state, s, s_dot, recent=True):
     """(plan to the pending goal from command `state` (q, dq, ddq rows
     first) at verified path position s and velocity s_dot, its key (s,
-    s_dot)), or None where none can be made. recent: as plan_to_goal's
+    s_dot)), or None where none can be made; the caller has found that a
+    plan may start there (`_can_plan_from`). recent: as plan_to_goal's
     (False: a command moved since anyone planned from it)."""
-    if not self._can_plan_from(state):
-      return None
     try:
       plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
                               self.limits, self.cycle_time, s, recent=recent)
