@@ -34,15 +34,18 @@ from hrc_suite.safety import kernels
 
 def compile_collision_prevention_and_ik(robot):
   """Compiles (or loads) collision prevention's and IK's kernels for the
-  argument types the tasks pass (`cp_kernels.warm_up`; one IK solve
-  through `control.ik`, as the tasks' goal sampling calls it)."""
+  argument types the tasks pass (`cp_kernels.warm_up`; the TCP position
+  and one IK solve through `control.ik`, as the tasks' Cartesian actions
+  and goal sampling call them)."""
   cp_kernels.warm_up()
   description = robot_description.load(robot)
   model = kinematics.KinematicModel(
       description, layout.robot_mount(description.name).base_pose())
-  # A contiguous target, as the tasks pass (a column view compiles anew).
-  target = model.tcp_pose(description.q_home)[:3, 3].copy()
-  ik_lib.InverseKinematics(model).solve(target, description.q_home)
+  ik = ik_lib.InverseKinematics(model)
+  # The TCP position (the Cartesian actions' start), then a contiguous
+  # target, as the tasks pass (a column view compiles anew).
+  target = ik.tcp_position(description.q_home).copy()
+  ik.solve(target, description.q_home)
 
 
 def _compiled_here():

@@ -24,7 +24,8 @@ def test_second_half_covers_what_reach_calls():
   precompile.compile_collision_prevention_and_ik('schunk')
   before = _signatures(cp_kernels, ik_kernels)
   assert before['hrc_suite.safety.cp_kernels.planned_path_collides']
-  assert before['hrc_suite.control.ik_kernels.solve']
+  assert before['hrc_suite.control.ik_kernels.solve_gripper_down']
+  assert before['hrc_suite.control.ik_kernels.tcp_pose']
   env = suite.load('reach', 'dense', task_kwargs={
       'robot': 'schunk', 'action_space': 'cartesian'},
                    environment_kwargs={'random_state': 0})
