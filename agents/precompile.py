@@ -30,6 +30,7 @@ from hrc_suite.control import kinematics
 from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import kernels
+from hrc_suite.safety import speed_kernels
 
 
 def compile_collision_prevention_and_ik(robot):
@@ -75,6 +76,7 @@ def warm_up(robot):
   try:
     kernels.warm_up()
     cycle_kernels.warm_up()
+    speed_kernels.warm_up()
   except BaseException:
     child.kill()
     child.wait()

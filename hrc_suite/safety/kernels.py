@@ -18,8 +18,8 @@ reference, tested against it on random inputs to 1e-12):
   bound of the second from one forward kinematics (its own reference is
   the bound it must stay below, tested);
 * `plan_positions`: long_term_plan.LongTermPlan.positions_reference;
-* `speed_tables`: shield.pfl_speed_tables(compiled=False);
-  `plan_speed_tables`: the same from a plan's samples in one pass.
+* `speed_tables`: shield.pfl_speed_tables(compiled=False) (the same
+  from a plan's samples in one pass: speed_kernels.plan_speed_tables).
 
 Compiled with cache=True (the machine code is stored in __pycache__ and
 reloaded by later processes) and fastmath=False (IEEE arithmetic, no
@@ -45,11 +45,6 @@ _inline = numba.njit(cache=True, fastmath=False, nogil=True, inline='always')
 
 # Speeds below this (m/s) have no direction (human_reach._MIN_SPEED).
 _MIN_SPEED = 1e-12
-# plan_speed_tables skips a capsule whose speed bound, grown by these
-# (relative, absolute in m/s), is below the largest speed found: far above
-# the round-off of the computed speeds and bounds (about 1e-15 relative).
-_PRUNE_RELATIVE = 1e-6
-_PRUNE_ABSOLUTE = 1e-9
 
 
 @_jit
@@ -611,56 +606,6 @@ def speed_tables(speeds, width):
 
 
 @_jit
-def plan_speed_tables(samples, fixed, points, frame_index, radii, width):
-  """speed_tables(surface_speeds(q, dq), width) of a plan's samples (N, 4,
-  dof) (q = samples[:, 0], dq = samples[:, 1]) in one pass: the same
-  values. Only each sample's largest speed is kept: the capsule with the
-  largest speed bound is computed first, and a capsule whose bound is
-  below the largest speed found is skipped. The bound: at a point p of a
-  capsule on a frame with origin o, |v(p)| <= |v(o)| + |w| |p - o|, and
-  |p - o| is at most the farther end's distance from o in the frame (the
-  frames are rigid) plus the radius."""
-  count, _, dof = samples.shape
-  count_l = points.shape[0]
-  reach = np.empty(count_l)
-  for l in range(count_l):
-    far = 0.0
-    for j in range(2):
-      x, y, z = points[l, j, 0], points[l, j, 1], points[l, j, 2]
-      far = max(far, math.sqrt(x * x + y * y + z * z))
-    reach[l] = far + radii[l]
-  frames = np.empty((dof, 3, 4))
-  omega = np.empty((dof, 3))
-  offset = np.empty((dof, 3))
-  bound = np.empty(count_l)
-  top = np.empty(count)
-  for n in range(count):
-    _chain(samples[n, 0], fixed, frames)
-    _spins(frames, samples[n, 1], omega, offset)
-    first = 0
-    for l in range(count_l):
-      f = frame_index[l]
-      a0, a1, a2 = omega[f, 0], omega[f, 1], omega[f, 2]
-      o0, o1, o2 = frames[f, 0, 3], frames[f, 1, 3], frames[f, 2, 3]
-      v0 = a1 * o2 - a2 * o1 - offset[f, 0]
-      v1 = a2 * o0 - a0 * o2 - offset[f, 1]
-      v2 = a0 * o1 - a1 * o0 - offset[f, 2]
-      bound[l] = ((math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-                   + math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * reach[l])
-                  * (1.0 + _PRUNE_RELATIVE) + _PRUNE_ABSOLUTE)
-      if bound[l] > bound[first]:
-        first = l
-    best = _capsule_speed(frames, omega, offset, points, radii, first,
-                          frame_index[first])
-    for l in range(count_l):
-      if l != first and bound[l] >= best:
-        best = max(best, _capsule_speed(frames, omega, offset, points,
-                                        radii, l, frame_index[l]))
-    top[n] = best
-  return _tables(top, width)
-
-
-@_jit
 def _tables(top, width):
   """speed_tables from each sample's largest speed top (N,)."""
   count = top.shape[0]
@@ -737,10 +682,6 @@ def warm_up():
   c1, c2, r = robot_reach(q, np.arange(2.0), fixed, points, frame_index,
                           ones, ones)
   speed_tables(surface_speeds(q, q, fixed, points, frame_index, ones), 6)
-  samples = np.zeros((2, 4, dof))
-  for writeable in (True, False):   # Plans made by Ruckig, from samples.
-    samples.flags.writeable = writeable
-    plan_speed_tables(samples, fixed, points, frame_index, ones, 6)
   positions = np.zeros((count_n, 3))
   ends = np.zeros(2 * count_b, dtype=np.int64)
   rates = np.ones(count_n)

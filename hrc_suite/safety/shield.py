@@ -56,6 +56,7 @@ from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import robot_reach as robot_reach_lib
+from hrc_suite.safety import speed_kernels
 from hrc_suite.safety import verification
 
 # Default shield cycle (s): human-robot-gym's control_sample_time
@@ -98,6 +99,7 @@ class Shield:
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
     cycle_kernels.warm_up()
     plan_kernels.warm_up()   # Its plans' (long_term_plan).
+    speed_kernels.warm_up()   # PFL's tables of its plans.
     if not cycle_time > 0:
       raise ValueError(f'cycle_time: expected > 0 s, got {cycle_time}')
     self.description = robot_description
@@ -706,7 +708,7 @@ class Shield:
     cached = plan.__dict__.get('_pfl_tables')
     if cached is None or cached[0] is not self.robot:
       robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
-      cached = (robot,) + kernels.plan_speed_tables(
+      cached = (robot,) + speed_kernels.plan_speed_tables(
           plan._all(), *robot._kernel_model, robot._kernel_frames,
           robot._kernel_radii, PFL_WINDOW)
       plan._pfl_tables = cached

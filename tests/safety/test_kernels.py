@@ -10,6 +10,7 @@ from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
 from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety import speed_kernels
 from hrc_suite.safety import verification
 
 TOOL = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.12), 0.06)
@@ -345,7 +346,7 @@ def test_plan_speed_tables_equal_tables_of_surface_speeds(name, tool):
                             np.zeros(description.dof), goal, limits, 0.004)
     expected = shield_lib.pfl_speed_tables(
         robot.surface_speeds(plan.q, plan.dq))
-    got = kernels.plan_speed_tables(
+    got = speed_kernels.plan_speed_tables(
         plan._all(), *robot._kernel_model, robot._kernel_frames,
         robot._kernel_radii, shield_lib.PFL_WINDOW)
     for got_table, expected_table in zip(got, expected):
@@ -358,17 +359,42 @@ def test_plan_speed_tables_equal_tables_of_surface_speeds(name, tool):
   speeds = robot.surface_speeds(samples[:, 0], samples[:, 1])
   assert len(set(speeds.argmax(axis=1).tolist())) > 1
   for got_table, expected_table in zip(
-      kernels.plan_speed_tables(samples, *robot._kernel_model,
-                                robot._kernel_frames, robot._kernel_radii,
-                                shield_lib.PFL_WINDOW),
+      speed_kernels.plan_speed_tables(
+          samples, *robot._kernel_model, robot._kernel_frames,
+          robot._kernel_radii, shield_lib.PFL_WINDOW),
       shield_lib.pfl_speed_tables(speeds)):
     np.testing.assert_array_equal(got_table, expected_table)
 
 
+@pytest.mark.parametrize('count', [
+    1, speed_kernels.BLOCK - 1, speed_kernels.BLOCK, speed_kernels.BLOCK + 1,
+    3 * speed_kernels.BLOCK + 5])
+def test_plan_speed_tables_across_block_edges(count):
+  # Samples are computed a block at a time: every length, a partial last
+  # block included, gives the tables of the speeds one sample at a time.
+  description = robot_description.load('panda')
+  robot = robot_reach.RobotReach(description, tool_capsule=TOOL)
+  limits = description.limits
+  rng = np.random.RandomState(count)
+  samples = rng.uniform(-2, 2, (count, 4, description.dof))
+  samples[:, 0] = rng.uniform(limits.q_min, limits.q_max,
+                              (count, description.dof))
+  expected = shield_lib.pfl_speed_tables(
+      robot.surface_speeds(samples[:, 0], samples[:, 1]))
+  got = speed_kernels.plan_speed_tables(
+      samples, *robot._kernel_model, robot._kernel_frames,
+      robot._kernel_radii, shield_lib.PFL_WINDOW)
+  for got_table, expected_table in zip(got, expected):
+    assert got_table.tobytes() == expected_table.tobytes()
+
+
 def test_warm_up_compiles_every_signature_the_shield_uses():
   kernels.warm_up()
-  dispatchers = {name: getattr(kernels, name) for name in dir(kernels)
-                 if hasattr(getattr(kernels, name), 'signatures')}
+  speed_kernels.warm_up()
+  dispatchers = {f'{module.__name__}.{name}': getattr(module, name)
+                 for module in (kernels, speed_kernels)
+                 for name in dir(module)
+                 if hasattr(getattr(module, name), 'signatures')}
   before = {name: len(f.signatures) for name, f in dispatchers.items()}
   _, p2, _ = shield_lib.Shield('ur5e').robot.capsules(
       robot_description.load('ur5e').q_home)
