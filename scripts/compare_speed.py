@@ -136,13 +136,18 @@ def _shield_stepper(package, name, scene, mode):
   done = [0]
 
   def steps(count):
+    """Thread CPU time (s) of `count` RL steps' step_many calls."""
+    spent = 0.0
     for _ in range(count):
       shield.new_goal(np.clip(description.q_home + rng.uniform(
           -1.0, 1.0, description.dof), limits.q_min, limits.q_max))
       times = (done[0] * cycles + np.arange(cycles)) * shield.cycle_time
       frames = np.array([human(t) for t in times])
+      start = time.thread_time()
       batch.step_many(shield, frames, times)
+      spent += time.thread_time() - start
       done[0] += 1
+    return spent
   return shield, steps
 
 
@@ -157,12 +162,7 @@ def compare_shield(name, scene, mode, windows):
   times = {base: [], new: []}
   for w in range(windows):
     for steps in ((base, new) if w % 2 == 0 else (new, base)):
-      spent = 0.0
-      for _ in range(_WINDOW):
-        start = time.thread_time()
-        steps(1)
-        spent += time.thread_time() - start
-      times[steps].append(spent / _WINDOW)
+      times[steps].append(steps(_WINDOW) / _WINDOW)
   ratio = np.array(times[new]) / np.array(times[base])
   same = (np.array_equal(shield_base.q, shield_new.q)
           and np.array_equal(shield_base.dq, shield_new.dq))

@@ -9,7 +9,8 @@ placements, the rotation error by the rotation's logarithm (`log3`) and
 the damped normal equations by Cholesky. The results agree with the
 reference to round-off (tests/control/test_ik_kernels.py), not bit for
 bit. `solve_gripper_down` is InverseKinematics.solve's compiled path in
-one call (the start clipped, the half-turn choice of the yaw, both runs). Same compilation settings as the shield's kernels (cache, IEEE
+one call (the start clipped, the half-turn choice of the yaw, both
+runs). Same compilation settings as the shield's kernels (cache, IEEE
 arithmetic).
 """
 
