@@ -58,6 +58,14 @@ _WARM_UP = 30    # RL steps before the first window.
 _REPOSITORY = pathlib.Path(__file__).resolve().parent.parent
 # An import of the package at the start of a line (what is renamed).
 _IMPORT = re.compile(r'^(\s*)(from|import) hrc_suite\b', re.MULTILINE)
+# A string naming one of the package's modules (importlib.import_module,
+# the registries' module lists before commit 3a3e3ba) is renamed too;
+# other strings that start with the package's name (file format names)
+# are not.
+_MODULE_NAME = r"""(['"])hrc_suite\.(?=(?:{names})\b)"""
+# Part of the cache's directory name: extractions renamed by older rules
+# are not reused.
+_RENAMING = 'r2'
 
 
 def _base_package(commit):
@@ -65,7 +73,8 @@ def _base_package(commit):
   sha = subprocess.run(['git', 'rev-parse', commit], cwd=_REPOSITORY,
                        check=True, capture_output=True,
                        text=True).stdout.strip()
-  root = pathlib.Path.home() / '.cache' / 'hrc_suite_compare' / sha
+  root = (pathlib.Path.home() / '.cache' / 'hrc_suite_compare'
+          / f'{sha}-{_RENAMING}')
   package = root / 'hrc_suite_base'
   if not package.is_dir():
     archive = subprocess.run(['git', 'archive', sha, 'hrc_suite'],
@@ -78,9 +87,13 @@ def _base_package(commit):
       path.write_bytes(archive)
       with tarfile.open(path) as tar:
         tar.extractall(scratch, filter='data')
-      for source in (pathlib.Path(scratch) / 'hrc_suite').rglob('*.py'):
-        source.write_text(_IMPORT.sub(r'\1\2 hrc_suite_base',
-                                      source.read_text()))
+      extracted = pathlib.Path(scratch) / 'hrc_suite'
+      modules = re.compile(_MODULE_NAME.format(names='|'.join(sorted(
+          p.stem for p in extracted.iterdir()
+          if p.suffix == '.py' or (p / '__init__.py').is_file()))))
+      for source in extracted.rglob('*.py'):
+        text = _IMPORT.sub(r'\1\2 hrc_suite_base', source.read_text())
+        source.write_text(modules.sub(r'\1hrc_suite_base.', text))
       root.mkdir(parents=True, exist_ok=True)
       os.replace(pathlib.Path(scratch) / 'hrc_suite', package)
   return root, sha

@@ -75,6 +75,12 @@ def test_compare_speed_steps_a_commit_beside_the_working_tree(tmp_path):
   imports = re.compile(r'^\s*(from|import) hrc_suite\b', re.MULTILINE)
   for source in package.rglob('*.py'):
     assert not imports.search(source.read_text()), source
+  # Modules named in strings are renamed too; other names are kept.
+  profile = (package / 'benchmark_profile.py').read_text()
+  assert "'hrc_suite_base.tasks.base'" in profile
+  assert "'hrc_suite.tasks." not in profile
+  assert "FORMAT_NAME = 'hrc_suite.clip'" in (
+      package / 'human' / 'clip.py').read_text()
   # The shield's RL-step cycles (--shield), from the same extracted commit.
   row = _compare_speed_row(env, '| jaco |', '--shield=pfl', '--robots=jaco')
   assert row.endswith('| True |'), row
