@@ -10,7 +10,7 @@ On a host whose speed drifts from minute to minute (docs/benchmarks.md,
 "2026-11-28"), runs of two checkouts one after the other differ by more
 than the changes they compare. This script loads the commit's package as
 `hrc_suite_base` (extracted with `git archive`, its own imports renamed,
-kept under ~/.cache/hrc_suite_compare/COMMIT so numba compiles it once)
+kept under ~/.cache/hrc_suite_compare/COMMIT-r2 so numba compiles it once)
 beside the working tree's `hrc_suite`, builds the same task in both from
 the same seed, and steps them in alternating windows of 10 RL steps with
 the same random actions: both see the same host. It prints the medians
