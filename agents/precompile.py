@@ -2,17 +2,14 @@
 
 A fresh checkout has no numba cache, so the first environment of a process
 compiles its kernels, one function at a time: on reach/dense (Schunk) the
-shield's cycles (`safety.kernels`, `safety.cycle_kernels`) about 25 s of a
-core, collision prevention's (`safety.cp_kernels`) 15 s and inverse
-kinematics' (`control.ik_kernels`) 6 s on 2026-11-25's host
-(docs/benchmarks.md, "SAC training throughput"); on 2026-11-29's slower
-one 44 s, 30 s (both) and PFL's speed tables (`safety.speed_kernels`,
-warmed by every shield) 9 s. `warm_up` compiles collision prevention, IK
-and the speed tables in a second Python process while this one compiles
-the shield's cycles, then waits for it. Both write numba's on-disk cache (the kernels are
-`cache=True`), from which this process's environment loads what the
-other process compiled. With a warm cache both halves only load (about a
-second).
+shield's (`safety.kernels`, `safety.cycle_kernels`) about 25 s of a core,
+collision prevention's (`safety.cp_kernels`) 15 s and inverse kinematics'
+(`control.ik_kernels`) 6 s (docs/benchmarks.md, "SAC training
+throughput"). `warm_up` compiles collision prevention and IK in a second
+Python process while this one compiles the shield, then waits for it. Both
+write numba's on-disk cache (the kernels are `cache=True`), from which
+this process's environment loads what the other process compiled. With a
+warm cache both halves only load (about a second).
 
   python -m agents.precompile --robot=schunk   # The second process's half.
 """
@@ -36,14 +33,12 @@ from hrc_suite.safety import kernels
 from hrc_suite.safety import speed_kernels
 
 
-def compile_second_half(robot):
-  """Compiles (or loads) collision prevention's, IK's and the PFL speed
-  tables' kernels for the argument types the tasks pass
-  (`cp_kernels.warm_up`, `speed_kernels.warm_up`; the TCP position and
-  one IK solve through `control.ik`, as the tasks' Cartesian actions and
-  goal sampling call them)."""
+def compile_collision_prevention_and_ik(robot):
+  """Compiles (or loads) collision prevention's and IK's kernels for the
+  argument types the tasks pass (`cp_kernels.warm_up`; the TCP position
+  and one IK solve through `control.ik`, as the tasks' Cartesian actions
+  and goal sampling call them)."""
   cp_kernels.warm_up()
-  speed_kernels.warm_up()
   description = robot_description.load(robot)
   model = kinematics.KinematicModel(
       description, layout.robot_mount(description.name).base_pose())
@@ -61,10 +56,9 @@ def _compiled_here():
 
 
 def warm_up(robot):
-  """Compiles (or loads) the shield's cycle kernels here and the rest
-  (`compile_second_half`) in a second process at the same time; returns
-  the seconds it took (the halves take about the same time: 44 and 39 s
-  of a core on 2026-11-29's host).
+  """Compiles (or loads) the shield's kernels here and those of collision
+  prevention and IK in a second process at the same time; returns the
+  seconds it took.
 
   If this half loaded from the cache (nothing compiled here), the second
   process is stopped instead of waited for: its half is cached too and
@@ -82,6 +76,7 @@ def warm_up(robot):
   try:
     kernels.warm_up()
     cycle_kernels.warm_up()
+    speed_kernels.warm_up()
   except BaseException:
     child.kill()
     child.wait()
@@ -100,7 +95,7 @@ def warm_up(robot):
 
 def main(argv):
   del argv
-  compile_second_half(flags.FLAGS.robot)
+  compile_collision_prevention_and_ik(flags.FLAGS.robot)
 
 
 if __name__ == '__main__':

@@ -8,7 +8,6 @@ from agents import precompile
 from hrc_suite import suite
 from hrc_suite.control import ik_kernels
 from hrc_suite.safety import cp_kernels
-from hrc_suite.safety import speed_kernels
 
 
 def _signatures(*modules):
@@ -22,12 +21,11 @@ def _signatures(*modules):
 
 
 def test_second_half_covers_what_reach_calls():
-  precompile.compile_second_half('schunk')
-  before = _signatures(cp_kernels, ik_kernels, speed_kernels)
+  precompile.compile_collision_prevention_and_ik('schunk')
+  before = _signatures(cp_kernels, ik_kernels)
   assert before['hrc_suite.safety.cp_kernels.planned_path_collides']
   assert before['hrc_suite.control.ik_kernels.solve_gripper_down']
   assert before['hrc_suite.control.ik_kernels.tcp_pose']
-  assert before['hrc_suite.safety.speed_kernels.plan_speed_tables']
   env = suite.load('reach', 'dense', task_kwargs={
       'robot': 'schunk', 'action_space': 'cartesian'},
                    environment_kwargs={'random_state': 0})
@@ -39,7 +37,7 @@ def test_second_half_covers_what_reach_calls():
       env.reset()
   # Nothing new was compiled: the environment loads what the second
   # process wrote to numba's cache.
-  assert _signatures(cp_kernels, ik_kernels, speed_kernels) == before
+  assert _signatures(cp_kernels, ik_kernels) == before
 
 
 def test_failed_second_process_warns(caplog, monkeypatch):
