@@ -5,11 +5,16 @@ compiles its kernels, one function at a time: on reach/dense (Schunk) the
 shield's (`safety.kernels`, `safety.cycle_kernels`) about 25 s of a core,
 collision prevention's (`safety.cp_kernels`) 15 s and inverse kinematics'
 (`control.ik_kernels`) 6 s (docs/benchmarks.md, "SAC training
-throughput"). `warm_up` compiles collision prevention and IK in a second
-Python process while this one compiles the shield, then waits for it. Both
-write numba's on-disk cache (the kernels are `cache=True`), from which
-this process's environment loads what the other process compiled. With a
-warm cache both halves only load (about a second).
+throughput"); the person's playback, the plans' sampling and the
+gripper's grasp check 14 s on 2026-11-29's slower host (docs/benchmarks.md,
+"2026-11-29 (second session)"). `warm_up` compiles all but the shield's in a
+second Python process while this one compiles the shield, then waits for
+it. Both write numba's on-disk cache (the kernels are `cache=True`), from
+which this process's environment loads what the other process compiled.
+With a warm cache both halves only load (about a second). The RL step's
+compiled physics (`tasks.physics_loop`) still compiles in the
+environment's first step (its argument types come from a built
+environment).
 
   python -m agents.precompile --robot=schunk   # The second process's half.
 """
@@ -27,17 +32,29 @@ from hrc_suite import layout
 from hrc_suite import robot_description
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.control import kinematics
+from hrc_suite.entities import gripper_kernels
+from hrc_suite.entities import human_kernels
+from hrc_suite.human import player_kernels
 from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import kernels
+from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import speed_kernels
 
 
-def compile_collision_prevention_and_ik(robot):
-  """Compiles (or loads) collision prevention's and IK's kernels for the
-  argument types the tasks pass (`cp_kernels.warm_up`; the TCP position
-  and one IK solve through `control.ik`, as the tasks' Cartesian actions
-  and goal sampling call them)."""
+def compile_second_half(robot):
+  """Compiles (or loads) the kernels of the second process's half for the
+  argument types the tasks pass: collision prevention's
+  (`cp_kernels.warm_up`), IK's (the TCP position and one IK solve through
+  `control.ik`, as the tasks' Cartesian actions and goal sampling call
+  them), and those every environment warms up when it is built: the
+  person's playback (`player_kernels`, `human_kernels`), the plans'
+  sampling (`plan_kernels`) and the gripper's grasp check
+  (`gripper_kernels`)."""
+  player_kernels.warm_up()
+  human_kernels.warm_up()
+  plan_kernels.warm_up()
+  gripper_kernels.warm_up()
   cp_kernels.warm_up()
   description = robot_description.load(robot)
   model = kinematics.KinematicModel(
@@ -95,7 +112,7 @@ def warm_up(robot):
 
 def main(argv):
   del argv
-  compile_collision_prevention_and_ik(flags.FLAGS.robot)
+  compile_second_half(flags.FLAGS.robot)
 
 
 if __name__ == '__main__':

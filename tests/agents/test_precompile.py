@@ -7,7 +7,15 @@ import numpy as np
 from agents import precompile
 from hrc_suite import suite
 from hrc_suite.control import ik_kernels
+from hrc_suite.entities import gripper_kernels
+from hrc_suite.entities import human_kernels
+from hrc_suite.human import player_kernels
 from hrc_suite.safety import cp_kernels
+from hrc_suite.safety import plan_kernels
+
+# The second process's half (precompile.compile_second_half).
+SECOND_HALF = (cp_kernels, ik_kernels, player_kernels, human_kernels,
+               plan_kernels, gripper_kernels)
 
 
 def _signatures(*modules):
@@ -21,11 +29,16 @@ def _signatures(*modules):
 
 
 def test_second_half_covers_what_reach_calls():
-  precompile.compile_collision_prevention_and_ik('schunk')
-  before = _signatures(cp_kernels, ik_kernels)
-  assert before['hrc_suite.safety.cp_kernels.planned_path_collides']
-  assert before['hrc_suite.control.ik_kernels.solve_gripper_down']
-  assert before['hrc_suite.control.ik_kernels.tcp_pose']
+  precompile.compile_second_half('schunk')
+  before = _signatures(*SECOND_HALF)
+  for name in ('safety.cp_kernels.planned_path_collides',
+               'control.ik_kernels.solve_gripper_down',
+               'control.ik_kernels.tcp_pose',
+               'human.player_kernels.play_within_clip',
+               'entities.human_kernels.playback_frames',
+               'safety.plan_kernels.sample_pieces',
+               'entities.gripper_kernels.grasped'):
+    assert before[f'hrc_suite.{name}'], name
   env = suite.load('reach', 'dense', task_kwargs={
       'robot': 'schunk', 'action_space': 'cartesian'},
                    environment_kwargs={'random_state': 0})
@@ -37,7 +50,7 @@ def test_second_half_covers_what_reach_calls():
       env.reset()
   # Nothing new was compiled: the environment loads what the second
   # process wrote to numba's cache.
-  assert _signatures(cp_kernels, ik_kernels) == before
+  assert _signatures(*SECOND_HALF) == before
 
 
 def test_failed_second_process_warns(caplog, monkeypatch):
