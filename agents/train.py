@@ -91,8 +91,16 @@ def parse_overrides(items):
 def make_run_config(domain, task, robot, action_space, agent='sac',
                     config='default', overrides=None, task_kwargs=None,
                     seed=0, steps=1000, eval_every=0, eval_episodes=0,
-                    checkpoint_every=0, dataset=None, imitation_kwargs=None):
-  """The JSON-ready description of a run (config.json)."""
+                    checkpoint_every=0, dataset=None, imitation_kwargs=None,
+                    eval_sets=None):
+  """The JSON-ready description of a run (config.json).
+
+  eval_sets: {name: task kwargs} of further evaluation environments, each
+  the run's task with these kwargs replacing the run's (e.g. the unseen
+  side of a motion split: {'unseen': {'motions': {'split': 'test', ...}}});
+  each is evaluated with the run's main evaluation and logged to
+  eval_<name>.csv.
+  """
   if agent not in AGENTS:
     raise ValueError(f'Unknown agent {agent!r}: expected one of '
                      f'{", ".join(AGENTS)}')
@@ -120,7 +128,8 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
                        'of its own (the seed is derived from --seed)')
   overrides = dict(overrides or {})
   sac_config = config_lib.config_from_name(config, **overrides)
-  return {
+  eval_sets = _check_eval_sets(eval_sets, eval_every)
+  run_config = {
       'domain': domain, 'task': task, 'robot': robot,
       'action_space': action_space, 'task_kwargs': task_kwargs,
       'agent': agent, 'config': config, 'overrides': overrides,
@@ -131,6 +140,28 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
       'dataset': os.path.abspath(dataset) if dataset else None,
       'imitation_kwargs': dict(imitation_kwargs or {}),
   }
+  if eval_sets:   # Absent otherwise: configs written before it resume.
+    run_config['eval_sets'] = eval_sets
+  return run_config
+
+
+def _check_eval_sets(eval_sets, eval_every):
+  """{name: task kwargs dict} of valid names, or {}."""
+  eval_sets = dict(eval_sets or {})
+  for name, kwargs in eval_sets.items():
+    if not (isinstance(name, str) and name.isidentifier()):
+      raise ValueError(f'eval_sets name {name!r}: expected an identifier '
+                       '(it names the file eval_<name>.csv)')
+    if not isinstance(kwargs, dict):
+      raise ValueError(f'eval_sets[{name!r}] = {kwargs!r}: expected a dict '
+                       'of task kwargs')
+    for key in ('robot', 'action_space', 'seed'):
+      if key in kwargs:
+        raise ValueError(f'eval_sets[{name!r}] must not set {key!r}: the run '
+                         'sets it')
+  if eval_sets and not eval_every:
+    raise ValueError('eval_sets need eval_every > 0')
+  return {name: dict(kwargs) for name, kwargs in eval_sets.items()}
 
 
 def make_environment(run_config, seed):
@@ -229,12 +260,27 @@ def summarize(episodes):
   return row
 
 
-def evaluate_policy(run_config, env, agent, index):
-  """Evaluation number `index`: deterministic episodes, seeded by it."""
-  env.random_state.seed(derived_seed(run_config['seed'], _EVAL_ENV, index))
+def evaluate_policy(run_config, env, agent, index, eval_set=0):
+  """Evaluation number `index`: deterministic episodes, seeded by it
+  (eval_set: 0 for the run's task, k for the k-th of its eval_sets by
+  name)."""
+  purpose = (_EVAL_ENV, index) + ((eval_set,) if eval_set else ())
+  env.random_state.seed(derived_seed(run_config['seed'], *purpose))
   episodes = loop_lib.evaluate(env, agent.policy(deterministic=True),
                                run_config['eval_episodes'])
   return dict(summarize(episodes), evaluation=index)
+
+
+def make_eval_set_environments(run_config):
+  """{name: environment} of the run's eval_sets, sorted by name: the
+  run's task with the set's task kwargs replacing the run's."""
+  environments = {}
+  for k, name in enumerate(sorted(run_config.get('eval_sets', {})), 1):
+    kwargs = dict(run_config['task_kwargs'], **run_config['eval_sets'][name])
+    environments[name] = make_environment(
+        dict(run_config, task_kwargs=kwargs),
+        derived_seed(run_config['seed'], _EVAL_ENV, k))
+  return environments
 
 
 def _check_resumable(stored, run_config):
@@ -277,8 +323,18 @@ class _Progress:
       self._bar.close()
 
 
-def train(run_config, logdir, resume=False, progress=False):
-  """Runs (or resumes) a training run; returns the agent and loop state."""
+def train(run_config, logdir, resume=False, progress=False,
+          on_step=None):
+  """Runs (or resumes) a training run; returns the agent and loop state.
+
+  Args:
+    run_config: `make_run_config`'s dict.
+    logdir: the run directory (`agents.checkpoints` layout).
+    resume: continue from the latest checkpoint in logdir, if any.
+    progress: show a progress bar.
+    on_step: None or a function called with the steps done after every
+      RL step (e.g. to report progress; keep it cheap).
+  """
   logdir = os.fspath(logdir)
   os.makedirs(logdir, exist_ok=True)
   config_path = os.path.join(logdir, 'config.json')
@@ -295,6 +351,7 @@ def train(run_config, logdir, resume=False, progress=False):
   if run_config['eval_every']:
     eval_env = make_environment(run_config, derived_seed(run_config['seed'],
                                                          _EVAL_ENV))
+  eval_set_envs = make_eval_set_environments(run_config)
   agent = make_agent(run_config, env)
   # The learner compiles while the first evaluation and the replay's
   # warm-up step the environment.
@@ -332,7 +389,9 @@ def train(run_config, logdir, resume=False, progress=False):
   resumed_at = loop.counter.steps if checkpoint is not None else -1
   train_csv = logging_lib.CSVLogger(os.path.join(logdir, 'train.csv'))
   eval_csv = logging_lib.CSVLogger(os.path.join(logdir, 'eval.csv'))
-  for logger in (train_csv, eval_csv):
+  eval_set_csvs = {name: logging_lib.CSVLogger(
+      os.path.join(logdir, f'eval_{name}.csv')) for name in eval_set_envs}
+  for logger in (train_csv, eval_csv, *eval_set_csvs.values()):
     logger.truncate(resumed_at)
   writer = logging_lib.summary_writer(
       os.path.join(logdir, 'tensorboard'),
@@ -341,7 +400,7 @@ def train(run_config, logdir, resume=False, progress=False):
       [train_csv, logging_lib.TensorBoardLogger(writer, 'train')])
   learner_log = logging_lib.TensorBoardLogger(writer, 'learner')
   eval_log = logging_lib.Dispatcher(
-      [eval_csv, logging_lib.TensorBoardLogger(writer, 'eval')])
+      [logging_lib.TensorBoardLogger(writer, 'eval')])
   bar = _Progress(progress, run_config['steps'], loop.counter.steps)
   start = time.perf_counter() - state['wall_time']
   last_saved = loop.counter.steps if checkpoint is not None else None
@@ -359,10 +418,23 @@ def train(run_config, logdir, resume=False, progress=False):
     checkpoints.save(logdir, loop.counter.steps, agent, loop_state,
                      random_states(env), episode=episode)
 
-  def evaluate():
-    row = evaluate_policy(run_config, eval_env, agent, state['evaluations'])
+  def timed_row(logger, env, eval_set=0):
+    began = time.perf_counter()
+    row = evaluate_policy(run_config, env, agent, state['evaluations'],
+                          eval_set=eval_set)
     row['wall_time'] = time.perf_counter() - start
-    eval_log.write(row, loop.counter.steps)
+    # The evaluation's own seconds (files begun without the column keep
+    # their columns).
+    if logger.columns is None or 'eval_seconds' in logger.columns:
+      row['eval_seconds'] = time.perf_counter() - began
+    logger.write(row, loop.counter.steps)
+    return row
+
+  def evaluate():
+    row = timed_row(eval_csv, eval_env)
+    eval_log.write(row, loop.counter.steps)   # TensorBoard
+    for k, name in enumerate(sorted(eval_set_envs), 1):
+      timed_row(eval_set_csvs[name], eval_set_envs[name], eval_set=k)
     state['evaluations'] += 1
     state['next_eval'] += run_config['eval_every']
     bar.update(0, eval_success=f'{row["success_rate"]:.2f}')
@@ -380,6 +452,8 @@ def train(run_config, logdir, resume=False, progress=False):
         break
       result = loop.step()
       bar.update(1)
+      if on_step is not None:
+        on_step(loop.counter.steps)
       if result is not None:
         result['wall_time'] = time.perf_counter() - start
         train_log.write(result, loop.counter.steps)
@@ -396,6 +470,8 @@ def train(run_config, logdir, resume=False, progress=False):
     bar.close()
     train_log.close()
     eval_log.close()
+    for logger in (eval_csv, *eval_set_csvs.values()):
+      logger.close()
     writer.close()
   return agent, dict(state, counter=loop.counter.state())
 

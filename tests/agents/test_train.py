@@ -23,7 +23,7 @@ from hrc_suite.experts import dataset as dataset_lib
 _TASK_KWARGS = {'time_limit': 1.0}
 _OVERRIDES = {'min_replay_size': 16, 'batch_size': 8, 'hidden_sizes': [16, 16]}
 # Columns of train.csv that depend on timing, not on the run's computation.
-_TIMING = ('steps_per_second', 'wall_time')
+_TIMING = ('steps_per_second', 'wall_time', 'eval_seconds')
 
 
 def _run_config(seed=0, steps=60, eval_every=25, checkpoint_every=20):

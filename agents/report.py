@@ -1,0 +1,430 @@
+r"""The report of a sweep: the paper's figure, final values, overfitting.
+
+  python -m agents.report --sweep=sweeps/paper_reduced [--out=DIR]
+
+Reads a sweep directory (`agents.sweep_layout`), finished or still running
+(what is there so far), and writes to --out (default: DIR/report):
+
+* success.png / return.png (and .svg): one panel per task, one line per
+  agent: the evaluation success rate and the normalised return against RL
+  steps, mean over seeds with a 95 % percentile-bootstrap confidence
+  interval (10^4 resamples), the expert as a dashed reference line
+  (docs/reference_benchmark.md, Training and evaluation). A curve runs to
+  the last evaluation every seed of its group reached.
+* final.csv and report.md: per task and agent, the final values (at the
+  last evaluation step every seed reached) with their CIs; the runs that
+  are missing or unfinished; the overfitting comparison where the grid has
+  motion splits (seen: the train side the run trained on, unseen: the test
+  side), also drawn as overfitting.png.
+* evaluations.json: every evaluation, one row per (task, agent, seed,
+  split, motions, step): success rate, return, normalised return, episode
+  length and the evaluation's seconds.
+
+Normalised return (the paper's): (R - R_min) / (R_expert - R_min), R_min
+the task reward's lowest episode return without collision penalties
+(config.json's min_task_return) and R_expert the mean return of the
+deterministic expert's episodes on the grid's task (the sweep's
+shared/experts/<task>.json).
+"""
+
+import collections
+import json
+import math
+import os
+import sys
+
+from absl import app
+from absl import flags
+import numpy as np
+
+from agents import grids as grids_lib
+from agents import logging as logging_lib
+from agents import sweep_layout as layout
+from hrc_suite import statistics
+
+SEEN = 'seen'
+UNSEEN = 'unseen'
+# Columns of an evaluation row, in order.
+ROW_KEYS = ('task', 'agent', 'seed', 'split', 'motions', 'step', 'success',
+            'return', 'normalised_return', 'length', 'eval_seconds',
+            'wall_time')
+
+Summary = collections.namedtuple('Summary', ['mean', 'low', 'high'])
+
+
+def load_sweep(root):
+  """(grid, sweep record) of a sweep directory."""
+  record = layout.read_json(os.path.join(root, layout.SWEEP_FILE))
+  if record is None:
+    raise ValueError(f'{root} is not a sweep directory: it has no '
+                     f'{layout.SWEEP_FILE} (python -m agents.sweep makes it)')
+  return grids_lib.Grid.from_dict(record['grid']), record
+
+
+def expert_return(root, task):
+  """The deterministic expert's mean return on `task`, or None."""
+  record = layout.read_json(layout.expert_file(root, task))
+  return None if record is None else float(record['return_mean'])
+
+
+def _number(value):
+  if value in (None, ''):
+    return None
+  value = float(value)
+  return value if math.isfinite(value) else None
+
+
+def evaluation_rows(root, grid=None):
+  """(rows, missing): every evaluation of the sweep's runs as dicts with
+  ROW_KEYS, and {run name: state} of the runs without all their steps
+  ('no data', or 'k of n steps')."""
+  if grid is None:
+    grid, _ = load_sweep(root)
+  rows, missing = [], {}
+  experts = {task: expert_return(root, task) for task in grid.tasks}
+  for run in grid.runs():
+    directory = layout.run_directory(root, run.name)
+    target = int(run.run_config['steps'])
+    if not layout.is_finished(directory, target):
+      done = layout.progress(directory)
+      missing[run.name] = (f'{done} of {target} steps' if done else
+                           'no data')
+    config = layout.read_json(os.path.join(directory, 'config.json'))
+    if config is None:
+      continue
+    low = config.get('min_task_return')
+    best = experts[run.task]
+    files = [(SEEN if run.split is not None else None, 'eval.csv')]
+    files += [(name, f'eval_{name}.csv')
+              for name in sorted(run.run_config.get('eval_sets', {}))]
+    for motions, name in files:
+      path = os.path.join(directory, name)
+      if not os.path.exists(path):
+        continue
+      for row in logging_lib.read_csv(path):
+        returned = float(row['return_mean'])
+        normalised = None
+        if best is not None and low is not None and best > low:
+          normalised = (returned - low) / (best - low)
+        rows.append({
+            'task': run.task, 'agent': run.agent, 'seed': run.seed,
+            'split': run.split, 'motions': motions,
+            'step': int(float(row['step'])),
+            'success': float(row['success_rate']), 'return': returned,
+            'normalised_return': normalised,
+            'length': _number(row.get('length_mean')),
+            'eval_seconds': _number(row.get('eval_seconds')),
+            'wall_time': _number(row.get('wall_time'))})
+  return rows, missing
+
+
+def _groups(rows, motions=None):
+  """{(task, agent): {seed key: {step: row}}} of the rows of one motions
+  side (None: runs without splits; a split's seed key is (split, seed))."""
+  groups = collections.OrderedDict()
+  for row in rows:
+    if row['motions'] != motions:
+      continue
+    key = (row['task'], row['agent'])
+    seed = (row['split'], row['seed'])
+    groups.setdefault(key, {}).setdefault(seed, {})[row['step']] = row
+  return groups
+
+
+def curve(runs, name, random_state, resamples):
+  """(steps, Summary of arrays) of one group's `name` over its seeds, at the
+  evaluation steps every seed reached (None if none or a value missing)."""
+  steps = sorted(set.intersection(*(set(r) for r in runs.values())))
+  if not steps:
+    return None
+  table = np.array([[runs[seed][step][name] for step in steps]
+                    for seed in sorted(runs)], dtype=object)
+  if any(v is None for v in table.ravel()):
+    return None
+  mean, low, high = statistics.bootstrap_ci(
+      table.astype(float), random_state, num_resamples=resamples)
+  return np.array(steps), Summary(np.atleast_1d(mean), np.atleast_1d(low),
+                                  np.atleast_1d(high))
+
+
+def final_values(rows, random_state, resamples, motions=None):
+  """Per (task, agent): the last step every seed reached, the seeds, and
+  the Summary of success and normalised return there."""
+  table = []
+  for (task, agent), runs in _groups(rows, motions).items():
+    entry = {'task': task, 'agent': agent, 'seeds': len(runs)}
+    for name in ('success', 'normalised_return', 'return'):
+      found = curve(runs, name, random_state, resamples)
+      if found is None:
+        entry[name] = None
+        continue
+      steps, summary = found
+      entry['step'] = int(steps[-1])
+      entry[name] = Summary(float(summary.mean[-1]), float(summary.low[-1]),
+                            float(summary.high[-1]))
+    table.append(entry)
+  return table
+
+
+def draw(rows, grid, root, name, ylabel, path, random_state, resamples,
+         motions=None):
+  """One panel per task, one line per agent (mean and 95 % CI band), the
+  expert dashed; writes path (.png) and .svg."""
+  import matplotlib   # pylint: disable=g-import-not-at-top
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
+  groups = _groups(rows, motions)
+  columns = min(3, len(grid.tasks))
+  lines = math.ceil(len(grid.tasks) / columns)
+  figure, axes = plt.subplots(lines, columns, squeeze=False,
+                              figsize=(4.2 * columns, 3.4 * lines),
+                              constrained_layout=True)
+  colours = {agent: f'C{i}' for i, agent in enumerate(grid.agents)}
+  for axis, task in zip(axes.ravel(), grid.tasks):
+    for agent in grid.agents:
+      runs = groups.get((task, agent))
+      found = runs and curve(runs, name, random_state, resamples)
+      if not found:
+        continue
+      steps, summary = found
+      label = f'{grids_lib.AGENT_LABELS.get(agent, agent)} ({len(runs)})'
+      axis.plot(steps, summary.mean, color=colours[agent], label=label,
+                marker='.' if len(steps) < 12 else None)
+      if len(runs) > 1:
+        axis.fill_between(steps, summary.low, summary.high,
+                          color=colours[agent], alpha=0.2, linewidth=0)
+    reference = _expert_reference(root, task, name)
+    if reference is not None:
+      axis.axhline(reference, color='k', linestyle='--', linewidth=1,
+                   label='expert')
+    axis.set_title(task)
+    axis.set_xlabel('RL steps')
+    axis.set_ylabel(ylabel)
+    axis.ticklabel_format(axis='x', style='sci', scilimits=(0, 4))
+    axis.grid(alpha=0.3)
+    axis.legend(fontsize='x-small')
+  for axis in axes.ravel()[len(grid.tasks):]:
+    axis.set_visible(False)
+  figure.suptitle(f'{grid.name}: mean over seeds (in brackets) with 95 % '
+                  'bootstrap CI')
+  stem = os.path.splitext(path)[0]
+  written = []
+  for suffix in ('.png', '.svg'):
+    figure.savefig(stem + suffix, dpi=110)
+    written.append(stem + suffix)
+  plt.close(figure)
+  return written
+
+
+def _expert_reference(root, task, name):
+  if name == 'normalised_return':
+    return 1.0 if expert_return(root, task) is not None else None
+  record = layout.read_json(layout.expert_file(root, task))
+  if record is None:
+    return None
+  return float(record['success'] if name == 'success' else
+               record['return_mean'])
+
+
+def draw_overfitting(rows, grid, path, random_state, resamples):
+  """Seen against unseen motions: per task and agent, success and
+  normalised return over steps (mean over splits and seeds)."""
+  import matplotlib   # pylint: disable=g-import-not-at-top
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
+  figure, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+  for side, style in ((SEEN, '-'), (UNSEEN, '--')):
+    for (task, agent), runs in _groups(rows, side).items():
+      for axis, name in zip(axes, ('success', 'normalised_return')):
+        found = curve(runs, name, random_state, resamples)
+        if not found:
+          continue
+        steps, summary = found
+        line, = axis.plot(steps, summary.mean, linestyle=style,
+                          label=f'{task} {agent}: {side} ({len(runs)} runs)')
+        axis.fill_between(steps, summary.low, summary.high,
+                          color=line.get_color(), alpha=0.15, linewidth=0)
+  for axis, label in zip(axes, ('success rate', 'normalised return')):
+    axis.set_xlabel('RL steps')
+    axis.set_ylabel(label)
+    axis.grid(alpha=0.3)
+    axis.legend(fontsize='x-small')
+  figure.suptitle(f'{grid.name}: seen against unseen motions, mean over '
+                  'splits and seeds, 95 % bootstrap CI')
+  stem = os.path.splitext(path)[0]
+  for suffix in ('.png', '.svg'):
+    figure.savefig(stem + suffix, dpi=110)
+  plt.close(figure)
+  return [stem + '.png', stem + '.svg']
+
+
+def _cell(summary, digits=2):
+  if summary is None:
+    return '-'
+  return (f'{summary.mean:.{digits}f} [{summary.low:.{digits}f}, '
+          f'{summary.high:.{digits}f}]')
+
+
+def evaluation_cost(rows):
+  """Per task: seconds of evaluation and evaluated episode steps per
+  evaluation, mean over the evaluations that timed themselves."""
+  cost = collections.OrderedDict()
+  for row in rows:
+    if row['eval_seconds'] is None:
+      continue
+    entry = cost.setdefault(row['task'], [0.0, 0.0, 0])
+    entry[0] += row['eval_seconds']
+    entry[1] += row['length'] or 0.0
+    entry[2] += 1
+  return {task: {'seconds': s / n, 'mean_episode_length': l / n,
+                 'evaluations': n}
+          for task, (s, l, n) in cost.items()}
+
+
+def markdown(grid, record, final, missing, overfitting, cost):
+  """report.md's text."""
+  lines = [f'# Sweep {grid.name}', '',
+           f'{len(grid.runs())} runs ({len(grid.tasks)} tasks x '
+           f'{len(grid.agents)} agents x {len(grid.seeds)} seeds'
+           + (f' x {len(grid.splits)} motion splits' if grid.splits else '')
+           + f'), robot {grid.robot}, SAC preset {grid.config}; commit '
+           f'{record.get("commit")}.', '',
+           '## Final values', '',
+           'At the last evaluation every seed reached: mean [95 % bootstrap '
+           'CI] over seeds.', '',
+           '| task | agent | seeds | step | success | normalised return | '
+           'return |', '|---|---|---|---|---|---|---|']
+  for entry in final:
+    lines.append(
+        f'| {entry["task"]} | '
+        f'{grids_lib.AGENT_LABELS.get(entry["agent"], entry["agent"])} | '
+        f'{entry["seeds"]} | {entry.get("step", "-")} | '
+        f'{_cell(entry["success"])} | '
+        f'{_cell(entry["normalised_return"])} | '
+        f'{_cell(entry["return"], 1)} |')
+  if overfitting:
+    lines += ['', '## Seen against unseen motions', '',
+              '| task | agent | motions | runs | step | success | '
+              'normalised return |', '|---|---|---|---|---|---|---|']
+    for side, entries in overfitting.items():
+      for entry in entries:
+        lines.append(f'| {entry["task"]} | {entry["agent"]} | {side} | '
+                     f'{entry["seeds"]} | {entry.get("step", "-")} | '
+                     f'{_cell(entry["success"])} | '
+                     f'{_cell(entry["normalised_return"])} |')
+  if cost:
+    lines += ['', '## Evaluation cost', '',
+              '| task | seconds per evaluation | mean episode length '
+              '(RL steps) | evaluations |', '|---|---|---|---|']
+    for task, entry in cost.items():
+      lines.append(f'| {task} | {entry["seconds"]:.1f} | '
+                   f'{entry["mean_episode_length"]:.0f} | '
+                   f'{entry["evaluations"]} |')
+  lines += ['', '## Runs not finished', '']
+  if missing:
+    lines += [f'* {name}: {state}' for name, state in missing.items()]
+  else:
+    lines.append('None: every run has all its steps.')
+  return '\n'.join(lines) + '\n'
+
+
+def _jsonable(entry):
+  return {k: (v._asdict() if isinstance(v, Summary) else v)
+          for k, v in entry.items()}
+
+
+def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
+           plots=True):
+  """Writes the report of the sweep in `root` to `out`; returns
+  {'rows', 'final', 'missing', 'overfitting', 'cost', 'paths'}."""
+  root = os.path.abspath(root)
+  out = out or os.path.join(root, 'report')
+  os.makedirs(out, exist_ok=True)
+  grid, record = load_sweep(root)
+  rows, missing = evaluation_rows(root, grid)
+  motions = SEEN if grid.splits else None
+  final = final_values(rows, np.random.RandomState(seed), resamples,
+                       motions)
+  overfitting = {}
+  if grid.splits:
+    overfitting = {side: final_values(rows, np.random.RandomState(seed),
+                                      resamples, side)
+                   for side in (SEEN, UNSEEN)}
+  cost = evaluation_cost([r for r in rows if r['motions'] == motions])
+  paths = []
+  if plots and rows:
+    paths += draw(rows, grid, root, 'success', 'evaluation success rate',
+                  os.path.join(out, 'success.png'),
+                  np.random.RandomState(seed), resamples, motions)
+    paths += draw(rows, grid, root, 'normalised_return',
+                  'normalised return (1: expert)',
+                  os.path.join(out, 'return.png'),
+                  np.random.RandomState(seed), resamples, motions)
+    if grid.splits:
+      paths += draw_overfitting(rows, grid, os.path.join(
+          out, 'overfitting.png'), np.random.RandomState(seed), resamples)
+  evaluations = os.path.join(out, 'evaluations.json')
+  with open(evaluations, 'w') as f:
+    json.dump({'grid': grid.name, 'commit': record.get('commit'),
+               'rows': [{k: row[k] for k in ROW_KEYS} for row in rows]},
+              f, indent=1)
+    f.write('\n')
+  final_csv = os.path.join(out, 'final.csv')
+  logger = logging_lib.CSVLogger(final_csv, step_key='step')
+  if os.path.exists(final_csv):
+    os.remove(final_csv)
+  try:
+    for entry in final:
+      flat = {'task': entry['task'], 'agent': entry['agent'],
+              'seeds': entry['seeds']}
+      for name in ('success', 'normalised_return', 'return'):
+        for bound in Summary._fields:
+          value = entry[name]
+          flat[f'{name}_{bound}'] = (getattr(value, bound)
+                                     if value is not None else '')
+      logger.write(flat, entry.get('step', ''))
+  finally:
+    logger.close()
+  text = markdown(grid, record, final, missing, overfitting, cost)
+  with open(os.path.join(out, 'report.md'), 'w') as f:
+    f.write(text)
+  paths += [evaluations, final_csv, os.path.join(out, 'report.md')]
+  return {'rows': rows, 'final': [_jsonable(e) for e in final],
+          'missing': missing,
+          'overfitting': {k: [_jsonable(e) for e in v]
+                          for k, v in overfitting.items()},
+          'cost': cost, 'paths': paths}
+
+
+def define_flags(flag_values=flags.FLAGS):
+  fv = flag_values
+  flags.DEFINE_string('sweep', None, 'Sweep directory (agents.sweep --out).',
+                      flag_values=fv)
+  flags.DEFINE_string('out', None, 'Report directory (default: '
+                      'SWEEP/report).', flag_values=fv)
+  flags.DEFINE_integer('resamples', statistics.DEFAULT_RESAMPLES,
+                       'Bootstrap resamples.', flag_values=fv)
+  flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.',
+                       flag_values=fv)
+
+
+def main(argv, flag_values=flags.FLAGS):
+  if len(argv) > 1:
+    raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
+  f = flag_values
+  if f.sweep is None:
+    raise app.UsageError('--sweep is required: a sweep directory')
+  try:
+    result = report(f.sweep, f.out, f.seed, f.resamples)
+  except ValueError as e:
+    print(f'agents.report: {e}', file=sys.stderr)
+    return 2
+  print(open(result['paths'][-1]).read())
+  for path in result['paths']:
+    print(f'Wrote {path}')
+  return 0
+
+
+if __name__ == '__main__':
+  define_flags()
+  app.run(lambda argv: sys.exit(main(argv)))

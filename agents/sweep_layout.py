@@ -1,0 +1,112 @@
+"""The directory of a sweep (`agents.sweep`): layout, records and status.
+
+  DIR/
+    sweep.json                  the grid as run (agents.grids.Grid.to_dict),
+                                with the package version and commit
+    shared/
+      datasets/<domain>-<task>[-split<k>]/
+                                expert dataset of RSI, SIR and AIR runs
+                                (docs/datasets.md; agents.collect_expert)
+      experts/<domain>-<task>.json
+                                the deterministic expert's episodes on the
+                                grid's task: return_mean (the normalised
+                                return's 1), success, per-episode rows
+    runs/<domain>-<task>/<agent>/[split<k>-]seed<s>/
+      config.json, train.csv, eval.csv, eval_<set>.csv, tensorboard/,
+      checkpoints/              agents.train's run directory
+      run.log                   the run's log (Python logging, warnings)
+      progress.json             {steps, target, wall_time, updated}, rewritten
+                                every PROGRESS_SECONDS while it trains
+      finished.json             {steps, wall_time, evaluations, host,
+                                finished}: the run reached its steps
+      error.json                {error, traceback, time} of its last failure
+
+A run is finished when finished.json exists and its steps are at least the
+grid's steps for it; a sweep started again skips finished runs and resumes
+the others from their latest checkpoint.
+"""
+
+import json
+import os
+import time
+from typing import Dict, Optional
+
+SWEEP_FILE = 'sweep.json'
+RUNS = 'runs'
+SHARED = 'shared'
+FINISHED_FILE = 'finished.json'
+PROGRESS_FILE = 'progress.json'
+ERROR_FILE = 'error.json'
+LOG_FILE = 'run.log'
+# Seconds between a running run's progress records.
+PROGRESS_SECONDS = 20.0
+
+
+def write_json(path, value):
+  """Writes JSON atomically (temporary file + rename)."""
+  temporary = f'{path}.{os.getpid()}.tmp'
+  with open(temporary, 'w') as f:
+    json.dump(value, f, indent=2, sort_keys=True)
+    f.write('\n')
+  os.replace(temporary, path)
+
+
+def read_json(path) -> Optional[Dict]:
+  """The JSON object at path, or None if there is no file."""
+  try:
+    with open(path) as f:
+      return json.load(f)
+  except FileNotFoundError:
+    return None
+
+
+def run_directory(root, run_name):
+  return os.path.join(os.fspath(root), RUNS, run_name)
+
+
+def task_slug(task):
+  """'domain/task' -> 'domain-task' (a folder name)."""
+  return task.replace('/', '-')
+
+
+def dataset_directory(root, task, split=None):
+  name = task_slug(task) + ('' if split is None else f'-split{split}')
+  return os.path.join(os.fspath(root), SHARED, 'datasets', name)
+
+
+def expert_file(root, task):
+  return os.path.join(os.fspath(root), SHARED, 'experts',
+                      task_slug(task) + '.json')
+
+
+def is_finished(directory, steps):
+  """True if the run in `directory` finished at least `steps` RL steps."""
+  record = read_json(os.path.join(directory, FINISHED_FILE))
+  return record is not None and int(record['steps']) >= int(steps)
+
+
+def progress(directory):
+  """Steps done by the run in `directory` as far as its records say."""
+  for name in (FINISHED_FILE, PROGRESS_FILE):
+    record = read_json(os.path.join(directory, name))
+    if record is not None:
+      return int(record['steps'])
+  return 0
+
+
+class ProgressWriter:
+  """Writes a run's progress.json at most every PROGRESS_SECONDS."""
+
+  def __init__(self, directory, target):
+    self._path = os.path.join(directory, PROGRESS_FILE)
+    self._target = int(target)
+    self._start = time.time()
+    self._last = 0.0
+
+  def __call__(self, steps, force=False):
+    now = time.time()
+    if force or now - self._last >= PROGRESS_SECONDS:
+      self._last = now
+      write_json(self._path, {'steps': int(steps), 'target': self._target,
+                              'wall_time': now - self._start,
+                              'updated': now})
