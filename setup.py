@@ -13,9 +13,10 @@ import setuptools
 warnings.filterwarnings('ignore', message='Editable installation')
 
 # JAX agents (agents/): networks (flax), optimisers (optax), logs
-# (tensorboardX), learning-curve plots (matplotlib).
+# (tensorboardX), learning-curve plots (matplotlib), grids of runs on Ray
+# (agents.sweep; the core package, no dashboard).
 TRAIN_REQUIRES = ['jax>=0.4.30', 'flax', 'optax', 'tensorboardX',
-                  'matplotlib']
+                  'matplotlib', 'ray>=2.9']
 
 setuptools.setup(
     name='hrc_suite',

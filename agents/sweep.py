@@ -38,6 +38,7 @@ left, steps, the recent rate and the estimated time to finish.
 import dataclasses
 import json
 import os
+import socket
 import subprocess
 import sys
 import time
@@ -54,8 +55,8 @@ from agents import sweep_work
 OBJECT_STORE_BYTES = 100 * 1024 ** 2
 # Grid fields that may change when a sweep is started again.
 RESUMABLE_CHANGES = ('steps',)
-# Seconds to wait for an existing cluster before giving up.
-CONNECT_TIMEOUT_S = 30
+# Seconds to wait for an existing cluster's address to answer.
+CONNECT_TIMEOUT_S = 10
 
 # Grid fields whose flags take lists, integers, JSON or plain strings.
 _LIST_FIELDS = ('tasks', 'agents')
@@ -225,17 +226,34 @@ def start_ray(address=None, num_cpus=None):
   if num_cpus is not None:
     raise ValueError('--num_cpus is for the embedded Ray; a cluster has '
                      'its own CPUs')
-  previous = os.environ.get('RAY_gcs_rpc_server_connect_timeout_s')
-  os.environ['RAY_gcs_rpc_server_connect_timeout_s'] = str(CONNECT_TIMEOUT_S)
+  check_reachable(address)
   try:
     ray.init(address=address, log_to_driver=False, configure_logging=False)
   except (ConnectionError, RuntimeError, ValueError) as e:
     raise ConnectionError(f'Cannot reach a Ray cluster at --ray_address='
                           f'{address!r}: {e}') from None
-  finally:
-    if previous is None:
-      os.environ.pop('RAY_gcs_rpc_server_connect_timeout_s', None)
   return ray
+
+
+def check_reachable(address, timeout=CONNECT_TIMEOUT_S):
+  """Raises ConnectionError unless a TCP connection to a cluster address
+  (HOST:PORT or ray://HOST:PORT) opens within `timeout` seconds; ray.init
+  itself waits without end for an address nobody answers at. 'auto' is
+  left to Ray, which fails at once when it finds no cluster."""
+  if address == 'auto':
+    return
+  host, sep, port = address.split('://', 1)[-1].rpartition(':')
+  if not sep or not host or not port.isdigit():
+    raise ValueError(f'--ray_address={address!r}: expected auto, HOST:PORT '
+                     'or ray://HOST:PORT')
+  try:
+    socket.create_connection((host, int(port)), timeout=timeout).close()
+  except OSError as e:
+    raise ConnectionError(
+        f'Cannot reach a Ray cluster at --ray_address={address!r}: no '
+        f'answer from {host}:{port} within {timeout} s ({e}); start one '
+        'with `ray start --head` or leave --ray_address unset for an '
+        'embedded Ray') from None
 
 
 @dataclasses.dataclass
@@ -325,6 +343,10 @@ def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
   reporter = ProgressReporter(out, runs, stream)
   print(f'[sweep] {grid.name}: {len(runs)} runs, {len(runs) - len(todo)} '
         f'finished before, in {out}', file=stream, flush=True)
+  experts_left = [task for task in grid.tasks
+                  if not _expert_done(out, task, grid.expert_episodes)]
+  if not todo and not experts_left:
+    return []
   ray = start_ray(ray_address, num_cpus)
   try:
     cpus = int(cpus_per_run)
@@ -346,8 +368,7 @@ def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
         num_cpus=1, max_retries=max_retries, runtime_env=environment).remote(
             layout.expert_file(out, task), task,
             _shared_task_kwargs(grid, None, task), grid.expert_episodes)
-               for task in grid.tasks
-               if not _expert_done(out, task, grid.expert_episodes)]
+               for task in experts_left]
     # A fresh worker process per run (max_calls=1): its pinning, thread
     # pools and memory end with it.
     train = ray.remote(num_cpus=cpus, num_gpus=gpus_per_run,

@@ -49,18 +49,19 @@ def thread_environment(cpus):
 
 
 @contextlib.contextmanager
-def cpu_slot(cpus):
+def cpu_slot(cpus, directory=_SLOT_DIRECTORY):
   """Pins this process to a free slot of `cpus` cores of this machine
   (slot i: the i-th group of `cpus` cores this process may run on) and
-  holds the slot's lock until exit. Without a free slot (more runs than
-  slots: a scheduler that oversubscribes) the process is not pinned."""
+  holds the slot's lock (a file in `directory`) until exit. Without a free
+  slot (more runs than slots: a scheduler that oversubscribes) the process
+  is not pinned and None is yielded."""
   allowed = sorted(os.sched_getaffinity(0))
   slots = len(allowed) // int(cpus)
-  os.makedirs(_SLOT_DIRECTORY, exist_ok=True)
+  os.makedirs(directory, exist_ok=True)
   handle = None
   cores = None
   for i in range(slots):
-    path = os.path.join(_SLOT_DIRECTORY, f'cpus{cpus}-slot{i}.lock')
+    path = os.path.join(directory, f'cpus{cpus}-slot{i}.lock')
     candidate = open(path, 'w')
     try:
       fcntl.flock(candidate, fcntl.LOCK_EX | fcntl.LOCK_NB)
