@@ -31,6 +31,7 @@ import collections
 import json
 import math
 import os
+import shutil
 import sys
 
 from absl import app
@@ -406,6 +407,8 @@ def define_flags(flag_values=flags.FLAGS):
                        'Bootstrap resamples.', flag_values=fv)
   flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.',
                        flag_values=fv)
+  flags.DEFINE_string('json', None, 'Also write every evaluation row here '
+                      '(e.g. docs/results/paper_grid.json).', flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):
@@ -419,7 +422,12 @@ def main(argv, flag_values=flags.FLAGS):
   except ValueError as e:
     print(f'agents.report: {e}', file=sys.stderr)
     return 2
-  print(open(result['paths'][-1]).read())
+  if f.json:
+    shutil.copyfile(next(p for p in result['paths']
+                         if p.endswith('evaluations.json')), f.json)
+    result['paths'].append(f.json)
+  print(open(next(p for p in result['paths']
+                  if p.endswith('report.md'))).read())
   for path in result['paths']:
     print(f'Wrote {path}')
   return 0
