@@ -230,8 +230,16 @@ def start_ray(address=None, num_cpus=None):
   try:
     ray.init(address=address, log_to_driver=False, configure_logging=False)
   except (ConnectionError, RuntimeError, ValueError) as e:
+    hint = ''
+    if 'RAY_AUTH_MODE' not in os.environ:
+      # Clusters of Ray >= 2.5x authenticate by token by default; a driver
+      # given an address does not send one unless told to.
+      hint = ('; if the cluster uses token authentication (Ray prints '
+              '"Token authentication is enabled" at `ray start`), set '
+              'RAY_AUTH_MODE=token with its token in ~/.ray/auth_token or '
+              'RAY_AUTH_TOKEN')
     raise ConnectionError(f'Cannot reach a Ray cluster at --ray_address='
-                          f'{address!r}: {e}') from None
+                          f'{address!r}: {e}{hint}') from None
   return ray
 
 
