@@ -46,8 +46,8 @@ def checkpoint_root(logdir):
 
 
 def write_json(path, value):
-  """Writes JSON atomically (temporary file + rename)."""
-  temporary = f'{path}.tmp'
+  """Writes JSON atomically (a temporary file of this process, renamed)."""
+  temporary = f'{path}.{os.getpid()}.tmp'
   with open(temporary, 'w') as f:
     json.dump(value, f, indent=2, sort_keys=True)
     f.write('\n')

@@ -208,11 +208,16 @@ def draw(rows, grid, root, name, ylabel, path, random_state, resamples,
     axis.set_visible(False)
   figure.suptitle(f'{grid.name}: mean over seeds (in brackets) with 95 % '
                   'bootstrap CI')
+  return _save(figure, path)
+
+
+def _save(figure, path):
+  """Writes the figure as path's stem .png and .svg; returns the paths."""
+  import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
   stem = os.path.splitext(path)[0]
-  written = []
-  for suffix in ('.png', '.svg'):
-    figure.savefig(stem + suffix, dpi=110)
-    written.append(stem + suffix)
+  written = [stem + '.png', stem + '.svg']
+  for name in written:
+    figure.savefig(name, dpi=110)
   plt.close(figure)
   return written
 
@@ -252,11 +257,7 @@ def draw_overfitting(rows, grid, path, random_state, resamples):
     axis.legend(fontsize='x-small')
   figure.suptitle(f'{grid.name}: seen against unseen motions, mean over '
                   'splits and seeds, 95 % bootstrap CI')
-  stem = os.path.splitext(path)[0]
-  for suffix in ('.png', '.svg'):
-    figure.savefig(stem + suffix, dpi=110)
-  plt.close(figure)
-  return [stem + '.png', stem + '.svg']
+  return _save(figure, path)
 
 
 def _cell(summary, digits=2):

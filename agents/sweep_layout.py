@@ -31,6 +31,8 @@ import os
 import time
 from typing import Dict, Optional
 
+from agents import checkpoints
+
 SWEEP_FILE = 'sweep.json'
 RUNS = 'runs'
 SHARED = 'shared'
@@ -41,14 +43,7 @@ LOG_FILE = 'run.log'
 # Seconds between a running run's progress records.
 PROGRESS_SECONDS = 20.0
 
-
-def write_json(path, value):
-  """Writes JSON atomically (temporary file + rename)."""
-  temporary = f'{path}.{os.getpid()}.tmp'
-  with open(temporary, 'w') as f:
-    json.dump(value, f, indent=2, sort_keys=True)
-    f.write('\n')
-  os.replace(temporary, path)
+write_json = checkpoints.write_json   # atomic: temporary file + rename
 
 
 def read_json(path) -> Optional[Dict]:
