@@ -71,8 +71,10 @@ setuptools.setup(
         # Tests also check the gymnasium wrapper (tests/test_gym.py) and the
         # agents (tests/agents: the train extra).
         'dev': ['pytest>=7', 'pytest-xdist', 'shimmy[dm-control]',
-                'gymnasium'] + TRAIN_REQUIRES,
-        'gym': ['shimmy[dm-control]', 'gymnasium'],
+                'gymnasium', 'packaging'] + TRAIN_REQUIRES,
+        # Gymnasium's MuJoCo module, which shimmy's dm_control wrapper
+        # imports, needs packaging and does not declare it.
+        'gym': ['shimmy[dm-control]', 'gymnasium', 'packaging'],
     },
     classifiers=[
         'Programming Language :: Python :: 3',
