@@ -219,7 +219,11 @@ def start_ray(address=None, num_cpus=None):
   """Connects to the cluster at `address`, or starts an embedded Ray."""
   import ray   # pylint: disable=g-import-not-at-top
   if address is None:
-    ray.init(num_cpus=num_cpus or os.cpu_count(), include_dashboard=False,
+    # 'local': a new Ray of this process even where a cluster started by
+    # `ray start` (or another sweep's) runs on the machine, which ray.init
+    # without an address would join.
+    ray.init(address='local', num_cpus=num_cpus or os.cpu_count(),
+             include_dashboard=False,
              object_store_memory=OBJECT_STORE_BYTES, log_to_driver=False,
              configure_logging=False)
     return ray
