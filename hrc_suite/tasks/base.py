@@ -100,6 +100,7 @@ from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import cost as cost_lib
 from hrc_suite.tasks import defaults as defaults_lib
 from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
@@ -169,7 +170,7 @@ class HrcTask(composer.Task):
                camera_size=DEFAULT_CAMERA_SIZE, v_safe=DEFAULT_V_SAFE,
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD,
-               outside_human_model='refuse', fast_path=True):
+               outside_human_model='refuse', cost=None, fast_path=True):
     """Builds the scene from the checked arguments (`self.options`,
     tasks/options.py; errors name the argument and the valid values).
 
@@ -216,6 +217,11 @@ class HrcTask(composer.Task):
         contacts.SSM_STOPPED_SPEED else).
       collision_reward: <= 0, added at RL steps with a static, self or
         critical human contact.
+      cost: None (no cost signal), True (the default `cost.CostSpec`), a
+        CostSpec or a dict of its fields: every RL step's step metrics then
+        hold the safety cost's components and scalar (tasks/cost.py), and
+        the observables 'cost' and 'cost_components' exist (enabled by the
+        'safe_rl' observations preset, which implies cost=True).
       fast_path: run an RL step's shield cycles at its start in one call
         (`safety.batch.step_many`, compiled where it can) and hand the
         controller the verified set-points, check new goals with
@@ -310,7 +316,12 @@ class HrcTask(composer.Task):
     self._grips = grips_lib.HumanGrips(self._human)
     self._build_task()
     self.set_timesteps(control_timestep, physics_timestep)
-    self._metrics = metrics_lib.EpisodeMetrics(self.EXTRA_COUNTERS)
+    if cost is None and observations == observations_lib.SAFE_RL:
+      cost = True
+    self._cost = cost_lib.CostSpec.of(cost)
+    self._metrics = metrics_lib.EpisodeMetrics(
+        self.EXTRA_COUNTERS + (cost_lib.metric_names() if self._cost
+                               else ()))
     self._physics_ptr = None
     self._episode_data = None   # MjData of the last initialised episode.
     self._restored = False      # set_state since the last step
@@ -493,8 +504,13 @@ class HrcTask(composer.Task):
     obs = observations_lib.shared_observables(
         self._robot, self._gripper, self._human, self._step_flags)
     obs.update(self._task_observables())
+    presets = dict(self.OBSERVATION_PRESETS)
+    if self._cost is not None:
+      obs.update(observations_lib.cost_observables(self._metrics))
+      presets[observations_lib.SAFE_RL] = observations_lib.safe_rl_preset(
+          obs, presets)
     self.observation_names = observations_lib.select(
-        obs, self.OBSERVATION_PRESETS, observations)
+        obs, presets, observations)
     self._task_obs = obs
 
   def _add_cameras(self, cameras, camera_size):
@@ -987,6 +1003,8 @@ class HrcTask(composer.Task):
     for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
       step[f'contacts_{name}'] = int(count)
     self._contact_steps[:] = 0
+    if self._cost is not None:
+      step.update(self._cost.step_metrics(step, self._shield.reach_distance))
     self._metrics.record(step)
 
   def get_reward(self, physics):

@@ -14,10 +14,16 @@ from dm_control.composer.observation import observable
 import numpy as np
 
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import cost as cost_lib
 
 # Human keypoints observed relative to the end effector: head and hands
 # (docs/reference_benchmark.md, Observations).
 OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
+# The observations preset of HrcTask's default, and the safe-RL preset: it
+# adds the cost observables (which exist only in tasks with a cost).
+DEFAULT_PRESET = 'paper'
+SAFE_RL = 'safe_rl'
+COST_OBSERVABLES = ('cost', 'cost_components')
 
 
 def _flag(contact_flags, *names):
@@ -50,6 +56,28 @@ def shared_observables(robot, gripper, human, contact_flags):
   obs['critical_contact'] = observable.Generic(
       _flag(contact_flags, 'human_critical'))
   return obs
+
+
+def cost_observables(metrics):
+  """name -> observable of the last RL step's cost (1,) and its
+  components (len(cost.COMPONENTS),), read from the task's EpisodeMetrics
+  (zeros before the first step)."""
+  names = cost_lib.metric_names()
+  obs = collections.OrderedDict()
+  obs['cost'] = observable.Generic(lambda physics: np.array(
+      [float(metrics.step.get(cost_lib.COST, 0.0))]))
+  obs['cost_components'] = observable.Generic(lambda physics: np.array(
+      [float(metrics.step.get(name, 0.0)) for name in names[:-1]]))
+  return obs
+
+
+def safe_rl_preset(observables, presets):
+  """The 'safe_rl' preset: the default preset (every observable but the
+  cost ones where a task has none) and the cost observables."""
+  base = presets.get(DEFAULT_PRESET)
+  if base is None:
+    base = tuple(n for n in observables if n not in COST_OBSERVABLES)
+  return tuple(base) + COST_OBSERVABLES
 
 
 def select(observables, presets, selection):
