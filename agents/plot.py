@@ -8,8 +8,9 @@ one curve: at every evaluation step all of them reached, the mean over seeds
 with a 95 % percentile-bootstrap confidence interval from 10^4 resamples
 (the reference benchmark's protocol). Two panels: the evaluation success
 rate and the evaluation return normalised between the task's minimal
-episode return (0: the task reward's lowest value x horizon, from the run's
-config.json, as in the paper, whose runs had no collision penalty;
+episode return (0: the task reward's lowest possible episode return,
+HrcTask.min_task_return, from the run's config.json, as in the paper,
+whose runs had no collision penalty;
 --minimum=total: with the collision penalty, which puts the zero far below
 any real return) and the mean expert return (1). The expert return comes
 from --expert_return or the experts file (--experts_json, by default

@@ -21,10 +21,10 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   length and the evaluation's seconds.
 
 Normalised return (the paper's): (R - R_min) / (R_expert - R_min), R_min
-the task reward's lowest episode return without collision penalties
-(config.json's min_task_return) and R_expert the mean return of the
-deterministic expert's episodes on the grid's task (the sweep's
-shared/experts/<task>.json).
+the task reward's lowest possible episode return without collision
+penalties (`HrcTask.min_task_return` of the grid's task and robot) and
+R_expert the mean return of the deterministic expert's episodes on the
+grid's task (the sweep's shared/experts/<task>.json).
 """
 
 import collections
@@ -42,6 +42,7 @@ from agents import grids as grids_lib
 from agents import logging as logging_lib
 from agents import sweep_layout as layout
 from hrc_suite import statistics
+from hrc_suite import suite
 
 SEEN = 'seen'
 UNSEEN = 'unseen'
@@ -75,14 +76,33 @@ def _number(value):
   return value if math.isfinite(value) else None
 
 
-def evaluation_rows(root, grid=None):
+def task_minimum(grid, task):
+  """R_min of `task` in `grid`: HrcTask.min_task_return of the task built
+  with the grid's robot, action space and kwargs (its people aside: the
+  minimum does not depend on them)."""
+  domain, name = task.split('/')
+  kwargs = {k: v for k, v in grid.task_kwargs_of(None).items()
+            if k != 'motions'}
+  env = suite.load(domain, name, task_kwargs=dict(
+      kwargs, robot=grid.robot,
+      action_space=grids_lib.default_action_space(domain, name)))
+  try:
+    return float(env.task.min_task_return)
+  finally:
+    env.close()
+
+
+def evaluation_rows(root, grid=None, minima=None):
   """(rows, missing): every evaluation of the sweep's runs as dicts with
   ROW_KEYS, and {run name: state} of the runs without all their steps
-  ('no data', or 'k of n steps')."""
+  ('no data', or 'k of n steps'). minima: {task: R_min}, by default
+  `task_minimum` of each task."""
   if grid is None:
     grid, _ = load_sweep(root)
   rows, missing = [], {}
   experts = {task: expert_return(root, task) for task in grid.tasks}
+  if minima is None:
+    minima = {task: task_minimum(grid, task) for task in grid.tasks}
   for run in grid.runs():
     directory = layout.run_directory(root, run.name)
     target = int(run.run_config['steps'])
@@ -93,7 +113,7 @@ def evaluation_rows(root, grid=None):
     config = layout.read_json(os.path.join(directory, 'config.json'))
     if config is None:
       continue
-    low = config.get('min_task_return')
+    low = minima[run.task]
     best = experts[run.task]
     files = [(SEEN if run.split is not None else None, 'eval.csv')]
     files += [(name, f'eval_{name}.csv')
@@ -283,7 +303,8 @@ def evaluation_cost(rows):
           for task, (s, l, n) in cost.items()}
 
 
-def markdown(grid, record, final, missing, overfitting, cost):
+def markdown(grid, record, final, missing, overfitting, cost,
+             normalisation):
   """report.md's text."""
   lines = [f'# Sweep {grid.name}', '',
            f'{len(grid.runs())} runs ({len(grid.tasks)} tasks x '
@@ -304,6 +325,12 @@ def markdown(grid, record, final, missing, overfitting, cost):
         f'{_cell(entry["success"])} | '
         f'{_cell(entry["normalised_return"])} | '
         f'{_cell(entry["return"], 1)} |')
+  lines += ['', 'Normalised return: (R - R_min) / (R_expert - R_min).', '',
+            '| task | R_min (lowest possible) | R_expert (expert mean) |',
+            '|---|---|---|']
+  for task, (low, best) in normalisation.items():
+    expert = '-' if best is None else f'{best:.2f}'
+    lines.append(f'| {task} | {low:.2f} | {expert} |')
   if overfitting:
     lines += ['', '## Seen against unseen motions', '',
               '| task | agent | motions | runs | step | success | '
@@ -336,14 +363,31 @@ def _jsonable(entry):
 
 
 def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
-           plots=True):
-  """Writes the report of the sweep in `root` to `out`; returns
-  {'rows', 'final', 'missing', 'overfitting', 'cost', 'paths'}."""
+           plots=True, minima=None):
+  """Writes the report of a sweep.
+
+  Args:
+    root: the sweep directory.
+    out: the report's directory (default root/report).
+    seed: seed of the bootstrap resampling.
+    resamples: bootstrap resamples.
+    plots: draw the figures.
+    minima: {task: R_min} of the normalised return (default: each task's
+      `task_minimum`).
+
+  Returns:
+    {'rows', 'final', 'missing', 'overfitting', 'cost', 'normalisation',
+    'paths'}.
+  """
   root = os.path.abspath(root)
   out = out or os.path.join(root, 'report')
   os.makedirs(out, exist_ok=True)
   grid, record = load_sweep(root)
-  rows, missing = evaluation_rows(root, grid)
+  if minima is None:
+    minima = {task: task_minimum(grid, task) for task in grid.tasks}
+  normalisation = {task: (minima[task], expert_return(root, task))
+                   for task in grid.tasks}
+  rows, missing = evaluation_rows(root, grid, minima)
   motions = SEEN if grid.splits else None
   final = final_values(rows, np.random.RandomState(seed), resamples,
                        motions)
@@ -387,12 +431,13 @@ def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
       logger.write(flat, entry.get('step', ''))
   finally:
     logger.close()
-  text = markdown(grid, record, final, missing, overfitting, cost)
+  text = markdown(grid, record, final, missing, overfitting, cost,
+                  normalisation)
   with open(os.path.join(out, 'report.md'), 'w') as f:
     f.write(text)
   paths += [evaluations, final_csv, os.path.join(out, 'report.md')]
   return {'rows': rows, 'final': [_jsonable(e) for e in final],
-          'missing': missing,
+          'missing': missing, 'normalisation': normalisation,
           'overfitting': {k: [_jsonable(e) for e in v]
                           for k, v in overfitting.items()},
           'cost': cost, 'paths': paths}

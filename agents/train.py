@@ -227,14 +227,16 @@ def make_agent(run_config, env):
 
 def task_facts(env):
   """Reward range, horizon and minimal episode returns of env's task:
-  min_return with the collision penalty (the lowest possible), and
-  min_task_return without it (the paper's runs had no penalty)."""
+  min_task_return without the collision penalty (HrcTask.min_task_return;
+  the paper's runs had no penalty) and min_return with it at every step
+  (the lowest possible)."""
   low, high = env.task.reward_range
   horizon = int(env.task.horizon)
   penalty = min(float(getattr(env.task, 'collision_reward', 0.0)), 0.0)
+  minimum = float(env.task.min_task_return)
   return {'reward_range': [float(low), float(high)], 'horizon': horizon,
-          'min_return': float(low) * horizon,
-          'min_task_return': (float(low) - penalty) * horizon}
+          'min_return': minimum + penalty * horizon,
+          'min_task_return': minimum}
 
 
 def summarize(episodes):

@@ -469,6 +469,29 @@ class HrcTask(composer.Task):
   def _task_reward_range(self):
     return (0.0, 0.0)
 
+  @property
+  def min_task_return(self):
+    """The lowest possible episode return of the task's reward (no
+    collision penalty: the paper's runs had none), the 0 of the paper's
+    normalised return (docs/reference_benchmark.md, Training and
+    evaluation). Without a failure reward (`_task_failure_reward`), the
+    lowest step reward for every step of the horizon H; with one, F, and
+    the other steps' lowest reward L, also F after H - 1 steps of L (or at
+    once where L > 0): min(L H, F + min(L, 0) (H - 1))."""
+    horizon = self.horizon
+    failure = self._task_failure_reward()
+    if failure is None:
+      return self._task_reward_range()[0] * horizon
+    failed, lowest = failure
+    return min(lowest * horizon, failed + min(lowest, 0.0) * (horizon - 1))
+
+  def _task_failure_reward(self):
+    """None, or (the reward of the step that ends an episode in failure,
+    the lowest reward of any other step) where the failure's reward is the
+    task's lowest and ends the episode (lifting, stacking), so that it can
+    be earned once only."""
+    return None
+
   # --------------------------------------------------- human grips, clips
 
   def _add_holdable(self, body):

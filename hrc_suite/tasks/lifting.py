@@ -312,6 +312,9 @@ class Lifting(base.HrcTask):
   def _task_reward_range(self):
     return (FAILURE_REWARD, BALANCED_REWARD)
 
+  def _task_failure_reward(self):
+    return (FAILURE_REWARD, 0.0)   # 0: released, or tilted to MAX_TILT
+
   # -------------------------------------------------------- observables
 
   def _task_observables(self):

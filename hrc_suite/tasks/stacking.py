@@ -394,6 +394,9 @@ class Stacking(base.HrcTask):
   def _task_reward_range(self):
     return (REWARD_TOPPLED, REWARD_SUCCESS)
 
+  def _task_failure_reward(self):
+    return (REWARD_TOPPLED, REWARD_OTHERWISE)
+
   # -------------------------------------------------------- observables
 
   def _cube_positions(self, physics):

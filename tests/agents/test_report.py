@@ -64,7 +64,8 @@ def test_final_values_equal_a_hand_computation(tmp_path):
       _write_run(str(tmp_path), run, {'eval.csv': rows},
                  finished=run.seed < 2)
   result = report.report(str(tmp_path), str(tmp_path / 'out'),
-                         resamples=10_000)
+                         resamples=10_000,
+                         minima={'reach/dense': _MIN_RETURN})
   final = {entry['agent']: entry for entry in result['final']}
 
   sac = final['sac']
@@ -112,6 +113,16 @@ def test_final_values_equal_a_hand_computation(tmp_path):
   for name in ('success.png', 'return.png', 'final.csv'):
     assert os.path.getsize(tmp_path / 'out' / name) > 0
   assert result['cost']['reach/dense']['seconds'] == 2.0
+  assert '| reach/dense | -200.00 | -20.00 |' in text
+
+
+def test_the_minimum_is_the_tasks_lowest_possible_return():
+  grid = grids.get('paper_reduced')
+  # Lifting: failing (-10) ends the episode, and no other step pays less
+  # than 0; reach/dense: -0.1 per m of the farthest distance every step.
+  assert report.task_minimum(grid, 'lifting/default') == -10.0
+  env_minimum = report.task_minimum(grid, 'reach/dense')
+  assert -200.0 < env_minimum < -100.0
 
 
 def test_seen_against_unseen_motions(tmp_path):
@@ -124,7 +135,8 @@ def test_seen_against_unseen_motions(tmp_path):
         'eval.csv': [(0, 0.0, -200.0), (100, 1.0, -20.0)],
         'eval_unseen.csv': [(0, 0.0, -200.0), (100, 0.5, -110.0)]})
   result = report.report(str(tmp_path), str(tmp_path / 'out'),
-                         resamples=1000)
+                         resamples=1000,
+                         minima={'reach/dense': _MIN_RETURN})
   seen, = result['overfitting']['seen']
   unseen, = result['overfitting']['unseen']
   assert seen['seeds'] == unseen['seeds'] == 2   # two splits of seed 0
