@@ -364,7 +364,7 @@ def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
     cpus = int(cpus_per_run)
     environment = {'env_vars': sweep_work.thread_environment(cpus)}
     _prepare_nodes(ray, grid.robot, stream)
-    # Shared inputs first: Ray starts tasks in about the order they come.
+    # Shared inputs first.
     datasets = {}
     for run in todo:
       if grid.needs_dataset(run.agent):
@@ -386,6 +386,10 @@ def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
     train = ray.remote(num_cpus=cpus, num_gpus=gpus_per_run,
                        max_retries=max_retries, max_calls=1,
                        runtime_env=environment)(sweep_work.train_run)
+    # The runs go in once the datasets are there: Ray queues a task whose
+    # arguments are not ready behind those submitted with theirs, which
+    # would put every SAC run before the first imitation run.
+    datasets = _wait_for_datasets(ray, datasets, stream)
     pending = {}
     for run in todo:
       dataset = (datasets.get((run.task, run.split))
@@ -400,6 +404,24 @@ def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
       ray.shutdown()
   reporter.report(0)
   return failures
+
+
+def _wait_for_datasets(ray, datasets, stream):
+  """{(task, split): directory} once every dataset task has finished; a
+  RuntimeError naming the dataset that could not be made."""
+  ready = {}
+  for key, ref in datasets.items():
+    try:
+      ready[key] = ray.get(ref)
+    except Exception as e:   # pylint: disable=broad-except
+      cause = getattr(e, 'cause', None) or e
+      raise RuntimeError(f'The expert dataset of {key[0]} (split {key[1]}) '
+                         f'could not be made: {type(cause).__name__}: '
+                         f'{cause}') from None
+  if ready:
+    print(f'[sweep] expert datasets ready: {len(ready)}', file=stream,
+          flush=True)
+  return ready
 
 
 def _shared_task_kwargs(grid, run, task=None):
@@ -512,7 +534,7 @@ def main(argv, flag_values=flags.FLAGS):
                          gpus_per_run=f.gpus_per_run,
                          max_retries=f.max_retries,
                          report_every=f.report_every)
-  except (ValueError, ConnectionError) as e:
+  except (ValueError, ConnectionError, RuntimeError) as e:
     print(f'agents.sweep: {e}', file=sys.stderr)
     return 2
   if failures:
