@@ -193,7 +193,8 @@ def _git_commit():
 
 def open_sweep(out, grid):
   """Creates the sweep directory or checks that it holds the same grid
-  (but for RESUMABLE_CHANGES); writes sweep.json."""
+  (but for RESUMABLE_CHANGES); writes sweep.json with this start (commit,
+  time, host) appended to its starts."""
   os.makedirs(os.path.join(out, layout.RUNS), exist_ok=True)
   path = os.path.join(out, layout.SWEEP_FILE)
   stored = layout.read_json(path)
@@ -208,9 +209,13 @@ def open_sweep(out, grid):
       raise ValueError(f'{out} holds a sweep of another grid ({details}); '
                        f'only {list(RESUMABLE_CHANGES)} may change: choose '
                        'a new --out for a new grid')
-  record = {'grid': grid.to_dict(), 'commit': _git_commit(),
-            'started': (stored or {}).get('started', time.time()),
-            'updated': time.time()}
+  commit, now = _git_commit(), time.time()
+  starts = list((stored or {}).get('starts', []))
+  starts.append({'commit': commit, 'time': now,
+                 'host': socket.gethostname()})
+  record = {'grid': grid.to_dict(), 'commit': commit,
+            'started': (stored or {}).get('started', now), 'updated': now,
+            'starts': starts}
   layout.write_json(path, record)
   return record
 

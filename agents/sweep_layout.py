@@ -2,7 +2,7 @@
 
   DIR/
     sweep.json                  the grid as run (agents.grids.Grid.to_dict),
-                                with the package version and commit
+                                the commit, time and host of every start
     shared/
       datasets/<domain>-<task>[-split<k>]/
                                 expert dataset of RSI, SIR and AIR runs

@@ -89,7 +89,8 @@ def test_unreachable_cluster_addresses_are_named(tmp_path):
 def test_a_sweep_directory_keeps_its_grid(tmp_path):
   grid = grids.get('smoke')
   sweep.open_sweep(str(tmp_path), grid)
-  sweep.open_sweep(str(tmp_path), grid.replace(steps=500))   # may grow
+  record = sweep.open_sweep(str(tmp_path), grid.replace(steps=500))
+  assert len(record['starts']) == 2   # steps may grow
   with pytest.raises(ValueError, match=r"another grid \(seeds: \[0\] -> "
                      r"\[0, 1\]\).*choose a new --out"):
     sweep.open_sweep(str(tmp_path), grid.replace(seeds=(0, 1)))
