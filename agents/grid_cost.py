@@ -3,8 +3,8 @@ r"""The wall time of a grid on M machines of C cores, from a measured sweep.
   python -m agents.grid_cost --sweep=sweeps/paper_reduced --grid=paper \
       --cores=16 --machines=1,2,4,8,16
 
-The model. From the measured sweep's runs (one run per core, as the sweep
-runs them) it takes, per task and agent:
+The model. From the measured sweep's finished runs (one run per core, as
+the sweep runs them) it takes, per task and agent:
 
 * the training rate r_train: RL steps per second of training alone (the
   run's wall time less its evaluations' own seconds), environment, actor
@@ -47,14 +47,14 @@ Rates = collections.namedtuple('Rates', ['train', 'evaluation',
 
 
 def measured_rates(root):
-  """{(task, agent): Rates} from the sweep's runs with data."""
+  """{(task, agent): Rates} from the sweep's finished runs (their
+  finished.json: steps and the run's wall time over all its starts, less
+  the work a restart did again)."""
   grid, _ = report_lib.load_sweep(root)
   totals = collections.defaultdict(lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0])
   for run in grid.runs():
     directory = layout.run_directory(root, run.name)
-    record = (layout.read_json(os.path.join(directory, layout.FINISHED_FILE))
-              or layout.read_json(os.path.join(directory,
-                                               layout.PROGRESS_FILE)))
+    record = layout.read_json(os.path.join(directory, layout.FINISHED_FILE))
     path = os.path.join(directory, 'eval.csv')
     if record is None or not os.path.exists(path) or not record['steps']:
       continue

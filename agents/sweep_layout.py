@@ -15,8 +15,9 @@
       config.json, train.csv, eval.csv, eval_<set>.csv, tensorboard/,
       checkpoints/              agents.train's run directory
       run.log                   the run's log (Python logging, warnings)
-      progress.json             {steps, target, wall_time, updated}, rewritten
-                                every PROGRESS_SECONDS while it trains
+      progress.json             {steps, target, session_seconds, updated},
+                                rewritten every PROGRESS_SECONDS while it
+                                trains (session_seconds: since this start)
       finished.json             {steps, wall_time, evaluations, host,
                                 finished}: the run reached its steps
       error.json                {error, traceback, time} of its last failure
@@ -103,5 +104,5 @@ class ProgressWriter:
     if force or now - self._last >= PROGRESS_SECONDS:
       self._last = now
       write_json(self._path, {'steps': int(steps), 'target': self._target,
-                              'wall_time': now - self._start,
+                              'session_seconds': now - self._start,
                               'updated': now})
