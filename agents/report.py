@@ -219,6 +219,7 @@ def draw(rows, grid, root, name, ylabel, path, random_state, resamples,
       axis.axhline(reference, color='k', linestyle='--', linewidth=1,
                    label='expert')
     axis.set_title(task)
+    axis.set_xlim(0, grid.steps_of(task))
     axis.set_xlabel('RL steps')
     axis.set_ylabel(ylabel)
     axis.ticklabel_format(axis='x', style='sci', scilimits=(0, 4))
