@@ -49,8 +49,8 @@ PAPER_STEPS = {'reach/dense': 1_000_000, 'lifting/default': 1_000_000,
                'handover/robot_to_human': 3_000_000,
                'handover/human_to_robot': 3_000_000,
                'stacking/default': 3_000_000}
-# The paper's runs had no collision penalty (docs/reference_benchmark.md,
-# Rewards and success).
+# The paper's runs had no collision penalty
+# (docs/reference_benchmark.md, Rewards and success).
 PAPER_TASK_KWARGS = {'collision_reward': 0.0}
 
 # Labels of the agents in reports, as the paper names them.
