@@ -1,5 +1,6 @@
-"""Headless by default: without a display, importing hrc_suite has
-dm_control load EGL when something first renders, and only then."""
+"""OpenGL loads at the first render only: without a display, importing
+hrc_suite has dm_control load EGL when something first renders, and a
+backend MUJOCO_GL names loads then too, not at import."""
 
 import ctypes.util
 import os
@@ -62,6 +63,20 @@ def test_backend_default_needs_linux_without_display(environ, platform,
       environ, platform, find_library=lambda name: 'libEGL.so.1') == expected
 
 
+@pytest.mark.parametrize('environ, expected', [
+    ({'MUJOCO_GL': 'egl'}, 'egl'),
+    ({'MUJOCO_GL': ' OSMesa '}, 'osmesa'),
+    ({'MUJOCO_GL': 'glfw', 'DISPLAY': ':0'}, 'glfw'),
+    ({'MUJOCO_GL': 'off'}, None),        # no backend: nothing to defer
+    ({'MUJOCO_GL': 'disable'}, None),
+    ({}, 'egl'),                         # the headless default
+    ({'DISPLAY': ':0'}, None),
+])
+def test_deferred_backend(environ, expected):
+  assert hrc_suite.deferred_gl_backend(
+      environ, 'linux', find_library=lambda name: 'libEGL.so.1') == expected
+
+
 def test_no_default_without_libegl():
   assert hrc_suite.headless_gl_backend(
       {}, 'linux', find_library=lambda name: None) is None
@@ -86,3 +101,28 @@ def test_explicit_mujoco_gl_wins():
                 MUJOCO_GL='off')
   assert result.returncode == 0, result.stderr
   assert result.stdout.split() == ['off', 'off']   # dm_control's no-renderer
+
+
+@_HEADLESS
+def test_a_named_backend_loads_at_the_first_render_too():
+  """MUJOCO_GL=egl, as dm_control tells headless users: stepping a task
+  maps no libEGL (MuJoCo alone would at import); rendering through
+  dm_control and through MuJoCo's own Renderer then works."""
+  code = _RENDER + """
+import mujoco
+model = mujoco.MjModel.from_xml_string(
+    '<mujoco><worldbody><light pos="0 0 3"/><geom type="sphere" size="0.2"'
+    ' rgba="1 0 0 1"/></worldbody></mujoco>')
+data = mujoco.MjData(model)
+mujoco.mj_forward(model, data)
+with mujoco.Renderer(model, 48, 64) as renderer:
+  renderer.update_scene(data)
+  print(int(renderer.render().max()))
+"""
+  result = _run(code, MUJOCO_GL='egl')
+  assert result.returncode == 0, result.stderr
+  lines = result.stdout.split()
+  gl, backend, before, after = lines[:4]
+  assert (gl, backend) == ('egl', 'egl')   # MUJOCO_GL kept as set
+  assert (before, after) == ('False', 'True')
+  assert int(lines[-2]) > 0 and int(lines[-1]) > 0, 'blank frame'
