@@ -183,7 +183,7 @@ def test_a_killed_sweep_resumes_to_the_same_results(tmp_path):
   # is not joined by the embedded sweep: nothing answers at this one.
   subprocess.run(_sweep_command(whole), check=True, cwd=_REPOSITORY,
                  env=dict(environment, RAY_ADDRESS='127.0.0.1:1'),
-                 capture_output=True, timeout=900)
+                 capture_output=True, timeout=1800)
   runs = grids.get('smoke').replace(steps=600).runs()
   directories = [layout.run_directory(split, r.name) for r in runs]
 
@@ -192,7 +192,7 @@ def test_a_killed_sweep_resumes_to_the_same_results(tmp_path):
                              stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
   killed_after = None
-  deadline = time.time() + 900
+  deadline = time.time() + 1800
   while time.time() < deadline and process.poll() is None:
     finished = [d for d in directories if layout.is_finished(d, 600)]
     started = [d for d in directories if d not in finished and os.path.exists(
@@ -211,7 +211,7 @@ def test_a_killed_sweep_resumes_to_the_same_results(tmp_path):
 
   result = subprocess.run(_sweep_command(split), cwd=_REPOSITORY,
                           env=environment, capture_output=True, text=True,
-                          timeout=900)
+                          timeout=1800)
   assert result.returncode == 0, result.stderr[-3000:]
   assert '2 runs, 1 finished before' in result.stdout
   # The finished run was not trained again.
@@ -230,7 +230,7 @@ def test_a_killed_sweep_resumes_to_the_same_results(tmp_path):
   # Started once more, there is nothing left to do.
   again = subprocess.run(_sweep_command(split), cwd=_REPOSITORY,
                          env=environment, capture_output=True, text=True,
-                         timeout=900)
+                         timeout=1800)
   assert again.returncode == 0 and '2 runs, 2 finished before' in again.stdout
   # The report reads the real sweep: 5 evaluations of each run, the
   # expert's return from the sweep's shared folder, no run missing.
