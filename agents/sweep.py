@@ -294,7 +294,7 @@ class ProgressReporter:
   line: runs done/running/left, steps, rate and estimated time to finish."""
 
   def __init__(self, out, runs, stream=sys.stdout):
-    self._out = out
+    self.out = out
     self._runs = runs
     self._stream = stream
     self._start = time.time()
@@ -302,12 +302,12 @@ class ProgressReporter:
     self.failed = set()
 
   def steps_done(self):
-    return sum(min(layout.progress(layout.run_directory(self._out, r.name)),
+    return sum(min(layout.progress(layout.run_directory(self.out, r.name)),
                    int(r.run_config['steps'])) for r in self._runs)
 
   def line(self, running):
     done = sum(1 for r in self._runs if layout.is_finished(
-        layout.run_directory(self._out, r.name), r.run_config['steps']))
+        layout.run_directory(self.out, r.name), r.run_config['steps']))
     total = sum(int(r.run_config['steps']) for r in self._runs)
     steps = self.steps_done()
     elapsed = time.time() - self._start
@@ -497,8 +497,7 @@ def _running(reporter, pending):
     if run is None:
       continue
     record = layout.read_json(os.path.join(
-        layout.run_directory(reporter._out, run.name),   # pylint: disable=protected-access
-        layout.PROGRESS_FILE))
+        layout.run_directory(reporter.out, run.name), layout.PROGRESS_FILE))
     if record is not None and now - record['updated'] < (
         2 * layout.PROGRESS_SECONDS + 5):
       count += 1
