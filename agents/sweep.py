@@ -480,7 +480,7 @@ def _wait(ray, pending, reporter, report_every, stream):
         continue
       if run is not None:
         print(f'[sweep] {run.name} finished: {result["steps"]} steps in '
-              f'{_format_seconds(result["session_seconds"])}', file=stream,
+              f'{_format_seconds(result["start_seconds"])}', file=stream,
               flush=True)
     running = _running(reporter, pending)
     if time.time() - last >= report_every:

@@ -15,11 +15,13 @@
       config.json, train.csv, eval.csv, eval_<set>.csv, tensorboard/,
       checkpoints/              agents.train's run directory
       run.log                   the run's log (Python logging, warnings)
-      progress.json             {steps, target, session_seconds, updated},
+      progress.json             {steps, target, start_seconds, updated},
                                 rewritten every PROGRESS_SECONDS while it
-                                trains (session_seconds: since this start)
-      finished.json             {steps, wall_time, evaluations, host,
-                                finished}: the run reached its steps
+                                trains (start_seconds: since the run's
+                                latest start)
+      finished.json             {steps, episodes, evaluations, wall_time
+                                (over all starts), start_seconds, host,
+                                cores, finished}: the run reached its steps
       error.json                {error, traceback, time} of its last failure
 
 A run is finished when finished.json exists and its steps are at least the
@@ -104,5 +106,5 @@ class ProgressWriter:
     if force or now - self._last >= PROGRESS_SECONDS:
       self._last = now
       write_json(self._path, {'steps': int(steps), 'target': self._target,
-                              'session_seconds': now - self._start,
+                              'start_seconds': now - self._start,
                               'updated': now})

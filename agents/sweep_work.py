@@ -202,7 +202,7 @@ def train_run(root, run_name, run_config, cpus, dataset=None):
       record = {'steps': steps, 'episodes': int(state['counter']['episodes']),
                 'evaluations': int(state['evaluations']),
                 'wall_time': float(state['wall_time']),
-                'session_seconds': time.time() - start,
+                'start_seconds': time.time() - start,
                 'host': socket.gethostname(), 'cores': cores,
                 'finished': time.strftime('%Y-%m-%dT%H:%M:%SZ',
                                           time.gmtime())}

@@ -401,8 +401,7 @@ def train(run_config, logdir, resume=False, progress=False,
   train_log = logging_lib.Dispatcher(
       [train_csv, logging_lib.TensorBoardLogger(writer, 'train')])
   learner_log = logging_lib.TensorBoardLogger(writer, 'learner')
-  eval_log = logging_lib.Dispatcher(
-      [logging_lib.TensorBoardLogger(writer, 'eval')])
+  eval_log = logging_lib.TensorBoardLogger(writer, 'eval')
   bar = _Progress(progress, run_config['steps'], loop.counter.steps)
   start = time.perf_counter() - state['wall_time']
   last_saved = loop.counter.steps if checkpoint is not None else None
