@@ -14,7 +14,7 @@ policy, as `agents.evaluate` does.
 import os
 
 from agents import checkpoints
-from agents.sac import agent as agent_lib
+from agents import agent_checkpoint
 from hrc_suite.rendering import episode as render
 
 
@@ -27,7 +27,7 @@ def load(path):
   agent_directory = os.path.join(directory, checkpoints.AGENT_DIR)
 
   def factory(env, seed):
-    return agent_lib.load_policy(agent_directory, env, deterministic=True,
+    return agent_checkpoint.load_policy(agent_directory, env, deterministic=True,
                                  seed=seed)
 
   factory.__name__ = f'checkpoint {directory}'

@@ -28,6 +28,7 @@ import shutil
 
 import numpy as np
 
+from agents import agent_checkpoint
 from hrc_suite.tasks import snapshots
 
 KEEP = 2                     # checkpoints kept per run
@@ -100,7 +101,7 @@ def save(logdir, steps, agent, loop_state, random_states, episode=None):
   if os.path.exists(temporary):
     shutil.rmtree(temporary)
   os.makedirs(temporary)
-  agent.save(os.path.join(temporary, AGENT_DIR))
+  agent_checkpoint.save(agent, os.path.join(temporary, AGENT_DIR))
   keys, scalars = {}, {}
   for label, random_state in random_states.items():
     keys[label], scalars[label] = random_state_to_arrays(random_state)
@@ -177,7 +178,7 @@ def load_episode(directory):
 
 
 def agent_directory(path):
-  """The agent directory (for `agents.sac.agent.load_policy`) of a run
+  """The agent directory (for `agents.agent_checkpoint.load_policy`) of a run
   logdir, its checkpoints/ folder, a checkpoint or an agent directory."""
   path = os.fspath(path)
   if os.path.exists(os.path.join(path, 'agent.json')):

@@ -71,6 +71,9 @@ class SACConfig:
       rewards against the entropy bonus and to Adam's fixed step sizes on
       the critic, so tasks with small rewards, e.g. reach/dense's -0.1 x
       distance, learn faster with a scale of 10-100).
+    cost_penalty: beta >= 0; the critic learns from r - beta x cost, the
+      transition's safety cost (agents/adders.py) taken as a reward
+      penalty (0: the cost is not read).
   """
   learning_rate: float = 3e-4
   batch_size: int = 256
@@ -85,6 +88,7 @@ class SACConfig:
   fused_steps: int = FUSED_STEPS
   max_grad_norm: Optional[float] = None
   reward_scale: float = 1.0
+  cost_penalty: float = 0.0
 
   def __post_init__(self):
     # Lists (e.g. from JSON) become tuples so the config stays hashable.
@@ -112,6 +116,8 @@ class SACConfig:
            'max_grad_norm', self.max_grad_norm, 'None or > 0')
     _check(self.reward_scale > 0 and math.isfinite(self.reward_scale),
            'reward_scale', self.reward_scale, 'a finite number > 0')
+    _check(self.cost_penalty >= 0 and math.isfinite(self.cost_penalty),
+           'cost_penalty', self.cost_penalty, 'a finite number >= 0')
 
   def entropy_target(self, action_size):
     """`target_entropy`, or -action_size when it is None."""
@@ -146,9 +152,9 @@ class SACConfig:
     return cls(**values)
 
 
-def _check(condition, name, value, expected):
+def _check(condition, name, value, expected, config_name='SACConfig'):
   if not condition:
-    raise ValueError(f'SACConfig.{name}={value!r}: expected {expected}')
+    raise ValueError(f'{config_name}.{name}={value!r}: expected {expected}')
 
 
 def default_config(**overrides):

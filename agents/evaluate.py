@@ -22,7 +22,7 @@ from agents import checkpoints
 from agents import loop as loop_lib
 from hrc_suite import statistics
 from agents import train as train_lib
-from agents.sac import agent as agent_lib
+from agents import agent_checkpoint
 
 # Seed purpose of evaluate's environment (train uses 0, 1, 2).
 _EVALUATE_ENV = 3
@@ -89,7 +89,7 @@ def run(checkpoint, episodes, seed=None):
   if seed is None:
     seed = train_lib.derived_seed(run_config['seed'], _EVALUATE_ENV)
   env = train_lib.make_environment(run_config, seed)
-  policy = agent_lib.load_policy(
+  policy = agent_checkpoint.load_policy(
       os.path.join(directory, checkpoints.AGENT_DIR), env,
       deterministic=True)
   results = loop_lib.evaluate(env, policy, episodes)

@@ -5,7 +5,10 @@ an OrderedDict in the order the task declares its observables), each entry
 raveled in C order. Image observations (uint8 arrays of rank 3, the tasks'
 `camera_<name>` observables) have no place in a low-dimensional MLP input:
 by default they raise an error; `images='skip'` leaves them out and
-`images='include'` flattens them scaled to [0, 1].
+`images='include'` flattens them scaled to [0, 1]. Signals that are no
+state of the task, such as the safety cost observables of the 'safe_rl'
+preset (hrc_suite/tasks/observations.py, COST_OBSERVABLES), are left out by
+name (`exclude`).
 """
 
 import collections
@@ -24,7 +27,12 @@ def is_image_spec(spec):
 class ObservationFlattener:
   """Maps an observation dict to a float32 vector in the spec's key order."""
 
-  def __init__(self, observation_spec, images='error'):
+  def __init__(self, observation_spec, images='error', exclude=()):
+    """Args:
+      observation_spec: {name: dm_env spec}, in the observation's order.
+      images: what to do with image observations (module docstring).
+      exclude: names left out of the vector when the spec has them.
+    """
     if images not in IMAGE_MODES:
       raise ValueError(f'images={images!r}: expected one of '
                        f'{", ".join(IMAGE_MODES)}')
@@ -39,7 +47,8 @@ class ObservationFlattener:
           "pass images='skip' to leave them out or images='include' to "
           'flatten them')
     self._all_names = tuple(observation_spec)
-    self._skipped = frozenset(image_names if images == 'skip' else ())
+    self._skipped = frozenset(image_names if images == 'skip' else ()) | (
+        frozenset(exclude) & frozenset(observation_spec))
     self._scales = {}
     self._shapes = collections.OrderedDict()
     self._slices = collections.OrderedDict()

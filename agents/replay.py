@@ -1,4 +1,9 @@
-"""Uniform replay: a NumPy ring buffer of float32 transitions."""
+"""Uniform replay: a NumPy ring buffer of float32 transitions.
+
+A transition is (s, a, r, discount, s', cost): the cost is the task's safety
+cost of the step (hrc_suite/tasks/cost.py; 0 where the environment reports
+none), stored for the learners that constrain it.
+"""
 
 import collections
 
@@ -6,7 +11,8 @@ import numpy as np
 
 Transition = collections.namedtuple(
     'Transition',
-    ['observation', 'action', 'reward', 'discount', 'next_observation'])
+    ['observation', 'action', 'reward', 'discount', 'next_observation',
+     'cost'])
 
 _FIELD_SHAPES = {  # Per-transition shape of each field (None: a size).
     'observation': 'observation_size',
@@ -14,7 +20,11 @@ _FIELD_SHAPES = {  # Per-transition shape of each field (None: a size).
     'reward': None,
     'discount': None,
     'next_observation': 'observation_size',
+    'cost': None,
 }
+# Fields a replay state may lack (states written before the field existed
+# restore it as zeros).
+_OPTIONAL_FIELDS = ('cost',)
 
 
 class ReplayBuffer:
@@ -59,17 +69,23 @@ class ReplayBuffer:
   def __len__(self):
     return self._size
 
-  def add(self, observation, action, reward, discount, next_observation):
+  def add(self, observation, action, reward, discount, next_observation,
+          cost=0.0):
     """Stores one transition."""
     self.add_batch(np.asarray(observation)[None], np.asarray(action)[None],
                    np.asarray(reward)[None], np.asarray(discount)[None],
-                   np.asarray(next_observation)[None])
+                   np.asarray(next_observation)[None],
+                   np.asarray(cost)[None])
 
   def add_batch(self, observations, actions, rewards, discounts,
-                next_observations):
-    """Stores a batch of transitions (leading axis = batch) in order."""
+                next_observations, costs=None):
+    """Stores a batch of transitions (leading axis = batch) in order
+    (costs: None for zeros)."""
+    if costs is None:
+      costs = np.zeros(np.shape(rewards), np.float32)
     values = dict(zip(Transition._fields, (
-        observations, actions, rewards, discounts, next_observations)))
+        observations, actions, rewards, discounts, next_observations,
+        costs)))
     batch = None
     for field, value in values.items():
       value = np.asarray(value)
@@ -123,7 +139,14 @@ class ReplayBuffer:
     if not 0 <= size <= capacity or not 0 <= insert_index < capacity:
       raise ValueError(f'Replay state has size {size} and insert_index '
                        f'{insert_index}, expected both in [0, {capacity}]')
+    state = dict(state)
+    for field in _OPTIONAL_FIELDS:
+      if field not in state:
+        state[field] = np.zeros((size,) + self._row_shape(field), np.float32)
     for field in Transition._fields:
+      if field not in state:
+        raise ValueError(f'Replay state lacks {field!r}: expected the '
+                         f'fields {list(Transition._fields)}')
       expected = (size,) + self._row_shape(field)
       if state[field].shape != expected:
         raise ValueError(f'Replay state {field} has shape '

@@ -32,6 +32,7 @@ The README's quickstart:
       --logdir=runs/quickstart --plot --video
 """
 
+import dataclasses
 import json
 import os
 import time
@@ -42,6 +43,9 @@ from absl import logging
 import numpy as np
 import tqdm
 
+from agents import agent as agent_lib
+from agents import agent_checkpoint
+from agents import builders
 from agents import checkpoint_policy
 from agents import checkpoints
 from agents import config as config_lib
@@ -51,15 +55,19 @@ from agents import loop as loop_lib
 from agents import plot as plot_lib
 from agents import precompile
 from agents import specs as specs_lib
-from agents.sac import agent as agent_lib
 from hrc_suite import registry_flags
 from hrc_suite.rendering import episode as render
 from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
+# The agents: SAC and its imitation variants (agents.imitation: SAC on a
+# wrapped task).
 AGENTS = imitation.AGENTS
 _NEEDS_DATASET = imitation.NEEDS_DATASET
+# Agents that train on the bare task, learning with the algorithm of
+# agents/builders.py of the same name.
+_BARE_TASK_AGENTS = ('sac',)
 # Keys of the run config a resumed run may change.
 _RESUMABLE_CHANGES = ('steps',)
 # Purposes of seeds derived from the run seed (np.random.SeedSequence);
@@ -111,9 +119,9 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
     raise ValueError(f'--dataset is only used by --agent='
                      f'{", ".join(_NEEDS_DATASET)}, not '
                      f'{agent}')
-  if imitation_kwargs and agent == 'sac':
-    raise ValueError('imitation_kwargs are for the imitation agents, not '
-                     'sac')
+  if imitation_kwargs and agent in _BARE_TASK_AGENTS:
+    raise ValueError(f'imitation_kwargs are for the imitation agents, not '
+                     f'{agent}')
   for name, value, low in (('steps', steps, 0), ('eval_every', eval_every, 0),
                            ('eval_episodes', eval_episodes, 0),
                            ('checkpoint_every', checkpoint_every, 0)):
@@ -127,7 +135,11 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
       raise ValueError(f'task_kwargs must not set {name!r}: it is a flag '
                        'of its own (the seed is derived from --seed)')
   overrides = dict(overrides or {})
-  sac_config = config_lib.config_from_name(config, **overrides)
+  sac_config = agent_config(agent, config, overrides)
+  if builders.make_builder(algorithm(agent),
+                           sac_config.to_dict()).needs_cost:
+    # The cost reaches the agent as the 'safe_rl' preset's observable.
+    task_kwargs.setdefault('observations', 'safe_rl')
   eval_sets = _check_eval_sets(eval_sets, eval_every)
   run_config = {
       'domain': domain, 'task': task, 'robot': robot,
@@ -143,6 +155,29 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
   if eval_sets:   # Absent otherwise: configs written before it resume.
     run_config['eval_sets'] = eval_sets
   return run_config
+
+
+def algorithm(agent):
+  """The learning algorithm (agents/builders.py) of an agent name."""
+  return agent if agent in _BARE_TASK_AGENTS else 'sac'
+
+
+def agent_config(agent, preset, overrides):
+  """The config of `agent`: the SAC preset's values, for sac_lag with the
+  constraint's fields, and overrides of any of them."""
+  if algorithm(agent) == 'sac':
+    return config_lib.config_from_name(preset, **overrides)
+  config_class = builders.config_class(algorithm(agent))
+  fields = {field.name for field in dataclasses.fields(config_class)}
+  unknown = sorted(set(overrides) - fields)
+  if unknown:
+    raise ValueError(f'Unknown {config_class.__name__} fields {unknown}: '
+                     f'expected some of {", ".join(sorted(fields))}')
+  sac_fields = {field.name for field in dataclasses.fields(
+      config_lib.SACConfig)}
+  base = config_lib.config_from_name(preset, **{
+      k: v for k, v in overrides.items() if k in sac_fields})
+  return config_class(**dict(dataclasses.asdict(base), **overrides))
 
 
 def _check_eval_sets(eval_sets, eval_every):
@@ -185,7 +220,7 @@ def make_training_environment(run_config):
   (agents.imitation; evaluation always runs the bare task)."""
   env = make_environment(run_config, derived_seed(run_config['seed'],
                                                   _TRAIN_ENV))
-  if run_config['agent'] == 'sac':
+  if run_config['agent'] in _BARE_TASK_AGENTS:
     return env
   dataset = None
   if run_config['dataset']:
@@ -196,9 +231,10 @@ def make_training_environment(run_config):
 
 
 def mid_episode_checkpoints(run_config):
-  """True if checkpoints of the run may be taken inside an episode: plain
-  SAC (no wrapper state) without delayed observations."""
-  return (run_config['agent'] == 'sac' and
+  """True if checkpoints of the run may be taken inside an episode: an
+  agent on the bare task (no wrapper state) without delayed
+  observations."""
+  return (run_config['agent'] in _BARE_TASK_AGENTS and
           not run_config['task_kwargs'].get('observation_delay'))
 
 
@@ -219,10 +255,12 @@ def random_states(env):
 
 
 def make_agent(run_config, env):
-  """The run's agent (SACAgent) for env, seeded from the run seed."""
-  sac_config = config_lib.SACConfig.from_dict(run_config['sac_config'])
-  return agent_lib.SACAgent(specs_lib.make_environment_spec(env), sac_config,
-                            seed=derived_seed(run_config['seed'], _AGENT))
+  """The run's agent for env (agents.agent.Agent with the builder of the
+  run's algorithm), seeded from the run seed."""
+  builder = builders.make_builder(algorithm(run_config['agent']),
+                                  run_config['sac_config'])
+  return agent_lib.Agent(specs_lib.make_environment_spec(env), builder,
+                         seed=derived_seed(run_config['seed'], _AGENT))
 
 
 def task_facts(env):
@@ -288,7 +326,9 @@ def make_eval_set_environments(run_config):
 def _check_resumable(stored, run_config):
   stored = dict(stored)
   if 'sac_config' in stored:   # Also one written before fused_steps.
-    stored['sac_config'] = config_lib.SACConfig.from_dict(
+    config_class = builders.config_class(algorithm(stored.get('agent',
+                                                              'sac')))
+    stored['sac_config'] = config_class.from_dict(
         stored['sac_config']).to_dict()
   changed = sorted(k for k in set(stored) | set(run_config)
                    if k not in _RESUMABLE_CHANGES and k in run_config
@@ -365,7 +405,8 @@ def train(run_config, logdir, resume=False, progress=False,
            'wall_time': 0.0}
   if checkpoint is not None:
     stored, rng_states = checkpoints.load_loop_state(checkpoint)
-    agent.restore(os.path.join(checkpoint, checkpoints.AGENT_DIR))
+    agent_checkpoint.restore(agent,
+                             os.path.join(checkpoint, checkpoints.AGENT_DIR))
     loop.counter.restore(stored['counter'])
     current = random_states(env)
     if sorted(current) != sorted(rng_states):

@@ -1,7 +1,6 @@
 """Soft actor-critic (Haarnoja et al. 2018) in pure JAX, shaped like Acme's."""
 
 from agents.config import SACConfig
-from agents.sac.agent import load_policy
 from agents.sac.agent import SACAgent
 
-__all__ = ['SACAgent', 'SACConfig', 'load_policy']
+__all__ = ['SACAgent', 'SACConfig']

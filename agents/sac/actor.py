@@ -1,66 +1,13 @@
 """SAC actor: picks actions from flat observations with the current policy.
 
-Actions live in [-1, 1] (the tanh-Gaussian's range); `ActionScaler` maps
-them to and from a bounded dm_env action spec.
+Actions live in [-1, 1] (the tanh-Gaussian's range); agents/action_scaler.py
+maps them to and from a bounded dm_env action spec.
 """
 
 import jax
 import numpy as np
 
 from agents.sac import networks as networks_lib
-
-
-class ActionScaler:
-  """Affine map between [-1, 1]^n and a bounded 1-D action spec."""
-
-  def __init__(self, action_spec):
-    minimum = getattr(action_spec, 'minimum', None)
-    maximum = getattr(action_spec, 'maximum', None)
-    if minimum is None or maximum is None or len(action_spec.shape) != 1:
-      raise ValueError(f'Expected a bounded 1-D action spec, got '
-                       f'{action_spec!r}')
-    shape = action_spec.shape
-    self._minimum = np.broadcast_to(np.asarray(minimum, np.float64), shape)
-    self._maximum = np.broadcast_to(np.asarray(maximum, np.float64), shape)
-    if not (np.all(np.isfinite(self._minimum))
-            and np.all(np.isfinite(self._maximum))
-            and np.all(self._maximum > self._minimum)):
-      raise ValueError(f'Action bounds must be finite with maximum > minimum,'
-                       f' got minimum {self._minimum} and maximum '
-                       f'{self._maximum}')
-    self._identity = bool(np.all(self._minimum == -1.0)
-                          and np.all(self._maximum == 1.0))
-    self._half_range = 0.5 * (self._maximum - self._minimum)
-    self._centre = 0.5 * (self._maximum + self._minimum)
-
-  @property
-  def size(self):
-    return self._minimum.shape[0]
-
-  @property
-  def minimum(self):
-    return self._minimum.copy()
-
-  @property
-  def maximum(self):
-    return self._maximum.copy()
-
-  def to_environment(self, normalised):
-    """float64 environment action of a [-1, 1] action."""
-    normalised = np.clip(np.asarray(normalised, np.float64), -1.0, 1.0)
-    if self._identity:
-      return normalised
-    return self._centre + self._half_range * normalised
-
-  def to_normalised(self, action):
-    """[-1, 1] action of an environment action (clipped to the bounds)."""
-    action = np.asarray(action, np.float64)
-    if action.shape != self._minimum.shape:
-      raise ValueError(f'Action has shape {action.shape}, expected '
-                       f'{self._minimum.shape}')
-    if not self._identity:
-      action = (action - self._centre) / self._half_range
-    return np.clip(action, -1.0, 1.0)
 
 
 def numpy_policy(params):
@@ -104,16 +51,15 @@ class SACActor:
 
   Args:
     networks: `SACNetworks`.
-    variable_source: callable returning the current policy params (e.g. the
-      agent's acting policy), read at every action as Acme's variable
-      client would be after each update; they are copied to NumPy when a
+    variables: the policy parameters' holder (agents/variable_utils.py:
+      `.params`), read at every action; they are copied to NumPy when a
       different params object comes back.
     seed: int seed of the sampling noise (a np.random.RandomState).
     evaluation: deterministic actions tanh(mean) instead of samples.
   """
 
-  def __init__(self, networks, variable_source, seed, evaluation=False):
-    self._variable_source = variable_source
+  def __init__(self, networks, variables, seed, evaluation=False):
+    self._variables = variables
     self.random_state = np.random.RandomState(seed)
     self.evaluation = bool(evaluation)
     self._observation_size = networks.observation_size
@@ -121,7 +67,7 @@ class SACActor:
     self._layers = None
 
   def _current_layers(self):
-    params = self._variable_source()
+    params = self._variables.params
     if params is not self._source:
       self._layers = numpy_policy(params)
       self._source = params

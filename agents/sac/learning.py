@@ -3,7 +3,8 @@
 Per gradient step on a batch (s, a, r, d, s') (Haarnoja et al. 2018):
 
 * critic: y = c r + gamma d (min_j Q'_j(s', a') - alpha log pi(a'|s')) with
-  a' ~ pi(.|s'), target critics Q' and reward scale c;
+  a' ~ pi(.|s'), target critics Q' and reward scale c (r is the reward less
+  beta x the step's cost where the config's cost_penalty beta > 0);
   loss = mean_j 0.5 (Q_j(s, a) - y)^2;
 * policy: loss = alpha log pi(a~|s) - min_j Q_j(s, a~), a~ ~ pi(.|s)
   reparameterised, with the critics before this step's critic update;
@@ -26,6 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from agents import checkpoint_files
+
 TrainingState = collections.namedtuple('TrainingState', [
     'policy_params', 'q_params', 'target_q_params', 'log_temperature',
     'policy_optimizer_state', 'q_optimizer_state',
@@ -40,50 +43,6 @@ def _optimizer(config):
   if config.max_grad_norm is None:
     return adam
   return optax.chain(optax.clip_by_global_norm(config.max_grad_norm), adam)
-
-
-def _path_name(path):
-  """'a/b/0' name of a jax.tree_util key path."""
-  parts = []
-  for entry in path:
-    if isinstance(entry, jax.tree_util.DictKey):
-      parts.append(str(entry.key))
-    elif isinstance(entry, jax.tree_util.GetAttrKey):
-      parts.append(entry.name)
-    elif isinstance(entry, jax.tree_util.SequenceKey):
-      parts.append(str(entry.idx))
-    elif isinstance(entry, jax.tree_util.FlattenedIndexKey):
-      parts.append(str(entry.key))
-    else:
-      parts.append(str(entry))
-  return '/'.join(parts)
-
-
-def flatten_to_arrays(tree):
-  """{path name: NumPy array} of every leaf of a pytree."""
-  leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
-  return {_path_name(path): np.array(leaf, copy=True)
-          for path, leaf in leaves}
-
-
-def unflatten_from_arrays(template, arrays):
-  """Pytree shaped like `template` with leaves from `flatten_to_arrays`."""
-  leaves, treedef = jax.tree_util.tree_flatten_with_path(template)
-  names = [_path_name(path) for path, _ in leaves]
-  missing = [name for name in names if name not in arrays]
-  extra = sorted(set(arrays) - set(names))
-  if missing or extra:
-    raise ValueError(f'State arrays do not match: missing {missing}, '
-                     f'unexpected {extra}')
-  restored = []
-  for name, (_, leaf) in zip(names, leaves):
-    value = np.asarray(arrays[name])
-    if value.shape != np.shape(leaf) or value.dtype != np.asarray(leaf).dtype:
-      raise ValueError(f'State array {name!r} has shape {value.shape} and '
-                       f'dtype {value.dtype}, expected {np.shape(leaf)} and '
-                       f'{np.asarray(leaf).dtype}')
-    restored.append(jnp.asarray(value))
-  return jax.tree_util.tree_unflatten(treedef, restored)
 
 
 def _to_floats(metrics):
@@ -121,7 +80,7 @@ class UpdateMetrics(collections.abc.Mapping):
     return len(self._names)
 
 
-class _UpdateFunctions:
+class UpdateFunctions:
   """Pure SAC maths for one (networks, config, action size).
 
   `compiled_update_functions` caches its jitted functions, so learners of
@@ -160,8 +119,11 @@ class _UpdateFunctions:
     next_q = networks.q_apply(state.target_q_params, batch.next_observation,
                               next_action)
     next_value = jnp.min(next_q, axis=-1) - temperature * next_log_prob
+    reward = batch.reward
+    if self.config.cost_penalty:
+      reward = reward - self.config.cost_penalty * batch.cost
     target = jax.lax.stop_gradient(
-        self.config.reward_scale * batch.reward
+        self.config.reward_scale * reward
         + self.config.discount * batch.discount * next_value)
     q = networks.q_apply(q_params, batch.observation, batch.action)
     loss = 0.5 * jnp.mean(jnp.square(q - target[:, None]))
@@ -241,13 +203,17 @@ CompiledUpdate = collections.namedtuple(
 
 
 @functools.lru_cache(maxsize=None)
-def compiled_update_functions(networks, config, action_size):
+def compiled_update_functions(networks, config, action_size,
+                              functions_class=None):
   """Jitted (initial_state, sgd_step, sgd_steps), shared across learners.
 
+  functions_class: the class holding the maths (default SAC's
+  `UpdateFunctions`; a subclass for a variant of SAC's losses).
   No buffer donation: actors and policies keep reading the parameters of a
   state while the next one is computed.
   """
-  functions = _UpdateFunctions(networks, config, action_size)
+  functions = (functions_class or UpdateFunctions)(networks, config,
+                                                   action_size)
   return CompiledUpdate(jax.jit(functions.initial_state),
                         jax.jit(functions.sgd_step),
                         jax.jit(functions.sgd_steps))
@@ -255,6 +221,9 @@ def compiled_update_functions(networks, config, action_size):
 
 class SACLearner:
   """Holds the TrainingState and applies jit-compiled SAC updates."""
+
+  # The maths (a subclass of UpdateFunctions for a variant of SAC).
+  FUNCTIONS_CLASS = UpdateFunctions
 
   def __init__(self, networks, config, observation_size, action_size, seed):
     if (networks.observation_size != observation_size
@@ -265,13 +234,16 @@ class SACLearner:
           f'{observation_size} and {action_size}')
     self._observation_size = int(observation_size)
     self._action_size = int(action_size)
-    self._functions = compiled_update_functions(networks, config,
-                                                self._action_size)
+    self._functions = compiled_update_functions(
+        networks, config, self._action_size, self.FUNCTIONS_CLASS)
     random_state = np.random.RandomState(seed)
+    self._state = self._initial_state(networks, random_state,
+                                      jax.random.PRNGKey(seed))
+
+  def _initial_state(self, networks, random_state, key):
     policy_params = networks.policy_init(random_state)
     q_params = networks.q_init(random_state)
-    self._state = self._functions.initial_state(policy_params, q_params,
-                                                jax.random.PRNGKey(seed))
+    return self._functions.initial_state(policy_params, q_params, key)
 
   # Public interface.
 
@@ -320,6 +292,17 @@ class SACLearner:
     thread.start()
     return thread
 
+  def get_variables(self, names):
+    """Acme's variable source: [value of each name]; 'policy' is the
+    policy parameters."""
+    values = []
+    for name in names:
+      if name != 'policy':
+        raise ValueError(f'Unknown variable {name!r}: the learner serves '
+                         "'policy'")
+      values.append(self._state.policy_params)
+    return values
+
   @property
   def policy_params(self):
     return self._state.policy_params
@@ -339,9 +322,10 @@ class SACLearner:
 
   def state(self):
     """{path: NumPy array} of the whole TrainingState (for .npz)."""
-    return flatten_to_arrays(self._state._asdict())
+    return checkpoint_files.flatten_to_arrays(self._state._asdict())
 
   def restore(self, arrays):
     """Restores a `state()` exactly (shapes and dtypes must match)."""
-    restored = unflatten_from_arrays(self._state._asdict(), arrays)
-    self._state = TrainingState(**restored)
+    restored = checkpoint_files.unflatten_from_arrays(self._state._asdict(),
+                                                     arrays)
+    self._state = type(self._state)(**restored)

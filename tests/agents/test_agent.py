@@ -1,68 +1,21 @@
 """Tests of agents/sac/agent.py (and the actor) on a toy task and on reach."""
 
-import collections
-
-import dm_env
 from dm_env import specs as dm_specs
 import jax
 import numpy as np
 import pytest
 
+from agents import action_scaler
+from agents import agent_checkpoint
+from agents import checkpoint_files
 from agents import config as config_lib
 from agents import specs
+from agents import variable_utils
 from agents.sac import actor as actor_lib
-from agents.sac import agent as agent_lib
-from agents.sac import checkpointing
 from agents.sac import networks as networks_lib
 from agents.sac import SACAgent
 
-STEP_SCALE = 0.2   # Toy task: position change per step at |action| = 1.
-
-
-class PointReach(dm_env.Environment):
-  """Move a point in [-1, 1]^2 to a goal; reward -distance; fixed horizon.
-
-  With `terminate_at` the episode ends (discount 0) within that distance of
-  the goal; otherwise it is truncated (discount 1) after `horizon` steps.
-  """
-
-  def __init__(self, seed, horizon=20, terminate_at=None,
-               action_bounds=(-1.0, 1.0)):
-    self._random_state = np.random.RandomState(seed)
-    self._horizon = horizon
-    self._terminate_at = terminate_at
-    self._bounds = action_bounds
-
-  def observation_spec(self):
-    return collections.OrderedDict(
-        position=dm_specs.Array((2,), np.float64, 'position'),
-        goal=dm_specs.Array((2,), np.float64, 'goal'))
-
-  def action_spec(self):
-    return dm_specs.BoundedArray((2,), np.float64, [self._bounds[0]] * 2,
-                                 [self._bounds[1]] * 2, 'move')
-
-  def _observation(self):
-    return collections.OrderedDict(position=self._position.copy(),
-                                   goal=self._goal.copy())
-
-  def reset(self):
-    self._position = self._random_state.uniform(-1, 1, 2)
-    self._goal = self._random_state.uniform(-1, 1, 2)
-    self._steps = 0
-    return dm_env.restart(self._observation())
-
-  def step(self, action):
-    low, high = self._bounds
-    move = 2 * (np.clip(action, low, high) - low) / (high - low) - 1
-    self._position = np.clip(self._position + STEP_SCALE * move, -1, 1)
-    self._steps += 1
-    distance = np.linalg.norm(self._position - self._goal)
-    if self._terminate_at is not None and distance < self._terminate_at:
-      return dm_env.termination(-distance, self._observation())
-    if self._steps >= self._horizon:
-      return dm_env.truncation(-distance, self._observation())
-    return dm_env.transition(-distance, self._observation())
+from toy_tasks import PointReach
 
 
 def _small_config(**overrides):
@@ -231,10 +184,10 @@ def test_save_restore_gives_identical_agents_and_continuations(tmp_path):
   # The actor lags the learner by a call: both are part of the checkpoint.
   assert not np.array_equal(_policy_leaves(agent.acting_policy_params)[0],
                             _policy_leaves(agent.learner.policy_params)[0])
-  agent.save(tmp_path / 'agent', metadata={'episode': 3},
-             arrays={'loop_counter': np.arange(4)})
+  agent_checkpoint.save(agent, tmp_path / 'agent', metadata={'episode': 3},
+                        arrays={'loop_counter': np.arange(4)})
   restored = SACAgent(spec, config, seed=99)
-  extras = restored.restore(tmp_path / 'agent')
+  extras = agent_checkpoint.restore(restored, tmp_path / 'agent')
   assert extras.metadata == {'episode': 3}
   np.testing.assert_array_equal(extras.arrays['loop_counter'], np.arange(4))
   _assert_same_agents(agent, restored)
@@ -268,15 +221,15 @@ def test_restore_reads_checkpoints_from_before_the_numpy_actor(tmp_path):
   spec = specs.make_environment_spec(env)
   agent = SACAgent(spec, _small_config(min_replay_size=50), seed=3)
   _run(env, agent, 60)
-  agent.save(tmp_path / 'agent')
+  agent_checkpoint.save(agent, tmp_path / 'agent')
   path = tmp_path / 'agent' / 'agent.npz'
-  arrays = checkpointing.load_arrays(path)
+  arrays = checkpoint_files.load_arrays(path)
   old = {key: value for key, value in arrays.items()
          if not key.startswith(('actor_random_state/', 'acting_policy/'))}
   old['actor_key'] = np.array([0, 7], np.uint32)   # A JAX PRNG key.
-  checkpointing.save_arrays(path, old)
+  checkpoint_files.save_arrays(path, old)
   restored = SACAgent(spec, _small_config(min_replay_size=50), seed=0)
-  restored.restore(tmp_path / 'agent')
+  agent_checkpoint.restore(restored, tmp_path / 'agent')
   # It acts with the learner's policy, sampling from the key's seed.
   for a, b in zip(_policy_leaves(restored.acting_policy_params),
                   _policy_leaves(agent.learner.policy_params)):
@@ -290,29 +243,29 @@ def test_save_replaces_atomically_and_restore_checks_the_config(tmp_path):
   env = PointReach(0)
   spec = specs.make_environment_spec(env)
   agent = SACAgent(spec, _small_config(), seed=0)
-  agent.save(tmp_path / 'agent')
+  agent_checkpoint.save(agent, tmp_path / 'agent')
   _run(env, agent, 10)
-  agent.save(tmp_path / 'agent')
+  agent_checkpoint.save(agent, tmp_path / 'agent')
   assert sorted(p.name for p in tmp_path.iterdir()) == ['agent']
   other = SACAgent(spec, _small_config(batch_size=32), seed=0)
   with pytest.raises(ValueError, match='config'):
-    other.restore(tmp_path / 'agent')
+    agent_checkpoint.restore(other, tmp_path / 'agent')
   with pytest.raises(FileNotFoundError, match='agent.json'):
-    other.restore(tmp_path / 'missing')
+    agent_checkpoint.restore(other, tmp_path / 'missing')
 
 
 def test_load_policy_acts_like_the_agents_policy(tmp_path):
   env = PointReach(0, action_bounds=(-3.0, 3.0))
   agent = SACAgent(specs.make_environment_spec(env), _small_config(), seed=0)
   _run(env, agent, 150)
-  agent.save(tmp_path / 'agent')
-  loaded = agent_lib.load_policy(tmp_path / 'agent', env)
+  agent_checkpoint.save(agent, tmp_path / 'agent')
+  loaded = agent_checkpoint.load_policy(tmp_path / 'agent', env)
   own = agent.policy(deterministic=True)
   for _ in range(5):
     timestep = env.reset()
     np.testing.assert_allclose(loaded(timestep), own(timestep), rtol=1e-6)
   with pytest.raises(ValueError, match='action spec'):
-    agent_lib.load_policy(tmp_path / 'agent', PointReach(0))
+    agent_checkpoint.load_policy(tmp_path / 'agent', PointReach(0))
 
 
 def test_numpy_actor_computes_the_networks_policy():
@@ -327,7 +280,8 @@ def test_numpy_actor_computes_the_networks_policy():
   np.testing.assert_allclose(mean, expected_mean, rtol=1e-5, atol=1e-5)
   np.testing.assert_allclose(log_std, expected_log_std, rtol=1e-5,
                              atol=1e-5)
-  actor = actor_lib.SACActor(nets, lambda: params, seed=0, evaluation=True)
+  actor = actor_lib.SACActor(nets, variable_utils.FixedVariables(params),
+                             seed=0, evaluation=True)
   np.testing.assert_allclose(actor.select_action(observations[0]),
                              np.tanh(expected_mean[0]), rtol=1e-5, atol=1e-6)
   with pytest.raises(ValueError, match='GaussianPolicy params'):
@@ -337,17 +291,17 @@ def test_numpy_actor_computes_the_networks_policy():
 def test_action_scaler_round_trip_and_errors():
   spec = dm_specs.BoundedArray((3,), np.float64, [0.0, -1.0, -5.0],
                                [2.0, 1.0, 5.0])
-  scaler = actor_lib.ActionScaler(spec)
+  scaler = action_scaler.ActionScaler(spec)
   normalised = np.array([-1.0, 0.25, 1.0])
   np.testing.assert_allclose(scaler.to_environment(normalised),
                              [0.0, 0.25, 5.0])
   np.testing.assert_allclose(
       scaler.to_normalised(scaler.to_environment(normalised)), normalised)
   with pytest.raises(ValueError, match='bounded 1-D'):
-    actor_lib.ActionScaler(dm_specs.Array((2,), np.float64))
+    action_scaler.ActionScaler(dm_specs.Array((2,), np.float64))
   with pytest.raises(ValueError, match='finite'):
-    actor_lib.ActionScaler(dm_specs.BoundedArray((1,), np.float64, [-np.inf],
-                                                 [1.0]))
+    action_scaler.ActionScaler(dm_specs.BoundedArray(
+        (1,), np.float64, [-np.inf], [1.0]))
 
 
 def test_bad_seed_and_config_are_rejected():

@@ -31,7 +31,8 @@ def _batch(size=64, seed=0):
       reward=observation[:, 0].copy(),
       discount=(random_state.rand(size) > 0.1).astype(np.float32),
       next_observation=random_state.randn(size, OBSERVATION_SIZE).astype(
-          np.float32))
+          np.float32),
+      cost=(random_state.rand(size) > 0.7).astype(np.float32))
 
 
 def _leaves(tree):

@@ -10,12 +10,12 @@ from absl import flags
 import numpy as np
 import pytest
 
+from agents import agent_checkpoint
 from agents import checkpoints
 from agents import evaluate
 from agents import logging as logging_lib
 from agents import plot
 from agents import train
-from agents.sac import agent as agent_lib
 from hrc_suite.rendering import episode as render
 from hrc_suite.experts import dataset as dataset_lib
 
@@ -206,7 +206,7 @@ def test_policy_of_a_run_for_rendering(two_runs):
   assert directory == os.path.join(checkpoints.latest(two_runs[0]), 'agent')
   assert checkpoints.agent_directory(directory) == directory
   env = train.make_environment(_run_config(), seed=3)
-  policy = agent_lib.load_policy(directory, env)
+  policy = agent_checkpoint.load_policy(directory, env)
   timestep = env.reset()
   action = policy(timestep)
   assert action.shape == env.action_spec().shape
@@ -353,3 +353,4 @@ def test_imitation_agents_train_and_resume_exactly(tmp_path):
   assert min(int(r['episode_length']) for r in rows) < 10
   _, rng_states = checkpoints.load_loop_state(checkpoints.latest(rsi_air))
   assert sorted(rng_states) == ['1/_random', 'environment']
+

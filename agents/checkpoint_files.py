@@ -1,4 +1,5 @@
-"""Checkpoint files: .npz (never pickled) and JSON, written atomically.
+"""Checkpoint files: .npz (never pickled) and JSON, written atomically;
+pytrees (parameters, optimiser states) as {path name: array}.
 
 A checkpoint is a directory. `atomic_directory(path)` yields a fresh
 temporary sibling to write into; on success it replaces `path` with it by
@@ -13,6 +14,8 @@ import pathlib
 import shutil
 import tempfile
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 
@@ -74,3 +77,47 @@ def load_json(path):
     raise FileNotFoundError(f'Checkpoint file {path} does not exist')
   with open(path) as handle:
     return json.load(handle)
+
+
+def _path_name(path):
+  """'a/b/0' name of a jax.tree_util key path."""
+  parts = []
+  for entry in path:
+    if isinstance(entry, jax.tree_util.DictKey):
+      parts.append(str(entry.key))
+    elif isinstance(entry, jax.tree_util.GetAttrKey):
+      parts.append(entry.name)
+    elif isinstance(entry, jax.tree_util.SequenceKey):
+      parts.append(str(entry.idx))
+    elif isinstance(entry, jax.tree_util.FlattenedIndexKey):
+      parts.append(str(entry.key))
+    else:
+      parts.append(str(entry))
+  return '/'.join(parts)
+
+
+def flatten_to_arrays(tree):
+  """{path name: NumPy array} of every leaf of a pytree."""
+  leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+  return {_path_name(path): np.array(leaf, copy=True)
+          for path, leaf in leaves}
+
+
+def unflatten_from_arrays(template, arrays):
+  """Pytree shaped like `template` with leaves from `flatten_to_arrays`."""
+  leaves, treedef = jax.tree_util.tree_flatten_with_path(template)
+  names = [_path_name(path) for path, _ in leaves]
+  missing = [name for name in names if name not in arrays]
+  extra = sorted(set(arrays) - set(names))
+  if missing or extra:
+    raise ValueError(f'State arrays do not match: missing {missing}, '
+                     f'unexpected {extra}')
+  restored = []
+  for name, (_, leaf) in zip(names, leaves):
+    value = np.asarray(arrays[name])
+    if value.shape != np.shape(leaf) or value.dtype != np.asarray(leaf).dtype:
+      raise ValueError(f'State array {name!r} has shape {value.shape} and '
+                       f'dtype {value.dtype}, expected {np.shape(leaf)} and '
+                       f'{np.asarray(leaf).dtype}')
+    restored.append(jnp.asarray(value))
+  return jax.tree_util.tree_unflatten(treedef, restored)
