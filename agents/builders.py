@@ -4,12 +4,15 @@ An `agents.agent.Agent` composes what a builder makes (Acme's
 ActorLearnerBuilder); a second learner is a new builder and a new loss, not
 a new agent. The algorithms by name:
 
-* 'sac': soft actor-critic (agents/sac/).
+* 'sac': soft actor-critic (agents/sac/);
+* 'sac_lag': SAC-Lagrangian, SAC under a per-episode cost limit
+  (agents/sac_lag/).
 """
 
 from typing import Any, Mapping, Protocol
 
 from agents.sac import builder as sac_builder
+from agents.sac_lag import builder as sac_lag_builder
 
 
 class ActorLearnerBuilder(Protocol):
@@ -36,7 +39,8 @@ class ActorLearnerBuilder(Protocol):
     """An actor reading the policy from `variables.params`."""
 
 
-BUILDERS = {'sac': sac_builder.SACBuilder}
+BUILDERS = {'sac': sac_builder.SACBuilder,
+            'sac_lag': sac_lag_builder.SACLagrangianBuilder}
 
 
 def config_class(name: str):

@@ -18,6 +18,9 @@ docs/results/experts.json of the repository when present); without either
 the raw return is plotted and the axis says so. --per_seed draws one curve
 per run instead of the mean, which shows how seeds differ. A curve of one
 seed is that run's evaluations, without a band, and the title says so.
+Where every run's task has a safety cost (eval.csv's cost_mean: the mean
+cost per evaluation episode, hrc_suite/tasks/cost.py), a third panel draws
+it, with each SAC-Lagrangian run's per-episode cost limit dashed.
 
 Experts files read: the output of `python -m hrc_suite.experts.evaluate`
 ({"rows": [{domain, task, robot, action_space, policy, return, ...}]}: the
@@ -48,8 +51,12 @@ _DEFAULT_EXPERTS = os.path.join(os.path.dirname(os.path.abspath(__file__)),
 MINIMA = {'total': 'min_return', 'task': 'min_task_return'}
 
 Curve = collections.namedtuple(
-    'Curve', ['label', 'steps', 'seeds', 'success', 'returns', 'normalised'])
-# success / returns: (mean, low, high) arrays over steps; normalised: bool.
+    'Curve', ['label', 'steps', 'seeds', 'success', 'returns', 'normalised',
+              'cost', 'cost_limit'])
+# success / returns / cost: (mean, low, high) arrays over steps (cost None
+# where a run has no cost); normalised: bool; cost_limit: the constrained
+# agent's per-episode limit, or None.
+COST_COLUMN = 'cost_mean'
 
 
 def load_run(logdir):
@@ -60,8 +67,11 @@ def load_run(logdir):
     if not os.path.exists(path):
       raise ValueError(f'{logdir} is not a training run: {path} is missing')
   config = checkpoints.read_json(config_path)
-  columns = logging_lib.read_csv_columns(
-      eval_path, ('step', 'success_rate', 'return_mean'))
+  names = ('step', 'success_rate', 'return_mean')
+  rows = logging_lib.read_csv(eval_path)
+  if rows and COST_COLUMN in rows[0]:
+    names += (COST_COLUMN,)
+  columns = logging_lib.read_csv_columns(eval_path, names)
   if not columns['step']:
     raise ValueError(f'{eval_path} has no evaluations yet')
   return config, {k: np.array(v) for k, v in columns.items()}
@@ -152,6 +162,7 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
 
     success = table('success_rate')
     returns = table('return_mean')
+    has_cost = all(COST_COLUMN in columns for _, columns in runs)
     best = expert if expert is not None else expert_return(config,
                                                            experts_json)
     normalised = best is not None
@@ -168,7 +179,11 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
                                         num_resamples=num_resamples),
         returns=statistics.bootstrap_ci(returns, random_state,
                                         num_resamples=num_resamples),
-        normalised=normalised))
+        normalised=normalised,
+        cost=(statistics.bootstrap_ci(table(COST_COLUMN), random_state,
+                                      num_resamples=num_resamples)
+              if has_cost else None),
+        cost_limit=config.get('sac_config', {}).get('cost_limit')))
   return curves
 
 
@@ -192,9 +207,14 @@ def draw(curves, out, title):
   import matplotlib   # pylint: disable=g-import-not-at-top
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
-  figure, axes = plt.subplots(1, 2, figsize=(10, 4.5), constrained_layout=True)
+  with_cost = all(curve.cost is not None for curve in curves)
+  panels = 3 if with_cost else 2
+  figure, axes = plt.subplots(1, panels, figsize=(5 * panels, 4.5),
+                              constrained_layout=True)
   for curve in curves:
-    for axis, (mean, low, high) in zip(axes, (curve.success, curve.returns)):
+    values = (curve.success, curve.returns) + ((curve.cost,) if with_cost
+                                               else ())
+    for axis, (mean, low, high) in zip(axes, values):
       plural = 's' if len(curve.seeds) > 1 else ''
       seeds = ', '.join(str(seed) for seed in curve.seeds)
       label = f'{curve.label}, seed{plural} {seeds}'
@@ -202,12 +222,17 @@ def draw(curves, out, title):
       if len(curve.seeds) > 1:   # One seed has no interval over seeds.
         axis.fill_between(curve.steps, low, high, color=line.get_color(),
                           alpha=0.25, linewidth=0)
+      if axis is axes[-1] and with_cost and curve.cost_limit is not None:
+        axis.axhline(curve.cost_limit, color=line.get_color(),
+                     linestyle='--', linewidth=1)
   axes[0].set_ylabel('evaluation success rate')
   axes[0].set_ylim(-0.02, 1.02)
   normalised = all(c.normalised for c in curves)
   axes[1].set_ylabel('normalised return (0: minimal, 1: expert)'
                      if normalised else
                      'return (not normalised: no expert return)')
+  if with_cost:
+    axes[2].set_ylabel('evaluation cost per episode (dashed: limit)')
   for axis in axes:
     axis.set_xlabel('environment steps')
     # 1e5-style offsets keep long step counts from running together.
@@ -239,7 +264,10 @@ def write_table(curves, path):
                'seed_ids': ' '.join(str(seed) for seed in curve.seeds),
                'normalised': int(curve.normalised)}
         for name, values in (('success', curve.success),
-                             ('return', curve.returns)):
+                             ('return', curve.returns),
+                             ('cost', curve.cost)):
+          if values is None:
+            continue
           for bound, array in zip(('mean', 'low', 'high'), values):
             row[f'{name}_{bound}'] = float(np.asarray(array)[i])
         logger.write(row, int(step))

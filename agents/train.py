@@ -61,13 +61,13 @@ from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
 from hrc_suite.tasks import metrics as metrics_lib
 
-# The agents: SAC and its imitation variants (agents.imitation: SAC on a
-# wrapped task).
-AGENTS = imitation.AGENTS
+# The agents: SAC, its imitation variants (agents.imitation: SAC on a
+# wrapped task) and SAC-Lagrangian (agents/sac_lag/).
+AGENTS = imitation.AGENTS + ('sac_lag',)
 _NEEDS_DATASET = imitation.NEEDS_DATASET
 # Agents that train on the bare task, learning with the algorithm of
 # agents/builders.py of the same name.
-_BARE_TASK_AGENTS = ('sac',)
+_BARE_TASK_AGENTS = ('sac', 'sac_lag')
 # Keys of the run config a resumed run may change.
 _RESUMABLE_CHANGES = ('steps',)
 # Purposes of seeds derived from the run seed (np.random.SeedSequence);
@@ -534,8 +534,10 @@ def define_flags(flag_values=flags.FLAGS):
                     'Action space.', flag_values=fv)
   flags.DEFINE_string('task_kwargs', '{}', 'JSON dict of further task '
                       'kwargs, e.g. \'{"time_limit": 5.0}\'.', flag_values=fv)
-  flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent: plain SAC or an '
-                    'imitation variant (agents.imitation).', flag_values=fv)
+  flags.DEFINE_enum('agent', 'sac', AGENTS, 'Agent: plain SAC, an '
+                    'imitation variant (agents.imitation) or SAC-Lagrangian '
+                    '(sac_lag: its constraint fields are --override '
+                    'fields, e.g. --override=cost_limit=2).', flag_values=fv)
   flags.DEFINE_string('dataset', None, 'Expert dataset directory (rsi, '
                       'sir, rsi+air): python -m agents.collect_expert.',
                       flag_values=fv)

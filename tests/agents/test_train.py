@@ -354,3 +354,50 @@ def test_imitation_agents_train_and_resume_exactly(tmp_path):
   _, rng_states = checkpoints.load_loop_state(checkpoints.latest(rsi_air))
   assert sorted(rng_states) == ['1/_random', 'environment']
 
+
+def test_sac_lagrangian_trains_resumes_exactly_and_logs_the_cost(tmp_path):
+  task_kwargs = dict(_TASK_KWARGS, shield='off')
+
+  def config(steps):
+    return train.make_run_config(
+        'reach', 'dense', 'schunk', 'cartesian', agent='sac_lag',
+        overrides=dict(_OVERRIDES, cost_limit=0.5,
+                       multiplier_update='pid'),
+        task_kwargs=task_kwargs, steps=steps, eval_every=25,
+        eval_episodes=2, checkpoint_every=20)
+
+  assert config(10)['task_kwargs']['observations'] == 'safe_rl'
+  whole, split = str(tmp_path / 'whole'), str(tmp_path / 'split')
+  train.train(config(60), whole)
+  train.train(config(35), split)   # Inside an episode.
+  assert checkpoints.load_episode(checkpoints.latest(split)) is not None
+  train.train(config(60), split, resume=True)
+  expected = _checkpoint_arrays(checkpoints.latest(whole))
+  actual = _checkpoint_arrays(checkpoints.latest(split))
+  assert expected.keys() == actual.keys()
+  assert 'learner.npz/multiplier_controller/value' in expected
+  assert 'agent.npz/episode_cost' in expected
+  for key, value in expected.items():
+    if isinstance(value, np.ndarray):
+      np.testing.assert_array_equal(actual[key], value, err_msg=key)
+    else:
+      assert actual[key] == value, key
+  for name in ('train.csv', 'eval.csv'):
+    assert (_deterministic_rows(os.path.join(split, name)) ==
+            _deterministic_rows(os.path.join(whole, name))), name
+  # Training episodes' costs reached the replay and the multiplier.
+  rows = logging_lib.read_csv(os.path.join(whole, 'train.csv'))
+  replay_cost = expected['replay.npz/cost']
+  assert replay_cost.shape == (60,)
+  ends = np.cumsum([int(r['episode_length']) for r in rows])
+  np.testing.assert_allclose(
+      [replay_cost[start:end].sum() for start, end in
+       zip(np.concatenate([[0], ends[:-1]]), ends)],
+      [float(r['cost']) for r in rows])
+  assert 'cost_mean' in logging_lib.read_csv(
+      os.path.join(whole, 'eval.csv'))[0]
+  # The checkpoint evaluates and plots like SAC's, with the cost panel.
+  results, _ = evaluate.run(whole, episodes=1)
+  assert 'cost' in results[0]
+  paths = plot.plot([whole], str(tmp_path / 'curves.png'))
+  assert 'cost_mean' in logging_lib.read_csv(paths[-1])[0]

@@ -1,0 +1,1 @@
+"""SAC-Lagrangian: soft actor-critic under a per-episode cost limit."""

@@ -1,0 +1,160 @@
+"""SAC-Lagrangian learner: SAC's update with cost critics and a multiplier.
+
+Per gradient step on a batch (s, a, r, d, s', c), besides SAC's critic,
+temperature and target updates (agents/sac/learning.py):
+
+* cost critics (twin, with Polyak targets like the reward critics):
+  y_c = k c + gamma d agg_j Q'_c,j(s', a'), a' ~ pi(.|s') (no entropy
+  term: the entropy is the reward's bonus, not a cost), k the config's
+  cost_factor() (by default the reward scale);
+  loss = mean_j 0.5 (Q_c,j(s, a) - y_c)^2;
+* policy: loss = [alpha log pi(a~|s) - min_j Q_j(s, a~)
+  + lambda agg_j Q_c,j(s, a~)] / (1 + lambda) (the division where
+  normalise_actor_loss), with the critics before this step's updates;
+
+agg is max (pessimistic) or mean over the twins (cost_critic_aggregate).
+lambda is an input of the step, held in the training state and set by the
+multiplier's update after each finished episode (agents/sac_lag/
+multiplier.py), never by a gradient step.
+"""
+
+import collections
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from agents.sac import learning as sac_learning
+from agents.sac_lag import multiplier as multiplier_lib
+
+LagrangianTrainingState = collections.namedtuple(
+    'LagrangianTrainingState', sac_learning.TrainingState._fields + (
+        'cost_q_params', 'target_cost_q_params', 'cost_q_optimizer_state',
+        'multiplier'))
+
+# Folded into a step's key for the cost critics' next-action sample, a
+# stream apart from SAC's three.
+_COST_KEY_DATA = 1
+_MULTIPLIER_PREFIX = 'multiplier_controller/'
+
+
+class LagrangianUpdateFunctions(sac_learning.UpdateFunctions):
+  """SAC's maths with cost critics and lambda in the policy loss."""
+
+  def __init__(self, networks, config, action_size):
+    super().__init__(networks, config, action_size)
+    self.cost_q_optimizer = sac_learning._optimizer(config)   # pylint: disable=protected-access
+
+  def initial_state(self, policy_params, q_params, cost_q_params, key):
+    sac_state = super().initial_state(policy_params, q_params, key)
+    return LagrangianTrainingState(
+        *sac_state,
+        cost_q_params=cost_q_params,
+        target_cost_q_params=jax.tree_util.tree_map(jnp.copy, cost_q_params),
+        cost_q_optimizer_state=self.cost_q_optimizer.init(cost_q_params),
+        multiplier=jnp.asarray(self.config.initial_multiplier, jnp.float32))
+
+  def aggregate(self, cost_q):
+    if self.config.cost_critic_aggregate == 'max':
+      return jnp.max(cost_q, axis=-1)
+    return jnp.mean(cost_q, axis=-1)
+
+  def cost_critic_loss(self, cost_q_params, state, batch, key):
+    networks = self.networks
+    next_mean, next_log_std = networks.policy_apply(
+        state.policy_params, batch.next_observation)
+    next_action, _ = networks.sample(key, next_mean, next_log_std)
+    next_cost = self.aggregate(networks.q_apply(
+        state.target_cost_q_params, batch.next_observation, next_action))
+    target = jax.lax.stop_gradient(
+        self.config.cost_factor() * batch.cost
+        + self.config.discount * batch.discount * next_cost)
+    cost_q = networks.q_apply(cost_q_params, batch.observation, batch.action)
+    loss = 0.5 * jnp.mean(jnp.square(cost_q - target[:, None]))
+    return loss, cost_q
+
+  def actor_loss(self, policy_params, state, batch, temperature, key):
+    networks = self.networks
+    mean, log_std = networks.policy_apply(policy_params, batch.observation)
+    action, log_prob = networks.sample(key, mean, log_std)
+    q = networks.q_apply(state.q_params, batch.observation, action)
+    cost_q = self.aggregate(networks.q_apply(state.cost_q_params,
+                                             batch.observation, action))
+    multiplier = jax.lax.stop_gradient(state.multiplier)
+    loss = jnp.mean(temperature * log_prob - jnp.min(q, axis=-1)
+                    + multiplier * cost_q)
+    if self.config.normalise_actor_loss:
+      loss = loss / (1.0 + multiplier)
+    return loss, log_prob
+
+  def sgd_step(self, state, batch):
+    """(next LagrangianTrainingState, metrics) of one gradient step."""
+    cost_key = jax.random.fold_in(state.key, _COST_KEY_DATA)
+    (cost_loss, cost_q), cost_grads = jax.value_and_grad(
+        self.cost_critic_loss, has_aux=True)(state.cost_q_params, state,
+                                             batch, cost_key)
+    sac_state, metrics = super().sgd_step(state, batch)
+    updates, cost_q_optimizer_state = self.cost_q_optimizer.update(
+        cost_grads, state.cost_q_optimizer_state, state.cost_q_params)
+    cost_q_params = optax.apply_updates(state.cost_q_params, updates)
+    tau = self.config.tau
+    target_cost_q_params = jax.tree_util.tree_map(
+        lambda target, online: (1.0 - tau) * target + tau * online,
+        state.target_cost_q_params, cost_q_params)
+    new_state = LagrangianTrainingState(
+        *sac_state,
+        cost_q_params=cost_q_params,
+        target_cost_q_params=target_cost_q_params,
+        cost_q_optimizer_state=cost_q_optimizer_state,
+        multiplier=state.multiplier)
+    metrics = dict(metrics, cost_critic_loss=cost_loss,
+                   cost_q_values=jnp.mean(cost_q),
+                   multiplier=state.multiplier)
+    return new_state, metrics
+
+
+class SACLagrangianLearner(sac_learning.SACLearner):
+  """SACLearner with cost critics and a Lagrange multiplier.
+
+  `observe_episode_cost(cost)` updates the multiplier after a finished
+  training episode (the agent's adder calls it).
+  """
+
+  FUNCTIONS_CLASS = LagrangianUpdateFunctions
+
+  def __init__(self, networks, config, observation_size, action_size, seed):
+    self._multiplier = multiplier_lib.LagrangeMultiplier(config)
+    super().__init__(networks, config, observation_size, action_size, seed)
+
+  def _initial_state(self, networks, random_state, key):
+    policy_params = networks.policy_init(random_state)
+    q_params = networks.q_init(random_state)
+    cost_q_params = networks.q_init(random_state)
+    return self._functions.initial_state(policy_params, q_params,
+                                         cost_q_params, key)
+
+  def observe_episode_cost(self, cost: float) -> None:
+    """Updates lambda with a finished episode's cost."""
+    value = self._multiplier.update(cost)
+    self._state = self._state._replace(
+        multiplier=jnp.asarray(np.float32(value)))
+
+  @property
+  def multiplier(self) -> float:
+    """The current lambda."""
+    return self._multiplier.value
+
+  def state(self):
+    arrays = super().state()
+    for key, value in self._multiplier.state().items():
+      arrays[_MULTIPLIER_PREFIX + key] = value
+    return arrays
+
+  def restore(self, arrays):
+    controller = {key[len(_MULTIPLIER_PREFIX):]: value
+                  for key, value in arrays.items()
+                  if key.startswith(_MULTIPLIER_PREFIX)}
+    super().restore({key: value for key, value in arrays.items()
+                     if not key.startswith(_MULTIPLIER_PREFIX)})
+    self._multiplier.restore(controller)
