@@ -18,8 +18,15 @@ return). `GRIDS` holds the named ones:
 * `overfitting`: the paper's ablation, SAC on collaborative lifting trained
   on 7 of the 9 motions and evaluated on the seen and the 2 unseen ones,
   over 5 splits (docs/reference_benchmark.md, Human motions).
+* `safe_rl`: learning to be safe against being kept safe, on reach and
+  pick and place: SAC with the shield, SAC without it (the safety cost as
+  a reward penalty), SAC-Lagrangian without and with it (docs/safe_rl.md).
 * `smoke`: two runs of a few hundred steps on reach, to check an
   installation or a cluster in about a minute.
+
+A grid's agents are `agents.train` agents or named variants of them
+(`variants`: an agent with its own task kwargs and config overrides, e.g.
+SAC without the shield), each a line of the report.
 
 Every field can be replaced (`Grid.replace`, the sweep's flags), and
 `Grid.runs()` lists the runs with their `agents.train` run configs.
@@ -30,8 +37,8 @@ import os
 import re
 from typing import Dict, List, Mapping, Optional, Tuple
 
-from agents import config as config_lib
 from agents import imitation
+from agents import train
 from hrc_suite import suite
 
 # The paper's agents (docs/reference_benchmark.md, Imitation): SAC, SAC
@@ -55,7 +62,12 @@ PAPER_TASK_KWARGS = {'collision_reward': 0.0}
 
 # Labels of the agents in reports, as the paper names them.
 AGENT_LABELS = {'sac': 'SAC', 'rsi': 'SAC + RSI', 'sir': 'SIR',
-                'air': 'AIR (no RSI)', 'rsi+air': 'AIR'}
+                'air': 'AIR (no RSI)', 'rsi+air': 'AIR',
+                'sac_lag': 'SAC-Lagrangian'}
+# Task kwargs that are a grid's fields or a run's flags.
+_RUN_KWARGS = ('robot', 'action_space', 'seed', 'motions')
+_VARIANT_KEYS = ('agent', 'task_kwargs', 'overrides', 'task_overrides',
+                 'label')
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,7 +98,8 @@ class Grid:
   Attributes:
     name: the grid's name (a key of GRIDS, or a user's).
     tasks: 'domain/task' names (registered tasks).
-    agents: agents of `agents.train` (sac, rsi, sir, air, rsi+air).
+    agents: agents of `agents.train` (sac, rsi, sir, air, rsi+air,
+      sac_lag) or names of `variants`.
     seeds: run seeds.
     steps: RL steps of every run, or {task: steps} per task.
     eval_every: RL steps between evaluations.
@@ -108,6 +121,12 @@ class Grid:
       normalised return's 1.
     checkpoint_every: RL steps between a run's checkpoints.
     imitation_kwargs: kwargs of the imitation wrappers (agents.imitation).
+    variants: {name: {'agent': an agents.train agent, 'task_kwargs': {...},
+      'overrides': {...}, 'task_overrides': {task: {...}}, 'label': '...'}}:
+      agents run with task kwargs and config overrides of their own (over
+      the grid's; task_overrides over those, for the runs of one task:
+      entries of tasks not in the grid are unused), named in reports by
+      their label.
     description: what the grid is for.
   """
   name: str
@@ -128,12 +147,13 @@ class Grid:
   expert_episodes: int = 20
   checkpoint_every: int = 10_000
   imitation_kwargs: Mapping = dataclasses.field(default_factory=dict)
+  variants: Mapping = dataclasses.field(default_factory=dict)
   description: str = ''
 
   def __post_init__(self):
     for name in ('tasks', 'agents', 'seeds', 'splits'):
       object.__setattr__(self, name, tuple(getattr(self, name)))
-    for name in ('overrides', 'task_kwargs', 'imitation_kwargs'):
+    for name in ('overrides', 'task_kwargs', 'imitation_kwargs', 'variants'):
       object.__setattr__(self, name, dict(getattr(self, name)))
     if isinstance(self.steps, Mapping):
       object.__setattr__(self, 'steps', dict(self.steps))
@@ -157,8 +177,10 @@ class Grid:
         raise ValueError(f'Grid {self.name!r}: tasks: {e}') from None
     if len(set(self.tasks)) != len(self.tasks):
       self._fail('tasks', 'each task once')
-    if not self.agents or any(a not in imitation.AGENTS for a in self.agents):
-      self._fail('agents', 'a non-empty list of ' + ', '.join(imitation.AGENTS))
+    self._check_variants()
+    known = train.AGENTS + tuple(self.variants)
+    if not self.agents or any(a not in known for a in self.agents):
+      self._fail('agents', 'a non-empty list of ' + ', '.join(known))
     if len(set(self.agents)) != len(self.agents):
       self._fail('agents', 'each agent once')
     if not self.seeds or any(not _integer(s) or s < 0 for s in self.seeds):
@@ -181,10 +203,17 @@ class Grid:
                       ('checkpoint_every', 1), ('test_clips', 1)):
       if not _integer(getattr(self, name)) or getattr(self, name) < low:
         self._fail(name, f'an integer >= {low}')
-    if self.config not in config_lib.CONFIGS:
-      self._fail('config', 'one of ' + ', '.join(config_lib.CONFIGS))
-    config_lib.config_from_name(self.config, **self.overrides)
-    for name in ('robot', 'action_space', 'seed', 'motions'):
+    if self.config not in train.config_lib.CONFIGS:
+      self._fail('config', 'one of ' + ', '.join(train.config_lib.CONFIGS))
+    for entry in self.agents:
+      for task in self.tasks:
+        try:
+          train.agent_config(self.agent_of(entry), self.config,
+                             self.overrides_of(entry, task))
+        except ValueError as e:
+          raise ValueError(f'Grid {self.name!r}: agent {entry!r}: {e}'
+                           ) from None
+    for name in _RUN_KWARGS:
       if name in self.task_kwargs:
         self._fail('task_kwargs', f'no {name!r} (a field or flag of its own)')
     if any(not _integer(s) or s < 0 for s in self.splits):
@@ -195,6 +224,45 @@ class Grid:
       self._fail('motions', 'None or an existing folder of recordings')
     if not re.fullmatch(r'[A-Za-z0-9_.-]+', self.name):
       self._fail('name', 'letters, digits, _, . and -')
+
+  def _check_variants(self):
+    for name, variant in self.variants.items():
+      if not re.fullmatch(r'[A-Za-z0-9_.+-]+', str(name)):
+        self._fail('variants', f'names of letters, digits, _, ., + and -, '
+                   f'not {name!r}')
+      if name in train.AGENTS:
+        self._fail('variants', f'names other than the agents\' ({name!r} is '
+                   'an agent)')
+      if not isinstance(variant, Mapping) or set(variant) - set(
+          _VARIANT_KEYS) or 'agent' not in variant:
+        self._fail('variants', f'{{name: {{agent, task_kwargs, overrides, '
+                   f'label}}}}; {name!r} is {variant!r}')
+      if variant['agent'] not in train.AGENTS:
+        self._fail('variants', f'an agent of {", ".join(train.AGENTS)} for '
+                   f'{name!r}, not {variant["agent"]!r}')
+      for key in ('task_kwargs', 'overrides', 'task_overrides'):
+        if not isinstance(variant.get(key, {}), Mapping):
+          self._fail('variants', f'a dict as {name!r}\'s {key}')
+      bad = sorted(set(variant.get('task_kwargs', {})) & set(_RUN_KWARGS))
+      if bad:
+        self._fail('variants', f'no {bad} in {name!r}\'s task_kwargs')
+
+  def agent_of(self, entry):
+    """The agents.train agent of an entry of `agents`."""
+    return self.variants[entry]['agent'] if entry in self.variants else entry
+
+  def overrides_of(self, entry, task):
+    """The config overrides of the runs of an entry of `agents` on
+    `task`."""
+    variant = self.variants.get(entry, {})
+    return dict(self.overrides, **variant.get('overrides', {}),
+                **variant.get('task_overrides', {}).get(task, {}))
+
+  def label_of(self, entry):
+    """The report's name of an entry of `agents`."""
+    if entry in self.variants:
+      return self.variants[entry].get('label') or entry
+    return AGENT_LABELS.get(entry, entry)
 
   def replace(self, **changes):
     """A copy with fields changed (unknown fields are a ValueError)."""
@@ -221,8 +289,9 @@ class Grid:
   def from_dict(cls, values):
     return cls(**values)
 
-  def needs_dataset(self, agent):
-    return agent in imitation.NEEDS_DATASET
+  def needs_dataset(self, entry):
+    """Whether the runs of an entry of `agents` need an expert dataset."""
+    return self.agent_of(entry) in imitation.NEEDS_DATASET
 
   def dataset_tasks(self):
     """The tasks whose runs need an expert dataset."""
@@ -253,17 +322,23 @@ class Grid:
             if split is not None:
               run_name += f'split{split}-'
             run_name += f'seed{seed}'
+            task_kwargs = dict(
+                self.task_kwargs_of(split),
+                **self.variants.get(agent, {}).get('task_kwargs', {}))
             config = {
                 'domain': domain, 'task': name, 'robot': self.robot,
-                'action_space': action_space, 'agent': agent,
-                'config': self.config, 'overrides': dict(self.overrides),
-                'task_kwargs': self.task_kwargs_of(split),
+                'action_space': action_space, 'agent': self.agent_of(agent),
+                'config': self.config,
+                'overrides': self.overrides_of(agent, task),
+                'task_kwargs': task_kwargs,
                 'seed': int(seed), 'steps': self.steps_of(task),
                 'eval_every': self.eval_every,
                 'eval_episodes': self.eval_episodes,
                 'checkpoint_every': self.checkpoint_every,
                 'imitation_kwargs': (dict(self.imitation_kwargs)
-                                     if agent != 'sac' else {}),
+                                     if self.agent_of(agent)
+                                     in imitation.NEEDS_DATASET + ('air',)
+                                     else {}),
             }
             if split is not None:
               config['eval_sets'] = {
@@ -327,8 +402,48 @@ def _smoke():
                    'an installation or a cluster.'))
 
 
+# The safe-RL study (docs/safe_rl.md): the cost penalty per unsafe step
+# (about 20 times reach's typical step reward of -0.1 x distance) and the
+# per-episode cost limits, about a quarter of a random policy's cost on
+# reach's 100-step episodes (0-9) and under a tenth of it on pick and
+# place's 1000-step ones (24-388), measured with the shield off. The
+# multiplier's step scales with an episode's excess cost, 10-40 times
+# larger on pick and place's episodes: its learning rate is smaller there.
+SAFE_RL_PENALTY = 1.0
+SAFE_RL_LIMITS = {'reach/dense': 1.0, 'pick_place/default': 10.0}
+SAFE_RL_MULTIPLIER_RATES = {'reach/dense': 0.01, 'pick_place/default': 0.001}
+
+
+def _safe_rl():
+  limits = {task: {'cost_limit': limit,
+                   'multiplier_learning_rate': SAFE_RL_MULTIPLIER_RATES[task]}
+            for task, limit in SAFE_RL_LIMITS.items()}
+  off = {'shield': 'off'}
+  return Grid(
+      name='safe_rl', tasks=tuple(SAFE_RL_LIMITS),
+      agents=('sac_shield', 'sac_penalty', 'sac_lag_off', 'sac_lag_shield'),
+      variants={
+          'sac_shield': {'agent': 'sac', 'label': 'SAC, shield'},
+          'sac_penalty': {'agent': 'sac', 'task_kwargs': off,
+                          'overrides': {'cost_penalty': SAFE_RL_PENALTY},
+                          'label': 'SAC, no shield, cost penalty'},
+          'sac_lag_off': {'agent': 'sac_lag', 'task_kwargs': off,
+                      'task_overrides': limits,
+                      'label': 'SAC-Lagrangian, no shield'},
+          'sac_lag_shield': {'agent': 'sac_lag', 'task_overrides': limits,
+                             'label': 'SAC-Lagrangian, shield'}},
+      seeds=(0, 1, 2),
+      steps={'reach/dense': 50_000, 'pick_place/default': 100_000},
+      eval_every=10_000, eval_episodes=10, config='quick',
+      task_kwargs={'observations': 'safe_rl', 'collision_reward': 0.0},
+      checkpoint_every=10_000,
+      description=('Learning to be safe against being kept safe: SAC and '
+                   'SAC-Lagrangian with and without the shield, judged by '
+                   'the safety cost.'))
+
+
 GRIDS = {'paper': _paper, 'paper_reduced': _paper_reduced,
-         'overfitting': _overfitting, 'smoke': _smoke}
+         'overfitting': _overfitting, 'safe_rl': _safe_rl, 'smoke': _smoke}
 
 
 def get(name: str) -> Grid:

@@ -18,7 +18,10 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   side), also drawn as overfitting.png.
 * evaluations.json: every evaluation, one row per (task, agent, seed,
   split, motions, step): success rate, return, normalised return, episode
-  length and the evaluation's seconds.
+  length, the evaluation's seconds, and safety: the safety cost per episode
+  (runs whose task has one, hrc_suite/tasks/cost.py), critical human
+  contacts per 10^3 RL steps and shield interventions per episode; where
+  runs have a cost, cost.png draws it like the success.
 
 Normalised return (the paper's): (R - R_min) / (R_expert - R_min), R_min
 the task reward's lowest possible episode return without collision
@@ -49,7 +52,15 @@ UNSEEN = 'unseen'
 # Columns of an evaluation row, in order.
 ROW_KEYS = ('task', 'agent', 'seed', 'split', 'motions', 'step', 'success',
             'return', 'normalised_return', 'length', 'eval_seconds',
-            'wall_time')
+            'wall_time', 'cost', 'critical_contacts_per_1000',
+            'shield_interventions')
+# Final values: what the runs learn, then their safety.
+FINAL_KEYS = ('success', 'normalised_return', 'return')
+SAFETY_KEYS = ('cost', 'critical_contacts_per_1000', 'shield_interventions')
+SAFETY_HEADERS = {'cost': 'cost per episode',
+                  'critical_contacts_per_1000': 'critical contacts per 10^3 '
+                                                'steps',
+                  'shield_interventions': 'shield interventions per episode'}
 
 Summary = collections.namedtuple('Summary', ['mean', 'low', 'high'])
 
@@ -127,15 +138,23 @@ def evaluation_rows(root, grid=None, minima=None):
         normalised = None
         if best is not None and low is not None and best > low:
           normalised = (returned - low) / (best - low)
+        length = _number(row.get('length_mean'))
+        critical = _number(row.get('contacts_human_critical_mean'))
         rows.append({
             'task': run.task, 'agent': run.agent, 'seed': run.seed,
             'split': run.split, 'motions': motions,
             'step': int(float(row['step'])),
             'success': float(row['success_rate']), 'return': returned,
             'normalised_return': normalised,
-            'length': _number(row.get('length_mean')),
+            'length': length,
             'eval_seconds': _number(row.get('eval_seconds')),
-            'wall_time': _number(row.get('wall_time'))})
+            'wall_time': _number(row.get('wall_time')),
+            'cost': _number(row.get('cost_mean')),
+            'critical_contacts_per_1000': (
+                1000.0 * critical / length if critical is not None
+                and length else None),
+            'shield_interventions': _number(
+                row.get('shield_interventions_mean'))})
   return rows, missing
 
 
@@ -170,11 +189,11 @@ def curve(runs, name, random_state, resamples):
 
 def final_values(rows, random_state, resamples, motions=None):
   """Per (task, agent): the last step every seed reached, the seeds, and
-  the Summary of success and normalised return there."""
+  the Summary of FINAL_KEYS and SAFETY_KEYS there (None where missing)."""
   table = []
   for (task, agent), runs in _groups(rows, motions).items():
     entry = {'task': task, 'agent': agent, 'seeds': len(runs)}
-    for name in ('success', 'normalised_return', 'return'):
+    for name in FINAL_KEYS + SAFETY_KEYS:
       found = curve(runs, name, random_state, resamples)
       if found is None:
         entry[name] = None
@@ -208,7 +227,7 @@ def draw(rows, grid, root, name, ylabel, path, random_state, resamples,
       if not found:
         continue
       steps, summary = found
-      label = f'{grids_lib.AGENT_LABELS.get(agent, agent)} ({len(runs)})'
+      label = f'{grid.label_of(agent)} ({len(runs)})'
       axis.plot(steps, summary.mean, color=colours[agent], label=label,
                 marker='.' if len(steps) < 12 else None)
       if len(runs) > 1:
@@ -244,6 +263,8 @@ def _save(figure, path):
 
 
 def _expert_reference(root, task, name):
+  if name not in ('success', 'return', 'normalised_return'):
+    return None
   if name == 'normalised_return':
     return 1.0 if expert_return(root, task) is not None else None
   record = layout.read_json(layout.expert_file(root, task))
@@ -307,6 +328,8 @@ def evaluation_cost(rows):
 def markdown(grid, record, final, missing, overfitting, cost,
              normalisation):
   """report.md's text."""
+  safety = [k for k in SAFETY_KEYS
+            if any(entry[k] is not None for entry in final)]
   lines = [f'# Sweep {grid.name}', '',
            f'{len(grid.runs())} runs ({len(grid.tasks)} tasks x '
            f'{len(grid.agents)} agents x {len(grid.seeds)} seeds'
@@ -317,15 +340,16 @@ def markdown(grid, record, final, missing, overfitting, cost,
            'At the last evaluation every seed reached: mean [95 % bootstrap '
            'CI] over seeds.', '',
            '| task | agent | seeds | step | success | normalised return | '
-           'return |', '|---|---|---|---|---|---|---|']
+           'return |' + ''.join(f' {SAFETY_HEADERS[k]} |' for k in safety),
+           '|---|---|---|---|---|---|---|' + '---|' * len(safety)]
   for entry in final:
     lines.append(
-        f'| {entry["task"]} | '
-        f'{grids_lib.AGENT_LABELS.get(entry["agent"], entry["agent"])} | '
+        f'| {entry["task"]} | {grid.label_of(entry["agent"])} | '
         f'{entry["seeds"]} | {entry.get("step", "-")} | '
         f'{_cell(entry["success"])} | '
         f'{_cell(entry["normalised_return"])} | '
-        f'{_cell(entry["return"], 1)} |')
+        f'{_cell(entry["return"], 1)} |'
+        + ''.join(f' {_cell(entry[k])} |' for k in safety))
   lines += ['', 'Normalised return: (R - R_min) / (R_expert - R_min).', '',
             '| task | R_min (lowest possible) | R_expert (expert mean) |',
             '|---|---|---|']
@@ -407,6 +431,10 @@ def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
                   'normalised return (1: expert)',
                   os.path.join(out, 'return.png'),
                   np.random.RandomState(seed), resamples, motions)
+    if any(row['cost'] is not None for row in rows):
+      paths += draw(rows, grid, root, 'cost', 'evaluation cost per episode',
+                    os.path.join(out, 'cost.png'),
+                    np.random.RandomState(seed), resamples, motions)
     if grid.splits:
       paths += draw_overfitting(rows, grid, os.path.join(
           out, 'overfitting.png'), np.random.RandomState(seed), resamples)
@@ -424,7 +452,7 @@ def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
     for entry in final:
       flat = {'task': entry['task'], 'agent': entry['agent'],
               'seeds': entry['seeds']}
-      for name in ('success', 'normalised_return', 'return'):
+      for name in FINAL_KEYS + SAFETY_KEYS:
         for bound in Summary._fields:
           value = entry[name]
           flat[f'{name}_{bound}'] = (getattr(value, bound)

@@ -6,7 +6,7 @@ r"""Runs a grid of training runs on Ray, resumably.
       --ray_address=auto                          # an existing Ray cluster
   python -m agents.report --sweep=sweeps/paper_reduced
 
-The grid (`agents.grids`: paper, paper_reduced, overfitting, smoke) says
+The grid (`agents.grids`: paper, paper_reduced, overfitting, safe_rl, smoke) says
 which runs to train; each of its fields can be replaced by the flag of the
 same name (--tasks, --agents, --seeds, --steps, --eval_every, ...). The
 sweep directory's layout is `agents.sweep_layout`'s.
@@ -63,7 +63,7 @@ _LIST_FIELDS = ('tasks', 'agents')
 _INT_LIST_FIELDS = ('seeds', 'splits')
 _INT_FIELDS = ('eval_every', 'eval_episodes', 'dataset_episodes',
                'expert_episodes', 'checkpoint_every', 'test_clips')
-_JSON_FIELDS = ('overrides', 'task_kwargs', 'imitation_kwargs')
+_JSON_FIELDS = ('overrides', 'task_kwargs', 'imitation_kwargs', 'variants')
 _STRING_FIELDS = ('robot', 'config', 'motions')
 
 

@@ -66,7 +66,47 @@ def test_bad_fields_are_named(changes, message):
 
 def test_unknown_grid_and_field():
   with pytest.raises(ValueError, match="Unknown grid 'papr': expected one "
-                     'of paper, paper_reduced, overfitting, smoke'):
+                     'of paper, paper_reduced, overfitting, safe_rl, smoke'):
     grids.get('papr')
   with pytest.raises(ValueError, match=r"Unknown grid fields \['seed'\]"):
     grids.get('smoke').replace(seed=1)
+
+
+def test_variants_give_their_agent_task_kwargs_and_overrides():
+  grid = grids.get('safe_rl')
+  runs = {run.name: run for run in grid.runs()}
+  assert len(runs) == 2 * 4 * 3
+  off = runs['reach-dense/sac_lag_off/seed1'].run_config
+  assert off['agent'] == 'sac_lag'
+  assert off['task_kwargs'] == {'observations': 'safe_rl',
+                                'collision_reward': 0.0, 'shield': 'off'}
+  assert off['overrides'] == {
+      'cost_limit': grids.SAFE_RL_LIMITS['reach/dense'],
+      'multiplier_learning_rate': 0.01}
+  shielded = runs['pick_place-default/sac_lag_shield/seed0'].run_config
+  assert 'shield' not in shielded['task_kwargs']
+  assert shielded['overrides']['cost_limit'] == grids.SAFE_RL_LIMITS[
+      'pick_place/default']
+  penalty = runs['reach-dense/sac_penalty/seed2'].run_config
+  assert penalty['agent'] == 'sac' and penalty['overrides'] == {
+      'cost_penalty': grids.SAFE_RL_PENALTY}
+  assert grid.label_of('sac_lag_off') == 'SAC-Lagrangian, no shield'
+  assert grid.label_of('rsi') == 'SAC + RSI'
+  assert not grid.needs_dataset('sac_lag_off')
+  assert grids.Grid.from_dict(grid.to_dict()) == grid
+
+
+@pytest.mark.parametrize('variants, message', [
+    ({'sac': {'agent': 'sac'}}, "'sac' is an agent"),
+    ({'v': {'agent': 'ppo'}}, "not 'ppo'"),
+    ({'v': {'agent': 'sac', 'colour': 'red'}}, 'agent, task_kwargs'),
+    ({'v': {'agent': 'sac', 'task_kwargs': {'robot': 'panda'}}},
+     "no \\['robot'\\]"),
+    ({'v': {'agent': 'sac', 'overrides': {'cost_limit': 1.0}}},
+     'Unknown SACConfig fields'),
+    ({'v': {'agent': 'sac_lag', 'overrides': {'cost_limit': -1.0}}},
+     'SACLagrangianConfig.cost_limit'),
+])
+def test_bad_variants_are_named(variants, message):
+  with pytest.raises(ValueError, match=message):
+    grids.get('smoke').replace(agents=('sac', 'v'), variants=variants)

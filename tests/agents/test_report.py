@@ -151,3 +151,42 @@ def test_seen_against_unseen_motions(tmp_path):
 def test_a_folder_that_is_no_sweep(tmp_path):
   with pytest.raises(ValueError, match='is not a sweep directory'):
     report.report(str(tmp_path))
+
+
+def test_safety_columns_and_variant_labels(tmp_path):
+  """A safe-RL grid: the variants' labels name the lines, and the cost,
+  critical contacts per 10^3 steps and shield interventions are averaged
+  like the success."""
+  grid = grids.get('safe_rl').replace(
+      name='safe', tasks=('reach/dense',), seeds=(0, 1), steps=100,
+      eval_every=100, agents=('sac_shield', 'sac_lag_off'))
+  _sweep(str(tmp_path), grid)
+  for run in grid.runs():
+    directory = layout.run_directory(str(tmp_path), run.name)
+    os.makedirs(directory)
+    layout.write_json(os.path.join(directory, 'config.json'),
+                      dict(run.run_config, min_task_return=_MIN_RETURN))
+    logger = logging_lib.CSVLogger(os.path.join(directory, 'eval.csv'))
+    shielded = run.agent == 'sac_shield'
+    for step in (0, 100):
+      logger.write({'success_rate': 0.5, 'return_mean': -50.0,
+                    'length_mean': 40.0,
+                    'cost_mean': 2.0 + run.seed if shielded else 6.0,
+                    'contacts_human_critical_mean': 0.0 if shielded
+                                                    else 0.4 * run.seed,
+                    'shield_interventions_mean': 3.0 if shielded else 0.0},
+                   step)
+    logger.close()
+  result = report.report(str(tmp_path), str(tmp_path / 'out'),
+                         resamples=1000, minima={'reach/dense': _MIN_RETURN})
+  final = {entry['agent']: entry for entry in result['final']}
+  assert final['sac_shield']['cost']['mean'] == pytest.approx(2.5)
+  assert final['sac_shield']['shield_interventions']['mean'] == 3.0
+  # 0.4 critical contacts in 40 steps: 10 per 10^3 steps (seed 1).
+  assert final['sac_lag_off']['critical_contacts_per_1000'][
+      'mean'] == pytest.approx(5.0)
+  text = open(tmp_path / 'out' / 'report.md').read()
+  assert 'cost per episode | critical contacts per 10^3 steps' in text
+  assert '| reach/dense | SAC, shield | 2 | 100 |' in text
+  assert '| reach/dense | SAC-Lagrangian, no shield | 2 | 100 |' in text
+  assert os.path.getsize(tmp_path / 'out' / 'cost.png') > 0
