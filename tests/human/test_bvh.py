@@ -1,7 +1,5 @@
 """Tests for the BVH parser, forward kinematics and import into clips."""
 
-import pathlib
-
 import numpy as np
 import pytest
 
@@ -11,9 +9,6 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import placement
 
-MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared' /
-           'motions' / 'human-robot-animations')
-REAL_FILES = sorted(MOTIONS.glob('*/*.bvh')) if MOTIONS.is_dir() else []
 I = keypoints.KEYPOINT_INDEX
 
 CHAIN = """HIERARCHY
@@ -435,13 +430,10 @@ def test_fast_phases_cover_fast_frames():
   assert bvh_import.fast_phases(positions, 100.0) == ((17, 22),)
 
 
-@pytest.mark.parametrize('path', REAL_FILES or [None],
-                         ids=[f'{p.parent.name}/{p.name}' for p in REAL_FILES]
-                         or ['absent'])
-def test_real_recordings_import(path):
-  if path is None:
-    pytest.skip(f'real recordings not found at {MOTIONS}')
-  clip = bvh_import.import_clip(path)
+@pytest.mark.recordings
+def test_real_recordings_import(recording_file):
+  """One recording file (tests/conftest.py parametrizes recording_file)."""
+  clip = bvh_import.import_clip(recording_file)
   p = clip.positions.astype(np.float64)
   for name, a, b in keypoints.SEGMENTS:
     length = np.linalg.norm(p[:, I[a]] - p[:, I[b]], axis=1)

@@ -1,8 +1,7 @@
 """compare: statistics on motions with known answers, the report, and one
-real folder (../shared/motions, skipped when absent)."""
+real folder (the recordings, tests/conftest.py)."""
 
 import math
-import pathlib
 
 from absl import flags
 import numpy as np
@@ -14,8 +13,6 @@ from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.human import synthesis
 
-RECORDINGS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
-              / 'motions' / 'human-robot-animations')
 K = keypoints.KEYPOINT_INDEX
 STATION = (1.45, 0.0, math.pi)   # layout.HUMAN_STATION_ACROSS
 LIMITS = (np.full(keypoints.NUM_KEYPOINTS, 2.0),
@@ -187,21 +184,20 @@ def test_missing_recordings_folder_is_reported(tmp_path):
     compare.load_recordings(tmp_path / 'absent')
 
 
-def test_command_on_a_real_folder(tmp_path, monkeypatch):
-  if not RECORDINGS.is_dir():
-    pytest.skip(f'real recordings not found at {RECORDINGS} (shared/motions)')
+@pytest.mark.recordings
+def test_command_on_a_real_folder(tmp_path, monkeypatch, recordings_dir):
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path / 'cache'))
   recordings = tmp_path / 'recordings'
   recordings.mkdir()
   (recordings / 'ObjectInspection').symlink_to(
-      RECORDINGS.resolve() / 'ObjectInspection')
+      recordings_dir / 'ObjectInspection')
   out = tmp_path / 'doc.md'
   flag_values = flags.FlagValues()
   compare.define_flags(flag_values)
   flag_values(['compare', f'--recordings={recordings}', f'--out={out}'])
   compare.main(['compare'], flag_values)
   text = out.read_text()
-  count = len(list((RECORDINGS / 'ObjectInspection').glob('*.bvh')))
+  count = len(list((recordings_dir / 'ObjectInspection').glob('*.bvh')))
   assert f'**inspection** ({count} recordings, 8 synthetic clips)' in text
   assert f'--recordings={recordings}' in text
   # The recordings as placed: people at the station, hands below the

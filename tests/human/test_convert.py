@@ -14,7 +14,6 @@ from hrc_suite.human import convert
 from hrc_suite.human import recording_cache
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
-MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
 
 
 def _stick_figure(per_metre, frames):
@@ -118,12 +117,12 @@ def test_command_line(recordings, tmp_path):
   assert missing.returncode == 2 and 'not a folder' in missing.stderr
 
 
-def test_real_recordings_convert(tmp_path):
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS}')
+@pytest.mark.recordings
+def test_real_recordings_convert(tmp_path, recordings_dir):
   out = io.StringIO()
-  assert convert.convert(MOTIONS, tmp_path, out=out, err=io.StringIO()) == 0
-  expected = len(list(MOTIONS.glob('*/*.bvh')))
+  assert convert.convert(recordings_dir, tmp_path, out=out,
+                         err=io.StringIO()) == 0
+  expected = len(list(recordings_dir.glob('*/*.bvh')))
   assert len(out.getvalue().splitlines()) == expected
   for task in ('handover_robot_to_human', 'stacking', 'pick_place'):
     assert clip_lib.load_folder(tmp_path / task)

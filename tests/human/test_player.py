@@ -2,7 +2,6 @@
 
 import json
 import math
-import pathlib
 
 import numpy as np
 import pytest
@@ -271,12 +270,9 @@ def test_bad_use_is_reported():
     player.set_state({'seed': 1})
 
 
-def test_real_recordings_have_no_jump_at_events_and_switches():
-  folder = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared' /
-            'motions' / 'human-robot-animations' / 'HumanRobotHandover')
-  files = sorted(folder.glob('*.bvh')) if folder.is_dir() else []
-  if not files:
-    pytest.skip(f'real recordings not found at {folder}')
+@pytest.mark.recordings
+def test_real_recordings_have_no_jump_at_events_and_switches(recordings_dir):
+  files = sorted((recordings_dir / 'HumanRobotHandover').glob('*.bvh'))
   clips = [bvh_import.import_clip(f) for f in files[:3]]
   player = player_lib.Player(clips, station=layout.HUMAN_STATION_ACROSS,
                              placement_range=(0.0, 0.2, 0.1),

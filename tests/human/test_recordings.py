@@ -1,11 +1,10 @@
 """Real recordings as their tasks' motions: placement, targets, loading.
 
-Uses ../shared/motions/human-robot-animations (MIT licensed test data);
-those tests skip with a message when it is absent. The bad-clip tests use
-clips made here.
+Uses the real recordings (MIT licensed test data, tests/conftest.py):
+those tests are marked `recordings` and skip with a message when the
+recordings are absent. The bad-clip tests use clips made here.
 """
 
-import pathlib
 import re
 
 import numpy as np
@@ -21,21 +20,12 @@ from hrc_suite.human import task_targets
 from hrc_suite.safety import human_reach
 from hrc_suite.tasks import motions as motions_lib
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
-MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
-FOLDERS = sorted(p.name for p in MOTIONS.iterdir() if p.is_dir()) if (
-    MOTIONS.is_dir()) else []
 I = keypoints.KEYPOINT_INDEX
 EDGE = placement.TABLE_EDGE_CLEARANCE   # table edge, clip frame x
 V_MAX = human_reach.HumanModelConfig.load(None).v_max
 # Targets the robot brings an object to or takes one from: over the table.
 ROBOT_TARGETS = ('inspection_point', 'handover_point', 'strike_grip', 'nail',
                  'stack_base', 'cube_1_place', 'cube_3_place')
-
-
-def _skip_without_recordings():
-  if not FOLDERS:
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
 
 
 @pytest.fixture(scope='module')
@@ -47,22 +37,24 @@ def cache(tmp_path_factory):
 
 
 @pytest.fixture(scope='module')
-def task_clips(cache):
+def task_clips(cache, recordings_dir):
   """{folder: (task, clips)} loaded as a task loads `motions=DIR`."""
   del cache
-  _skip_without_recordings()
   out = {}
-  for folder in FOLDERS:
+  for folder in sorted(p.name for p in recordings_dir.iterdir()
+                       if p.is_dir()):
     task = bvh_import.REFERENCE_FOLDER_TASKS[folder]
-    out[folder] = task, recording_cache.load_task_folder(MOTIONS, task)
+    out[folder] = task, recording_cache.load_task_folder(recordings_dir,
+                                                         task)
   return out
 
 
-@pytest.mark.parametrize('folder', FOLDERS or ['absent'])
+@pytest.mark.recordings
 def test_reference_layout_loads_each_task(task_clips, library_events,
-                                          folder):
-  task, clips = task_clips[folder]
-  assert len(clips) == len(list((MOTIONS / folder).glob('*.bvh')))
+                                          recordings_dir, recording_folder):
+  task, clips = task_clips[recording_folder]
+  assert len(clips) == len(
+      list((recordings_dir / recording_folder).glob('*.bvh')))
   station = {'pick_place': layout.HUMAN_STATION_BESIDE}.get(
       task, layout.HUMAN_STATION_ACROSS)
   # Every task requirement holds (the speed model aside: checked below).
@@ -73,12 +65,13 @@ def test_reference_layout_loads_each_task(task_clips, library_events,
     assert set(clip_lib.TASK_TARGETS[task]) <= set(clip.targets)
 
 
-@pytest.mark.parametrize('folder', FOLDERS or ['absent'])
-def test_placement_keeps_people_out_of_the_table(task_clips, folder):
+@pytest.mark.recordings
+def test_placement_keeps_people_out_of_the_table(task_clips,
+                                                 recording_folder):
   """The pelvis stays 0.10 m or more behind the table's far edge; some hand reaches within 0.1 m of the edge or over it (inspection:
   the head within 1.2 m of the inspection point); targets the robot serves
   lie over the table."""
-  task, clips = task_clips[folder]
+  task, clips = task_clips[recording_folder]
   # Stations closer to the edge (stacking's) leave less room.
   pelvis_limit = EDGE - 0.1 - placement.STATION_SHIFTS.get(task, 0.0)
   for clip in clips:
@@ -101,6 +94,7 @@ def test_placement_keeps_people_out_of_the_table(task_clips, folder):
                                               clip.targets[name])
 
 
+@pytest.mark.recordings
 def test_handover_people_reach_out_over_the_table(task_clips):
   """The handovers' people step up until the holding hand is
   HANDOVER_REACH ahead of the station at the wait, as far as
@@ -119,6 +113,7 @@ def test_handover_people_reach_out_over_the_table(task_clips):
         assert abs(hand - bvh_import.HANDOVER_REACH) < 1e-5 or at_limit
 
 
+@pytest.mark.recordings
 def test_targets_follow_the_motion(task_clips):
   """Targets come from the hands: the holding hand is at the handover
   point at the presentation keyframe, the board grasps at the hands when
@@ -138,6 +133,7 @@ def test_targets_follow_the_motion(task_clips):
                                  atol=1e-3)
 
 
+@pytest.mark.recordings
 def test_stacking_recordings_carry_their_cubes_in(task_clips):
   """The reference's stacking people walk in with both cubes: each pick is
   where a hand holds its cube at the first frame (the task starts it in
@@ -156,13 +152,14 @@ def test_stacking_recordings_carry_their_cubes_in(task_clips):
     np.testing.assert_allclose(t['stack_base'][:2], t['cube_1_place'][:2])
 
 
-def test_cache_is_reused_and_keyed_by_content(tmp_path, monkeypatch):
-  _skip_without_recordings()
+@pytest.mark.recordings
+def test_cache_is_reused_and_keyed_by_content(tmp_path, monkeypatch,
+                                              recordings_dir):
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path / 'cache'))
   source = tmp_path / 'HumanRobotHandover'
   source.mkdir()
   for name in ('0.bvh', '0_info.json'):
-    (source / name).write_bytes((MOTIONS / 'HumanRobotHandover' /
+    (source / name).write_bytes((recordings_dir / 'HumanRobotHandover' /
                                  name).read_bytes())
   first = recording_cache.load_task_folder(tmp_path,
                                            'handover_human_to_robot')
@@ -188,15 +185,17 @@ def test_folder_without_the_task_names_what_it_found(tmp_path):
     recording_cache.load_task_folder(tmp_path, 'stacking')
 
 
-def test_recording_without_derivable_target_names_clip_and_target(tmp_path):
+@pytest.mark.recordings
+def test_recording_without_derivable_target_names_clip_and_target(
+    tmp_path, recordings_dir):
   """A hammering-less 'hammering' recording: no lowest blow point needs a
   window; a stacking recording without its placing hand."""
-  _skip_without_recordings()
   source = tmp_path / 'CollaborativeStacking'
   source.mkdir()
   (source / '0.bvh').write_bytes(
-      (MOTIONS / 'CollaborativeStacking' / '0.bvh').read_bytes())
-  info = (MOTIONS / 'CollaborativeStacking' / '0_info.json').read_text()
+      (recordings_dir / 'CollaborativeStacking' / '0.bvh').read_bytes())
+  info = (recordings_dir / 'CollaborativeStacking' /
+          '0_info.json').read_text()
   (source / '0_info.json').write_text(
       info.replace('"first_placing_hand": "left",', ''))
   with pytest.raises(clip_lib.ClipError,
