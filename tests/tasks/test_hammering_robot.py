@@ -1,8 +1,6 @@
 """hammering/robot_hammers: the hammer in the gripper, the plank carried
 in, set down, waited over, taken back; success, failure, snapshots; the
-reference's recordings (skipped when ../shared/motions is absent)."""
-
-import pathlib
+reference's recordings (marked `recordings`, tests/conftest.py)."""
 
 import numpy as np
 import pytest
@@ -19,9 +17,6 @@ from hrc_suite.tasks import hammering_robot
 from hrc_suite.tasks import motions
 
 import checks   # tests/tasks/checks.py
-
-REPO = pathlib.Path(__file__).resolve().parents[2]
-RECORDINGS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
 
 
 def _env(robot='panda', space='cartesian', seed=0, **kwargs):
@@ -165,34 +160,29 @@ def test_clip_without_blows_is_refused_for_hammering_default():
                         'made.bvh')
 
 
-def _skip_without_recordings():
-  if not RECORDINGS.is_dir():
-    pytest.skip(f'real recordings not found at {RECORDINGS} (shared/motions)')
-
-
 @pytest.fixture()
 def cache(tmp_path, monkeypatch):
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path))
 
 
-def test_recordings_are_refused_for_hammering_default(cache):
+@pytest.mark.recordings
+def test_recordings_are_refused_for_hammering_default(cache, recordings_dir):
   del cache
-  _skip_without_recordings()
   with pytest.raises(clip_lib.ClipError,
                      match=r"CollaborativeHammering/0\.bvh: cannot derive "
                      r"'strike_grip': the person never strikes: the left "
                      r'hand moves down at most .* m/s.*use '
                      r'hammering/robot_hammers'):
     suite.load('hammering', 'default', task_kwargs={
-        'motions': str(RECORDINGS), 'outside_human_model': 'allow'})
+        'motions': str(recordings_dir), 'outside_human_model': 'allow'})
 
 
-def test_recordings_play_in_robot_hammers(cache):
+@pytest.mark.recordings
+def test_recordings_play_in_robot_hammers(cache, recordings_dir):
   """Every recording: the plank lands with its nail within reach; the
   person waits for the nail."""
   del cache
-  _skip_without_recordings()
-  env = _env(motions=str(RECORDINGS), outside_human_model='allow')
+  env = _env(motions=str(recordings_dir), outside_human_model='allow')
   clips = env.task.player.clips
   assert len(clips) == 8
   for clip in clips:

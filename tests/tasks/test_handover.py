@@ -1,7 +1,6 @@
 """The handover tasks: specs, rewards, the human's hold/release events,
 determinism, snapshots, and success reached by privileged scripted oracles."""
 
-import pathlib
 import unittest
 
 from dm_env import test_utils
@@ -19,9 +18,6 @@ from hrc_suite.tasks import handover
 
 import checks   # tests/tasks/checks.py
 
-# The reference's recordings (test data, ../shared/motions).
-MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
-           / 'motions' / 'human-robot-animations')
 ROBOTS = ('panda', 'schunk')
 SPACES = ('joint', 'cartesian')
 TASKS = ('robot_to_human', 'human_to_robot')
@@ -360,26 +356,28 @@ def test_joint_space_oracle_hands_over_with_every_robot(robot):
 # ------------------------------------------------------ presenting grip
 
 
-def _recorded_clip(name, tmp_path, monkeypatch, task=handover.HumanToRobot):
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
+def _recorded_clip(recordings_dir, name, tmp_path, monkeypatch,
+                   task=handover.HumanToRobot):
+  """The recording `name` (the reference's recordings, test data)."""
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path))
-  clips = recording_cache.load_task_folder(MOTIONS, task.MOTIONS)
+  clips = recording_cache.load_task_folder(recordings_dir, task.MOTIONS)
   return [c for c in clips if c.name == name]
 
 
+@pytest.mark.recordings
 @pytest.mark.parametrize('name, clip', [
     ('robot_to_human', 'RobotHumanHandover_5'),
     ('human_to_robot', 'HumanRobotHandover_5')])
 def test_recorded_left_handed_person_uses_the_left_hand(tmp_path,
                                                         monkeypatch, name,
-                                                        clip):
+                                                        clip,
+                                                        recordings_dir):
   """A recording whose _info.json names the left hand as the holding
   hand: its palm is the robot-to-human target, and the human-to-robot
   person walks in with the hammer in it."""
   cls = {'robot_to_human': handover.RobotToHuman,
          'human_to_robot': handover.HumanToRobot}[name]
-  clips = _recorded_clip(clip, tmp_path, monkeypatch, cls)
+  clips = _recorded_clip(recordings_dir, clip, tmp_path, monkeypatch, cls)
   assert [c.holding_hand for c in clips] == ['left']
   env = _env(name, seed=0, motions=clips, outside_human_model='allow')
   env.reset()
@@ -432,13 +430,16 @@ def test_presented_hammer_lies_along_the_hand_on_its_side():
   assert seen > 10
 
 
+@pytest.mark.recordings
 def test_low_presentation_keeps_the_hammer_above_the_table(tmp_path,
-                                                           monkeypatch):
+                                                           monkeypatch,
+                                                           recordings_dir):
   """A recorded person presents with the palm 0.05 m above the table and
   the forearm 35 degrees down: the hammer tilts only so far that its head
   stays PRESENT_CLEARANCE above the table, and it does not jump with the
   hand frame's roll (it did by 15 degrees for one RL step)."""
-  clips = _recorded_clip('HumanRobotHandover_3', tmp_path, monkeypatch)
+  clips = _recorded_clip(recordings_dir, 'HumanRobotHandover_3', tmp_path,
+                         monkeypatch)
   env = _env('human_to_robot', seed=0, motions=clips,
              outside_human_model='allow')
   previous, seen = None, 0

@@ -1,9 +1,7 @@
-"""Inspection with the recorded people (../shared/motions, skipped when
-absent): every clip's target is one a held cube reaches by Cartesian
-actions, and the Panda's expert presents the cube where it stalled before
-(docs/tasks.md, inspection)."""
-
-import pathlib
+"""Inspection with the recorded people (tests/conftest.py; the module is
+marked `recordings`): every clip's target is one a held cube reaches by
+Cartesian actions, and the Panda's expert presents the cube where it
+stalled before (docs/tasks.md, inspection)."""
 
 import numpy as np
 import pytest
@@ -14,8 +12,8 @@ from hrc_suite.human import recording_cache
 from hrc_suite.tasks import inspection
 from hrc_suite.tasks import metrics
 
-MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
-           / 'motions' / 'human-robot-animations')
+pytestmark = pytest.mark.recordings
+
 # Seeds of 10 that cover several recorded clips (seed 0 gets
 # ObjectInspection_1, whose raw point the Panda reaches only at its edge).
 SEEDS = range(10)
@@ -25,13 +23,12 @@ SEEDS = range(10)
 def cache(tmp_path_factory, monkeypatch):
   monkeypatch.setenv(recording_cache.CACHE_ENV,
                      str(tmp_path_factory.getbasetemp() / 'recordings'))
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
 
 
-def _env(robot, seed=0, **kwargs):
+def _env(motions, robot, seed=0, **kwargs):
+  """Inspection on `robot` with the recorded people under `motions`."""
   return suite.load('inspection', 'default', task_kwargs=dict(
-      robot=robot, motions=MOTIONS, outside_human_model='allow', **kwargs),
+      robot=robot, motions=motions, outside_human_model='allow', **kwargs),
                     environment_kwargs={'random_state': seed})
 
 
@@ -52,8 +49,8 @@ def _walk(env, tcp_goal, steps):
 
 
 @pytest.mark.parametrize('robot', ('panda', 'schunk'))
-def test_held_cube_reaches_every_recorded_target(robot):
-  env = _env(robot, time_limit=1.0)
+def test_held_cube_reaches_every_recorded_target(robot, recordings_dir):
+  env = _env(recordings_dir, robot, time_limit=1.0)
   task = env.task
   seen = set()
   for seed in SEEDS:
@@ -77,10 +74,11 @@ def test_held_cube_reaches_every_recorded_target(robot):
 
 
 @pytest.mark.slow
-def test_panda_expert_presents_to_a_recorded_person_without_stalling():
+def test_panda_expert_presents_to_a_recorded_person_without_stalling(
+    recordings_dir):
   # Seed 0: before the fix the expert stalled 1-2 cm short of the cube
   # over the target with ~950 IK failures in 1000 steps.
-  env = _env('panda', seed=0)
+  env = _env(recordings_dir, 'panda', seed=0)
   result = metrics.run_episode(env, experts.make(env))
   assert result['success'] == 1
   assert result['ik_failures'] == 0

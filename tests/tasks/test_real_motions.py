@@ -1,7 +1,6 @@
-"""Every task plays the real recordings (../shared/motions, skipped when
-absent) on two robots, and the speed model's opt-out is counted."""
-
-import pathlib
+"""Every task plays the real recordings (tests/conftest.py; the module is
+marked `recordings`) on two robots, and the speed model's opt-out is
+counted."""
 
 import numpy as np
 import pytest
@@ -13,8 +12,8 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import recording_cache
 from hrc_suite.tasks import stacking
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
-MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
+pytestmark = pytest.mark.recordings
+
 # Each reference folder's task, as suite (domain, task) names.
 FOLDER_TASKS = {
     'RobotHumanHandover': ('handover', 'robot_to_human'),
@@ -35,22 +34,21 @@ CASES = [(folder, robot) for folder in FOLDER_TASKS for robot in ROBOTS]
 def cache(tmp_path_factory, monkeypatch):
   monkeypatch.setenv(recording_cache.CACHE_ENV,
                      str(tmp_path_factory.getbasetemp() / 'recordings'))
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
 
 
-def _load(folder, robot, seed=0, **kwargs):
+def _load(motions, folder, robot, seed=0, **kwargs):
+  """`folder`'s task on `robot` playing the recordings under `motions`."""
   domain, task = FOLDER_TASKS[folder]
-  kwargs = dict({'robot': robot, 'seed': seed, 'motions': MOTIONS,
+  kwargs = dict({'robot': robot, 'seed': seed, 'motions': motions,
                  'outside_human_model': 'allow'}, **kwargs)
   return suite.load(domain, task, task_kwargs=kwargs)
 
 
 @pytest.mark.parametrize('folder,robot', CASES)
-def test_recordings_play_in_their_task(folder, robot):
-  env = _load(folder, robot)
+def test_recordings_play_in_their_task(folder, robot, recordings_dir):
+  env = _load(recordings_dir, folder, robot)
   clips = env.task.player.clips
-  assert len(clips) == len(list((MOTIONS / folder).glob('*.bvh')))
+  assert len(clips) == len(list((recordings_dir / folder).glob('*.bvh')))
   assert all(c.metadata['source'] == 'bvh' for c in clips)
   policy = experts.make(env)
   timestep = env.reset()
@@ -63,13 +61,14 @@ def test_recordings_play_in_their_task(folder, robot):
   assert metrics['contacts_human_critical'] == 0
 
 
-def test_fast_recordings_are_refused_by_default():
+def test_fast_recordings_are_refused_by_default(recordings_dir):
   """pick_place's recordings move hands at 3-12 m/s (over the shield's
   2 m/s model): refused unless allowed, then counted."""
   with pytest.raises(clip_lib.ClipError, match='over the shield.s human '
                      "model.*'outside_human_model': 'allow'"):
-    _load('PickPlaceCloseHuman', 'panda', outside_human_model='refuse')
-  env = _load('PickPlaceCloseHuman', 'panda')
+    _load(recordings_dir, 'PickPlaceCloseHuman', 'panda',
+          outside_human_model='refuse')
+  env = _load(recordings_dir, 'PickPlaceCloseHuman', 'panda')
   env.reset()
   outside = 0
   for _ in range(150):
@@ -80,10 +79,11 @@ def test_fast_recordings_are_refused_by_default():
   assert outside > 0
 
 
-def test_stacking_people_bring_their_cubes_and_set_them_down():
+def test_stacking_people_bring_their_cubes_and_set_them_down(
+    recordings_dir):
   """Both human cubes start in the recorded person's hands and travel with
   them; cube 1 is let go over the table and set down on it, upright."""
-  env = _load('CollaborativeStacking', 'panda', seed=2)
+  env = _load(recordings_dir, 'CollaborativeStacking', 'panda', seed=2)
   env.reset()
   task = env.task
   held = [task.cubes[i] for i in stacking.HUMAN_CUBES]
@@ -106,8 +106,8 @@ def test_stacking_people_bring_their_cubes_and_set_them_down():
 
 @pytest.mark.slow
 @pytest.mark.parametrize('folder,robot', CASES)
-def test_full_expert_episode_on_recordings(folder, robot):
-  env = _load(folder, robot, seed=1)
+def test_full_expert_episode_on_recordings(folder, robot, recordings_dir):
+  env = _load(recordings_dir, folder, robot, seed=1)
   policy = experts.make(env)
   timestep = env.reset()
   while not timestep.last():
