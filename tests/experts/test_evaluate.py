@@ -1,7 +1,6 @@
 """The evaluation command: bootstrap CI, table, JSON, people, shields."""
 
 import json
-import pathlib
 
 from absl import flags
 from dm_env import specs
@@ -11,9 +10,6 @@ import pytest
 from hrc_suite import experts
 from hrc_suite.experts import evaluate
 from hrc_suite.human import recording_cache
-
-REPO = pathlib.Path(__file__).resolve().parents[2]
-MOTIONS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
 
 
 @pytest.fixture(autouse=True)
@@ -400,16 +396,15 @@ def test_rewrite_only_writes_the_table_without_running(tmp_path,
 
 
 @pytest.fixture
-def real_motions(tmp_path_factory, monkeypatch):
-  """The reference recordings (skipped when absent), converted into a
-  cache shared by this session's tests."""
+def real_motions(tmp_path_factory, monkeypatch, recordings_dir):
+  """The reference recordings, converted into a cache shared by this
+  session's tests."""
   monkeypatch.setenv(recording_cache.CACHE_ENV,
                      str(tmp_path_factory.getbasetemp() / 'recordings'))
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
-  return MOTIONS
+  return recordings_dir
 
 
+@pytest.mark.recordings
 def test_random_policy_on_real_recordings_with_and_without_shield(
     tmp_path, real_motions):
   out, json_out = tmp_path / 'safety.md', tmp_path / 'safety.json'

@@ -1,8 +1,6 @@
 """The hammering/robot_hammers expert drives the nail with the hammer in
-its gripper, without touching the person, on synthetic and (skipped when
-../shared/motions is absent) recorded people."""
-
-import pathlib
+its gripper, without touching the person, on synthetic and recorded people
+(marked `recordings`, tests/conftest.py)."""
 
 import numpy as np
 import pytest
@@ -13,9 +11,6 @@ from hrc_suite.experts import hammering_robot as expert_lib
 from hrc_suite.human import recording_cache
 
 import expert_checks   # tests/experts/expert_checks.py
-
-REPO = pathlib.Path(__file__).resolve().parents[2]
-RECORDINGS = REPO / '..' / 'shared' / 'motions' / 'human-robot-animations'
 
 
 def _env(robot, space='cartesian', seed=0, **kwargs):
@@ -67,11 +62,11 @@ def test_same_seed_same_actions():
       lambda: _env('panda', seed=2, time_limit=8.0))
 
 
+@pytest.mark.recordings
 @pytest.mark.parametrize('robot', ('panda', 'schunk'))
-def test_drives_the_nail_of_a_recorded_person(robot, tmp_path, monkeypatch):
-  if not RECORDINGS.is_dir():
-    pytest.skip(f'real recordings not found at {RECORDINGS} (shared/motions)')
+def test_drives_the_nail_of_a_recorded_person(robot, tmp_path, monkeypatch,
+                                              recordings_dir):
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path))
-  env = _env(robot, seed=3, motions=str(RECORDINGS),
+  env = _env(robot, seed=3, motions=str(recordings_dir),
              outside_human_model='allow')
   _assert_nail_driven_safely(_episode(env))

@@ -3,8 +3,6 @@ place it (human to robot) with the Schunk and the Panda in both action
 spaces, deterministically, without critical human contacts, and take over
 from a snapshot state."""
 
-import pathlib
-
 import numpy as np
 import pytest
 
@@ -13,10 +11,6 @@ from hrc_suite import suite
 from hrc_suite.experts import handover as handover_experts
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.human import recording_cache
-
-# The reference's recordings (test data, ../shared/motions).
-MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
-           / 'motions' / 'human-robot-animations')
 
 
 def _env(task, robot='schunk', space='cartesian', seed=0, **kwargs):
@@ -151,20 +145,20 @@ def test_noisy_expert_completes_the_task_on_the_panda(task):
 
 
 @pytest.fixture(scope='module')
-def recordings(tmp_path_factory):
-  """{clip name: clip} of both handover folders (converted into a test
-  cache)."""
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
+def recordings(tmp_path_factory, recordings_dir):
+  """{clip name: clip} of both handover folders of the reference's
+  recordings (converted into a test cache)."""
   with pytest.MonkeyPatch.context() as patch:
     patch.setenv(recording_cache.CACHE_ENV,
                  str(tmp_path_factory.mktemp('recordings')))
     return {c.name: c for task in ('handover_robot_to_human',
                                    'handover_human_to_robot')
-            for c in recording_cache.load_task_folder(MOTIONS, task)}
+            for c in recording_cache.load_task_folder(recordings_dir,
+                                                      task)}
 
 
 @pytest.mark.slow
+@pytest.mark.recordings
 @pytest.mark.parametrize('task, clip, robot, seed', [
     # The person stands 0.17 m to the side: their right palm is beyond the
     # Schunk's gripper-down reach plus the handle (robot to human).

@@ -1,8 +1,6 @@
 """The lifting expert: keeps the board gripped and level while the person
 lifts it, from any state, and completes lifts."""
 
-import pathlib
-
 import numpy as np
 import pytest
 
@@ -11,9 +9,6 @@ from hrc_suite import suite
 from hrc_suite.experts import lifting as lifting_expert
 from hrc_suite.human import recording_cache
 from hrc_suite.tasks import metrics
-
-MOTIONS = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared'
-           / 'motions' / 'human-robot-animations')
 
 # Seeds whose clip the robots can follow: in lifting_01, _02 and _08 the
 # person carries the board up to 0.5 m further away, out of every robot's
@@ -91,19 +86,20 @@ def test_completes_lifts_on_the_schunk(space):
 
 
 @pytest.mark.slow
+@pytest.mark.recordings
 @pytest.mark.parametrize('seed', (4, 5))
 def test_schunk_follows_a_recorded_person_lifting_high(seed, tmp_path,
-                                                       monkeypatch):
+                                                       monkeypatch,
+                                                       recordings_dir):
   # Seeds 4 and 5 play CollaborativeLifting_3: the person lifts their end
   # by ~1 m in 2.5 s, pulling it 0.14 m towards the robot. Before the
   # board was placed where the Schunk can lift the handle, and before the
   # expert aimed at a tilted board in reach, the elbow folded against the
   # upper arm and the board tipped over after 30-41 steps.
-  if not MOTIONS.is_dir():
-    pytest.skip(f'real recordings not found at {MOTIONS} (shared/motions)')
   monkeypatch.setenv(recording_cache.CACHE_ENV, str(tmp_path))
   env = suite.load('lifting', 'default', task_kwargs={
-      'robot': 'schunk', 'motions': MOTIONS, 'outside_human_model': 'allow'},
+      'robot': 'schunk', 'motions': recordings_dir,
+      'outside_human_model': 'allow'},
                    environment_kwargs={'random_state': seed})
   result = metrics.run_episode(env, experts.make(env))
   assert result['success'] == 1
