@@ -9,7 +9,6 @@ cycle later and one cycle later.
 
 import dataclasses
 import math
-import pathlib
 
 import numpy as np
 
@@ -20,8 +19,6 @@ from hrc_suite.safety import geometry
 CYCLE = 0.004
 # Robot speed (m/s) above which a contact in SSM counts as a violation.
 MOVING_SPEED = 1e-3
-MOTIONS_DIR = (pathlib.Path(__file__).resolve().parents[2] / '..' / 'shared' /
-               'motions')
 
 # A standing person at the origin facing +x (metres, z up): a plain template
 # with roughly 50th-percentile male proportions (DIN 33402-2 stature 1.75 m).

@@ -128,15 +128,15 @@ def _clip_runs(motions_dir, per_task, robots, modes, seconds):
         _assert_no_violation(run, f'{path} {name} {mode}')
 
 
-def test_real_clips(motions_dir):
-  _clip_runs(motions_dir / 'human-robot-animations', 1, ('panda',), ('ssm',),
-             2.0)
+@pytest.mark.recordings
+def test_real_clips(recordings_dir):
+  _clip_runs(recordings_dir, 1, ('panda',), ('ssm',), 2.0)
 
 
 @pytest.mark.slow
-def test_real_clips_sweep(motions_dir):
-  _clip_runs(motions_dir / 'human-robot-animations', 2, ROBOTS, ('ssm', 'pfl'),
-             6.0)
+@pytest.mark.recordings
+def test_real_clips_sweep(recordings_dir):
+  _clip_runs(recordings_dir, 2, ROBOTS, ('ssm', 'pfl'), 6.0)
 
 
 @pytest.mark.slow
