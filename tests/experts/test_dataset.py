@@ -6,7 +6,6 @@ import shutil
 import numpy as np
 import pytest
 
-from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import dataset
 from hrc_suite.experts import noise as noise_lib
@@ -174,16 +173,6 @@ def test_bad_arguments():
                     policy='scripted', make_policy=Scripted)
 
 
-def _reach_expert_available():
-  try:
-    experts.expert_class(DOMAIN, TASK)
-  except (ImportError, ValueError):
-    return False
-  return True
-
-
-@pytest.mark.skipif(not _reach_expert_available(),
-                    reason='the reach expert is not written yet')
 def test_noisy_expert_dataset(tmp_path):
   data = dataset.collect(tmp_path / 'data', DOMAIN, TASK, KWARGS,
                          policy='noisy_expert', episodes=1, seed=SEED)

@@ -7,7 +7,6 @@ from dm_env import specs
 import numpy as np
 import pytest
 
-from hrc_suite import experts
 from hrc_suite.experts import evaluate
 from hrc_suite.human import recording_cache
 
@@ -75,20 +74,10 @@ def test_summary_and_bar():
   assert evaluate.below_bar(rows[1]) == []
 
 
-def _reach_expert_available():
-  try:
-    experts.expert_class('reach', 'dense')
-  except (ImportError, ValueError):
-    return False
-  return True
-
-
 def _table_rows(text):
   return [line for line in text.splitlines() if line.startswith('|')]
 
 
-@pytest.mark.skipif(not _reach_expert_available(),
-                    reason='the reach expert is not written yet')
 def test_tiny_run_writes_a_well_formed_table(tmp_path):
   out, json_out = tmp_path / 'results' / 'experts.md', tmp_path / 'e.json'
   flag_values = _flags(
@@ -129,8 +118,6 @@ def _row_cells(text):
           for row in _table_rows(text)[2:]]
 
 
-@pytest.mark.skipif(not _reach_expert_available(),
-                    reason='the reach expert is not written yet')
 def test_update_replaces_only_the_rows_it_reruns(tmp_path):
   out, json_out = tmp_path / 'experts.md', tmp_path / 'experts.json'
 
