@@ -14,6 +14,12 @@ from hrc_suite.rendering import overlay as render_overlay
 from hrc_suite import rendering
 from hrc_suite import layout
 from hrc_suite import suite
+# The modules behind render.make_policy's 'expert' and 'noisy_expert'
+# policies, imported plainly so that a broken one fails here.
+# pylint: disable=unused-import
+from hrc_suite.experts import noise
+from hrc_suite.experts import reach as reach_expert
+# pylint: enable=unused-import
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import reach
@@ -229,10 +235,6 @@ def test_bad_camera_and_policy_names_are_clear_errors(tmp_path):
 
 
 def test_expert_and_noisy_expert_policies():
-  pytest.importorskip('hrc_suite.experts.reach',
-                      reason='the reach expert is not in this checkout')
-  pytest.importorskip('hrc_suite.experts.noise',
-                      reason='the noise module is not in this checkout')
   env = suite.load('reach', 'dense', task_kwargs={'robot': 'schunk',
                                                  'seed': 0})
   timestep = env.reset()

@@ -1,5 +1,6 @@
 """Tests for the pinocchio kinematic model and the robots' home poses."""
 
+from dm_control import mjcf
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -7,6 +8,8 @@ import pytest
 from hrc_suite import layout
 from hrc_suite import robot_description
 from hrc_suite.control import kinematics
+from hrc_suite.entities import gripper as gripper_lib
+from hrc_suite.entities import robot as robot_lib
 
 ROBOTS = robot_description.ROBOT_NAMES
 NUM_CONFIGURATIONS = 100
@@ -48,9 +51,7 @@ def test_link_frames_match_description_fk(name):
 
 
 def _mujoco_physics(description):
-  robot_module = pytest.importorskip('hrc_suite.entities.robot')
-  from dm_control import mjcf  # pylint: disable=g-import-not-at-top
-  robot = robot_module.Robot(description)
+  robot = robot_lib.Robot(description)
   physics = mjcf.Physics.from_mjcf_model(robot.mjcf_model)
   return robot, physics
 
@@ -77,16 +78,13 @@ def test_link_frames_match_mujoco(name):
 
 @pytest.mark.parametrize('name', ROBOTS)
 def test_tcp_matches_mujoco_gripper_tcp_site(name):
-  gripper_module = pytest.importorskip('hrc_suite.entities.gripper')
-  robot_module = pytest.importorskip('hrc_suite.entities.robot')
-  from dm_control import mjcf  # pylint: disable=g-import-not-at-top
   description = robot_description.load(name)
-  robot = robot_module.Robot(description)
-  gripper = gripper_module.ParallelGripper()
+  robot = robot_lib.Robot(description)
+  gripper = gripper_lib.ParallelGripper()
   robot.attach_gripper(gripper)
   physics = mjcf.Physics.from_mjcf_model(robot.mjcf_model)
   model = kinematics.KinematicModel(
-      description, tcp_offset=gripper_module.ParallelGripper.TCP_OFFSET)
+      description, tcp_offset=gripper_lib.ParallelGripper.TCP_OFFSET)
   joints = physics.bind(robot.joints)
   tcp = physics.bind(robot.tcp_site)
   for q in _random_configurations(description, seed=3, n=10):
