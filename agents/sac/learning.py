@@ -45,6 +45,13 @@ def _optimizer(config):
   return optax.chain(optax.clip_by_global_norm(config.max_grad_norm), adam)
 
 
+def polyak_average(target, online, tau):
+  """Target parameters moved towards the online ones: (1 - tau) target +
+  tau online, leaf by leaf."""
+  return jax.tree_util.tree_map(
+      lambda t, o: (1.0 - tau) * t + tau * o, target, online)
+
+
 def _to_floats(metrics):
   """{name: float} of a dict of device scalars (one transfer)."""
   return {name: float(value)
@@ -166,10 +173,8 @@ class UpdateFunctions:
             state.log_temperature))
     log_temperature = optax.apply_updates(state.log_temperature,
                                           temperature_update)
-    tau = self.config.tau
-    target_q_params = jax.tree_util.tree_map(
-        lambda target, online: (1.0 - tau) * target + tau * online,
-        state.target_q_params, q_params)
+    target_q_params = polyak_average(state.target_q_params, q_params,
+                                     self.config.tau)
 
     new_state = TrainingState(
         policy_params=policy_params,

@@ -98,10 +98,8 @@ class LagrangianUpdateFunctions(sac_learning.UpdateFunctions):
     updates, cost_q_optimizer_state = self.cost_q_optimizer.update(
         cost_grads, state.cost_q_optimizer_state, state.cost_q_params)
     cost_q_params = optax.apply_updates(state.cost_q_params, updates)
-    tau = self.config.tau
-    target_cost_q_params = jax.tree_util.tree_map(
-        lambda target, online: (1.0 - tau) * target + tau * online,
-        state.target_cost_q_params, cost_q_params)
+    target_cost_q_params = sac_learning.polyak_average(
+        state.target_cost_q_params, cost_q_params, self.config.tau)
     new_state = LagrangianTrainingState(
         *sac_state,
         cost_q_params=cost_q_params,

@@ -56,6 +56,23 @@ def _deterministic_rows(path):
   return [{k: v for k, v in row.items() if k not in _TIMING} for row in rows]
 
 
+def _assert_same_runs(whole, split):
+  """Asserts that two runs' latest checkpoints and logs are identical (but
+  for timing); returns the checkpoint's arrays."""
+  expected = _checkpoint_arrays(checkpoints.latest(whole))
+  actual = _checkpoint_arrays(checkpoints.latest(split))
+  assert expected.keys() == actual.keys() and expected
+  for key, value in expected.items():
+    if isinstance(value, np.ndarray):
+      np.testing.assert_array_equal(actual[key], value, err_msg=key)
+    else:
+      assert actual[key] == value, key
+  for name in ('train.csv', 'eval.csv'):
+    assert (_deterministic_rows(os.path.join(split, name)) ==
+            _deterministic_rows(os.path.join(whole, name))), name
+  return expected
+
+
 def _run_binary(module, args):
   """Runs a binary's main with its command-line flags (own FlagValues)."""
   flag_values = flags.FlagValues()
@@ -160,17 +177,7 @@ def test_resume_matches_an_uninterrupted_run(two_runs, tmp_path):
   assert info['episode_steps'] == 5 and 'goal_difference' in observation
   assert len(logging_lib.read_csv(os.path.join(split, 'train.csv'))) == 3
   train.train(_run_config(steps=60), split, resume=True)
-  expected = _checkpoint_arrays(checkpoints.latest(whole))
-  actual = _checkpoint_arrays(checkpoints.latest(split))
-  assert expected.keys() == actual.keys() and expected
-  for key, value in expected.items():
-    if isinstance(value, np.ndarray):
-      np.testing.assert_array_equal(actual[key], value, err_msg=key)
-    else:
-      assert actual[key] == value, key
-  for name in ('train.csv', 'eval.csv'):
-    assert (_deterministic_rows(os.path.join(split, name)) ==
-            _deterministic_rows(os.path.join(whole, name))), name
+  _assert_same_runs(whole, split)
   # Only the step budget may change on resume.
   with pytest.raises(ValueError, match='different configuration'):
     train.train(_run_config(steps=80, eval_every=20), split, resume=True)
@@ -372,19 +379,9 @@ def test_sac_lagrangian_trains_resumes_exactly_and_logs_the_cost(tmp_path):
   train.train(config(35), split)   # Inside an episode.
   assert checkpoints.load_episode(checkpoints.latest(split)) is not None
   train.train(config(60), split, resume=True)
-  expected = _checkpoint_arrays(checkpoints.latest(whole))
-  actual = _checkpoint_arrays(checkpoints.latest(split))
-  assert expected.keys() == actual.keys()
+  expected = _assert_same_runs(whole, split)
   assert 'learner.npz/multiplier_controller/value' in expected
   assert 'agent.npz/episode_cost' in expected
-  for key, value in expected.items():
-    if isinstance(value, np.ndarray):
-      np.testing.assert_array_equal(actual[key], value, err_msg=key)
-    else:
-      assert actual[key] == value, key
-  for name in ('train.csv', 'eval.csv'):
-    assert (_deterministic_rows(os.path.join(split, name)) ==
-            _deterministic_rows(os.path.join(whole, name))), name
   # Training episodes' costs reached the replay and the multiplier.
   rows = logging_lib.read_csv(os.path.join(whole, 'train.csv'))
   replay_cost = expected['replay.npz/cost']
