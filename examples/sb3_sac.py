@@ -1,6 +1,6 @@
-"""Stable-Baselines3's SAC on an hrc_suite task (README.md, "Training with
-Stable-Baselines3"): dm_env -> Gymnasium with Shimmy, observations
-flattened. Needs `pip install torch stable-baselines3 'shimmy[dm-control]'`.
+"""Stable-Baselines3's SAC on an hrc_suite task through Gymnasium (README.md,
+"Training with Stable-Baselines3"): the registered environment as it is, no
+wrappers. Needs `pip install -e '.[gym]' torch stable-baselines3`.
 
   python examples/sb3_sac.py [--steps=1000]
 """
@@ -8,9 +8,8 @@ flattened. Needs `pip install torch stable-baselines3 'shimmy[dm-control]'`.
 import argparse
 import time
 
-from hrc_suite import suite   # First: its rendering default (README.md).
-import gymnasium as gym
-from shimmy import DmControlCompatibilityV0
+import gymnasium
+import hrc_suite.gym_env   # pylint: disable=unused-import  (registers)
 from stable_baselines3 import SAC
 
 
@@ -18,8 +17,7 @@ def main():
   parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   parser.add_argument('--steps', type=int, default=1000)
   args = parser.parse_args()
-  env = suite.load('reach', 'dense', task_kwargs={'seed': 0})
-  env = gym.wrappers.FlattenObservation(DmControlCompatibilityV0(env))
+  env = gymnasium.make('hrc_suite/reach-dense-v0')
   model = SAC('MlpPolicy', env, learning_starts=100, seed=0, verbose=0)
   start = time.time()
   model.learn(total_timesteps=args.steps)
