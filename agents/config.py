@@ -27,7 +27,7 @@ progress within 6000 steps (the entropy bonus swamps -0.1 x distance).
 With discount 0.95 instead of 0.99 (reach's episodes end at the goal,
 about 15 steps once learnt) success at 2.5 x 10^4 steps was 0.90, 1.00,
 1.00 over seeds 0-2, against 0.95, 0.45, 0.85 with 0.99
-(docs/benchmarks.md, "SAC training throughput").
+(docs/benchmarks.md, "Quickstart success by discount").
 
 Seeds are not part of a config: agents take them separately.
 """
@@ -184,7 +184,8 @@ def reference_config(**overrides):
 def quick_config(**overrides):
   """The default with (64, 64) networks, rewards x 100, temperature 0.01
   at first and discount 0.95: learns reach/dense (Schunk, Cartesian)
-  within 2-2.5 x 10^4 steps (module docstring; docs/benchmarks.md)."""
+  within 2-2.5 x 10^4 steps (module docstring; docs/benchmarks.md,
+  "Quickstart success by discount")."""
   values = dict(hidden_sizes=(64, 64), reward_scale=100.0,
                 initial_temperature=0.01, discount=0.95)
   values.update(overrides)

@@ -4,17 +4,16 @@ A fresh checkout has no numba cache, so the first environment of a process
 compiles its kernels, one function at a time: on reach/dense (Schunk) the
 shield's (`safety.kernels`, `safety.cycle_kernels`) about 25 s of a core,
 collision prevention's (`safety.cp_kernels`) 15 s and inverse kinematics'
-(`control.ik_kernels`) 6 s (docs/benchmarks.md, "SAC training
-throughput"); the person's playback, the plans' sampling and the
-gripper's grasp check 14 s on 2026-11-29's slower host (docs/benchmarks.md,
-"2026-11-29 (second session)"). `warm_up` compiles all but the shield's in a
-second Python process while this one compiles the shield, then waits for
-it. Both write numba's on-disk cache (the kernels are `cache=True`), from
-which this process's environment loads what the other process compiled.
-With a warm cache both halves only load (about a second). The RL step's
-compiled physics (`tasks.physics_loop`) still compiles in the
-environment's first step (its argument types come from a built
-environment).
+(`control.ik_kernels`) 6 s; the person's playback, the plans' sampling
+and the gripper's grasp check 14 s on a slower day of the same machine
+(docs/benchmarks.md, "Kernel compilation on a fresh checkout"). `warm_up`
+compiles all but the shield's in a second Python process while this one
+compiles the shield, then waits for it. Both write numba's on-disk cache
+(the kernels are `cache=True`), from which this process's environment
+loads what the other process compiled. With a warm cache both halves only
+load (about a second). The RL step's compiled physics
+(`tasks.physics_loop`) compiles in the environment's first step (its
+argument types come from a built environment).
 
   python -m agents.precompile --robot=schunk   # The second process's half.
 """

@@ -45,7 +45,7 @@ _ACTION_SPACE = flags.DEFINE_string(
 # (the least disturbed by other processes sharing the cores).
 _WINDOWS = 3
 # RL steps between two measurements of the bare physics (the alternating
-# ratio: docs/benchmarks.md, 2026-11-28).
+# ratio: docs/benchmarks.md, "RL step throughput of every task").
 _CHUNK = 10
 
 

@@ -1,5 +1,5 @@
 """Where the CPU time of an RL step goes: `python -m hrc_suite.benchmark
---section=profile` (docs/benchmarks.md, "Where the time goes").
+--section=profile` (docs/benchmarks.md, "Where the time of an RL step goes").
 
 Times the parts of the step loop by wrapping them (CPU time,
 time.process_time, summed per part and divided by the RL steps; the

@@ -138,8 +138,8 @@ def cube_region_x(robot_name: str, task_region_x: tuple) -> tuple:
 # A point a person chooses for the robot (a clip's inspection point) that
 # the robot cannot reach: it is moved towards the robot's home TCP along
 # the straight line, to the first of FIT_STEPS evenly spaced points the
-# robot reaches (issue 17: the layout decides; docs/robots.md,
-# "Reachability", counts each robot's moved points).
+# robot reaches (the layout decides; docs/robots.md, "Reachability of the
+# task regions", counts each robot's moved points).
 FIT_STEPS = 21
 
 
@@ -170,7 +170,7 @@ HUMAN_STATION_BESIDE = (0.55, DEFAULT_TABLE.y[1] + STATION_EDGE_CLEARANCE,
 # docs/tasks.md); across our 1 m table that was 0.71-0.94 m from the robot,
 # beyond most arms' gripper-down reach of the top slot. Every robot on its
 # mount reaches the top slot for x 0.40-0.75 m and the robot's cubes for
-# x 0.40-0.55 m, |y| 0.22-0.36 m (world; docs/tasks.md, stacking), so
+# x 0.40-0.55 m, |y| 0.22-0.36 m (world; docs/tasks.md, stacking/default), so
 # the station stands where a stack 0.40-0.62 m ahead lands in 0.48-0.70 m
 # (at x 1.05 m the stack came within 0.25 m of the raised Schunk's base,
 # where carrying cube 4 sideways folded it into itself: docs/tasks.md).

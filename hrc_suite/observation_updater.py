@@ -6,7 +6,8 @@ and no enabled observable has a delay, a buffer or an update interval
 (HrcTask.use_one_substep checks it). composer's Updater still plans each
 observable's schedule before every step (`prepare_for_next_control_step`:
 a schedule, a sort, a simulation of the buffer's deques), 15-20 µs per
-observable on the development machine (docs/benchmarks.md, "Task code").
+observable on the development machine (docs/benchmarks.md, "Task code per
+RL step").
 `OneStepUpdater` inserts each observable's value once per RL step into
 the same buffers instead: the same observations
 (tests/test_observation_updater.py). With anything else enabled it is

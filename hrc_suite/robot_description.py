@@ -8,7 +8,7 @@ the shield (`hrc_suite.safety`) are all built from it.
 The robot registry is that folder: every `<name>.json` in it is a robot
 (`ROBOT_NAMES`). A description file kept elsewhere joins with
 `register(path)`, or wherever a robot name is taken, by giving its path
-(`resolve`; docs/extending.md, "A robot").
+(`resolve`; docs/extending.md, "A robot in one description file").
 
 Conventions (from the SaRA robot configurations; docs/shield_maths.md, 5.1):
 * every joint is revolute about its local z axis;

@@ -7,7 +7,7 @@
       [--robots=jaco,kinova3] [--base=COMMIT] [--windows=60]
 
 On a host whose speed drifts from minute to minute (docs/benchmarks.md,
-"2026-11-28"), runs of two checkouts one after the other differ by more
+"The development machine"), runs of two checkouts one after the other differ by more
 than the changes they compare. This script loads the commit's package as
 `hrc_suite_base` (extracted with `git archive`, its own imports renamed,
 kept under ~/.cache/hrc_suite_compare/COMMIT-r2 so numba compiles it once)

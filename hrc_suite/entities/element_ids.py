@@ -1,7 +1,8 @@
 """MJCF elements' ids, looked up once per Physics, and synchronised reads.
 
 `physics.bind(element).xpos` costs a binding, a named-index lookup and a
-copy on every call (about 3 us; docs/benchmarks.md, "Task code"). Code
+copy on every call (about 3 us; docs/benchmarks.md, "Task code per RL
+step"). Code
 that runs every RL step reads rows of MjData by ids looked up once per
 Physics instead. A binding's read of a derived quantity (positions,
 frames) first runs mj_forward when a write through a binding has marked

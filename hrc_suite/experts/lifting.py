@@ -32,7 +32,8 @@ the board and after they put it down the TCP stays on the handle.
 
 Measured (docs/results/experts.md): 50 of 50 episodes on the Schunk
 (expert and noisy expert) and on the Panda (expert). Recorded people
-(docs/tasks.md, seeds 0-9): Schunk 9/10 (noisy 10/10), Panda 10/10.
+(docs/tasks.md, lifting/default; seeds 0-9): Schunk 9/10 (noisy 10/10),
+Panda 10/10.
 """
 
 import numpy as np

@@ -46,7 +46,8 @@ MIN_BLOW_PERIOD = 0.3
 # A hammering hand moves down at least this fast in a blow (m/s): the
 # synthetic strikes reach 2.5-3.7 m/s; the reference's recordings never
 # strike (its robot hammers): their hands move down at most 0.27 m/s
-# (docs/tasks.md, hammering). Slower clips are refused for hammering/default.
+# (docs/tasks.md, hammering/default). Slower clips are refused for
+# hammering/default.
 MIN_BLOW_SPEED = 1.0
 
 
@@ -144,7 +145,7 @@ def _hammering(positions, fps, fields, source):
   HAMMER_REACH ahead of it along the facing and HAMMER_FACE_BELOW_PALM
   lower. The striking hand moves most up and down there. The reference's
   recordings hold no blows (its robot hammers): there the rule finds the
-  hand resting on the board (docs/tasks.md, hammering)."""
+  hand resting on the board (docs/tasks.md, hammering/default)."""
   start, end = _window(fields, 0, -1, len(positions))
   sides = clip_lib.HANDS
   vertical = [np.std(_hand(positions, s)[start:end + 1, 2]) for s in sides]

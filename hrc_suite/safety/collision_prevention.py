@@ -75,7 +75,7 @@ REFINE_LEVELS = 3
 # Samples per run of the compiled plan sweep's broad phase (cp_bounds):
 # one forward kinematics at a run's centre proves most capsule tests free
 # for all of its samples (16: the fastest of 4 to 64 on reach's plans,
-# docs/benchmarks.md).
+# docs/benchmarks.md, "Collision prevention's check of a new goal").
 SWEEP_RUN = 16
 # Sub-sample positions in (-1, 1), in half widths of the refined sample.
 _REFINE_OFFSETS = (2.0 * np.arange(REFINE) + 1.0) / REFINE - 1.0

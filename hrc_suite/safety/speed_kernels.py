@@ -13,8 +13,8 @@ tables are the same bits (tests/safety/test_kernels.py). They run over a
 block of samples at a time, stored joint by joint and coordinate by
 coordinate, so that the compiler vectorises the frames, spins and bounds
 across samples (the sines and cosines stay calls to libm): 0.6 of the
-cost of one sample after another (docs/benchmarks.md, "2026-11-28 (fifth
-session)"). Same compilation settings as the shield's kernels.
+cost of one sample after another (docs/benchmarks.md, "PFL speed
+tables"). Same compilation settings as the shield's kernels.
 """
 
 import math

@@ -1,7 +1,7 @@
 """Inspection with the recorded people (tests/conftest.py; the module is
 marked `recordings`): every clip's target is one a held cube reaches by
 Cartesian actions, and the Panda's expert presents the cube where it
-stalled before (docs/tasks.md, inspection)."""
+stalled before (docs/tasks.md, inspection/default)."""
 
 import numpy as np
 import pytest
