@@ -1,4 +1,4 @@
-"""The walk-throughs of docs/extending.md, done from outside the package: a
+"""The walk-throughs of docs/extending.md done from outside the package: a
 shield mode, a task with its expert, a reward, and a robot, each defined
 here (the robot's description file written to a temporary folder) and
 loaded through `suite.load` and the binaries without editing a file of
