@@ -86,8 +86,8 @@ SCHUNK_MOUNT = RobotMount(
     pedestal_center_xy=(-0.02, 0.0),
     workspace_scale=0.85)
 
-# Jaco and Kinova Gen3 (issue 17): on the default mount their gripper-down
-# IK (scripts/reachability.py, docs/robots.md) reached none (Jaco) and 6
+# Jaco and Kinova Gen3: on the default mount their gripper-down IK
+# (scripts/reachability.py, docs/robots.md) reaches none (Jaco) and 6
 # of 45 (Gen3) of the robot-to-human handover points, 16 and 17 of 49
 # human-to-robot ones, 1 and 9 of 11 nail targets: those TCP points lie
 # 0.49-0.75 m ahead of the default base and 0.19-0.51 m above the table,
@@ -99,7 +99,7 @@ SCHUNK_MOUNT = RobotMount(
 # (45/45, 49/49, 11/11; at 0.2 m one palm and 4 inspection points stay
 # out), Gen3 0.2 m (45/45, 49/49, 11/11). The table regions given in the
 # base frame (reach box, cube regions) move with the base and are reached
-# as before or better.
+# at least as well as on the default mount.
 JACO_MOUNT = RobotMount(
     base_position=(0.15, 0.0, TABLE_TOP_Z + 0.30),
     pedestal_center_xy=(-0.02, 0.0))
@@ -107,11 +107,11 @@ KINOVA3_MOUNT = RobotMount(
     base_position=(0.15, 0.0, TABLE_TOP_Z + 0.20),
     pedestal_center_xy=(-0.02, 0.0))
 
-# KUKA iiwa (issue 17): on the default mount its gripper-down IK reaches
+# KUKA iiwa: on the default mount its gripper-down IK reaches
 # the table's centre line (y = 0) only from x 0.40 m ahead of the base at
 # the cube's grasp height and from 0.375 m at the pick-and-place hover
 # (0.2 m above), its elbow (joint 4, +-2.09 rad) folded to the limit
-# nearer in (reachability grid, 30 IK restarts, issue 17's 30-episode
+# nearer in (reachability grid, 30 IK restarts, the 30-episode expert
 # sweep). The tasks' cube regions (x 0.30-0.45 m) keep only cubes the arm
 # can grasp, but pick and place carries the cube across y = 0 at the
 # hover: from cubes at x 0.33-0.37 m every Cartesian step failed IK for
@@ -167,13 +167,14 @@ HUMAN_STATION_BESIDE = (0.55, DEFAULT_TABLE.y[1] + STATION_EDGE_CLEARANCE,
 # whose stacking table (1.2 m x 2.0 m, its environment config) is centred on
 # the robot, its far edge 0.6 m from the base. People put the stack 0.40-0.65
 # m ahead of their pelvis (recordings 0.40-0.63 m, synthetic 0.55-0.65 m,
-# docs/tasks.md); across our 1 m table that was 0.71-0.94 m from the robot,
-# beyond most arms' gripper-down reach of the top slot. Every robot on its
-# mount reaches the top slot for x 0.40-0.75 m and the robot's cubes for
-# x 0.40-0.55 m, |y| 0.22-0.36 m (world; docs/tasks.md, stacking/default), so
-# the station stands where a stack 0.40-0.62 m ahead lands in 0.48-0.70 m
-# (at x 1.05 m the stack came within 0.25 m of the raised Schunk's base,
-# where carrying cube 4 sideways folded it into itself: docs/tasks.md).
+# docs/tasks.md); across our 1 m table that would be 0.71-0.94 m from the
+# robot, beyond most arms' gripper-down reach of the top slot. Every robot
+# on its mount reaches the top slot for x 0.40-0.75 m and the robot's cubes
+# for x 0.40-0.55 m, |y| 0.22-0.36 m (world; docs/tasks.md,
+# stacking/default), so the station stands where a stack 0.40-0.62 m ahead
+# lands in 0.48-0.70 m (with the station at x 1.05 m the stack comes within
+# 0.25 m of the raised Schunk's base, where carrying cube 4 sideways folds
+# it into itself: docs/tasks.md).
 # The person stands STACKING_STATION_SHIFT closer to the table's edge than
 # at the shared stations (pelvis 0.18 m from it: a stack 0.55-0.65 m ahead
 # is within reach of a person standing upright).
@@ -197,8 +198,8 @@ HUMAN_STATION_STACKING = (STACKING_STATION_X, 0.0, math.pi)
 # 10.7-11.6 rad in norm on the UR5e (seeds 0-5), whose straight joint path
 # then swung the upper arm through the table and pedestal; unhindered,
 # the expert covers ~0.12 rad per RL step in norm (Gen3 seed 3: 11.4 rad
-# in 92 of the 100 steps), so such goals barely fit the horizon (issue
-# 17, docs/robots.md, "Reach goals").
+# in 92 of the 100 steps), so such goals barely fit the horizon
+# (docs/robots.md, "Reach goals").
 ONE_TURN = 2 * math.pi
 # rad: a range of one turn written with 11 decimals (UR5e elbow, +-pi) is
 # one turn.
@@ -222,8 +223,8 @@ def reach_joint_goal_range(description):
 # within y <= REACH_GOAL_MAX_Y. The reference's joint goals ignore the
 # person (docs/reference_benchmark.md, Tasks); beyond the edge a goal puts
 # the arm into the person's body, where SSM holds it for the rest of the
-# episode. Issue 17's expert failures there (seeds 0-9, and experts.json's
-# 50): goals with the TCP at y 0.78-1.00 m, held for 61-83 of 100 RL steps
-# (Jaco seeds 1 and 8, iiwa 1 and 3, Schunk 8, Panda 42), the arm pushed
-# by the person (robot-human distance down to -0.14 m).
+# episode. The experts fail there without this bound (seeds 0-9, and
+# experts.json's 50): goals with the TCP at y 0.78-1.00 m, held for 61-83
+# of 100 RL steps (Jaco seeds 1 and 8, iiwa 1 and 3, Schunk 8, Panda 42),
+# the arm pushed by the person (robot-human distance down to -0.14 m).
 REACH_GOAL_MAX_Y = DEFAULT_TABLE.y[1]

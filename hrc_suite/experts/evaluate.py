@@ -33,10 +33,10 @@ without motions in DIR are listed as not evaluated. Rows name their
 people by --motions_label (default: DIR's name).
 
 The bar (listed under "Rows below the bar"): an expert succeeds in at
-least 80 % of its episodes (issue 6); no policy has a critical human
-contact with the shield on, which for the test policies is the whole bar
-(issue 15): `random` (uniform actions) and `chase` (the TCP driven at the
-person's nearest keypoint at full speed, experts/adversary.py). Rows with
+least 80 % of its episodes; no policy has a critical human contact with
+the shield on, which for the test policies is the whole bar: `random`
+(uniform actions) and `chase` (the TCP driven at the person's nearest
+keypoint at full speed, experts/adversary.py). Rows with
 the shield off have no safety bar: their critical contacts show the check
 can fail, and the table counts their episodes.
 
@@ -90,7 +90,7 @@ POLICIES = EXPERT_POLICIES + TEST_POLICIES
 DEFAULT_SHIELD = 'default'
 # The people of rows run without --motions: the shipped library.
 SYNTHETIC = 'synthetic'
-# The bar every expert must reach (issue 6): success in at least 80 % of
+# The bar every expert must reach: success in at least 80 % of
 # the episodes of its task, with no critical human contact.
 SUCCESS_BAR = 0.8
 # Seed of every row's bootstrap resampling (rows are reproducible alone).

@@ -11,8 +11,8 @@ reaches, so the handle still points along the palm's line and reaches as
 far towards it as the arm can, and the arm waits there (the person's hand
 sways while they wait and comes to the handle). The palm aimed at is the
 one nearest the robot seen so far (the person's reach loop returns there;
-chasing the current palm at the PFL shield's v_safe, the handle missed
-it for 1000 RL steps: issue 17), the current one for a while after the
+chasing the current palm at the PFL shield's v_safe, the handle misses
+it for 1000 RL steps), the current one for a while after the
 TCP stood still for STALL_STEPS.
 
 Human to robot (`HumanToRobotExpert`): wait near where the person will

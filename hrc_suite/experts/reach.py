@@ -13,13 +13,13 @@ already at its goal value, then q with all but one joint at their goal
 values (in that order; the first that works), then VIA_SAMPLES random
 configurations within the task's joint goal range (explicit seed VIA_SEED,
 the same every plan), shortest total joint path first: the UR5e and the
-Sawyer had goals that no one-joint-at-a-time via point reaches (issue 17,
-docs/robots.md, "Reach goals"). A path counts as free only if it also
+Sawyer had goals that no one-joint-at-a-time via point reaches
+(docs/robots.md, "Reach goals"). A path counts as free only if it also
 keeps every capsule on the robot's side of the table edge beside the
 person (y <= layout.REACH_GOAL_MAX_Y, the goals' own rule; a start
 already beyond it may not go further): the straight joint path to a goal
 there can swing the arm into the person, where SSM holds it for the rest
-of the episode (issue 17's 30-episode sweep, docs/robots.md, "Reach
+of the episode (the 30-episode sweep, docs/robots.md, "Reach
 goals"). Each step it steers straight
 to the goal if that path is free, else to the via point (planned again when
 the path to it is no longer free, e.g. after the shield braked off the line).

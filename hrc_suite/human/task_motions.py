@@ -277,7 +277,7 @@ def inspection(script, rs):
 
 # Where a person carrying one end of the board may walk (clip frame, m,
 # relative to where they lifted it: x towards the robot): steps of up to
-# 0.25 m used to add up to 0.5 m backwards, carrying the robot's end
+# 0.25 m would add up to 0.5 m backwards, carrying the robot's end
 # (handle) ~0.9 m from the robot's base, beyond every robot's gripper-down
 # reach (~0.75-0.8 m, measured with the lifting expert).
 LIFT_WALK_RANGE = (np.array([-0.2, -0.2]), np.array([0.05, 0.2]))

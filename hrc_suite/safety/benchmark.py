@@ -11,7 +11,7 @@ with a new random goal every 12 cycles (the reference's 20 Hz policy at a
   the base, the tasks' usual station): the second broad phase settles it;
 * far: the same person 3.5 m away (the first broad phase settles it).
 
---rl_step times what a task runs instead (issue 16): the 25 cycles of one
+--rl_step times what a task runs instead: the 25 cycles of one
 RL step in one `batch.step_many` call, a new goal at each RL step's
 start, thread CPU time per RL step, compiled and (same scenes and goals)
 the reference loop of `Shield.step`.

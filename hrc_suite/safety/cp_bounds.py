@@ -36,8 +36,8 @@ A computed distance is a distance between two points of the segments
 round-off; SLACK covers every round-off of these sums (float64 on
 coordinates of at most metres: below 1e-13 m), and floating-point sums
 and products of non-negative numbers are monotone, so the computed
-margins obey the same bound. A test not proven is done as before: the
-samples' decisions are unchanged.
+margins obey the same bound. A test not proven is done in full, so the
+samples' decisions are those of the full tests.
 """
 
 import math

@@ -298,7 +298,7 @@ class HrcTask(composer.Task):
     self._action_space = actions.make_action_space(
         action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     # The shipped library's documented fast phases (hammer blows,
-    # docs/motion_library.md) play as before; they are counted in
+    # docs/motion_library.md) are played; they are counted in
     # steps_outside_human_model like any clip over the model.
     clips = motions_lib.check_motions(
         motions_lib.load_motions(motions, self.MOTIONS), self.MOTIONS,

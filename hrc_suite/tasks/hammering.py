@@ -64,7 +64,7 @@ DROP_STEPS = 5                 # RL steps without the board before failure
 # The gripper's squeeze on the board's handle (N; 2F-85 range 20-235, the
 # suite's default 40, lifting's 100). A blow's impulse turns the board in
 # the pads: with 40 N the UR5e's and the Kinova Gen3's experts dropped it
-# after 7-10 blows in 3 of 3 episodes each (issue 17's sweep,
+# after 7-10 blows in 3 of 3 episodes each (the every-robot sweep,
 # docs/results/robots_sweep.md); at 100 N the UR5e held it in 2 of 2.
 GRIP_FORCE = 100.0
 # A step whose nail progress grows by this much counts as a blow (~0.6 mm).

@@ -98,11 +98,11 @@ REGION_Y = (0.2, 0.8)
 # RELEASE_HEIGHT), and PUT_DOWN_APPROACH above that, where it carries it
 # in (CARRY_HEIGHT). The region's near corner lies inside the iiwa's
 # gripper-down reach hole (~0.35 m ahead of its base): 2 of 16 region
-# points out of reach (docs/robots.md), and its targets there (seeds 6
-# and 9, x 0.35 m ahead) were the episodes it failed, the hammer taken but
-# never set down (issue 17); the Sawyer's seed 6 target there, reached
-# only with a colliding posture, failed the same way. Where the first draw
-# is reached (Panda and Schunk, seeds 0-9) the targets are as before.
+# points out of reach (docs/robots.md); without this check its targets
+# there (seeds 6 and 9, x 0.35 m ahead) fail their episodes, the hammer
+# taken but never set down, and the Sawyer's seed 6 target there, reached
+# only with a colliding posture, fails the same way. Where the first draw
+# is reached (Panda and Schunk, seeds 0-9) it is the target.
 PUT_DOWN_ABOVE = 0.08                    # m
 PUT_DOWN_APPROACH = 0.07                 # m
 TARGET_ATTEMPTS = 200

@@ -24,7 +24,7 @@ human 3, robot 4 (docs/reference_benchmark.md, Tasks).
   stacking table is centred on its robot). People put the stack 0.40-0.65
   m ahead of their pelvis: it lands at world x 0.45-0.67 m, where every
   robot on its mount reaches the top cube's place gripper-down
-  (docs/tasks.md). Across the other tasks' 1 m table it lay
+  (docs/tasks.md). Across the other tasks' 1 m table it would lie
   0.71-0.94 m away, beyond the Cartesian action box (x <= 0.8 m) and most
   robots' reach.
 * Success (delayed by the retreat, reference): all four cubes stacked when
