@@ -29,7 +29,7 @@ from hrc_suite.control import ik
 from hrc_suite.control import kinematics
 
 STEP = 0.1          # m, largest TCP move per RL step (reference benchmark).
-ACCURACY = 5e-3     # m, issue 2's accuracy requirement.
+ACCURACY = 5e-3     # m, the TCP error a returned solution must stay within.
 
 
 def world_model(name):

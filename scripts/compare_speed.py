@@ -19,11 +19,11 @@ whether the two ended in the same state (same episodes: a change meant to
 keep them bit for bit must print True).
 
 With --shield=ssm or pfl it compares the shield's cycles of an RL step
-instead (issue 16's second target; `python -m hrc_suite.safety.benchmark
---rl_step`'s scenes): in both packages a shield of each robot in the
-scene, a new random goal before each RL step (the same goals), the RL
-step's 25 cycles in `batch.step_many`, thread CPU time per RL step, in
-alternating windows; "same" compares the shields' commands at the end.
+instead (`python -m hrc_suite.safety.benchmark --rl_step`'s scenes): in
+both packages a shield of each robot in the scene, a new random goal
+before each RL step (the same goals), the RL step's 25 cycles in
+`batch.step_many`, thread CPU time per RL step, in alternating windows;
+"same" compares the shields' commands at the end.
 """
 
 import importlib

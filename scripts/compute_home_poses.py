@@ -34,9 +34,9 @@ from hrc_suite.control import ik
 from hrc_suite.control import kinematics
 
 # TCP relative to the default mount's base (world offset), m: 0.45 m in
-# front of it, 0.25 m above the table top (issue 2). Every robot's home TCP
-# is this world point; the Schunk LWA 4P (on its raised mount, layout.py,
-# whose wrist cannot hold the gripper vertical much higher) too.
+# front of it, 0.25 m above the table top. Every robot's home TCP is this
+# world point; the Schunk LWA 4P (on its raised mount, layout.py, whose
+# wrist cannot hold the gripper vertical much higher) too.
 HOME_TCP = {name: (0.45, 0.0, 0.25) for name in robot_description.ROBOT_NAMES}
 
 # Link indices (0-based) whose frame origins are the shoulder, elbow and
