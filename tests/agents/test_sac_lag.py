@@ -1,6 +1,7 @@
 """Tests of SAC-Lagrangian (agents/sac_lag/): the multiplier, the config,
 the learner, and the agent on a toy task where the constraint binds."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -8,8 +9,12 @@ from agents import agent as agent_lib
 from agents import agent_checkpoint
 from agents import builders
 from agents import config as config_lib
+from agents import replay as replay_lib
 from agents import specs
+from agents.sac import learning as sac_learning
+from agents.sac import networks as networks_lib
 from agents.sac_lag import config as lag_config_lib
+from agents.sac_lag import learning as lag_learning
 from agents.sac_lag import multiplier as multiplier_lib
 
 from toy_tasks import HazardousActions
@@ -153,3 +158,70 @@ def test_checkpoint_restores_the_multiplier_and_cost_critics(tmp_path):
                         builders.make_builder('sac', {}), seed=0)
   with pytest.raises(ValueError, match="agent='sac_lag'"):
     agent_checkpoint.restore(sac, tmp_path / 'agent')
+
+
+def _batches(steps, size=32, seed=0):
+  random_state = np.random.RandomState(seed)
+  observation = random_state.randn(steps, size, 3).astype(np.float32)
+  return replay_lib.Transition(
+      observation=observation,
+      action=random_state.uniform(-1, 1, (steps, size, 2)).astype(
+          np.float32),
+      reward=observation[..., 0].copy(),
+      discount=np.ones((steps, size), np.float32),
+      next_observation=random_state.randn(steps, size, 3).astype(
+          np.float32),
+      cost=(observation[..., 1] > 0).astype(np.float32))
+
+
+def test_with_lambda_zero_the_policy_and_critics_learn_as_sacs():
+  """lambda = 0 leaves SAC's losses: the policy, critics and temperature
+  follow SAC's from the same seed; the cost critics learn the cost."""
+  sac_config = config_lib.default_config(hidden_sizes=(16, 16))
+  lag_config = lag_config_lib.from_sac_config(sac_config, cost_limit=1e6)
+  nets = networks_lib.make_networks(3, 2, (16, 16))
+  sac = sac_learning.SACLearner(nets, sac_config, 3, 2, seed=4)
+  lagrangian = lag_learning.SACLagrangianLearner(nets, lag_config, 3, 2,
+                                                 seed=4)
+  batches = _batches(40)
+  sac.update_steps(batches)
+  metrics = lagrangian.update_steps(batches)
+  assert lagrangian.multiplier == 0.0 and metrics['multiplier'] == 0.0
+  for name in ('policy_params', 'q_params', 'target_q_params',
+               'log_temperature'):
+    for ours, theirs in zip(
+        jax.tree_util.tree_leaves(getattr(lagrangian.training_state, name)),
+        jax.tree_util.tree_leaves(getattr(sac.training_state, name))):
+      np.testing.assert_allclose(np.asarray(ours), np.asarray(theirs),
+                                 rtol=1e-6, atol=1e-7, err_msg=name)
+  # Without bootstrapping the cost critics regress the cost itself.
+  batches = batches._replace(discount=np.zeros_like(batches.discount))
+  first = float(lagrangian.update_steps(batches)['cost_critic_loss'])
+  for _ in range(40):
+    metrics = lagrangian.update_steps(batches)
+  assert float(metrics['cost_critic_loss']) < 0.5 * first
+
+
+def test_lambda_moves_the_policy_away_from_costly_actions():
+  """With a cost on positive first action components and lambda > 0, the
+  policy's mean first component falls below SAC's."""
+  config = lag_config_lib.SACLagrangianConfig(
+      hidden_sizes=(16, 16), initial_multiplier=5.0, cost_limit=0.0)
+  nets = networks_lib.make_networks(3, 2, (16, 16))
+  sac = sac_learning.SACLearner(
+      nets, config_lib.default_config(hidden_sizes=(16, 16)), 3, 2, seed=1)
+  lagrangian = lag_learning.SACLagrangianLearner(nets, config, 3, 2, seed=1)
+  batches = _batches(40, seed=3)
+  batches = batches._replace(
+      cost=(batches.action[..., 0] > 0).astype(np.float32),
+      reward=np.zeros_like(batches.reward))
+  for _ in range(40):
+    sac.update_steps(batches)
+    lagrangian.update_steps(batches)
+  observations = batches.observation.reshape(-1, 3)
+
+  def mean_first_action(learner):
+    mean, _ = nets.policy_apply(learner.policy_params, observations)
+    return float(np.mean(np.tanh(np.asarray(mean))[:, 0]))
+
+  assert mean_first_action(lagrangian) < mean_first_action(sac) - 0.2
