@@ -78,6 +78,7 @@ an entity's own observable where the entity declares the quantity, e.g.
 
 import collections
 import copy
+import operator
 
 from dm_control import composer
 from dm_control.composer.observation import observable
@@ -128,6 +129,11 @@ def _is_integer(value):
   return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
+def _option(name, doc):
+  """A read-only property: the task's option `name` (`self.options`)."""
+  return property(operator.attrgetter(f'options.{name}'), doc=doc)
+
+
 class HrcTask(composer.Task):
   """A robot, a gripper and a human in the workcell, shielded."""
 
@@ -158,6 +164,21 @@ class HrcTask(composer.Task):
   GRIP_FORCE = gripper_lib.GRIP_FORCE        # N, the gripper's squeeze
   # Attribute names that hold the task's own episode state (snapshots).
   TASK_STATE = ()
+
+  # The options (tasks/options.py) by the names tasks and users read.
+  reward_kind = _option('reward', 'The reward, one of REWARDS.')
+  reward_delay = _option('reward_delay', 'RL steps task rewards are late.')
+  done_at_success = _option('done_at_success', 'Success ends the episode.')
+  collision_prevention_policy = _option(
+      'collision_prevention', "A collision prevention policy or 'off'.")
+  time_limit = _option('time_limit', 's, the episode length.')
+  horizon = _option('horizon', 'RL steps of time_limit.')
+  collision_reward = _option('collision_reward', '<= 0, of illegal contacts.')
+  fast_path = _option('fast_path', 'Whether the fast path runs.')
+  shield_mode = _option('shield', 'The shield mode (safety/modes.py).')
+  shield_substeps = _option('shield_substeps', 'Physics steps per RL step.')
+  critical_speed = _option('critical_speed',
+                           'm/s, human contacts faster are critical.')
 
   def __init__(self, robot='panda', action_space=None, shield=None,
                shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
@@ -245,25 +266,11 @@ class HrcTask(composer.Task):
         v_safe=v_safe, critical_speed=critical_speed,
         collision_reward=collision_reward, fast_path=fast_path)
     self.options = options
-    self.reward_kind = options.reward
-    self.reward_delay = options.reward_delay
-    self.done_at_success = options.done_at_success
-    self.collision_prevention_policy = options.collision_prevention
-    self.time_limit = options.time_limit
-    self.horizon = options.horizon
-    self.collision_reward = options.collision_reward
-    self.fast_path = fast_path = options.fast_path
-    self.shield_mode = shield = options.shield
-    self.shield_substeps = shield_substeps = options.shield_substeps
-    self.critical_speed = options.critical_speed
-    robot, action_space = options.robot, options.action_space
-    physics_timestep = options.physics_timestep
-    control_timestep = options.control_timestep
-    v_safe = options.v_safe
+    fast_path = options.fast_path
 
     # Scene.
     self._arena = workcell_lib.Workcell(table=self.TABLE)
-    self._robot = robot_lib.make_robot(robot)
+    self._robot = robot_lib.make_robot(options.robot)
     self._gripper = self._robot.attach_gripper(
         gripper_lib.ParallelGripper(grip_force=self.GRIP_FORCE))
     self._arena.attach_robot(self._robot)
@@ -282,8 +289,9 @@ class HrcTask(composer.Task):
                     radius)
     self._tool_capsule = tool_capsule
     self._shield = shield_lib.Shield(
-        description, mode=shield, cycle_time=physics_timestep,
-        base_pose=base_pose, tool_capsule=tool_capsule, v_safe=v_safe)
+        description, mode=options.shield,
+        cycle_time=options.physics_timestep, base_pose=base_pose,
+        tool_capsule=tool_capsule, v_safe=options.v_safe)
     self.tool_table_allowance = 0.0
     if self.FINGERTIP_TABLE_CLEARANCE is not None:
       # The capsule's lowest point is `radius` below the fingertips (its
@@ -296,7 +304,7 @@ class HrcTask(composer.Task):
     self._self_colliding = self_collision_lib.SelfCollision(
         self._collision_checker, compiled=fast_path)
     self._action_space = actions.make_action_space(
-        action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
+        options.action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
     # The shipped library's documented fast phases (hammer blows,
     # docs/motion_library.md) are played; they are counted in
     # steps_outside_human_model like any clip over the model.
@@ -310,12 +318,13 @@ class HrcTask(composer.Task):
         station=self.HUMAN_STATION,
         placement_range=self.HUMAN_PLACEMENT_RANGE)
     self._playback = human_playback.HumanPlayback(
-        self._human, self._player, shield_substeps, compiled=fast_path)
+        self._human, self._player, options.shield_substeps,
+        compiled=fast_path)
 
     self._object_geoms = []
     self._grips = grips_lib.HumanGrips(self._human)
     self._build_task()
-    self.set_timesteps(control_timestep, physics_timestep)
+    self.set_timesteps(options.control_timestep, options.physics_timestep)
     if cost is None and observations == observations_lib.SAFE_RL:
       cost = True
     self._cost = cost_lib.CostSpec.of(cost)
@@ -344,7 +353,7 @@ class HrcTask(composer.Task):
     self._add_cameras(cameras, camera_size)
     observations_lib.configure_noise_and_delay(
         self._task_obs, observation_noise, observation_delay,
-        physics_timestep)
+        options.physics_timestep)
 
   @classmethod
   def defaults(cls):
