@@ -6,7 +6,7 @@ human._row_dots' written-out order, the quaternion as
 rotations.axes_to_quat sums it), so the two agree bit for bit
 (tests/entities/test_human_kernels.py, tests/test_rotations.py);
 `faster_than` is the task's check that no keypoint outran the shield's
-human model (HrcTask._faster_than_model), likewise. The task's playback
+human model (ShieldedStepper._faster_than_model), likewise. The task's playback
 uses them on the fast path (entities/human_playback.py). Same
 compilation settings as the shield's kernels (safety/kernels.py: cache,
 IEEE arithmetic).

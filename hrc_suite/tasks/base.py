@@ -10,37 +10,14 @@ step is exactly L shield cycles.
   (`actions`), let collision prevention replace it if its straight joint
   path hits the workcell or the robot itself, then `shield.new_goal`. The
   last action dimension drives the gripper where the task has one.
-* before_substep, in this order (the task's hook runs before the entities',
-  so nothing relies on entity hooks): player.advance(dt) ->
-  human.set_keypoints -> shield.step(keypoints, t) -> controller. The
-  player is advanced through the RL step's substeps at the end of
-  before_step (one `Player.advance_many` call) and its poses are played
-  back substep by substep
-  (`human_playback`: events only change between RL steps, so this is the
-  same motion, computed with one vectorised call per RL step). On the
-  fast path (fast_path=True, the default) the shield's cycles of the whole
-  RL step run at its first substep in one call (`safety.batch.step_many`:
-  the playback's frames are known in advance) and each substep hands the
-  controller its precomputed, verified set-point; the same commands as
-  `Shield.step` every substep (fast_path=False, the reference). Subclasses
-  add their own work before each physics step in `_before_physics_step`.
-* One composer substep per RL step (fast path, environments of
-  `suite.load`; `substeps`): composer sees one substep, which is
-  run_physics_steps: the RL step's L physics steps, each with the same
-  hooks in composer's order (this task's, the entities', the extra ones),
-  mj_step2 and mj_step1 as dm_control's physics.step, and after_substep.
-* after_substep: the tracking check, then the contact monitor
-  (`contacts`). The measured joints are compared with where the shield's
-  command puts them; farther than the shield's tracking tolerance (its
-  secure radius; `Shield.tracking_bound` every step, then
-  `Shield.tracking_error` when the bound exceeds it), the person has
-  pushed the robot:
-  robot-human contacts of that physics step are judged at the commanded
-  configuration (`human_pushed` or `human_critical`) and the shield is
-  re-synchronised to the measured pose (`Shield.resync`; docs/safety.md,
-  "Pushed robots"). On the fast path the shield is first rewound to that
-  physics step (a checkpoint and a replay of the precomputed cycles) and
-  the rest of the RL step's set-points are computed again after resync.
+* The RL step's physics steps: the person's pose, the shield's command,
+  the joint tracking controller, the task's own work
+  (`_before_physics_step`), the physics step, the tracking check (a
+  pushed robot resynchronises the shield) and the contact monitor, run by
+  the task's `shielded_stepping.ShieldedStepper` from composer's substep
+  hooks (before_substep, after_substep) or, on the fast path, as
+  composer's one substep (`run_physics_steps`; tasks/substeps.py,
+  tasks/physics_loop.py).
 * after_step: self-collision check (capsule model; `self_collision`),
   the task's own logic (`_update_task`, `_human_events`), reward (with
   optional delay and the collision penalty), termination, metrics
@@ -63,6 +40,11 @@ an entity's own observable where the entity declares the quantity, e.g.
 * TASK_STATE names the attributes that hold the task's episode state;
   snapshots copy them (or override `_task_state(physics)` /
   `_set_task_state(physics, state)`).
+* `_before_physics_step(physics)`: work before every physics step (the
+  index of the coming one: `self._stepper.physics_step`); for the
+  compiled loop also `_works_before_physics_steps`, `_physics_step_writes`
+  and `_physics_step_hold`. `self._stepper.controller` is the joint
+  tracking controller (e.g. for settling steps at an episode's start).
 * `_add_holdable(body)` makes an object holdable by the human; `_hold` /
   `_release` grab and let go of it. Grips change the model (weld pose,
   collision bits), so get_state/set_state save and restore every grip and
@@ -87,16 +69,13 @@ import mujoco
 import numpy as np
 
 from hrc_suite import layout
-from hrc_suite.control import controller as controller_lib
 from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import human as human_lib
-from hrc_suite.entities import human_kernels
 from hrc_suite.entities import human_playback
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
-from hrc_suite.safety import batch
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
@@ -108,9 +87,8 @@ from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
 from hrc_suite.tasks import options as options_lib
-from hrc_suite.tasks import physics_loop
 from hrc_suite.tasks import self_collision as self_collision_lib
-from hrc_suite.tasks import substeps as substeps_lib
+from hrc_suite.tasks import shielded_stepping
 
 # The options' defaults (tasks/options.py), for the signature below.
 DEFAULT_SHIELD_SUBSTEPS = options_lib.DEFAULT_SHIELD_SUBSTEPS
@@ -312,7 +290,6 @@ class HrcTask(composer.Task):
         motions_lib.load_motions(motions, self.MOTIONS), self.MOTIONS,
         self.EVENTS, self.HUMAN_STATION, self._shield.human.config.v_max,
         'allow' if motions is None else outside_human_model)
-    self._human_v_max = self._shield.human.config.v_max.copy()
     self._player = player_lib.Player(
         clips,
         station=self.HUMAN_STATION,
@@ -320,6 +297,8 @@ class HrcTask(composer.Task):
     self._playback = human_playback.HumanPlayback(
         self._human, self._player, options.shield_substeps,
         compiled=fast_path)
+    self._stepper = shielded_stepping.ShieldedStepper(
+        self, options, self._shield, self._playback, self._robot)
 
     self._object_geoms = []
     self._grips = grips_lib.HumanGrips(self._human)
@@ -334,20 +313,6 @@ class HrcTask(composer.Task):
     self._physics_ptr = None
     self._episode_data = None   # MjData of the last initialised episode.
     self._restored = False      # set_state since the last step
-    self._one_substep = False
-    self._physics_steps = substeps_lib.PhysicsSteps()
-    self._compiled_steps = None   # tasks/physics_loop.py, once bound
-    self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
-    self._command_dq = np.zeros(self._robot.dof)
-    # Tracking check (after_substep): where the command puts the joints
-    # after the physics step, and how far the robot may be from it (m; the
-    # levers turn joint errors into a cheap upper bound).
-    self._expected_buffer = np.zeros(self._robot.dof)
-    self._expected_q = self._expected_buffer
-    self._expected_rows = None
-    self._tracking_levers = self._shield.tracking_levers
-    self._tracking_tolerance = self._shield.tracking_tolerance
-    self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
     self._init_episode_state()
     self._setup_observables(observations)
     self._add_cameras(cameras, camera_size)
@@ -534,7 +499,7 @@ class HrcTask(composer.Task):
 
   def _setup_observables(self, observations):
     obs = observations_lib.shared_observables(
-        self._robot, self._gripper, self._human, self._step_flags)
+        self._robot, self._gripper, self._human, self._stepper.step_flags)
     obs.update(self._task_observables())
     presets = dict(self.OBSERVATION_PRESETS)
     if self._cost is not None:
@@ -590,63 +555,35 @@ class HrcTask(composer.Task):
 
   def _init_episode_state(self):
     self._q_goal = self._robot.description.q_home.copy()
-    self._time = 0.0
     self._steps = 0
-    self._intervened = False
     self._reward = 0.0
     self._pending_rewards = collections.deque()
     self._terminate = False
     self._discount = 1.0
-    self._substep = 0
-    self._completed_substeps = 0
-    self._resyncs = 0
-    self._max_tracking_error = 0.0
-    self._outside_model = False
-    self._playback.forget_clip()
-    self._step_flags[:] = False
-    self._contact_steps[:] = 0
-    self._command_dq[:] = 0.0
     self._cp_random = np.random.RandomState(0)
     self._step_info = {}
-    self._forget_setpoints()
     self._clip_index = 0
     self._clip_ended = False
+    self._stepper.reset()
 
   def after_compile(self, physics, random_state):
     del random_state
     self._bind(physics)
 
   def _bind(self, physics):
-    """Caches controller, monitor and views for a compiled physics."""
+    """Caches joint addresses, the contact monitor and the stepping's
+    views for a compiled physics."""
     self._physics_ptr = physics.data.ptr
-    self._dt = float(physics.model.opt.timestep)
-    self._physics_steps.bind(physics, self._arena)
-    self._playback.bind(physics)
-    self._controller = controller_lib.JointTrackingController(
-        physics, self._robot, compiled=self.fast_path)
+    joints = physics.bind(self._robot.joints)
     static = list(self._arena.static_geoms)
     robot_geoms = list(self._robot.link_geoms) + list(self._gripper.geoms)
-    joints = physics.bind(self._robot.joints)
-    self._monitor = contacts.ContactMonitor(
+    monitor = contacts.ContactMonitor(
         physics, static, robot_geoms, self._object_geoms,
         self._human.geoms, critical_speed=self.critical_speed,
         robot_dofs=joints.dofadr, robot_qpos=joints.qposadr,
         compiled=self.fast_path)
+    self._stepper.bind(physics, self._arena, monitor)
     self._qpos_index = np.array(joints.qposadr)
-    # A view of the arm's joint positions (consecutive: the controller
-    # requires it), read every physics step without a copy.
-    first = int(self._qpos_index[0])
-    self._q_measured = physics.data.qpos[first:first + self._robot.dof]
-    self._compiled_steps = None
-    if self.fast_path and self._physics_steps.raw:
-      try:
-        self._compiled_steps = physics_loop.CompiledSteps(
-            physics, self._controller, self._playback, self._monitor,
-            self._tracking_levers, self._tracking_tolerance,
-            self._q_measured, self._command_dq, self._step_flags,
-            self._contact_steps, self._shield.robot)
-      except ValueError:
-        pass   # The Python loop runs every physics step.
     self._qvel_index = np.array(joints.dofadr)
     fingers = physics.bind(self._gripper.finger_joints)
     self._finger_qpos_index = np.array(fingers.qposadr)
@@ -664,8 +601,8 @@ class HrcTask(composer.Task):
   def _initialize_episode(self, physics, random_state):
     if physics.data.ptr is not self._physics_ptr:
       self._bind(physics)
-    if self._one_substep:
-      self._check_one_substep()
+    if self._stepper.one_substep:
+      self._stepper.check_one_substep(self.observables)
     self._init_episode_state()
     data = physics.data
     q_home = self._robot.description.q_home
@@ -713,101 +650,15 @@ class HrcTask(composer.Task):
       self._gripper.set_command(physics, action[-1])
     self._step_info = {'action_replacements': int(replaced),
                        'ik_failures': int(outcome.get('ik_failed', False))}
-    self._intervened = False
-    self._step_flags[:] = False
-    self._monitor.reset()
-    self._substep = 0
-    self._completed_substeps = 0
-    self._resyncs = 0
-    self._max_tracking_error = 0.0
-    self._forget_setpoints()
-    self._playback.advance(self._dt)
-    self._outside_model = self._faster_than_model()
+    self._stepper.begin_step()
 
-  def _faster_than_model(self):
-    """Whether a keypoint moves faster than the shield's human model between
-    this RL step's substeps. (The interval into the step is left out: it
-    would make the metric depend on playback state that snapshots do not
-    keep; check_motions has checked every frame of every clip.)"""
-    frames = self._playback.positions
-    if self.fast_path:   # The same decision, compiled.
-      return human_kernels.faster_than(frames, self._dt, self._human_v_max)
-    speeds = np.linalg.norm(np.diff(frames, axis=0), axis=-1) / self._dt
-    return bool(np.any(speeds > self._human_v_max))
-
-  def _forget_setpoints(self):
-    """No precomputed shield set-points (a new RL step, or a resync)."""
-    self._setpoints = None
-    self._setpoint_flags = None
-    self._setpoints_from = 0
-    self._shield_checkpoint = None
-
-  def _shield_command(self, k, positions):
-    """The shield's command for substep k, and where it puts the joints
-    (`_expected`): precomputed for the rest of the RL step at its first
-    substep (or after a resync) on the fast path, else one Shield.step."""
-    if not self.fast_path:
-      command = self._shield.step(positions, self._time)
-      self._intervened |= self._shield.intervened
-      self._expected_q = self._expected(*command, self._expected_buffer)
-      return command
-    self._plan_setpoints(k)
-    i = k - self._setpoints_from
-    self._intervened |= bool(self._setpoint_flags[i])
-    self._expected_q = self._expected_rows[i]
-    return self._setpoints[i]
-
-  def _plan_setpoints(self, k):
-    """The shield's set-points from substep k to the RL step's end (one
-    compiled call, `batch.step_many`) if not planned yet."""
-    if self._setpoints is not None:
-      return
-    self._shield_checkpoint = batch.checkpoint(self._shield)
-    self._setpoints_from = k
-    self._setpoints, self._setpoint_flags = batch.step_many(
-        self._shield, self._playback.positions[k:],
-        self._playback.times[k:])
-    setpoints = self._setpoints
-    self._expected_rows = self._expected(
-        setpoints[:, 0], setpoints[:, 1], setpoints[:, 2],
-        np.empty(setpoints.shape[:1] + setpoints.shape[2:]))
-
-  def _expected(self, q, dq, ddq, out):
-    """Where command(s) (q, dq, ddq) put the joints after a physics step,
-    written into out: the controller drives the command's acceleration
-    from the command's state, and MuJoCo's semi-implicit Euler moves q by
-    h (dq + h ddq). (The command is the robot's state at the step's start:
-    measured within ~2e-6 rad; after the step within ~2e-5 rad of this.)
-    Element by element, so rows computed at once equal single ones."""
-    np.multiply(ddq, self._dt, out=out)
-    out += dq
-    out *= self._dt
-    out += q
-    return out
-
-  def _rewind_shield(self, k):
-    """The shield back at the end of cycle k (its state when substep k's
-    physics step ran), from the checkpoint and a replay of the
-    precomputed cycles (deterministic: checked)."""
-    if self._setpoints is None:
-      return
-    start = self._setpoints_from
-    batch.restore(self._shield, self._shield_checkpoint)
-    replay, _ = batch.step_many(self._shield,
-                                self._playback.positions[start:k + 1],
-                                self._playback.times[start:k + 1])
-    if not np.array_equal(replay, self._setpoints[:k + 1 - start]):
-      raise RuntimeError('The shield replay differs from its set-points: '
-                         'Shield cycles are not deterministic')
-    self._forget_setpoints()
-
-  # One composer substep per RL step (tasks/substeps.py, the fast path).
+  # The physics steps (tasks/shielded_stepping.py).
 
   @property
   def physics_steps_per_control_step(self):
     """Composer's substeps per RL step: shield_substeps, or 1 when the
     task runs the RL step's physics steps itself (`one_substep`)."""
-    if self._one_substep:
+    if self._stepper.one_substep:
       return 1
     return super().physics_steps_per_control_step
 
@@ -815,88 +666,31 @@ class HrcTask(composer.Task):
   def one_substep(self):
     """Whether run_physics_steps runs the RL step's physics steps as
     composer's one substep: set by `suite.Environment` on the fast path."""
-    return self._one_substep
+    return self._stepper.one_substep
 
   @property
   def physics_steps(self):
     """The hooks of every physics step (`substeps.PhysicsSteps`)."""
-    return self._physics_steps
+    return self._stepper.physics_steps
 
   def use_one_substep(self):
     """One composer substep per RL step if the fast path is on and no
     enabled observable needs reading between physics steps (call before
     the environment is built); returns whether it is used."""
-    self._one_substep = self.fast_path and not (
-        substeps_lib.read_between_steps(self.observables))
-    return self._one_substep
-
-  def _check_one_substep(self):
-    names = substeps_lib.read_between_steps(self.observables)
-    if names:
-      raise ValueError(
-          f'Observables {", ".join(names)} need reading between physics '
-          'steps (a delay, a buffer or an update interval), which this '
-          'environment runs in one composer substep per RL step: set them '
-          'before suite.load (observation_delay) or use fast_path=False')
+    return self._stepper.use_one_substep(self.observables)
 
   def before_substep(self, physics, action, random_state):
-    self._prepare_physics_step(physics)
+    self._stepper.prepare_physics_step(physics)
 
   def run_physics_steps(self, physics, action, random_state):
     """The RL step's physics steps, each with the hooks composer runs
     around a substep (`one_substep`: suite.Environment's only substep;
-    tasks/substeps.py): stretches in one compiled call where nothing needs
-    Python (tasks/physics_loop.py), the others one by one."""
-    stop = self.shield_substeps
-    steps, compiled = self._physics_steps, self._compiled_steps
-    if compiled is not None and (not steps.idle()
-                                 or not compiled.has_headroom()):
-      compiled = None
-    writes, hold = (), None
-    if compiled is not None and self._works_before_physics_steps():
-      writes = self._physics_step_writes(physics)
-      hold = self._physics_step_hold(physics)
-      if writes is None:
-        compiled = None
-    while self._substep < stop:
-      k = self._substep
-      if compiled is not None:
-        end = self._playback.same_clip_until(k, stop)
-        if end > k:
-          self._run_compiled(physics, random_state, compiled, k, end,
-                             writes, hold)
-          continue
-      self._prepare_physics_step(physics)
-      steps.step(physics, action, random_state)
-      self.after_substep(physics, random_state)
-      steps.after(physics, random_state)
+    `ShieldedStepper.run_physics_steps`)."""
+    self._stepper.run_physics_steps(physics, action, random_state)
 
-  def _run_compiled(self, physics, random_state, compiled, k, end,
-                    writes, hold):
-    """Physics steps k..end-1 in the compiled call, then what it left to
-    Python (physics_loop.run's status)."""
-    self._plan_setpoints(k)
-    out = compiled.out
-    out[0] = self._max_tracking_error
-    out[1] = 0.0
-    out[2] = self._monitor.max_human_contact_speed
-    stopped, status = compiled.run(k, end, self._setpoints,
-                                   self._setpoint_flags,
-                                   self._setpoints_from, self._expected_rows,
-                                   writes, hold)
-    self._completed_substeps += stopped - k
-    self._max_tracking_error = float(out[0])
-    self._intervened |= bool(out[1])
-    self._monitor.max_human_contact_speed = float(out[2])
-    last = stopped - 1 if status == physics_loop.DONE else stopped
-    self._substep = last + 1
-    self._time = self._playback.times[last]
-    self._expected_q = self._expected_rows[last - self._setpoints_from]
-    if status == physics_loop.PHYSICS_WARNING:
-      self._physics_steps.raise_warnings(compiled.warnings_before)
-    elif status == physics_loop.PYTHON_AFTER:
-      self.after_substep(physics, random_state)
-      self._physics_steps.after(physics, random_state)
+  def after_substep(self, physics, random_state):
+    del physics, random_state
+    self._stepper.after_physics_step()
 
   def _works_before_physics_steps(self):
     """Whether `_before_physics_step` has work in this RL step (a task
@@ -921,49 +715,13 @@ class HrcTask(composer.Task):
     del physics
     return None
 
-  def _prepare_physics_step(self, physics):
-    """Before a physics step: the person's pose, the shield's command, the
-    controller, then the task's `_before_physics_step`."""
-    k = self._substep
-    self._substep = k + 1
-    positions = self._playback.apply(physics, k)
-    self._time = self._playback.times[k]
-    q, dq, ddq = self._shield_command(k, positions)   # and _expected_q
-    self._command_dq[:] = dq
-    self._controller(physics, q, dq, ddq)
-    self._before_physics_step(physics)
-
   def _before_physics_step(self, physics):
     """A task's own work before every physics step (e.g. a grip)."""
-
-  def after_substep(self, physics, random_state):
-    del physics, random_state
-    self._completed_substeps += 1
-    distance = physics_loop.tracking_bound(   # Shield.tracking_bound
-        self._q_measured, self._expected_q, self._tracking_levers)
-    pushed = distance > self._tracking_tolerance
-    if pushed:   # Rare: the exact distance (forward kinematics) decides.
-      distance = self._shield.tracking_error(self._q_measured,
-                                             self._expected_q)
-      pushed = distance > self._tracking_tolerance
-    if distance > self._max_tracking_error:
-      self._max_tracking_error = distance
-    flags = self._monitor.update(self._command_dq,
-                                 self._expected_q if pushed else None)
-    if flags.any():
-      self._step_flags |= flags
-      self._contact_steps += flags
-    if pushed:
-      # The robot is not where the shield believes: it plans from the
-      # measured pose from the next physics step on.
-      self._rewind_shield(self._substep - 1)
-      self._shield.resync(self._q_measured)
-      self._resyncs += 1
 
   def after_step(self, physics, random_state):
     del random_state
     self._steps += 1
-    if self._completed_substeps < self.shield_substeps:
+    if self._stepper.cut_short:
       self._end_at_physics_error()
       return
     q = physics.data.qpos[self._qpos_index]
@@ -979,7 +737,8 @@ class HrcTask(composer.Task):
       # The model changed: what the next step starts from is recomputed,
       # as restoring a snapshot does, so snapshots are exact.
       physics.forward()
-    illegal = self_collision or bool(self._step_flags[_ILLEGAL_FLAGS].any())
+    illegal = self_collision or bool(
+        self._stepper.step_flags[_ILLEGAL_FLAGS].any())
     task_reward = float(self._task_reward(physics))
     success = bool(step.get('success', 0.0))
     failed = bool(self._failed(physics))
@@ -1013,9 +772,7 @@ class HrcTask(composer.Task):
     self._discount = 0.0
     self._reward = 0.0
     self._pending_rewards.clear()
-    # The shield as after the physics step that failed (the fast path had
-    # planned the RL step's later cycles): its metrics as on the reference.
-    self._rewind_shield(self._substep - 1)
+    self._stepper.stop_at_physics_error()
     self._clip_ended = False
     step = {'success': 0.0}
     step.update(self._step_info)
@@ -1025,16 +782,7 @@ class HrcTask(composer.Task):
 
   def _record(self, step):
     """Adds the metrics every RL step reports; records the step."""
-    step['shield_interventions'] = int(self._intervened)
-    step['min_human_distance'] = self._shield.min_distance
-    step['steps_outside_human_model'] = int(self._outside_model)
-    step['max_human_contact_speed'] = self._monitor.max_human_contact_speed
-    step['shield_resyncs'] = self._resyncs
-    step['max_tracking_error'] = self._max_tracking_error
-    step.setdefault('physics_errors', 0)
-    for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
-      step[f'contacts_{name}'] = int(count)
-    self._contact_steps[:] = 0
+    self._stepper.add_step_metrics(step)
     if self._cost is not None:
       step.update(self._cost.step_metrics(step, self._shield.reach_distance))
     self._metrics.record(step)
@@ -1059,17 +807,18 @@ class HrcTask(composer.Task):
     physics_state = np.empty(size)
     mujoco.mj_getState(physics.model.ptr, physics.data.ptr, physics_state,
                        _STATE_SPEC)
+    stepper = self._stepper
     return {
         'physics': physics_state,
         'player': self._player.get_state(),
         'shield': self._shield.get_state(),   # arrays and scalars only
         'task': {
-            'q_goal': self._q_goal.copy(), 'time': self._time,
+            'q_goal': self._q_goal.copy(), 'time': stepper.time,
             'steps': self._steps, 'reward': self._reward,
             'pending_rewards': list(self._pending_rewards),
             'terminate': self._terminate, 'discount': self._discount,
-            'step_flags': self._step_flags.copy(),
-            'command_dq': self._command_dq.copy(),
+            'step_flags': stepper.step_flags.copy(),
+            'command_dq': stepper.command_dq.copy(),
             'cp_random': self._cp_random.get_state(),
             'metrics': copy.deepcopy(self._metrics.state()),
             'clip_index': self._clip_index, 'clip_ended': self._clip_ended,
@@ -1105,23 +854,13 @@ class HrcTask(composer.Task):
     self._shield.set_state(state['shield'])
     task = state['task']
     self._q_goal = np.array(task['q_goal'], dtype=float)
-    self._time = float(task['time'])
     self._steps = int(task['steps'])
     self._reward = float(task['reward'])
     self._pending_rewards = collections.deque(task['pending_rewards'])
     self._terminate = bool(task['terminate'])
     self._discount = float(task['discount'])
-    flags = np.asarray(task['step_flags'], dtype=bool)
-    if flags.shape[0] > self._step_flags.shape[0]:
-      raise ValueError(f'step_flags: expected at most '
-                       f'{self._step_flags.shape[0]} contact flags '
-                       f'({", ".join(contacts.CONTACT_TYPES)}), got '
-                       f'{flags.shape[0]}')
-    # Snapshots from before a contact type was added hold fewer flags (new
-    # types go last: contacts.CONTACT_TYPES).
-    self._step_flags[:] = False
-    self._step_flags[:flags.shape[0]] = flags
-    self._command_dq[:] = task['command_dq']
+    self._stepper.set_state(task['time'], task['step_flags'],
+                            task['command_dq'])
     self._cp_random.set_state(task['cp_random'])
     self._metrics.set_state(copy.deepcopy(task['metrics']))
     self._clip_index = int(task['clip_index'])

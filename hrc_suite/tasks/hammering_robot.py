@@ -214,7 +214,7 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     carried = data.qpos[rows].copy()
     model_ptr, data_ptr = physics.model.ptr, data.ptr
     for _ in range(SETTLE_STEPS):
-      self._controller(physics, q, zeros, zeros)
+      self._stepper.controller(physics, q, zeros, zeros)
       physics.step()
       data.qpos[rows] = carried
       data.qvel[velocity] = 0.0
@@ -309,7 +309,8 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
 
   def _before_physics_step(self, physics):
     if self._phase != PLACED:
-      self._carry_board(physics, self._playback.positions[self._substep - 1])
+      self._carry_board(physics, self._playback.positions[
+          self._stepper.physics_step])
 
   def _set_task_state(self, physics, state):
     super()._set_task_state(physics, state)

@@ -199,7 +199,7 @@ class Lifting(base.HrcTask):
     self._shield.reset(q, 0.0)
     zeros = np.zeros_like(q)
     for _ in range(SETTLE_STEPS):
-      self._controller(physics, q, zeros, zeros)
+      self._stepper.controller(physics, q, zeros, zeros)
       physics.step()
     data.time = 0.0    # The settling is not part of the episode.
     physics.forward()

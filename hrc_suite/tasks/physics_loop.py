@@ -30,7 +30,8 @@ may hand the call what it writes there, computed for the RL step's
 physics steps at its start (`HrcTask._physics_step_writes`: the carried
 plank's pose, the presenting grip); where it cannot, an entity or an
 extra substep hook is active, or the model is not stepped the legacy
-way, the Python loop runs (HrcTask.run_physics_steps).
+way, the Python loop runs (ShieldedStepper.run_physics_steps,
+tasks/shielded_stepping.py).
 MuJoCo errors (mju_error, e.g. an exhausted arena) cannot pass through
 compiled frames as exceptions, so the call also needs the arena's high
 water mark below `ARENA_HEADROOM` of its size; above it the Python loop,

@@ -506,7 +506,7 @@ def test_contact_monitor_surface_speed_of_a_turning_link():
   env = _env()
   env.reset()
   physics, task = env.physics, env.task
-  monitor = task._monitor
+  monitor = task._stepper.monitor
   dq = np.zeros(7)
   dq[0] = 2.0
   task.robot.set_joint_velocities(physics, dq)

@@ -40,7 +40,7 @@ def test_contact_memory_refuses_a_layout_it_cannot_check():
 
 
 def _count_runs(env, statuses):
-  compiled = env.task._compiled_steps
+  compiled = env.task._stepper.compiled_steps
   run = compiled.run
 
   def counted(*args):
@@ -51,7 +51,7 @@ def _count_runs(env, statuses):
 
 
 def _count_writes(env, writes):
-  compiled = env.task._compiled_steps
+  compiled = env.task._stepper.compiled_steps
   run = compiled.run
 
   def counted(*args, **kwargs):
@@ -192,7 +192,7 @@ def test_a_full_arena_keeps_the_python_loop():
     statuses = []
     _count_runs(env, statuses)
     if not headroom:
-      env.task._compiled_steps._arena_limit = -1.0
+      env.task._stepper.compiled_steps._arena_limit = -1.0
     rng = np.random.RandomState(0)
     for _ in range(20):
       env.step(rng.uniform(-1, 1, env.action_spec().shape))

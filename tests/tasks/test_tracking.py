@@ -123,8 +123,8 @@ def test_contact_observations_read_the_flags_by_name():
               'human_critical': (0.0, 0.0, 1.0),
               'robot_object': (0.0, 0.0, 0.0)}
   for name, values in expected.items():
-    task._step_flags[:] = False
-    task._step_flags[contacts.TYPE_INDEX[name]] = True
+    task._stepper.step_flags[:] = False
+    task._stepper.step_flags[contacts.TYPE_INDEX[name]] = True
     observed = tuple(
         float(observables[o].observation_callable(env.physics)()[0])
         for o in ('static_collision', 'safe_contact', 'critical_contact'))
@@ -174,7 +174,7 @@ def test_pushed_contacts_are_judged_at_the_commanded_pose():
   pushed pose (the old monitor) the contacts are critical; at the commanded
   pose they are below v_safe: human_pushed."""
   env, q_home, q_pushed = _posed_contact_env()
-  monitor = env.task._monitor
+  monitor = env.task._stepper.monitor
   found = _human_contacts(env)
   dq = np.zeros(7)
   dq[0] = 1.0
@@ -215,7 +215,7 @@ def test_the_monitor_needs_qpos_addresses_to_judge_a_command():
   with pytest.raises(ValueError, match='robot_qpos'):
     monitor.update(np.zeros(env.physics.model.nv), q_home)
   with pytest.raises(ValueError, match='q_command'):
-    task._monitor.update(np.zeros(7), np.full(7, np.nan))
+    task._stepper.monitor.update(np.zeros(7), np.full(7, np.nan))
 
 
 def test_a_robot_driven_into_a_person_stays_critical_when_blocked():
@@ -232,7 +232,7 @@ def test_a_robot_driven_into_a_person_stays_critical_when_blocked():
       'action_space': 'joint', 'time_limit': 3.0, 'seed': 0})
   env.reset()
   judged = []
-  monitor = env.task._monitor
+  monitor = env.task._stepper.monitor
   update = monitor.update
 
   def spy(dq_command, q_command=None):
