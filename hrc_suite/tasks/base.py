@@ -21,7 +21,8 @@ step is exactly L shield cycles.
 * after_step: self-collision check (capsule model; `self_collision`),
   the task's own logic (`_update_task`, `_human_events`), reward (with
   optional delay and the collision penalty), termination, metrics
-  (`metrics`).
+  (`metrics`). Where the episode stands between RL steps is an
+  `episode.EpisodeProgress`.
 * Physics errors (MuJoCo warnings such as mjWARN_BADQACC): `suite.load`
   makes the environment end the episode instead of raising
   (raise_exception_on_physics_error=False): the step is LAST with reward 0
@@ -39,7 +40,8 @@ an entity's own observable where the entity declares the quantity, e.g.
 
 * TASK_STATE names the attributes that hold the task's episode state;
   snapshots copy them (or override `_task_state(physics)` /
-  `_set_task_state(physics, state)`).
+  `_set_task_state(physics, state)`; get_state and set_state:
+  `snapshots.EpisodeSnapshots`).
 * `_before_physics_step(physics)`: work before every physics step (the
   index of the coming one: `self._stepper.physics_step`); for the
   compiled loop also `_works_before_physics_steps`, `_physics_step_writes`
@@ -58,14 +60,12 @@ an entity's own observable where the entity declares the quantity, e.g.
   objects lying on it), CARTESIAN_YAW sets the Cartesian gripper yaw.
 """
 
-import collections
-import copy
+import functools
 import operator
 
 from dm_control import composer
 from dm_control.composer.observation import observable
 from dm_control.rl import control as rl_control
-import mujoco
 import numpy as np
 
 from hrc_suite import layout
@@ -82,6 +82,7 @@ from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import cost as cost_lib
 from hrc_suite.tasks import defaults as defaults_lib
+from hrc_suite.tasks import episode as episode_lib
 from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as motions_lib
@@ -89,6 +90,7 @@ from hrc_suite.tasks import observations as observations_lib
 from hrc_suite.tasks import options as options_lib
 from hrc_suite.tasks import self_collision as self_collision_lib
 from hrc_suite.tasks import shielded_stepping
+from hrc_suite.tasks import snapshots
 
 # The options' defaults (tasks/options.py), for the signature below.
 DEFAULT_SHIELD_SUBSTEPS = options_lib.DEFAULT_SHIELD_SUBSTEPS
@@ -98,7 +100,6 @@ DEFAULT_V_SAFE = options_lib.DEFAULT_V_SAFE
 DEFAULT_COLLISION_REWARD = options_lib.DEFAULT_COLLISION_REWARD
 DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
 _SEED_RANGE = 2**31 - 1
-_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 # Flag positions of the contacts that cost collision_reward.
 _ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
 
@@ -310,6 +311,9 @@ class HrcTask(composer.Task):
     self._metrics = metrics_lib.EpisodeMetrics(
         self.EXTRA_COUNTERS + (cost_lib.metric_names() if self._cost
                                else ()))
+    self._snapshots = snapshots.EpisodeSnapshots(
+        self._player, self._playback, self._shield, self._grips,
+        self._stepper, self._metrics)
     self._physics_ptr = None
     self._episode_data = None   # MjData of the last initialised episode.
     self._restored = False      # set_state since the last step
@@ -386,7 +390,7 @@ class HrcTask(composer.Task):
   @property
   def q_goal(self):
     """The joint goal given to the shield by the last action."""
-    return self._q_goal.copy()
+    return self._episode.q_goal.copy()
 
   def action_spec(self, physics):
     del physics
@@ -488,12 +492,12 @@ class HrcTask(composer.Task):
   @property
   def clip_ended(self):
     """True if the human's clip ended during the last RL step."""
-    return self._clip_ended
+    return self._episode.clip_ended
 
   @property
   def clips_completed(self):
     """Clips the human has completed this episode."""
-    return self._clip_index
+    return self._episode.clip_index
 
   # ------------------------------------------------------------ observables
 
@@ -554,16 +558,9 @@ class HrcTask(composer.Task):
   # ---------------------------------------------------------------- episode
 
   def _init_episode_state(self):
-    self._q_goal = self._robot.description.q_home.copy()
-    self._steps = 0
-    self._reward = 0.0
-    self._pending_rewards = collections.deque()
-    self._terminate = False
-    self._discount = 1.0
-    self._cp_random = np.random.RandomState(0)
+    self._episode = episode_lib.EpisodeProgress(
+        q_goal=self._robot.description.q_home.copy())
     self._step_info = {}
-    self._clip_index = 0
-    self._clip_ended = False
     self._stepper.reset()
 
   def after_compile(self, physics, random_state):
@@ -610,10 +607,11 @@ class HrcTask(composer.Task):
     data.qvel[self._qvel_index] = 0.0
     data.qpos[self._finger_qpos_index] = gripper_lib.MAX_APERTURE / 2
     self._gripper.set_command(physics, -1.0)
-    self._cp_random = np.random.RandomState(random_state.randint(_SEED_RANGE))
+    self._episode.cp_random = np.random.RandomState(
+        random_state.randint(_SEED_RANGE))
     self._grips.release_all(physics)
     self._player.reset(random_state)
-    self._clip_index = self._player.clip_index
+    self._episode.clip_index = self._player.clip_index
     self._playback.show_current(physics)
     self._shield.reset(q_home, 0.0)
     self._metrics.reset()
@@ -629,7 +627,7 @@ class HrcTask(composer.Task):
     action = actions.validate_action(action, spec_shape)
     q = physics.data.qpos[self._qpos_index]
     arm = action[:self._action_space.num_arm]
-    space, current = self._action_space, self._q_goal
+    space, current = self._action_space, self._episode.q_goal
     outcome = {}
 
     def to_goal(arm_action):
@@ -643,9 +641,9 @@ class HrcTask(composer.Task):
     else:
       _, goal, replaced, plan = self._collision_checker.filter_action(
           arm, q, to_goal, self.collision_prevention_policy,
-          random_state=self._cp_random, plan_from=self._shield)
-    self._q_goal = np.asarray(goal, dtype=float).copy()
-    self._shield.new_goal(self._q_goal, plan)
+          random_state=self._episode.cp_random, plan_from=self._shield)
+    self._episode.q_goal = np.asarray(goal, dtype=float).copy()
+    self._shield.new_goal(self._episode.q_goal, plan)
     if self.HAS_GRIPPER_ACTION:
       self._gripper.set_command(physics, action[-1])
     self._step_info = {'action_replacements': int(replaced),
@@ -720,15 +718,16 @@ class HrcTask(composer.Task):
 
   def after_step(self, physics, random_state):
     del random_state
-    self._steps += 1
+    progress = self._episode
+    progress.steps += 1
     if self._stepper.cut_short:
       self._end_at_physics_error()
       return
     q = physics.data.qpos[self._qpos_index]
     self_collision = self._self_colliding(q)   # tasks/self_collision.py
     clip_index = self._player.clip_index
-    self._clip_ended = clip_index != self._clip_index
-    self._clip_index = clip_index
+    progress.clip_ended = clip_index != progress.clip_index
+    progress.clip_index = clip_index
     self._grips.clear()
     step = dict(self._update_task(physics))
     for event in self._human_events(physics):
@@ -742,22 +741,15 @@ class HrcTask(composer.Task):
     task_reward = float(self._task_reward(physics))
     success = bool(step.get('success', 0.0))
     failed = bool(self._failed(physics))
-    self._terminate = failed or (success and self.done_at_success)
-    last = self._terminate or self._steps >= self.horizon
-    self._pending_rewards.append(task_reward)
-    if last:
-      reward = sum(self._pending_rewards)
-      self._pending_rewards.clear()
-    elif len(self._pending_rewards) > self.reward_delay:
-      reward = self._pending_rewards.popleft()
-    else:
-      reward = 0.0
+    progress.terminate = failed or (success and self.done_at_success)
+    last = progress.terminate or progress.steps >= self.horizon
+    reward = progress.pay(task_reward, last, self.reward_delay)
     if illegal:
       reward += self.collision_reward
-    self._reward = float(reward)
-    self._discount = 0.0 if self._terminate else 1.0
+    progress.reward = float(reward)
+    progress.discount = 0.0 if progress.terminate else 1.0
     step.update(self._step_info)
-    step['reward'] = self._reward
+    step['reward'] = progress.reward
     step['self_collisions'] = int(self_collision)
     step['goals_reached'] = int(success)
     self._record(step)
@@ -768,12 +760,13 @@ class HrcTask(composer.Task):
     and reports as the last step with reward 0 and discount 0. MuJoCo has
     reset the state, so the task's logic is skipped; rewards still owed
     (reward_delay) are forfeited. Contacts up to the error are counted."""
-    self._terminate = True
-    self._discount = 0.0
-    self._reward = 0.0
-    self._pending_rewards.clear()
+    progress = self._episode
+    progress.terminate = True
+    progress.discount = 0.0
+    progress.reward = 0.0
+    progress.pending_rewards.clear()
     self._stepper.stop_at_physics_error()
-    self._clip_ended = False
+    progress.clip_ended = False
     step = {'success': 0.0}
     step.update(self._step_info)
     step.update(reward=0.0, self_collisions=0, goals_reached=0,
@@ -789,44 +782,23 @@ class HrcTask(composer.Task):
 
   def get_reward(self, physics):
     del physics
-    return self._reward
+    return self._episode.reward
 
   def should_terminate_episode(self, physics):
     del physics
-    return self._terminate
+    return self._episode.terminate
 
   def get_discount(self, physics):
     del physics
-    return self._discount
+    return self._episode.discount
 
   # -------------------------------------------------------------- snapshots
 
   def get_state(self, physics):
-    """A snapshot of the episode: physics, human, shield, task, metrics."""
-    size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
-    physics_state = np.empty(size)
-    mujoco.mj_getState(physics.model.ptr, physics.data.ptr, physics_state,
-                       _STATE_SPEC)
-    stepper = self._stepper
-    return {
-        'physics': physics_state,
-        'player': self._player.get_state(),
-        'shield': self._shield.get_state(),   # arrays and scalars only
-        'task': {
-            'q_goal': self._q_goal.copy(), 'time': stepper.time,
-            'steps': self._steps, 'reward': self._reward,
-            'pending_rewards': list(self._pending_rewards),
-            'terminate': self._terminate, 'discount': self._discount,
-            'step_flags': stepper.step_flags.copy(),
-            'command_dq': stepper.command_dq.copy(),
-            'cp_random': self._cp_random.get_state(),
-            'metrics': copy.deepcopy(self._metrics.state()),
-            'clip_index': self._clip_index, 'clip_ended': self._clip_ended,
-            'own': copy.deepcopy(self._task_state(physics)),
-        },
-        # Human.hold changes the model, which the physics state lacks.
-        'grips': self._grips.state(physics),
-    }
+    """A snapshot of the episode: physics, human, shield, task, metrics
+    (`snapshots.EpisodeSnapshots`)."""
+    return self._snapshots.take(
+        physics, self._episode, functools.partial(self._task_state, physics))
 
   def set_state(self, physics, state):
     """Restores a snapshot from get_state (same task configuration) into
@@ -839,37 +811,11 @@ class HrcTask(composer.Task):
       raise ValueError('set_state needs an environment that has been reset: '
                        'this physics has no episode yet (call env.reset() '
                        'before env.task.set_state(env.physics, state))')
-    size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
-    physics_state = np.asarray(state['physics'], dtype=np.float64)
-    if physics_state.shape != (size,):
-      raise ValueError(f'physics state must have {size} entries for this '
-                       f'model, got shape {physics_state.shape}')
-    # Grips first: hold/release switch welds on and off, the physics state
-    # then restores which are active.
-    self._grips.restore(physics, state['grips'])
-    mujoco.mj_setState(physics.model.ptr, physics.data.ptr, physics_state,
-                       _STATE_SPEC)
-    self._player.set_state(state['player'])
-    self._playback.show_clip(physics)
-    self._shield.set_state(state['shield'])
-    task = state['task']
-    self._q_goal = np.array(task['q_goal'], dtype=float)
-    self._steps = int(task['steps'])
-    self._reward = float(task['reward'])
-    self._pending_rewards = collections.deque(task['pending_rewards'])
-    self._terminate = bool(task['terminate'])
-    self._discount = float(task['discount'])
-    self._stepper.set_state(task['time'], task['step_flags'],
-                            task['command_dq'])
-    self._cp_random.set_state(task['cp_random'])
-    self._metrics.set_state(copy.deepcopy(task['metrics']))
-    self._clip_index = int(task['clip_index'])
-    self._clip_ended = bool(task['clip_ended'])
-    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
-    self._set_task_state(physics, copy.deepcopy(task['own']))
+    own = self._snapshots.restore(physics, state, self._episode)
+    self._set_task_state(physics, own)
     # A running episode was restored: its next step continues it, also
     # after a LAST step (suite.Environment does not reset then).
-    self._restored = not self._terminate
+    self._restored = not self._episode.terminate
 
   @property
   def restored(self):

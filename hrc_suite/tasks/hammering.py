@@ -115,7 +115,7 @@ def turn_at_home(task, physics, ik, yaw):
   # The task's own start state (qpos slice, goal, Cartesian yaw).
   if turn:
     physics.data.qpos[task._qpos_index] = result.q
-    task._q_goal = result.q.copy()
+    task._episode.q_goal = result.q.copy()
     task.shield.reset(result.q, 0.0)
     physics.forward()
   if task.action_space_name == 'cartesian':

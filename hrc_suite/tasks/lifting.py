@@ -195,7 +195,7 @@ class Lifting(base.HrcTask):
     # Each finger opens by half the aperture: closed on the handle.
     data.qpos[self._finger_qpos_index] = props.HANDLE_HALF_SIZE[0]
     self._gripper.set_command(physics, 1.0)
-    self._q_goal = q.copy()
+    self._episode.q_goal = q.copy()
     self._shield.reset(q, 0.0)
     zeros = np.zeros_like(q)
     for _ in range(SETTLE_STEPS):

@@ -1,4 +1,12 @@
-"""Task snapshots (HrcTask.get_state) as arrays plus a JSON spec.
+"""Task snapshots: taken and restored (HrcTask.get_state / set_state,
+`EpisodeSnapshots`), stored as arrays plus a JSON spec.
+
+A snapshot of a running episode is a dict: 'physics' (MuJoCo's
+integration state), 'player' (the person's), 'shield', 'task' (the
+episode's progress, tasks/episode.py, the stepping's time, contact flags
+and last command, tasks/shielded_stepping.py, the metrics and the task's
+own state, HrcTask._task_state) and 'grips' (the person's grips and welds,
+which change the model: tasks/grips.py).
 
 A snapshot is a nested value of dicts (string keys), lists, tuples,
 NumPy arrays, NumPy scalars, Python bool/int/float, None and strings.
@@ -25,15 +33,115 @@ one spec per structure and the numbers per step.
 np.savez (the spec as a JSON string array, allow_pickle=False suffices).
 """
 
+import collections
+import copy
 import json
 
+import mujoco
 import numpy as np
 
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION   # 'physics'
 SPEC_KEY = 'spec'           # to_arrays: the JSON spec, a 0-d str array
 BUFFER_PREFIX = 'buffer_'   # to_arrays: buffer_<dtype name>
 _INT64 = np.iinfo(np.int64)
 _PYTHON_SCALARS = (('bool', bool, np.bool_), ('int', int, np.int64),
                    ('float', float, np.float64))
+
+
+class EpisodeSnapshots:
+  """Takes and restores snapshots of an HrcTask's running episode from the
+  parts that hold it."""
+
+  def __init__(self, player, playback, shield, grips, stepper, metrics):
+    """Snapshots of the episode these parts hold.
+
+    Args:
+      player: the person's `human.player.Player`.
+      playback: its `entities.human_playback.HumanPlayback`.
+      shield: the `safety.shield.Shield`.
+      grips: the person's `grips.HumanGrips`.
+      stepper: the `shielded_stepping.ShieldedStepper`.
+      metrics: the `metrics.EpisodeMetrics`.
+    """
+    self._player = player
+    self._playback = playback
+    self._shield = shield
+    self._grips = grips
+    self._stepper = stepper
+    self._metrics = metrics
+
+  def take(self, physics, progress, own_state):
+    """A snapshot of the episode (module doc).
+
+    Args:
+      physics: the environment's physics.
+      progress: the episode's `episode.EpisodeProgress`.
+      own_state: returns the task's own state (deep-copied here).
+    """
+    size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
+    physics_state = np.empty(size)
+    mujoco.mj_getState(physics.model.ptr, physics.data.ptr, physics_state,
+                       _STATE_SPEC)
+    stepper = self._stepper
+    return {
+        'physics': physics_state,
+        'player': self._player.get_state(),
+        'shield': self._shield.get_state(),   # arrays and scalars only
+        'task': {
+            'q_goal': progress.q_goal.copy(), 'time': stepper.time,
+            'steps': progress.steps, 'reward': progress.reward,
+            'pending_rewards': list(progress.pending_rewards),
+            'terminate': progress.terminate, 'discount': progress.discount,
+            'step_flags': stepper.step_flags.copy(),
+            'command_dq': stepper.command_dq.copy(),
+            'cp_random': progress.cp_random.get_state(),
+            'metrics': copy.deepcopy(self._metrics.state()),
+            'clip_index': progress.clip_index,
+            'clip_ended': progress.clip_ended,
+            'own': copy.deepcopy(own_state()),
+        },
+        # Human.hold changes the model, which the physics state lacks.
+        'grips': self._grips.state(physics),
+    }
+
+  def restore(self, physics, state, progress):
+    """Restores a snapshot from `take` (same task configuration) into
+    `physics` and `progress`; returns a deep copy of the task's own state
+    for the task to restore (the physics is restored and forwarded).
+
+    Args:
+      physics: the environment's physics, of an episode that has begun.
+      state: the snapshot.
+      progress: the episode's `episode.EpisodeProgress`.
+    """
+    size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
+    physics_state = np.asarray(state['physics'], dtype=np.float64)
+    if physics_state.shape != (size,):
+      raise ValueError(f'physics state must have {size} entries for this '
+                       f'model, got shape {physics_state.shape}')
+    # Grips first: hold/release switch welds on and off, the physics state
+    # then restores which are active.
+    self._grips.restore(physics, state['grips'])
+    mujoco.mj_setState(physics.model.ptr, physics.data.ptr, physics_state,
+                       _STATE_SPEC)
+    self._player.set_state(state['player'])
+    self._playback.show_clip(physics)
+    self._shield.set_state(state['shield'])
+    task = state['task']
+    progress.q_goal = np.array(task['q_goal'], dtype=float)
+    progress.steps = int(task['steps'])
+    progress.reward = float(task['reward'])
+    progress.pending_rewards = collections.deque(task['pending_rewards'])
+    progress.terminate = bool(task['terminate'])
+    progress.discount = float(task['discount'])
+    self._stepper.set_state(task['time'], task['step_flags'],
+                            task['command_dq'])
+    progress.cp_random.set_state(task['cp_random'])
+    self._metrics.set_state(copy.deepcopy(task['metrics']))
+    progress.clip_index = int(task['clip_index'])
+    progress.clip_ended = bool(task['clip_ended'])
+    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
+    return copy.deepcopy(task['own'])
 
 
 class _Writer:

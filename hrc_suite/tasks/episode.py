@@ -1,0 +1,50 @@
+"""EpisodeProgress: where an HrcTask's episode stands between RL steps.
+
+The task's own state of a running episode (besides its entities, the
+shield, the stepping and the metrics): the joint goal of the last action,
+the RL steps taken, the reward and discount of the last one and the task
+rewards still owed (reward_delay), whether the episode ends, collision
+prevention's random state and the person's clip count. Snapshots save and
+restore it (tasks/snapshots.py).
+"""
+
+import collections
+import dataclasses
+
+import numpy as np
+
+
+@dataclasses.dataclass(eq=False)   # identity: q_goal is an array
+class EpisodeProgress:
+  """An episode's progress; a new one starts every episode."""
+  q_goal: np.ndarray         # the joint goal given to the shield
+  steps: int = 0             # RL steps so far
+  reward: float = 0.0        # of the last RL step
+  pending_rewards: collections.deque = dataclasses.field(
+      default_factory=collections.deque)   # task rewards owed, oldest first
+  terminate: bool = False    # the last RL step ends the episode
+  discount: float = 1.0      # of the last RL step
+  cp_random: np.random.RandomState = dataclasses.field(   # collision
+      default_factory=lambda: np.random.RandomState(0))   # prevention's
+  clip_index: int = 0        # the person's clips completed
+  clip_ended: bool = False   # a clip ended in the last RL step
+
+  def pay(self, task_reward: float, last: bool, delay: int) -> float:
+    """The task reward paid at this RL step: the one earned `delay` RL
+    steps ago (0 before), and at the episode's last step every reward
+    still owed.
+
+    Args:
+      task_reward: the task's reward for this RL step.
+      last: whether this RL step is the episode's last.
+      delay: RL steps by which task rewards are paid late.
+    """
+    self.pending_rewards.append(task_reward)
+    if last:
+      reward = sum(self.pending_rewards)
+      self.pending_rewards.clear()
+    elif len(self.pending_rewards) > delay:
+      reward = self.pending_rewards.popleft()
+    else:
+      reward = 0.0
+    return reward
