@@ -104,12 +104,16 @@ def main(argv=None):
   if args.compare:
     with open(args.compare) as f:
       reference = json.load(f)
-    differ = sorted(key for key in set(reference) | set(result)
-                    if reference.get(key) != result.get(key))
+    unknown = sorted(key for key in result if key not in reference)
+    differ = sorted(key for key in result
+                    if key in reference and reference[key] != result[key])
     for key in differ:
-      print(f'DIFFERS {key}: {reference.get(key)} -> {result.get(key)}')
-    print(f'{len(result) - len(differ)} of {len(result)} episodes equal')
-    return 1 if differ else 0
+      print(f'DIFFERS {key}: {reference[key]} -> {result[key]}')
+    for key in unknown:
+      print(f'NOT IN {args.compare}: {key}')
+    print(f'{len(result) - len(differ) - len(unknown)} of {len(result)} '
+          f'episodes equal ({len(reference)} in {args.compare})')
+    return 1 if differ or unknown else 0
   return 0
 
 
