@@ -2,6 +2,9 @@
 on every task, info['cost'], vector environments and SB3."""
 
 import importlib.util
+import subprocess
+import sys
+import textwrap
 import warnings
 
 import gymnasium
@@ -126,8 +129,21 @@ def test_vector_environments():
     reason='Stable-Baselines3 and torch are not installed (pip install '
     'torch stable-baselines3)')
 def test_sb3_sac_steps_a_registered_task():
-  from stable_baselines3 import SAC   # pylint: disable=g-import-not-at-top
-  env = gymnasium.make('hrc_suite/reach-dense-v0', time_limit=2.0)
-  model = SAC('MlpPolicy', env, learning_starts=20, batch_size=16, seed=0)
-  model.learn(total_timesteps=60)
-  assert model.num_timesteps == 60
+  """In a fresh process: torch's triton imported into a process that has
+  rendered with EGL (other tests here) crashes it (README.md, "Training
+  with Stable-Baselines3")."""
+  program = textwrap.dedent("""
+      import gymnasium
+      import hrc_suite.gym_env
+      from stable_baselines3 import SAC
+      env = gymnasium.make('hrc_suite/reach-dense-v0', time_limit=2.0)
+      model = SAC('MlpPolicy', env, learning_starts=20, batch_size=16,
+                  seed=0)
+      model.learn(total_timesteps=60)
+      print('timesteps', model.num_timesteps)
+  """)
+  result = subprocess.run([sys.executable, '-c', program],
+                          capture_output=True, text=True, timeout=900,
+                          check=False)
+  assert result.returncode == 0, result.stderr[-2000:]
+  assert 'timesteps 60' in result.stdout
