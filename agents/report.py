@@ -445,9 +445,9 @@ def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
               f, indent=1)
     f.write('\n')
   final_csv = os.path.join(out, 'final.csv')
-  logger = logging_lib.CSVLogger(final_csv, step_key='step')
-  if os.path.exists(final_csv):
+  if os.path.exists(final_csv):   # Written anew, with this run's columns.
     os.remove(final_csv)
+  logger = logging_lib.CSVLogger(final_csv, step_key='step')
   try:
     for entry in final:
       flat = {'task': entry['task'], 'agent': entry['agent'],

@@ -177,8 +177,13 @@ def test_safety_columns_and_variant_labels(tmp_path):
                     'shield_interventions_mean': 3.0 if shielded else 0.0},
                    step)
     logger.close()
+  # A final.csv of other columns (an earlier report) is replaced.
+  os.makedirs(tmp_path / 'out')
+  (tmp_path / 'out' / 'final.csv').write_text('step,task,agent\n0,a,b\n')
   result = report.report(str(tmp_path), str(tmp_path / 'out'),
                          resamples=1000, minima={'reach/dense': _MIN_RETURN})
+  assert 'cost_mean' in logging_lib.read_csv(
+      str(tmp_path / 'out' / 'final.csv'))[0]
   final = {entry['agent']: entry for entry in result['final']}
   assert final['sac_shield']['cost']['mean'] == pytest.approx(2.5)
   assert final['sac_shield']['shield_interventions']['mean'] == 3.0
