@@ -171,69 +171,19 @@ class HrcTask(composer.Task):
                critical_speed=None,
                collision_reward=DEFAULT_COLLISION_REWARD,
                outside_human_model='refuse', cost=None, fast_path=True):
-    """Builds the scene from the checked arguments (`self.options`,
-    tasks/options.py; errors name the argument and the valid values).
+    """Builds the scene from the checked arguments (`self.options`).
 
     Args:
-      robot: a robot name (`robot_description.names()`: the description
-        files of hrc_suite/assets/robots and those registered) or the path
-        of a .json description file (registered under its name).
-      action_space: 'joint' or 'cartesian' (None: the task's default).
-      shield: a shield mode of safety/modes.py ('ssm', 'pfl', 'off' or
-        one registered elsewhere; None: the task's default).
-      shield_substeps: L, physics steps (= shield cycles) per RL step.
-      physics_timestep: s, also the shield's cycle time.
-      control_timestep: s, must equal shield_substeps x physics_timestep.
-      motions: None (the task's shipped clips), a folder of clips, a list
-        of `clip.Clip`s, or one side of a train/test split
-        (`motions.MotionSplit` or {'split': 'train'|'test', 'test_clips':
-        n, 'split_seed': k}). A folder may hold BVH recordings or the
-        reference's layout (`human.recording_cache`).
-      outside_human_model: 'refuse' (a clip whose person moves faster than
-        the shield's human model raises ClipError at construction) or
-        'allow' (play it; the metric 'steps_outside_human_model' counts the
-        RL steps outside the guarantee; `motions.check_motions`).
-      reward: one of the task's REWARDS (None: its first).
-      reward_delay: RL steps by which task rewards are paid late (None: the
-        task's default); what is still owed is paid at the episode's end.
-      done_at_success: end the episode (discount 0) at success.
-      collision_prevention: 'zero', 'resample', 'closest' or 'off'.
-      time_limit: s (None: the task's HORIZON RL steps).
-      observations: a preset name ('paper', 'full', ...) or a list of
-        observable names.
-      cameras: names of workcell cameras ('front', 'side', 'top',
-        'human_view') whose RGB images join the observation as
-        'camera_<name>' (uint8, camera_size).
-      camera_size: (height, width) of camera observations in pixels, at
-        most the workcell's offscreen framebuffer (960, 1280).
-      observation_noise: None or {observable name: bound}: uniform noise in
-        [-bound, bound] (drawn from the environment's random_state, so
-        snapshots restore the noise-free state, not the noise stream).
-      observation_delay: None or {observable name: seconds}, a multiple of
-        physics_timestep.
-      v_safe: m/s, PFL's safe robot speed at a human contact.
-      critical_speed: m/s, robot speed above which a human contact is
-        critical (None: v_safe in modes that allow contact, such as PFL;
-        contacts.SSM_STOPPED_SPEED else).
-      collision_reward: <= 0, added at RL steps with a static, self or
-        critical human contact.
-      cost: None (no cost signal), True (the default `cost.CostSpec`), a
-        CostSpec or a dict of its fields: every RL step's step metrics then
-        hold the safety cost's components and scalar (tasks/cost.py), and
-        the observables 'cost' and 'cost_components' exist (enabled by the
-        'safe_rl' observations preset, which implies cost=True).
-      fast_path: run an RL step's shield cycles at its start in one call
-        (`safety.batch.step_many`, compiled where it can) and hand the
-        controller the verified set-points, check new goals with
-        compiled capsule tests (`safety.cp_kernels`), compute the
-        controller's torques, the contact classification, the person's
-        capsule frames and the self-collision check in compiled kernels
-        (the same bit for bit) and, in environments of `suite.load`, run the
-        RL step's physics steps in one composer substep (`substeps`);
-        False runs `Shield.step` every physics step, NumPy collision
-        checks, controller, contact classification and capsule frames
-        and composer's substeps (the readable reference; the two agree,
-        tests/tasks/test_fast_path.py).
+      robot, action_space, shield, shield_substeps, physics_timestep,
+        control_timestep, reward, reward_delay, done_at_success,
+        collision_prevention, time_limit, v_safe, critical_speed,
+        collision_reward, fast_path: the fields of `options.TaskOptions`
+        (None: the task's default), documented there.
+      motions, outside_human_model, observations, observation_noise,
+        observation_delay, cameras, camera_size, cost: checked by the
+        modules that interpret them; documented in `options.TaskOptions`.
+
+    docs/tasks.md ("Task kwargs") is the users' table of them all.
     """
     options = options_lib.TaskOptions.of(
         type(self).defaults(), robot=robot, action_space=action_space,

@@ -7,7 +7,7 @@ argument, the bad value and what was expected. HrcTask builds its scene
 from the result, a frozen dataclass (in the spirit of MuJoCo
 Playground's task configs). What a module of its own interprets is
 checked there: motions (tasks/motions.py), observations and their noise
-and delay (tasks/observations.py), cameras (HrcTask._add_cameras).
+and delay, cameras (tasks/observations.py).
 """
 
 import dataclasses
@@ -56,22 +56,87 @@ def _flag(name, value):
 
 @dataclasses.dataclass(frozen=True)
 class TaskOptions:
-  """HrcTask's checked arguments (see HrcTask.__init__ for each)."""
-  robot: str                  # a robot name or description path, resolved
+  """HrcTask's checked arguments (docs/tasks.md, "Task kwargs"). A field
+  that is None as an argument takes the task's default (the class
+  constants, `defaults.TaskDefaults`).
+
+  HrcTask's other arguments are checked by the modules that interpret
+  them:
+
+  * motions: None (the task's shipped clips), a folder of clips, a list
+    of `clip.Clip`s, or one side of a train/test split
+    (`motions.MotionSplit` or {'split': 'train'|'test', 'test_clips': n,
+    'split_seed': k}). A folder may hold BVH recordings or the
+    reference's layout (`human.recording_cache`).
+  * outside_human_model: 'refuse' (a clip whose person moves faster than
+    the shield's human model raises ClipError at construction) or
+    'allow' (play it; the metric 'steps_outside_human_model' counts the
+    RL steps outside the guarantee; `motions.check_motions`).
+  * observations: a preset name ('paper', 'full', ...) or a list of
+    observable names (`observations.select`).
+  * observation_noise: None or {observable name: bound}: uniform noise in
+    [-bound, bound] (drawn from the environment's random_state, so
+    snapshots restore the noise-free state, not the noise stream).
+  * observation_delay: None or {observable name: seconds}, a multiple of
+    physics_timestep.
+  * cameras: names of workcell cameras ('front', 'side', 'top',
+    'human_view') whose RGB images join the observation as
+    'camera_<name>' (uint8, camera_size; `observations.add_cameras`).
+  * camera_size: (height, width) of camera observations in pixels, at
+    most the workcell's offscreen framebuffer (960, 1280).
+  * cost: None (no cost signal), True (the default `cost.CostSpec`), a
+    CostSpec or a dict of its fields: every RL step's step metrics then
+    hold the safety cost's components and scalar (tasks/cost.py), and
+    the observables 'cost' and 'cost_components' exist (enabled by the
+    'safe_rl' observations preset, which implies cost=True).
+  """
+  # A robot name (`robot_description.names()`: the description files of
+  # hrc_suite/assets/robots and those registered) or the path of a .json
+  # description file (registered under its name), resolved to a name.
+  robot: str
+  # 'joint' or 'cartesian' (tasks/actions.py).
   action_space: str
-  shield: str                 # a registered shield mode
-  shield_substeps: int        # L: physics steps (shield cycles) per RL step
-  physics_timestep: float     # s, also the shield's cycle time
-  control_timestep: float     # s, L x physics_timestep
-  reward: str                 # one of the task's REWARDS
-  reward_delay: int           # RL steps
+  # A shield mode of safety/modes.py ('ssm', 'pfl', 'off' or one
+  # registered elsewhere).
+  shield: str
+  # L: physics steps (= shield cycles) per RL step.
+  shield_substeps: int
+  # s, also the shield's cycle time.
+  physics_timestep: float
+  # s, must equal shield_substeps x physics_timestep.
+  control_timestep: float
+  # One of the task's REWARDS (default: its first).
+  reward: str
+  # RL steps by which task rewards are paid late; what is still owed is
+  # paid at the episode's end.
+  reward_delay: int
+  # End the episode (discount 0) at success.
   done_at_success: bool
-  collision_prevention: str   # a policy or 'off'
-  time_limit: float           # s
-  horizon: int                # RL steps of time_limit
-  v_safe: float               # m/s, PFL's safe speed
-  critical_speed: float       # m/s, a human contact faster is critical
-  collision_reward: float     # <= 0
+  # A collision prevention policy ('zero', 'resample', 'closest') or 'off'.
+  collision_prevention: str
+  # s, the episode's length (default: the task's HORIZON RL steps).
+  time_limit: float
+  # RL steps of time_limit (derived).
+  horizon: int
+  # m/s, PFL's safe robot speed at a human contact.
+  v_safe: float
+  # m/s, robot speed above which a human contact is critical (default:
+  # v_safe in modes that allow contact, such as PFL;
+  # contacts.SSM_STOPPED_SPEED else).
+  critical_speed: float
+  # <= 0, added at RL steps with a static, self or critical human contact.
+  collision_reward: float
+  # Run an RL step's shield cycles at its start in one call
+  # (`safety.batch.step_many`, compiled where it can) and hand the
+  # controller the verified set-points, check new goals with compiled
+  # capsule tests (`safety.cp_kernels`), compute the controller's torques,
+  # the contact classification, the person's capsule frames and the
+  # self-collision check in compiled kernels (the same bit for bit) and,
+  # in environments of `suite.load`, run the RL step's physics steps in
+  # one composer substep (`substeps`); False runs `Shield.step` every
+  # physics step, NumPy collision checks, controller, contact
+  # classification and capsule frames and composer's substeps (the
+  # readable reference; the two agree, tests/tasks/test_fast_path.py).
   fast_path: bool
 
   @classmethod
