@@ -10,8 +10,12 @@
 Tasks with a gripper append one dimension: -1 open, +1 closed. Actions
 outside [-1, 1] are clipped (documented behaviour, as in the reference);
 NaN or infinite entries, wrong shapes and non-numbers (e.g. a string) raise
-a ValueError.
+a ValueError. `step_goal` turns an RL step's action into the shield's new
+joint goal: validation, the action space's goal (IK), collision prevention.
 """
+
+import dataclasses
+from typing import Any, Optional
 
 from dm_env import specs
 import numpy as np
@@ -49,6 +53,56 @@ def validate_action(action, shape):
     raise ValueError('action has non-finite entries at indices '
                      f'{bad.tolist()}: {action[bad].tolist()}')
   return np.minimum(np.maximum(action, -1.0), 1.0)   # np.clip, cheaper
+
+
+@dataclasses.dataclass(frozen=True)
+class StepGoal:
+  """What an RL step's action asks of the robot."""
+  q_goal: np.ndarray          # the joint goal for the shield
+  plan: Any                   # collision prevention's plan, or None
+  gripper: Optional[float]    # the gripper command, None without one
+  replaced: bool              # collision prevention replaced the goal
+  ik_failed: bool             # the action's own goal had no IK solution
+
+
+def step_goal(action, space, with_gripper, q, current_goal, checker, policy,
+              random_state, shield):
+  """The joint goal of an RL step's action.
+
+  Args:
+    action: the agent's action (`validate_action`; clipped to [-1, 1]).
+    space: the task's action space (JointActionSpace or
+      CartesianActionSpace).
+    with_gripper: whether the action's last entry commands the gripper.
+    q: the robot's joint positions.
+    current_goal: the joint goal of the last action (kept where IK fails).
+    checker: the task's `collision_prevention.CollisionPrevention`.
+    policy: a collision prevention policy, or 'off'.
+    random_state: collision prevention's random state.
+    shield: the task's shield, from whose state a replacement is planned.
+
+  Returns:
+    A StepGoal; q_goal is a new float array.
+  """
+  action = validate_action(action, (space.num_arm + int(with_gripper),))
+  arm = action[:space.num_arm]
+  outcome = {}
+
+  def to_goal(arm_action):
+    goal, ok = space.goal(q, arm_action, current_goal)
+    outcome.setdefault('ik_failed', not ok)
+    return goal
+
+  replaced, plan = False, None
+  if policy == 'off':
+    goal = to_goal(arm)
+  else:
+    _, goal, replaced, plan = checker.filter_action(
+        arm, q, to_goal, policy, random_state=random_state, plan_from=shield)
+  return StepGoal(
+      q_goal=np.asarray(goal, dtype=float).copy(), plan=plan,
+      gripper=action[-1] if with_gripper else None, replaced=bool(replaced),
+      ik_failed=bool(outcome.get('ik_failed', False)))
 
 
 def workspace_box(kinematic_model):

@@ -64,7 +64,6 @@ import functools
 import operator
 
 from dm_control import composer
-from dm_control.composer.observation import observable
 from dm_control.rl import control as rl_control
 import numpy as np
 
@@ -98,14 +97,10 @@ DEFAULT_PHYSICS_TIMESTEP = options_lib.DEFAULT_PHYSICS_TIMESTEP
 DEFAULT_CONTROL_TIMESTEP = options_lib.DEFAULT_CONTROL_TIMESTEP
 DEFAULT_V_SAFE = options_lib.DEFAULT_V_SAFE
 DEFAULT_COLLISION_REWARD = options_lib.DEFAULT_COLLISION_REWARD
-DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
+DEFAULT_CAMERA_SIZE = observations_lib.DEFAULT_CAMERA_SIZE
 _SEED_RANGE = 2**31 - 1
 # Flag positions of the contacts that cost collision_reward.
 _ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
-
-
-def _is_integer(value):
-  return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
 def _option(name, doc):
@@ -268,8 +263,12 @@ class HrcTask(composer.Task):
     self._episode_data = None   # MjData of the last initialised episode.
     self._restored = False      # set_state since the last step
     self._init_episode_state()
-    self._setup_observables(observations)
-    self._add_cameras(cameras, camera_size)
+    self._task_obs, names = observations_lib.task_observables(
+        self._robot, self._gripper, self._human, self._stepper.step_flags,
+        self._task_observables, self.OBSERVATION_PRESETS,
+        self._metrics if self._cost is not None else None, observations)
+    self.observation_names = observations_lib.add_cameras(
+        self._task_obs, names, self._arena.mjcf_model, cameras, camera_size)
     observations_lib.configure_noise_and_delay(
         self._task_obs, observation_noise, observation_delay,
         options.physics_timestep)
@@ -451,48 +450,6 @@ class HrcTask(composer.Task):
 
   # ------------------------------------------------------------ observables
 
-  def _setup_observables(self, observations):
-    obs = observations_lib.shared_observables(
-        self._robot, self._gripper, self._human, self._stepper.step_flags)
-    obs.update(self._task_observables())
-    presets = dict(self.OBSERVATION_PRESETS)
-    if self._cost is not None:
-      obs.update(observations_lib.cost_observables(self._metrics))
-      presets[observations_lib.SAFE_RL] = observations_lib.safe_rl_preset(
-          obs, presets)
-    self.observation_names = observations_lib.select(
-        obs, presets, observations)
-    self._task_obs = obs
-
-  def _add_cameras(self, cameras, camera_size):
-    """Enabled RGB observables of named workcell cameras."""
-    if isinstance(cameras, str):
-      cameras = (cameras,)
-    if not (isinstance(cameras, (list, tuple))
-            and all(isinstance(name, str) for name in cameras)):
-      raise ValueError('cameras must be a camera name or a list of names, '
-                       f'got {cameras!r}')
-    # Cameras render into the model's offscreen framebuffer (workcell.py).
-    frame = getattr(self._arena.mjcf_model.visual, 'global')
-    largest = (frame.offheight, frame.offwidth)
-    if not (isinstance(camera_size, (list, tuple)) and len(camera_size) == 2
-            and all(_is_integer(v) and 0 < v <= top
-                    for v, top in zip(camera_size, largest))):
-      raise ValueError('camera_size must be (height, width) in pixels, at '
-                       f'most the offscreen framebuffer {largest}, got '
-                       f'{camera_size!r}')
-    available = {c.name: c for c in self._arena.mjcf_model.find_all('camera')}
-    for name in cameras:
-      if name not in available:
-        raise ValueError(f'Unknown camera {name!r}: expected some of '
-                         f'{", ".join(sorted(available))}')
-      camera = observable.MJCFCamera(available[name],
-                                     height=int(camera_size[0]),
-                                     width=int(camera_size[1]))
-      camera.enabled = True
-      self._task_obs[f'camera_{name}'] = camera
-      self.observation_names += (f'camera_{name}',)
-
   @property
   def task_observables(self):
     return self._task_obs
@@ -573,31 +530,17 @@ class HrcTask(composer.Task):
   def before_step(self, physics, action, random_state):
     del random_state
     self._restored = False
-    spec_shape = (self._action_space.num_arm + int(self.HAS_GRIPPER_ACTION),)
-    action = actions.validate_action(action, spec_shape)
-    q = physics.data.qpos[self._qpos_index]
-    arm = action[:self._action_space.num_arm]
-    space, current = self._action_space, self._episode.q_goal
-    outcome = {}
-
-    def to_goal(arm_action):
-      goal, ok = space.goal(q, arm_action, current)
-      outcome.setdefault('ik_failed', not ok)
-      return goal
-
-    replaced, plan = False, None
-    if self.collision_prevention_policy == 'off':
-      goal = to_goal(arm)
-    else:
-      _, goal, replaced, plan = self._collision_checker.filter_action(
-          arm, q, to_goal, self.collision_prevention_policy,
-          random_state=self._episode.cp_random, plan_from=self._shield)
-    self._episode.q_goal = np.asarray(goal, dtype=float).copy()
-    self._shield.new_goal(self._episode.q_goal, plan)
+    goal = actions.step_goal(
+        action, self._action_space, self.HAS_GRIPPER_ACTION,
+        physics.data.qpos[self._qpos_index], self._episode.q_goal,
+        self._collision_checker, self.collision_prevention_policy,
+        self._episode.cp_random, self._shield)
+    self._episode.q_goal = goal.q_goal
+    self._shield.new_goal(goal.q_goal, goal.plan)
     if self.HAS_GRIPPER_ACTION:
-      self._gripper.set_command(physics, action[-1])
-    self._step_info = {'action_replacements': int(replaced),
-                       'ik_failures': int(outcome.get('ik_failed', False))}
+      self._gripper.set_command(physics, goal.gripper)
+    self._step_info = {'action_replacements': int(goal.replaced),
+                       'ik_failures': int(goal.ik_failed)}
     self._stepper.begin_step()
 
   # The physics steps (tasks/shielded_stepping.py).

@@ -5,7 +5,8 @@ velocities, gripper aperture, end-effector (TCP) pose, human keypoints in
 the world, head and hands in the TCP frame and their distances, safe and
 critical human contact and static collision flags of the last RL step.
 Tasks add goals and objects. The quantities of one entity are that
-entity's observables, named here as the observation names them.
+entity's observables, named here as the observation names them. Cameras
+of the workcell join as RGB images (`add_cameras`).
 """
 
 import collections
@@ -24,6 +25,7 @@ OBSERVED_HUMAN_KEYPOINTS = ('head', 'left_hand', 'right_hand')
 DEFAULT_PRESET = 'paper'
 SAFE_RL = 'safe_rl'
 COST_OBSERVABLES = ('cost', 'cost_components')
+DEFAULT_CAMERA_SIZE = (84, 84)        # pixels (height, width), as in DMC
 
 
 def _flag(contact_flags, *names):
@@ -105,6 +107,79 @@ def select(observables, presets, selection):
   for name, value in observables.items():
     value.enabled = name in names
   return tuple(n for n in observables if n in names)
+
+
+def task_observables(robot, gripper, human, contact_flags, own, presets,
+                     metrics, selection):
+  """A task's observables and the names `selection` enables.
+
+  Args:
+    robot, gripper, human: the task's entities (`shared_observables`).
+    contact_flags: the task's contact flags of the last RL step.
+    own: a callable returning the task's own observables (name ->
+      observable), called after the shared ones are made.
+    presets: the task's presets (name -> observable names).
+    metrics: the task's EpisodeMetrics where it has a cost (the cost
+      observables and the 'safe_rl' preset join), else None.
+    selection: a preset name or a list of observable names (`select`).
+
+  Returns:
+    (name -> observable, the enabled names in order).
+  """
+  obs = shared_observables(robot, gripper, human, contact_flags)
+  obs.update(own())
+  presets = dict(presets)
+  if metrics is not None:
+    obs.update(cost_observables(metrics))
+    presets[SAFE_RL] = safe_rl_preset(obs, presets)
+  return obs, select(obs, presets, selection)
+
+
+def _is_integer(value):
+  return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def add_cameras(observables, names, mjcf_model, cameras, camera_size):
+  """Adds enabled RGB observables 'camera_<name>' of named cameras.
+
+  Args:
+    observables: name -> observable, to which the cameras are added.
+    names: the enabled observable names so far.
+    mjcf_model: the workcell's model (its cameras and offscreen
+      framebuffer, into which cameras render; workcell.py).
+    cameras: a camera name or a list of names.
+    camera_size: (height, width) in pixels, at most the framebuffer's.
+
+  Returns:
+    `names` followed by the cameras' observable names.
+  """
+  if isinstance(cameras, str):
+    cameras = (cameras,)
+  if not (isinstance(cameras, (list, tuple))
+          and all(isinstance(name, str) for name in cameras)):
+    raise ValueError('cameras must be a camera name or a list of names, '
+                     f'got {cameras!r}')
+  frame = getattr(mjcf_model.visual, 'global')
+  largest = (frame.offheight, frame.offwidth)
+  if not (isinstance(camera_size, (list, tuple)) and len(camera_size) == 2
+          and all(_is_integer(v) and 0 < v <= top
+                  for v, top in zip(camera_size, largest))):
+    raise ValueError('camera_size must be (height, width) in pixels, at '
+                     f'most the offscreen framebuffer {largest}, got '
+                     f'{camera_size!r}')
+  available = {c.name: c for c in mjcf_model.find_all('camera')}
+  names = tuple(names)
+  for name in cameras:
+    if name not in available:
+      raise ValueError(f'Unknown camera {name!r}: expected some of '
+                       f'{", ".join(sorted(available))}')
+    camera = observable.MJCFCamera(available[name],
+                                   height=int(camera_size[0]),
+                                   width=int(camera_size[1]))
+    camera.enabled = True
+    observables[f'camera_{name}'] = camera
+    names += (f'camera_{name}',)
+  return names
 
 
 def _uniform_noise(bound):
