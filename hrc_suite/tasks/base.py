@@ -341,6 +341,30 @@ class HrcTask(composer.Task):
     """The joint goal given to the shield by the last action."""
     return self._episode.q_goal.copy()
 
+  def start_robot_at(self, physics, q):
+    """Starts the episode's robot at rest elsewhere than home (in
+    `_initialize_task`): the joints, the joint goal and the shield; forwards
+    the physics.
+
+    Args:
+      physics: the episode's physics.
+      q: (dof,) joint positions.
+    """
+    physics.data.qpos[self._qpos_index] = q
+    self._episode.q_goal = q.copy()
+    self._shield.reset(q, 0.0)
+    physics.forward()
+
+  def set_cartesian_yaw(self, yaw):
+    """Sets the gripper yaw of Cartesian actions' IK goals (nothing in
+    joint action spaces).
+
+    Args:
+      yaw: rad about world z.
+    """
+    if self._action_space.name == 'cartesian':
+      self._action_space.yaw = yaw
+
   def action_spec(self, physics):
     del physics
     return actions.action_spec(self._action_space, self.HAS_GRIPPER_ACTION)

@@ -112,14 +112,9 @@ def turn_at_home(task, physics, ik, yaw):
   result = ik.solve(position, home, yaw)
   turn = bool(result.success
               and not task.collision_checker.in_collision(result.q))
-  # The task's own start state (qpos slice, goal, Cartesian yaw).
   if turn:
-    physics.data.qpos[task._qpos_index] = result.q
-    task._episode.q_goal = result.q.copy()
-    task.shield.reset(result.q, 0.0)
-    physics.forward()
-  if task.action_space_name == 'cartesian':
-    task._action_space.yaw = yaw if turn else actions.GRIPPER_YAW
+    task.start_robot_at(physics, result.q)
+  task.set_cartesian_yaw(yaw if turn else actions.GRIPPER_YAW)
   return turn
 
 
