@@ -68,15 +68,7 @@ from dm_control.rl import control as rl_control
 import numpy as np
 
 from hrc_suite import layout
-from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper as gripper_lib
-from hrc_suite.entities import human as human_lib
-from hrc_suite.entities import human_playback
-from hrc_suite.entities import robot as robot_lib
-from hrc_suite.entities import workcell as workcell_lib
-from hrc_suite.human import player as player_lib
-from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import cost as cost_lib
@@ -84,10 +76,9 @@ from hrc_suite.tasks import defaults as defaults_lib
 from hrc_suite.tasks import episode as episode_lib
 from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
-from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import observations as observations_lib
 from hrc_suite.tasks import options as options_lib
-from hrc_suite.tasks import self_collision as self_collision_lib
+from hrc_suite.tasks import scene as scene_lib
 from hrc_suite.tasks import shielded_stepping
 from hrc_suite.tasks import snapshots
 
@@ -180,8 +171,9 @@ class HrcTask(composer.Task):
 
     docs/tasks.md ("Task kwargs") is the users' table of them all.
     """
+    defaults = type(self).defaults()
     options = options_lib.TaskOptions.of(
-        type(self).defaults(), robot=robot, action_space=action_space,
+        defaults, robot=robot, action_space=action_space,
         shield=shield, shield_substeps=shield_substeps,
         physics_timestep=physics_timestep,
         control_timestep=control_timestep, reward=reward,
@@ -190,59 +182,16 @@ class HrcTask(composer.Task):
         v_safe=v_safe, critical_speed=critical_speed,
         collision_reward=collision_reward, fast_path=fast_path)
     self.options = options
-    fast_path = options.fast_path
-
-    # Scene.
-    self._arena = workcell_lib.Workcell(table=self.TABLE)
-    self._robot = robot_lib.make_robot(options.robot)
-    self._gripper = self._robot.attach_gripper(
-        gripper_lib.ParallelGripper(grip_force=self.GRIP_FORCE))
-    self._arena.attach_robot(self._robot)
-    self._human = human_lib.Human()
-    self._human.attach_to(self._arena)
-
-    # Models of the robot for IK, the shield and collision prevention.
-    description = self._robot.description
-    base_pose = layout.robot_mount(description.name).base_pose()
-    self._kinematics = kinematics.KinematicModel(
-        description, base_pose, tcp_offset=gripper_lib.TCP_OFFSET)
-    p1, p2, radius = self._gripper.enclosing_capsule()
-    rotation, translation = (description.flange_rotation,
-                             description.flange_translation)
-    tool_capsule = (translation + rotation @ p1, translation + rotation @ p2,
-                    radius)
-    self._tool_capsule = tool_capsule
-    self._shield = shield_lib.Shield(
-        description, mode=options.shield,
-        cycle_time=options.physics_timestep, base_pose=base_pose,
-        tool_capsule=tool_capsule, v_safe=options.v_safe)
-    self.tool_table_allowance = 0.0
-    if self.FINGERTIP_TABLE_CLEARANCE is not None:
-      # The capsule's lowest point is `radius` below the fingertips (its
-      # end point, gripper.enclosing_capsule).
-      self.tool_table_allowance = radius - self.FINGERTIP_TABLE_CLEARANCE
-    self._collision_checker = cp_lib.CollisionPrevention(
-        description, base_pose=base_pose, tool_capsule=tool_capsule,
-        tool_table_allowance=self.tool_table_allowance, compiled=fast_path,
-        table=self.TABLE)
-    self._self_colliding = self_collision_lib.SelfCollision(
-        self._collision_checker, compiled=fast_path)
-    self._action_space = actions.make_action_space(
-        options.action_space, self._kinematics, yaw=self.CARTESIAN_YAW)
-    # The shipped library's documented fast phases (hammer blows,
-    # docs/motion_library.md) are played; they are counted in
-    # steps_outside_human_model like any clip over the model.
-    clips = motions_lib.check_motions(
-        motions_lib.load_motions(motions, self.MOTIONS), self.MOTIONS,
-        self.EVENTS, self.HUMAN_STATION, self._shield.human.config.v_max,
-        'allow' if motions is None else outside_human_model)
-    self._player = player_lib.Player(
-        clips,
-        station=self.HUMAN_STATION,
-        placement_range=self.HUMAN_PLACEMENT_RANGE)
-    self._playback = human_playback.HumanPlayback(
-        self._human, self._player, options.shield_substeps,
-        compiled=fast_path)
+    scene = scene_lib.build(defaults, options, motions, outside_human_model)
+    self._arena, self._robot = scene.arena, scene.robot
+    self._gripper, self._human = scene.gripper, scene.human
+    self._kinematics, self._shield = scene.kinematics, scene.shield
+    self._tool_capsule = scene.tool_capsule
+    self.tool_table_allowance = scene.tool_table_allowance
+    self._collision_checker = scene.collision_checker
+    self._self_colliding = scene.self_colliding
+    self._action_space = scene.action_space
+    self._player, self._playback = scene.player, scene.playback
     self._stepper = shielded_stepping.ShieldedStepper(
         self, options, self._shield, self._playback, self._robot)
 

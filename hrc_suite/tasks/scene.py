@@ -1,0 +1,122 @@
+"""The scene every HrcTask builds before its own entities.
+
+The workcell with its table, the robot with the parallel gripper, the
+person (mocap capsules), and the models built from them: the kinematic
+model for IK, the shield, collision prevention (the gripper's enclosing
+capsule as the tool) and the self-collision check, the agent's action
+space, and the person's clips with their player and playback. `build`
+makes them from a task's facts (`defaults.TaskDefaults`) and its checked
+options (`options.TaskOptions`); the task adds its own entities after.
+"""
+
+import dataclasses
+from typing import Any, Tuple
+
+import numpy as np
+
+from hrc_suite import layout
+from hrc_suite.control import kinematics as kinematics_lib
+from hrc_suite.entities import gripper as gripper_lib
+from hrc_suite.entities import human as human_lib
+from hrc_suite.entities import human_playback
+from hrc_suite.entities import robot as robot_lib
+from hrc_suite.entities import workcell as workcell_lib
+from hrc_suite.human import player as player_lib
+from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.safety import shield as shield_lib
+from hrc_suite.tasks import actions
+from hrc_suite.tasks import motions as motions_lib
+from hrc_suite.tasks import self_collision as self_collision_lib
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+  """A task's shared entities and the models made from them."""
+  arena: workcell_lib.Workcell
+  robot: Any                         # robot_lib.make_robot's entity
+  gripper: gripper_lib.ParallelGripper
+  human: human_lib.Human
+  kinematics: kinematics_lib.KinematicModel
+  # (p1, p2, radius): the gripper's enclosing capsule in the last link's
+  # frame, as the shield and collision prevention use it.
+  tool_capsule: Tuple[np.ndarray, np.ndarray, float]
+  shield: shield_lib.Shield
+  # m the tool capsule may dip into the table (FINGERTIP_TABLE_CLEARANCE).
+  tool_table_allowance: float
+  collision_checker: cp_lib.CollisionPrevention
+  self_colliding: self_collision_lib.SelfCollision
+  action_space: Any                  # actions.make_action_space's
+  player: player_lib.Player
+  playback: human_playback.HumanPlayback
+
+
+def build(defaults, options, motions=None, outside_human_model='refuse'):
+  """The scene of a task.
+
+  Args:
+    defaults: the task's `defaults.TaskDefaults` (table, grip force,
+      fingertip clearance, Cartesian yaw, motion library, events, human
+      station and placement range).
+    options: the task's `options.TaskOptions`.
+    motions: the task's motions argument (`options.TaskOptions`; None: the
+      shipped library `defaults.motions`).
+    outside_human_model: 'refuse' or 'allow' (`motions.check_motions`).
+
+  Returns:
+    A Scene.
+  """
+  fast_path = options.fast_path
+  arena = workcell_lib.Workcell(table=defaults.table)
+  robot = robot_lib.make_robot(options.robot)
+  gripper = robot.attach_gripper(
+      gripper_lib.ParallelGripper(grip_force=defaults.grip_force))
+  arena.attach_robot(robot)
+  human = human_lib.Human()
+  human.attach_to(arena)
+
+  # Models of the robot for IK, the shield and collision prevention.
+  description = robot.description
+  base_pose = layout.robot_mount(description.name).base_pose()
+  kinematic_model = kinematics_lib.KinematicModel(
+      description, base_pose, tcp_offset=gripper_lib.TCP_OFFSET)
+  p1, p2, radius = gripper.enclosing_capsule()
+  rotation, translation = (description.flange_rotation,
+                           description.flange_translation)
+  tool_capsule = (translation + rotation @ p1, translation + rotation @ p2,
+                  radius)
+  shield = shield_lib.Shield(
+      description, mode=options.shield,
+      cycle_time=options.physics_timestep, base_pose=base_pose,
+      tool_capsule=tool_capsule, v_safe=options.v_safe)
+  tool_table_allowance = 0.0
+  if defaults.fingertip_table_clearance is not None:
+    # The capsule's lowest point is `radius` below the fingertips (its
+    # end point, gripper.enclosing_capsule).
+    tool_table_allowance = radius - defaults.fingertip_table_clearance
+  collision_checker = cp_lib.CollisionPrevention(
+      description, base_pose=base_pose, tool_capsule=tool_capsule,
+      tool_table_allowance=tool_table_allowance, compiled=fast_path,
+      table=defaults.table)
+  self_colliding = self_collision_lib.SelfCollision(
+      collision_checker, compiled=fast_path)
+  action_space = actions.make_action_space(
+      options.action_space, kinematic_model, yaw=defaults.cartesian_yaw)
+  # The shipped library's documented fast phases (hammer blows,
+  # docs/motion_library.md) are played; they are counted in
+  # steps_outside_human_model like any clip over the model.
+  clips = motions_lib.check_motions(
+      motions_lib.load_motions(motions, defaults.motions), defaults.motions,
+      defaults.events, defaults.human_station,
+      shield.human.config.v_max,
+      'allow' if motions is None else outside_human_model)
+  player = player_lib.Player(
+      clips, station=defaults.human_station,
+      placement_range=defaults.human_placement_range)
+  playback = human_playback.HumanPlayback(
+      human, player, options.shield_substeps, compiled=fast_path)
+  return Scene(
+      arena=arena, robot=robot, gripper=gripper, human=human,
+      kinematics=kinematic_model, tool_capsule=tool_capsule, shield=shield,
+      tool_table_allowance=tool_table_allowance,
+      collision_checker=collision_checker, self_colliding=self_colliding,
+      action_space=action_space, player=player, playback=playback)
