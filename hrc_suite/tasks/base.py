@@ -99,6 +99,11 @@ def _option(name, doc):
   return property(operator.attrgetter(f'options.{name}'), doc=doc)
 
 
+def _read(path, doc):
+  """A read-only property: the task's attribute at `path` ('a.b')."""
+  return property(operator.attrgetter(path), doc=doc)
+
+
 class HrcTask(composer.Task):
   """A robot, a gripper and a human in the workcell, shielded."""
 
@@ -229,61 +234,45 @@ class HrcTask(composer.Task):
 
   # ------------------------------------------------------------ properties
 
-  @property
-  def root_entity(self):
-    return self._arena
-
-  @property
-  def arena(self):
-    return self._arena
-
-  @property
-  def robot(self):
-    return self._robot
-
-  @property
-  def gripper(self):
-    return self._gripper
-
-  @property
-  def human(self):
-    return self._human
-
-  @property
-  def player(self):
-    return self._player
-
-  @property
-  def shield(self):
-    return self._shield
-
-  @property
-  def kinematics(self):
-    return self._kinematics
-
-  @property
-  def tool_capsule(self):
-    """(p1, p2, radius) of the gripper's enclosing capsule in the last
-    link's frame, as the shield and collision prevention use it."""
-    return self._tool_capsule
-
-  @property
-  def collision_checker(self):
-    return self._collision_checker
-
-  @property
-  def action_space_name(self):
-    return self._action_space.name
-
-  @property
-  def episode_metrics(self):
-    """Metrics of the episode so far (a dict of numbers)."""
-    return self._metrics.episode
-
-  @property
-  def step_metrics(self):
-    """Metrics of the last RL step (a dict of numbers)."""
-    return self._metrics.step
+  # The task's parts and what it reports, read-only.
+  root_entity = _read('_arena', 'The workcell, composer\'s root entity.')
+  arena = _read('_arena', 'The workcell (entities/workcell.py).')
+  robot = _read('_robot', 'The robot arm (entities/robot.py).')
+  gripper = _read('_gripper', 'The parallel gripper (entities/gripper.py).')
+  human = _read('_human', 'The person (entities/human.py).')
+  player = _read('_player', "The person's clip player (human/player.py).")
+  shield = _read('_shield', 'The shield (safety/shield.py).')
+  kinematics = _read('_kinematics', "The robot's kinematic model for IK.")
+  tool_capsule = _read(
+      '_tool_capsule', "(p1, p2, radius) of the gripper's enclosing capsule "
+      'in the last link\'s frame, as the shield and collision prevention '
+      'use it.')
+  collision_checker = _read('_collision_checker',
+                            'Collision prevention (safety/).')
+  action_space_name = _read('_action_space.name',
+                            "The action space, 'joint' or 'cartesian'.")
+  episode_metrics = _read('_metrics.episode',
+                          'Metrics of the episode so far (a dict of numbers).')
+  step_metrics = _read('_metrics.step',
+                       'Metrics of the last RL step (a dict of numbers).')
+  clip_ended = _read('_episode.clip_ended',
+                     "True if the human's clip ended during the last RL step.")
+  clips_completed = _read('_episode.clip_index',
+                          'Clips the human has completed this episode.')
+  task_observables = _read('_task_obs', 'The observables, name -> observable.')
+  observables = _read(
+      '_task_obs', "The observation's observables: the task's names only. "
+      "Entity observables join it under the task's names (e.g. the robot's "
+      "`joint_positions`, a prop's `position` as 'object_position'), not "
+      "under composer's 'entity/name'.")
+  one_substep = _read(
+      '_stepper.one_substep', "Whether run_physics_steps runs the RL step's "
+      "physics steps as composer's one substep: set by `suite.Environment` "
+      'on the fast path.')
+  physics_steps = _read('_stepper.physics_steps', 'The hooks of every '
+                        'physics step (`substeps.PhysicsSteps`).')
+  restored = _read('_restored', 'Whether a running episode was restored '
+                   'since the last step.')
 
   @property
   def q_goal(self):
@@ -371,19 +360,11 @@ class HrcTask(composer.Task):
 
   @property
   def min_task_return(self):
-    """The lowest possible episode return of the task's reward (no
-    collision penalty: the paper's runs had none), the 0 of the paper's
-    normalised return (docs/reference_benchmark.md, Training and
-    evaluation). Without a failure reward (`_task_failure_reward`), the
-    lowest step reward for every step of the horizon H; with one, F, and
-    the other steps' lowest reward L, also F after H - 1 steps of L (or at
-    once where L > 0): min(L H, F + min(L, 0) (H - 1))."""
-    horizon = self.horizon
-    failure = self._task_failure_reward()
-    if failure is None:
-      return self._task_reward_range()[0] * horizon
-    failed, lowest = failure
-    return min(lowest * horizon, failed + min(lowest, 0.0) * (horizon - 1))
+    """The lowest possible episode return of the task's reward, the 0 of
+    the paper's normalised return (`episode.min_task_return`)."""
+    return episode_lib.min_task_return(
+        self._task_reward_range()[0], self._task_failure_reward(),
+        self.horizon)
 
   def _task_failure_reward(self):
     """None, or (the reward of the step that ends an episode in failure,
@@ -392,7 +373,7 @@ class HrcTask(composer.Task):
     be earned once only."""
     return None
 
-  # --------------------------------------------------- human grips, clips
+  # ---------------------------------------------------------- human grips
 
   def _add_holdable(self, body):
     """Makes `body` holdable by the human (before compiling); returns its
@@ -410,30 +391,6 @@ class HrcTask(composer.Task):
   def _model_changed(self):
     """The task changed the model (e.g. weld data): forward after the step."""
     self._grips.mark_changed()
-
-  @property
-  def clip_ended(self):
-    """True if the human's clip ended during the last RL step."""
-    return self._episode.clip_ended
-
-  @property
-  def clips_completed(self):
-    """Clips the human has completed this episode."""
-    return self._episode.clip_index
-
-  # ------------------------------------------------------------ observables
-
-  @property
-  def task_observables(self):
-    return self._task_obs
-
-  @property
-  def observables(self):
-    """The observation's observables: the task's names only. Entity
-    observables join it under the task's names (e.g. the robot's
-    `joint_positions`, a prop's `position` as 'object_position'), not
-    under composer's 'entity/name'."""
-    return self._task_obs
 
   # ---------------------------------------------------------------- episode
 
@@ -526,17 +483,6 @@ class HrcTask(composer.Task):
       return 1
     return super().physics_steps_per_control_step
 
-  @property
-  def one_substep(self):
-    """Whether run_physics_steps runs the RL step's physics steps as
-    composer's one substep: set by `suite.Environment` on the fast path."""
-    return self._stepper.one_substep
-
-  @property
-  def physics_steps(self):
-    """The hooks of every physics step (`substeps.PhysicsSteps`)."""
-    return self._stepper.physics_steps
-
   def use_one_substep(self):
     """One composer substep per RL step if the fast path is on and no
     enabled observable needs reading between physics steps (call before
@@ -591,9 +537,7 @@ class HrcTask(composer.Task):
       return
     q = physics.data.qpos[self._qpos_index]
     self_collision = self._self_colliding(q)   # tasks/self_collision.py
-    clip_index = self._player.clip_index
-    progress.clip_ended = clip_index != progress.clip_index
-    progress.clip_index = clip_index
+    progress.follow_clips(self._player.clip_index)
     self._grips.clear()
     step = dict(self._update_task(physics))
     for event in self._human_events(physics):
@@ -607,13 +551,7 @@ class HrcTask(composer.Task):
     task_reward = float(self._task_reward(physics))
     success = bool(step.get('success', 0.0))
     failed = bool(self._failed(physics))
-    progress.terminate = failed or (success and self.done_at_success)
-    last = progress.terminate or progress.steps >= self.horizon
-    reward = progress.pay(task_reward, last, self.reward_delay)
-    if illegal:
-      reward += self.collision_reward
-    progress.reward = float(reward)
-    progress.discount = 0.0 if progress.terminate else 1.0
+    progress.finish_step(task_reward, success, failed, illegal, self.options)
     step.update(self._step_info)
     step['reward'] = progress.reward
     step['self_collisions'] = int(self_collision)
@@ -626,13 +564,8 @@ class HrcTask(composer.Task):
     and reports as the last step with reward 0 and discount 0. MuJoCo has
     reset the state, so the task's logic is skipped; rewards still owed
     (reward_delay) are forfeited. Contacts up to the error are counted."""
-    progress = self._episode
-    progress.terminate = True
-    progress.discount = 0.0
-    progress.reward = 0.0
-    progress.pending_rewards.clear()
+    self._episode.stop_at_physics_error()
     self._stepper.stop_at_physics_error()
-    progress.clip_ended = False
     step = {'success': 0.0}
     step.update(self._step_info)
     step.update(reward=0.0, self_collisions=0, goals_reached=0,
@@ -682,8 +615,3 @@ class HrcTask(composer.Task):
     # A running episode was restored: its next step continues it, also
     # after a LAST step (suite.Environment does not reset then).
     self._restored = not self._episode.terminate
-
-  @property
-  def restored(self):
-    """Whether a running episode was restored since the last step."""
-    return self._restored

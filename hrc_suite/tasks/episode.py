@@ -5,11 +5,13 @@ shield, the stepping and the metrics): the joint goal of the last action,
 the RL steps taken, the reward and discount of the last one and the task
 rewards still owed (reward_delay), whether the episode ends, collision
 prevention's random state and the person's clip count. Snapshots save and
-restore it (tasks/snapshots.py).
+restore it (tasks/snapshots.py). `min_task_return` bounds an episode's
+return of the task's reward from below.
 """
 
 import collections
 import dataclasses
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -28,6 +30,46 @@ class EpisodeProgress:
       default_factory=lambda: np.random.RandomState(0))   # prevention's
   clip_index: int = 0        # the person's clips completed
   clip_ended: bool = False   # a clip ended in the last RL step
+
+  def follow_clips(self, clip_index: int) -> None:
+    """Notes the person's clips completed after an RL step.
+
+    Args:
+      clip_index: the player's count of completed clips now.
+    """
+    self.clip_ended = clip_index != self.clip_index
+    self.clip_index = clip_index
+
+  def finish_step(self, task_reward: float, success: bool, failed: bool,
+                  illegal: bool, options) -> None:
+    """Ends an RL step: whether the episode ends, the reward paid (`pay`,
+    and collision_reward at an illegal contact) and the discount.
+
+    Args:
+      task_reward: the task's reward for this RL step.
+      success: whether the task succeeded at this RL step.
+      failed: whether the episode ends in failure now.
+      illegal: whether the RL step had a static, self or critical human
+        contact.
+      options: the task's `options.TaskOptions` (done_at_success, horizon,
+        reward_delay, collision_reward).
+    """
+    self.terminate = failed or (success and options.done_at_success)
+    last = self.terminate or self.steps >= options.horizon
+    reward = self.pay(task_reward, last, options.reward_delay)
+    if illegal:
+      reward += options.collision_reward
+    self.reward = float(reward)
+    self.discount = 0.0 if self.terminate else 1.0
+
+  def stop_at_physics_error(self) -> None:
+    """Ends the episode at an RL step cut short by a physics error: reward
+    0, discount 0, the rewards still owed forfeited."""
+    self.terminate = True
+    self.discount = 0.0
+    self.reward = 0.0
+    self.pending_rewards.clear()
+    self.clip_ended = False
 
   def pay(self, task_reward: float, last: bool, delay: int) -> float:
     """The task reward paid at this RL step: the one earned `delay` RL
@@ -48,3 +90,26 @@ class EpisodeProgress:
     else:
       reward = 0.0
     return reward
+
+
+def min_task_return(lowest: float,
+                    failure: Optional[Tuple[float, float]],
+                    horizon: int) -> float:
+  """The lowest possible episode return of a task's reward (no collision
+  penalty: the paper's runs had none), the 0 of the paper's normalised
+  return (docs/reference_benchmark.md, Training and evaluation).
+
+  Without a failure reward, the lowest step reward L for every step of
+  the horizon H; with one, F, and the other steps' lowest reward L, also F
+  after H - 1 steps of L (or at once where L > 0):
+  min(L H, F + min(L, 0) (H - 1)).
+
+  Args:
+    lowest: the lowest reward of one RL step (`HrcTask._task_reward_range`).
+    failure: None, or (F, L) (`HrcTask._task_failure_reward`).
+    horizon: H, RL steps.
+  """
+  if failure is None:
+    return lowest * horizon
+  failed, lowest = failure
+  return min(lowest * horizon, failed + min(lowest, 0.0) * (horizon - 1))
