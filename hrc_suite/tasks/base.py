@@ -187,7 +187,8 @@ class HrcTask(composer.Task):
         v_safe=v_safe, critical_speed=critical_speed,
         collision_reward=collision_reward, fast_path=fast_path)
     self.options = options
-    scene = scene_lib.build(defaults, options, motions, outside_human_model)
+    self._scene = scene = scene_lib.build(defaults, options, motions,
+                                          outside_human_model)
     self._arena, self._robot = scene.arena, scene.robot
     self._gripper, self._human = scene.gripper, scene.human
     self._kinematics, self._shield = scene.kinematics, scene.shield
@@ -408,19 +409,11 @@ class HrcTask(composer.Task):
     """Caches joint addresses, the contact monitor and the stepping's
     views for a compiled physics."""
     self._physics_ptr = physics.data.ptr
-    joints = physics.bind(self._robot.joints)
-    static = list(self._arena.static_geoms)
-    robot_geoms = list(self._robot.link_geoms) + list(self._gripper.geoms)
-    monitor = contacts.ContactMonitor(
-        physics, static, robot_geoms, self._object_geoms,
-        self._human.geoms, critical_speed=self.critical_speed,
-        robot_dofs=joints.dofadr, robot_qpos=joints.qposadr,
-        compiled=self.fast_path)
+    monitor, self._joint_indices = self._scene.bind(
+        physics, self._object_geoms, self.critical_speed, self.fast_path)
     self._stepper.bind(physics, self._arena, monitor)
-    self._qpos_index = np.array(joints.qposadr)
-    self._qvel_index = np.array(joints.dofadr)
-    fingers = physics.bind(self._gripper.finger_joints)
-    self._finger_qpos_index = np.array(fingers.qposadr)
+    (self._qpos_index, self._qvel_index,
+     self._finger_qpos_index) = self._joint_indices
 
   def initialize_episode(self, physics, random_state):
     try:
@@ -438,19 +431,14 @@ class HrcTask(composer.Task):
     if self._stepper.one_substep:
       self._stepper.check_one_substep(self.observables)
     self._init_episode_state()
-    data = physics.data
-    q_home = self._robot.description.q_home
-    data.qpos[self._qpos_index] = q_home
-    data.qvel[self._qvel_index] = 0.0
-    data.qpos[self._finger_qpos_index] = gripper_lib.MAX_APERTURE / 2
-    self._gripper.set_command(physics, -1.0)
+    self._scene.home(physics, self._joint_indices)
     self._episode.cp_random = np.random.RandomState(
         random_state.randint(_SEED_RANGE))
     self._grips.release_all(physics)
     self._player.reset(random_state)
     self._episode.clip_index = self._player.clip_index
     self._playback.show_current(physics)
-    self._shield.reset(q_home, 0.0)
+    self._shield.reset(self._robot.description.q_home, 0.0)
     self._metrics.reset()
     physics.forward()
     self._initialize_task(physics, random_state)

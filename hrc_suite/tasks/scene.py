@@ -7,10 +7,12 @@ capsule as the tool) and the self-collision check, the agent's action
 space, and the person's clips with their player and playback. `build`
 makes them from a task's facts (`defaults.TaskDefaults`) and its checked
 options (`options.TaskOptions`); the task adds its own entities after.
+For a compiled physics the scene gives the robot's joint addresses and
+the contact monitor (`bind`) and puts the robot home (`home`).
 """
 
 import dataclasses
-from typing import Any, Tuple
+from typing import Any, NamedTuple, Tuple
 
 import numpy as np
 
@@ -25,8 +27,16 @@ from hrc_suite.human import player as player_lib
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
+from hrc_suite.tasks import contacts
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import self_collision as self_collision_lib
+
+
+class JointIndices(NamedTuple):
+  """The robot's addresses in a compiled physics."""
+  qpos: np.ndarray          # the arm's joints in qpos
+  qvel: np.ndarray          # the arm's joints in qvel
+  finger_qpos: np.ndarray   # the gripper's finger joints in qpos
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,6 +58,46 @@ class Scene:
   action_space: Any                  # actions.make_action_space's
   player: player_lib.Player
   playback: human_playback.HumanPlayback
+
+  def bind(self, physics, object_geoms, critical_speed, compiled):
+    """The contact monitor and the robot's joint addresses of a compiled
+    physics.
+
+    Args:
+      physics: the compiled physics.
+      object_geoms: the task's object geoms (contacts.ContactMonitor).
+      critical_speed: m/s, robot speed above which a human contact is
+        critical.
+      compiled: whether the monitor classifies in compiled kernels.
+
+    Returns:
+      (contacts.ContactMonitor, JointIndices).
+    """
+    joints = physics.bind(self.robot.joints)
+    static = list(self.arena.static_geoms)
+    robot_geoms = list(self.robot.link_geoms) + list(self.gripper.geoms)
+    monitor = contacts.ContactMonitor(
+        physics, static, robot_geoms, object_geoms, self.human.geoms,
+        critical_speed=critical_speed, robot_dofs=joints.dofadr,
+        robot_qpos=joints.qposadr, compiled=compiled)
+    fingers = physics.bind(self.gripper.finger_joints)
+    return monitor, JointIndices(
+        qpos=np.array(joints.qposadr), qvel=np.array(joints.dofadr),
+        finger_qpos=np.array(fingers.qposadr))
+
+  def home(self, physics, indices):
+    """Puts the robot at rest at its home pose, the gripper half open and
+    commanded open.
+
+    Args:
+      physics: the episode's physics.
+      indices: the physics' JointIndices (`bind`).
+    """
+    data = physics.data
+    data.qpos[indices.qpos] = self.robot.description.q_home
+    data.qvel[indices.qvel] = 0.0
+    data.qpos[indices.finger_qpos] = gripper_lib.MAX_APERTURE / 2
+    self.gripper.set_command(physics, -1.0)
 
 
 def build(defaults, options, motions=None, outside_human_model='refuse'):
