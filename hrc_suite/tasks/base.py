@@ -94,27 +94,21 @@ _SEED_RANGE = 2**31 - 1
 _ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
 
 
-def _option(name, doc):
-  """A read-only property: the task's option `name` (`self.options`)."""
-  return property(operator.attrgetter(f'options.{name}'), doc=doc)
-
-
 def _read(path, doc):
   """A read-only property: the task's attribute at `path` ('a.b')."""
   return property(operator.attrgetter(path), doc=doc)
 
 
-class HrcTask(composer.Task):
-  """A robot, a gripper and a human in the workcell, shielded."""
+class HrcTask(composer.Task, options_lib.OptionNames):
+  """A robot, a gripper and a human in the workcell, shielded. Its options
+  read as attributes by their names (`options.OptionNames`: horizon,
+  reward_kind, fast_path, ...)."""
 
   # Task facts (docs/reference_benchmark.md, Tasks); subclasses override.
-  # `defaults()` checks them all (tasks/defaults.py).
+  # Each is documented at its field of `defaults.TaskDefaults`, which
+  # `defaults()` checks.
   MOTIONS = 'reach'                          # shipped library name
-  # The events that end the person's idle phases, in the order the phases
-  # occur: the task triggers them (`_human_events`) and its clips must wait
-  # for exactly these (`motions.check_motions`). Event names are strings
-  # (shipped ones: `clip.Event`), so a task may declare new ones.
-  EVENTS = ()
+  EVENTS = ()                                # ends of the idle phases
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
   TABLE = layout.DEFAULT_TABLE               # layout.Table
   HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)    # uniform +- (x, y, yaw)
@@ -126,29 +120,10 @@ class HrcTask(composer.Task):
   HAS_GRIPPER_ACTION = True
   OBSERVATION_PRESETS = {}                   # name -> observable names
   EXTRA_COUNTERS = ()
-  # Collision prevention keeps the tool capsule out of the table (None) or
-  # lets it dip in by its radius minus this clearance (m): the fingertips
-  # stay this far above the table, low enough to grasp objects lying on it.
-  FINGERTIP_TABLE_CLEARANCE = None
+  FINGERTIP_TABLE_CLEARANCE = None           # m, or None
   CARTESIAN_YAW = actions.GRIPPER_YAW        # rad, gripper yaw of IK goals
   GRIP_FORCE = gripper_lib.GRIP_FORCE        # N, the gripper's squeeze
-  # Attribute names that hold the task's own episode state (snapshots).
-  TASK_STATE = ()
-
-  # The options (tasks/options.py) by the names tasks and users read.
-  reward_kind = _option('reward', 'The reward, one of REWARDS.')
-  reward_delay = _option('reward_delay', 'RL steps task rewards are late.')
-  done_at_success = _option('done_at_success', 'Success ends the episode.')
-  collision_prevention_policy = _option(
-      'collision_prevention', "A collision prevention policy or 'off'.")
-  time_limit = _option('time_limit', 's, the episode length.')
-  horizon = _option('horizon', 'RL steps of time_limit.')
-  collision_reward = _option('collision_reward', '<= 0, of illegal contacts.')
-  fast_path = _option('fast_path', 'Whether the fast path runs.')
-  shield_mode = _option('shield', 'The shield mode (safety/modes.py).')
-  shield_substeps = _option('shield_substeps', 'Physics steps per RL step.')
-  critical_speed = _option('critical_speed',
-                           'm/s, human contacts faster are critical.')
+  TASK_STATE = ()                            # attributes, for snapshots
 
   def __init__(self, robot='panda', action_space=None, shield=None,
                shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
@@ -165,16 +140,8 @@ class HrcTask(composer.Task):
     """Builds the scene from the checked arguments (`self.options`).
 
     Args:
-      robot, action_space, shield, shield_substeps, physics_timestep,
-        control_timestep, reward, reward_delay, done_at_success,
-        collision_prevention, time_limit, v_safe, critical_speed,
-        collision_reward, fast_path: the fields of `options.TaskOptions`
-        (None: the task's default), documented there.
-      motions, outside_human_model, observations, observation_noise,
-        observation_delay, cameras, camera_size, cost: checked by the
-        modules that interpret them; documented in `options.TaskOptions`.
-
-    docs/tasks.md ("Task kwargs") is the users' table of them all.
+      robot, ..., fast_path: the task's options, each documented in
+        `options.TaskOptions` (docs/tasks.md, "Task kwargs": the table).
     """
     defaults = type(self).defaults()
     options = options_lib.TaskOptions.of(
@@ -215,7 +182,6 @@ class HrcTask(composer.Task):
         self._player, self._playback, self._shield, self._grips,
         self._stepper, self._metrics)
     self._physics_ptr = None
-    self._episode_data = None   # MjData of the last initialised episode.
     self._restored = False      # set_state since the last step
     self._init_episode_state()
     self._task_obs, names = observations_lib.task_observables(
@@ -233,47 +199,29 @@ class HrcTask(composer.Task):
     """The task's class constants, checked (`defaults.TaskDefaults`)."""
     return defaults_lib.TaskDefaults.of(cls)
 
-  # ------------------------------------------------------------ properties
-
   # The task's parts and what it reports, read-only.
-  root_entity = _read('_arena', 'The workcell, composer\'s root entity.')
-  arena = _read('_arena', 'The workcell (entities/workcell.py).')
+  root_entity = arena = _read('_arena', 'The workcell (entities/).')
   robot = _read('_robot', 'The robot arm (entities/robot.py).')
   gripper = _read('_gripper', 'The parallel gripper (entities/gripper.py).')
   human = _read('_human', 'The person (entities/human.py).')
   player = _read('_player', "The person's clip player (human/player.py).")
   shield = _read('_shield', 'The shield (safety/shield.py).')
   kinematics = _read('_kinematics', "The robot's kinematic model for IK.")
-  tool_capsule = _read(
-      '_tool_capsule', "(p1, p2, radius) of the gripper's enclosing capsule "
-      'in the last link\'s frame, as the shield and collision prevention '
-      'use it.')
-  collision_checker = _read('_collision_checker',
-                            'Collision prevention (safety/).')
-  action_space_name = _read('_action_space.name',
-                            "The action space, 'joint' or 'cartesian'.")
-  episode_metrics = _read('_metrics.episode',
-                          'Metrics of the episode so far (a dict of numbers).')
-  step_metrics = _read('_metrics.step',
-                       'Metrics of the last RL step (a dict of numbers).')
-  clip_ended = _read('_episode.clip_ended',
-                     "True if the human's clip ended during the last RL step.")
-  clips_completed = _read('_episode.clip_index',
-                          'Clips the human has completed this episode.')
-  task_observables = _read('_task_obs', 'The observables, name -> observable.')
-  observables = _read(
-      '_task_obs', "The observation's observables: the task's names only. "
-      "Entity observables join it under the task's names (e.g. the robot's "
-      "`joint_positions`, a prop's `position` as 'object_position'), not "
-      "under composer's 'entity/name'.")
-  one_substep = _read(
-      '_stepper.one_substep', "Whether run_physics_steps runs the RL step's "
-      "physics steps as composer's one substep: set by `suite.Environment` "
-      'on the fast path.')
-  physics_steps = _read('_stepper.physics_steps', 'The hooks of every '
-                        'physics step (`substeps.PhysicsSteps`).')
-  restored = _read('_restored', 'Whether a running episode was restored '
-                   'since the last step.')
+  tool_capsule = _read('_tool_capsule', '(p1, p2, radius), last link frame.')
+  collision_checker = _read('_collision_checker', 'Collision prevention.')
+  action_space_name = _read('_action_space.name', "'joint' or 'cartesian'.")
+  episode_metrics = _read('_metrics.episode', 'The episode so far: a dict.')
+  step_metrics = _read('_metrics.step', 'The last RL step: a dict.')
+  clip_ended = _read('_episode.clip_ended', 'A clip ended in the last step.')
+  clips_completed = _read('_episode.clip_index', 'Clips done this episode.')
+  # The observation's observables, under the task's names only (e.g. the
+  # robot's `joint_positions`, a prop's `position` as 'object_position'),
+  # not under composer's 'entity/name'.
+  observables = task_observables = _read('_task_obs', 'name -> observable.')
+  one_substep = _read('_stepper.one_substep',
+                      "The RL step's physics steps: one composer substep.")
+  physics_steps = _read('_stepper.physics_steps', 'substeps.PhysicsSteps.')
+  restored = _read('_restored', 'An episode was restored since the step.')
 
   @property
   def q_goal(self):
@@ -307,8 +255,6 @@ class HrcTask(composer.Task):
   def action_spec(self, physics):
     del physics
     return actions.action_spec(self._action_space, self.HAS_GRIPPER_ACTION)
-
-  # ------------------------------------------------------ subclass hooks
 
   def _build_task(self):
     """Adds the task's entities; append object geoms to _object_geoms."""
@@ -374,8 +320,6 @@ class HrcTask(composer.Task):
     be earned once only."""
     return None
 
-  # ---------------------------------------------------------- human grips
-
   def _add_holdable(self, body):
     """Makes `body` holdable by the human (before compiling); returns its
     welds {hand: weld element}."""
@@ -392,8 +336,6 @@ class HrcTask(composer.Task):
   def _model_changed(self):
     """The task changed the model (e.g. weld data): forward after the step."""
     self._grips.mark_changed()
-
-  # ---------------------------------------------------------------- episode
 
   def _init_episode_state(self):
     self._episode = episode_lib.EpisodeProgress(
@@ -423,7 +365,7 @@ class HrcTask(composer.Task):
       raise composer.EpisodeInitializationError(
           f'MuJoCo physics error while initialising the episode: {error}'
       ) from error
-    self._episode_data = physics.data.ptr   # set_state needs an episode.
+    self._snapshots.episode_started(physics)   # set_state needs one.
 
   def _initialize_episode(self, physics, random_state):
     if physics.data.ptr is not self._physics_ptr:
@@ -442,8 +384,6 @@ class HrcTask(composer.Task):
     self._metrics.reset()
     physics.forward()
     self._initialize_task(physics, random_state)
-
-  # ------------------------------------------------------------- step loop
 
   def before_step(self, physics, action, random_state):
     del random_state
@@ -498,11 +438,9 @@ class HrcTask(composer.Task):
 
   def _physics_step_writes(self, physics):
     """What `_before_physics_step` writes before each of this RL step's
-    physics steps, computed at its start for the compiled loop
-    (tasks/physics_loop.py): up to two groups (target (n,) array, indices
-    (m,), values (L, m): target[indices] = values[k] before physics step
-    k), the same values as `_before_physics_step` writes; None where they
-    cannot be computed ahead (the Python loop runs then)."""
+    physics steps, for the compiled loop (tasks/physics_loop.py): up to two
+    (target (n,), indices (m,), values (L, m)), target[indices] = values[k]
+    before physics step k; None: the Python loop runs."""
     del physics
     return None
 
@@ -523,8 +461,7 @@ class HrcTask(composer.Task):
     if self._stepper.cut_short:
       self._end_at_physics_error()
       return
-    q = physics.data.qpos[self._qpos_index]
-    self_collision = self._self_colliding(q)   # tasks/self_collision.py
+    self_collision = self._self_colliding(physics.data.qpos[self._qpos_index])
     progress.follow_clips(self._player.clip_index)
     self._grips.clear()
     step = dict(self._update_task(physics))
@@ -540,25 +477,18 @@ class HrcTask(composer.Task):
     success = bool(step.get('success', 0.0))
     failed = bool(self._failed(physics))
     progress.finish_step(task_reward, success, failed, illegal, self.options)
-    step.update(self._step_info)
-    step['reward'] = progress.reward
-    step['self_collisions'] = int(self_collision)
-    step['goals_reached'] = int(success)
+    step.update(self._step_info, reward=progress.reward,
+                self_collisions=int(self_collision), goals_reached=int(success))
     self._record(step)
 
   def _end_at_physics_error(self):
-    """The RL step was cut short by a MuJoCo physics error, which the
-    environment caught (suite.load: raise_exception_on_physics_error=False)
-    and reports as the last step with reward 0 and discount 0. MuJoCo has
-    reset the state, so the task's logic is skipped; rewards still owed
-    (reward_delay) are forfeited. Contacts up to the error are counted."""
+    """Ends an RL step cut short by a physics error (module doc): the
+    task's logic is skipped, contacts up to the error are counted."""
     self._episode.stop_at_physics_error()
     self._stepper.stop_at_physics_error()
-    step = {'success': 0.0}
-    step.update(self._step_info)
-    step.update(reward=0.0, self_collisions=0, goals_reached=0,
-                physics_errors=1)
-    self._record(step)
+    self._record({'success': 0.0, **self._step_info, 'reward': 0.0,
+                  'self_collisions': 0, 'goals_reached': 0,
+                  'physics_errors': 1})
 
   def _record(self, step):
     """Adds the metrics every RL step reports; records the step."""
@@ -579,8 +509,6 @@ class HrcTask(composer.Task):
     del physics
     return self._episode.discount
 
-  # -------------------------------------------------------------- snapshots
-
   def get_state(self, physics):
     """A snapshot of the episode: physics, human, shield, task, metrics
     (`snapshots.EpisodeSnapshots`)."""
@@ -592,14 +520,6 @@ class HrcTask(composer.Task):
     an environment that has been reset. A snapshot of a running episode
     restored after a LAST step continues at the next step (environments
     of suite.load) instead of being discarded by a reset."""
-    if physics.data.ptr is not self._episode_data:
-      # composer.Environment resets at its first step, which would draw a
-      # new episode over the restored one.
-      raise ValueError('set_state needs an environment that has been reset: '
-                       'this physics has no episode yet (call env.reset() '
-                       'before env.task.set_state(env.physics, state))')
     own = self._snapshots.restore(physics, state, self._episode)
     self._set_task_state(physics, own)
-    # A running episode was restored: its next step continues it, also
-    # after a LAST step (suite.Environment does not reset then).
     self._restored = not self._episode.terminate

@@ -46,23 +46,33 @@ def _names(value):
 
 @dataclasses.dataclass(frozen=True)
 class TaskDefaults:
-  """The class constants of a task (see HrcTask for their meaning)."""
+  """The class constants of a task (CONSTANTS names each field's)."""
   motions: str                      # a shipped motion library
-  events: Tuple[str, ...]           # event names, in the clips' order
-  human_station: Tuple[float, float, float]
+  # The events that end the person's idle phases, in the order the phases
+  # occur: the task triggers them (`_human_events`) and its clips must
+  # wait for exactly these (`motions.check_motions`). Event names are
+  # strings (shipped ones: `clip.Event`), so a task may declare new ones.
+  events: Tuple[str, ...]
+  human_station: Tuple[float, float, float]   # (x, y, yaw), layout.py
   table: layout.Table
+  # Uniform +- (x, y, yaw) about the station.
   human_placement_range: Tuple[float, float, float]
   shield: str                       # a registered shield mode
   action_space: str
   rewards: Tuple[str, ...]          # the first is the default
   reward_delay: int                 # RL steps
   horizon: int                      # RL steps
-  has_gripper_action: bool
+  has_gripper_action: bool          # the action's last entry: the gripper
   observation_presets: Mapping[str, Tuple[str, ...]]
-  extra_counters: Tuple[str, ...]
+  extra_counters: Tuple[str, ...]   # the task's episode metrics
+  # Collision prevention keeps the tool capsule out of the table (None) or
+  # lets it dip in by its radius minus this clearance (m): the fingertips
+  # stay this far above the table, low enough to grasp objects lying on
+  # it.
   fingertip_table_clearance: Optional[float]
-  cartesian_yaw: float
-  grip_force: float
+  cartesian_yaw: float              # rad, the gripper yaw of IK goals
+  grip_force: float                 # N, the gripper's squeeze
+  # Attribute names that hold the task's own episode state (snapshots).
   task_state: Tuple[str, ...]
   owner: str = 'HrcTask'            # the class, for error messages
 

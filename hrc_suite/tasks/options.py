@@ -12,6 +12,7 @@ and delay, cameras (tasks/observations.py).
 
 import dataclasses
 import math
+import operator
 
 from hrc_suite import robot_description
 from hrc_suite.entities import workcell as workcell_lib
@@ -199,3 +200,26 @@ class TaskOptions:
         critical_speed=positive('critical_speed', critical_speed),
         collision_reward=float(collision_reward),
         fast_path=_flag('fast_path', fast_path))
+
+
+def _option(name, doc):
+  """A read-only property: the option `name` of `self.options`."""
+  return property(operator.attrgetter(f'options.{name}'), doc=doc)
+
+
+class OptionNames:
+  """The options of `self.options` (a TaskOptions) by the names tasks and
+  users read, read-only (HrcTask has them)."""
+  reward_kind = _option('reward', 'The reward, one of REWARDS.')
+  reward_delay = _option('reward_delay', 'RL steps task rewards are late.')
+  done_at_success = _option('done_at_success', 'Success ends the episode.')
+  collision_prevention_policy = _option(
+      'collision_prevention', "A collision prevention policy or 'off'.")
+  time_limit = _option('time_limit', 's, the episode length.')
+  horizon = _option('horizon', 'RL steps of time_limit.')
+  collision_reward = _option('collision_reward', '<= 0, of illegal contacts.')
+  fast_path = _option('fast_path', 'Whether the fast path runs.')
+  shield_mode = _option('shield', 'The shield mode (safety/modes.py).')
+  shield_substeps = _option('shield_substeps', 'Physics steps per RL step.')
+  critical_speed = _option('critical_speed',
+                           'm/s, human contacts faster are critical.')

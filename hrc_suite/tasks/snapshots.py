@@ -69,6 +69,16 @@ class EpisodeSnapshots:
     self._grips = grips
     self._stepper = stepper
     self._metrics = metrics
+    self._episode_data = None   # MjData of the last initialised episode.
+
+  def episode_started(self, physics):
+    """Notes that an episode was initialised in `physics` (restore needs
+    one).
+
+    Args:
+      physics: the environment's physics.
+    """
+    self._episode_data = physics.data.ptr
 
   def take(self, physics, progress, own_state):
     """A snapshot of the episode (module doc).
@@ -114,6 +124,12 @@ class EpisodeSnapshots:
       state: the snapshot.
       progress: the episode's `episode.EpisodeProgress`.
     """
+    if physics.data.ptr is not self._episode_data:
+      # composer.Environment resets at its first step, which would draw a
+      # new episode over the restored one.
+      raise ValueError('set_state needs an environment that has been reset: '
+                       'this physics has no episode yet (call env.reset() '
+                       'before env.task.set_state(env.physics, state))')
     size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
     physics_state = np.asarray(state['physics'], dtype=np.float64)
     if physics_state.shape != (size,):
