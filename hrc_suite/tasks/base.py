@@ -7,9 +7,10 @@ step is exactly L shield cycles.
 
 * before_step: validate the action (NaN/inf or a wrong shape raise a
   ValueError; entries outside [-1, 1] are clipped), map it to a joint goal
-  (`actions`), let collision prevention replace it if its straight joint
-  path hits the workcell or the robot itself, then `shield.new_goal`. The
-  last action dimension drives the gripper where the task has one.
+  (`actions.step_goal`), let collision prevention replace it if its
+  straight joint path hits the workcell or the robot itself, then
+  `shield.new_goal`. The last action dimension drives the gripper where
+  the task has one.
 * The RL step's physics steps: the person's pose, the shield's command,
   the joint tracking controller, the task's own work
   (`_before_physics_step`), the physics step, the tracking check (a
@@ -32,11 +33,16 @@ step is exactly L shield cycles.
   settling steps) raises composer.EpisodeInitializationError, so the
   environment draws the episode again (docs/safety.md, "Physics errors").
 
-Subclasses set the class constants below and override `_build_task`,
-`_initialize_task`, `_update_task`, `_task_reward`, and optionally
-`_human_events`, `_failed` and `_task_observables` (name -> observable;
-an entity's own observable where the entity declares the quantity, e.g.
-`self._board.observables.position`). Hooks they use:
+The scene (workcell, robot, gripper, person, shield, collision
+prevention, the person's clips) is built by `scene.build`, the
+observables by `observations`.
+
+Subclasses set the class constants below (tasks/defaults.py documents
+them) and override `_build_task`, `_initialize_task`, `_update_task`,
+`_task_reward`, `_task_reward_range` (tasks/reward_bounds.py), and
+optionally `_human_events`, `_failed` and `_task_observables` (name ->
+observable; an entity's own observable where the entity declares the
+quantity, e.g. `self._board.observables.position`). Hooks they use:
 
 * TASK_STATE names the attributes that hold the task's episode state;
   snapshots copy them (or override `_task_state(physics)` /
@@ -78,6 +84,7 @@ from hrc_suite.tasks import grips as grips_lib
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import observations as observations_lib
 from hrc_suite.tasks import options as options_lib
+from hrc_suite.tasks import reward_bounds
 from hrc_suite.tasks import scene as scene_lib
 from hrc_suite.tasks import shielded_stepping
 from hrc_suite.tasks import snapshots
@@ -99,10 +106,12 @@ def _read(path, doc):
   return property(operator.attrgetter(path), doc=doc)
 
 
-class HrcTask(composer.Task, options_lib.OptionNames):
+class HrcTask(composer.Task, options_lib.OptionNames,
+              reward_bounds.RewardBounds):
   """A robot, a gripper and a human in the workcell, shielded. Its options
   read as attributes by their names (`options.OptionNames`: horizon,
-  reward_kind, fast_path, ...)."""
+  reward_kind, fast_path, ...), its reward bounds come from its reward
+  hooks (`reward_bounds.RewardBounds`: reward_range, min_task_return)."""
 
   # Task facts (docs/reference_benchmark.md, Tasks); subclasses override.
   # Each is documented at its field of `defaults.TaskDefaults`, which
@@ -159,10 +168,8 @@ class HrcTask(composer.Task, options_lib.OptionNames):
     self._arena, self._robot = scene.arena, scene.robot
     self._gripper, self._human = scene.gripper, scene.human
     self._kinematics, self._shield = scene.kinematics, scene.shield
-    self._tool_capsule = scene.tool_capsule
     self.tool_table_allowance = scene.tool_table_allowance
     self._collision_checker = scene.collision_checker
-    self._self_colliding = scene.self_colliding
     self._action_space = scene.action_space
     self._player, self._playback = scene.player, scene.playback
     self._stepper = shielded_stepping.ShieldedStepper(
@@ -207,7 +214,8 @@ class HrcTask(composer.Task, options_lib.OptionNames):
   player = _read('_player', "The person's clip player (human/player.py).")
   shield = _read('_shield', 'The shield (safety/shield.py).')
   kinematics = _read('_kinematics', "The robot's kinematic model for IK.")
-  tool_capsule = _read('_tool_capsule', '(p1, p2, radius), last link frame.')
+  tool_capsule = _read('_scene.tool_capsule',
+                       '(p1, p2, radius) in the last link frame.')
   collision_checker = _read('_collision_checker', 'Collision prevention.')
   action_space_name = _read('_action_space.name', "'joint' or 'cartesian'.")
   episode_metrics = _read('_metrics.episode', 'The episode so far: a dict.')
@@ -296,30 +304,6 @@ class HrcTask(composer.Task, options_lib.OptionNames):
     """Task-specific observables: name -> observable."""
     return {}
 
-  @property
-  def reward_range(self):
-    """(lowest, highest) reward of one RL step."""
-    low, high = self._task_reward_range()
-    return low + min(self.collision_reward, 0.0), high
-
-  def _task_reward_range(self):
-    return (0.0, 0.0)
-
-  @property
-  def min_task_return(self):
-    """The lowest possible episode return of the task's reward, the 0 of
-    the paper's normalised return (`episode.min_task_return`)."""
-    return episode_lib.min_task_return(
-        self._task_reward_range()[0], self._task_failure_reward(),
-        self.horizon)
-
-  def _task_failure_reward(self):
-    """None, or (the reward of the step that ends an episode in failure,
-    the lowest reward of any other step) where the failure's reward is the
-    task's lowest and ends the episode (lifting, stacking), so that it can
-    be earned once only."""
-    return None
-
   def _add_holdable(self, body):
     """Makes `body` holdable by the human (before compiling); returns its
     welds {hand: weld element}."""
@@ -407,9 +391,8 @@ class HrcTask(composer.Task, options_lib.OptionNames):
   def physics_steps_per_control_step(self):
     """Composer's substeps per RL step: shield_substeps, or 1 when the
     task runs the RL step's physics steps itself (`one_substep`)."""
-    if self._stepper.one_substep:
-      return 1
-    return super().physics_steps_per_control_step
+    return (1 if self._stepper.one_substep
+            else super().physics_steps_per_control_step)
 
   def use_one_substep(self):
     """One composer substep per RL step if the fast path is on and no
@@ -421,9 +404,8 @@ class HrcTask(composer.Task, options_lib.OptionNames):
     self._stepper.prepare_physics_step(physics)
 
   def run_physics_steps(self, physics, action, random_state):
-    """The RL step's physics steps, each with the hooks composer runs
-    around a substep (`one_substep`: suite.Environment's only substep;
-    `ShieldedStepper.run_physics_steps`)."""
+    """The RL step's physics steps as suite.Environment's only substep
+    (`one_substep`; `ShieldedStepper.run_physics_steps`)."""
     self._stepper.run_physics_steps(physics, action, random_state)
 
   def after_substep(self, physics, random_state):
@@ -461,7 +443,8 @@ class HrcTask(composer.Task, options_lib.OptionNames):
     if self._stepper.cut_short:
       self._end_at_physics_error()
       return
-    self_collision = self._self_colliding(physics.data.qpos[self._qpos_index])
+    self_collision = self._scene.self_colliding(
+        physics.data.qpos[self._qpos_index])
     progress.follow_clips(self._player.clip_index)
     self._grips.clear()
     step = dict(self._update_task(physics))

@@ -5,13 +5,11 @@ shield, the stepping and the metrics): the joint goal of the last action,
 the RL steps taken, the reward and discount of the last one and the task
 rewards still owed (reward_delay), whether the episode ends, collision
 prevention's random state and the person's clip count. Snapshots save and
-restore it (tasks/snapshots.py). `min_task_return` bounds an episode's
-return of the task's reward from below.
+restore it (tasks/snapshots.py).
 """
 
 import collections
 import dataclasses
-from typing import Optional, Tuple
 
 import numpy as np
 
@@ -91,25 +89,3 @@ class EpisodeProgress:
       reward = 0.0
     return reward
 
-
-def min_task_return(lowest: float,
-                    failure: Optional[Tuple[float, float]],
-                    horizon: int) -> float:
-  """The lowest possible episode return of a task's reward (no collision
-  penalty: the paper's runs had none), the 0 of the paper's normalised
-  return (docs/reference_benchmark.md, Training and evaluation).
-
-  Without a failure reward, the lowest step reward L for every step of
-  the horizon H; with one, F, and the other steps' lowest reward L, also F
-  after H - 1 steps of L (or at once where L > 0):
-  min(L H, F + min(L, 0) (H - 1)).
-
-  Args:
-    lowest: the lowest reward of one RL step (`HrcTask._task_reward_range`).
-    failure: None, or (F, L) (`HrcTask._task_failure_reward`).
-    horizon: H, RL steps.
-  """
-  if failure is None:
-    return lowest * horizon
-  failed, lowest = failure
-  return min(lowest * horizon, failed + min(lowest, 0.0) * (horizon - 1))
