@@ -20,13 +20,18 @@ CHANGELOG.md.
 import argparse
 import hashlib
 import json
+import os
 import sys
 import time
 
 import numpy as np
 
-from hrc_suite import experts
-from hrc_suite import suite
+# The checkout this script belongs to, before an installed hrc_suite: the
+# script proves what its own tree computes.
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(
+    __file__))))
+from hrc_suite import experts   # pylint: disable=wrong-import-position
+from hrc_suite import suite   # pylint: disable=wrong-import-position
 
 
 def _update(digest, value):
