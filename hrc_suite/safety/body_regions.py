@@ -15,8 +15,9 @@ v_max = F_T / sqrt(mu k).
 The numbers (force, pressure, stiffness and effective mass per region) and
 their provenance are in hrc_suite/assets/human/body_regions.json (read
 from public tables quoting the standard; the standard itself was not
-consulted). Each body capsule of the shield's human model lists the
-regions it covers; its limits are the smallest of theirs.
+consulted: docs/safety.md, "Energy limits of body regions"). Each body
+capsule of the shield's human model lists the regions it covers; its
+limits are the smallest of theirs.
 """
 
 import dataclasses

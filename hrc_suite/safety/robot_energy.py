@@ -11,9 +11,8 @@ mass and inertia tensors from the robot description, the gripper and a
 held object as a payload of the last link, and each joint's reflected
 rotor inertia, the armature, on its diagonal). E_n is the arm's whole
 kinetic energy. Joints beyond j keep moving after link j stops and are
-left out, as in the SaRA shield's energy check
-(../shared/docs/pfl-energy.md, "How the SaRA shield's newer versions
-check it").
+left out, as in the SaRA shield's energy check (docs/safety.md,
+"Energy limits of body regions").
 
 E_j bounds what a contact at link j can take from the arm's motion: the
 contact's velocity v_u = u^T J_j dq along its direction u depends on
