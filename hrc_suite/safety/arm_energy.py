@@ -104,8 +104,10 @@ class ArmEnergyModel:
     pinocchio reference (robot_energy.ArmInertia)."""
     q, dq = np.broadcast_arrays(self._check(q, 'q'), self._check(dq, 'dq'))
     batch = q.shape[:-1]
-    q = np.ascontiguousarray(q.reshape(-1, self.dof))
-    dq = np.ascontiguousarray(dq.reshape(-1, self.dof))
+    # Writeable copies: one kernel signature (broadcast views are
+    # read-only).
+    q = np.array(q.reshape(-1, self.dof), dtype=float, order='C')
+    dq = np.array(dq.reshape(-1, self.dof), dtype=float, order='C')
     if compiled:
       out = energy_kernels.link_energies(q, dq, self.fixed, self.masses,
                                          self.centres, self.inertias,

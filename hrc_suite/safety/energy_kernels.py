@@ -268,8 +268,11 @@ def warm_up():
   values = np.zeros(dof)
   link_energies(np.zeros((1, dof)), np.zeros((1, dof)), fixed, values,
                 vectors, matrices, values)
-  bounds = energy_bounds(np.zeros((2, 4, dof)), fixed, values, vectors,
-                         matrices, values, np.zeros((dof, dof)), values,
-                         values, 0.002)
+  samples = np.zeros((2, 4, dof))
+  for writeable in (True, False):   # Plans' samples: both occur.
+    samples.flags.writeable = writeable
+    bounds = energy_bounds(samples, fixed, values, vectors, matrices,
+                           values, np.zeros((dof, dof)), values, values,
+                           0.004)
   energy_tables(bounds, 6)
   _warm = True
