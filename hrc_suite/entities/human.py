@@ -35,6 +35,8 @@ from dm_control.composer.observation import observable
 from hrc_suite import rotations
 from hrc_suite.entities import collision_groups
 from hrc_suite.entities import element_ids
+from hrc_suite.entities import human_playback
+from hrc_suite.entities import human_segments
 from hrc_suite.human import body as body_lib
 from hrc_suite.human import keypoints
 
@@ -47,7 +49,9 @@ CAPSULE_RADII = {
     'upper_arm': 0.05, 'forearm': 0.04, 'hand': 0.045,
     'thigh': 0.075, 'shin': 0.055,
 }
-SEGMENTS = keypoints.SEGMENTS + (('pelvis', 'left_hip', 'right_hip'),)
+# The capsules' segments and frames (entities/human_segments.py).
+SEGMENTS = human_segments.SEGMENTS
+segment_frames = human_segments.segment_frames
 HANDS = ('left', 'right')
 _SKIN = (0.85, 0.65, 0.5, 1.0)
 # Collision bit of a held object (unused by collision_groups' scheme): every
@@ -64,50 +68,12 @@ def _part(name):
       else name
 
 
-_NEXT = np.array([1, 2, 0])
-_PREV = np.array([2, 0, 1])
-
-
 def row_norms(vectors):
   """np.linalg.norm of each row of (n, k) vectors, each exactly as on one
   row (np.linalg.norm takes a row's dot product through BLAS; a stacked
   np.matmul does the same row by row, where a sum of squares would round
   differently)."""
   return np.sqrt(np.matmul(vectors[:, None, :], vectors[:, :, None])[:, 0, 0])
-
-
-def _row_dots(x, y):
-  """Row-wise dot products of (N, 3) arrays, summed in a fixed order
-  (terms 0 + 2, then 1): the order np.einsum('ij,ij->i') took on this
-  machine, written out so that the compiled frames (human_kernels) match
-  on any machine."""
-  products = x * y
-  return (products[:, 0] + products[:, 2]) + products[:, 1]
-
-
-def segment_frames(positions, proximal, distal, reference):
-  """Midpoints (S, 3), half lengths (S,) and quaternions (S, 4) of segments.
-
-  The frame's z axis runs along the segment; x is `reference` made
-  orthogonal to it (or, where the two are nearly parallel, the horizontal
-  perpendicular of z), so frames change continuously with the keypoints.
-  """
-  a = positions[proximal]
-  b = positions[distal]
-  axis = b - a
-  length = np.sqrt(_row_dots(axis, axis))
-  z = axis / np.maximum(length, 1e-9)[:, None]
-  x = reference - _row_dots(reference, z)[:, None] * z
-  norm = np.sqrt(_row_dots(x, x))
-  weak = norm < 0.2
-  if weak.any():
-    fallback = np.stack([-z[weak, 1], z[weak, 0], np.zeros(weak.sum())], -1)
-    fallback[np.abs(fallback).sum(-1) < 1e-6] = (1.0, 0.0, 0.0)
-    x[weak] = fallback
-    norm[weak] = np.sqrt(_row_dots(fallback, fallback))
-  x /= norm[:, None]
-  y = z[:, _NEXT] * x[:, _PREV] - z[:, _PREV] * x[:, _NEXT]   # z cross x
-  return 0.5 * (a + b), 0.5 * length, rotations.axes_to_quat(x, y, z)
 
 
 class Human(composer.Entity):
@@ -254,7 +220,7 @@ class Human(composer.Entity):
     reference[:8] = (positions[k['left_shoulder']]
                      - positions[k['right_shoulder']])
     reference[8:12] = positions[k['left_hip']] - positions[k['right_hip']]
-    mid, _, quat = segment_frames(positions, self._proximal, self._distal,
+    mid, _, quat = human_segments.segment_frames(positions, self._proximal, self._distal,
                                   reference)
     data = physics.data
     data.mocap_pos[cache['segment_mocap']] = mid
@@ -302,8 +268,6 @@ class Human(composer.Entity):
     time). The task triggers the player's events itself. None stops
     following.
     """
-    # Imported here: human_playback builds on this module.
-    from hrc_suite.entities import human_playback
     self._player = player
     self._playback = (None if player is None else
                       human_playback.HumanPlayback(self, player, substeps=1))
