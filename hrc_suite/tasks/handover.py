@@ -194,7 +194,8 @@ class _Handover(base.HrcTask):
     self._at_target = False
 
   @property
-  def hammer(self):
+  def hammer(self) -> props.Hammer:
+    """The hammer handed over."""
     return self._hammer
 
   # ------------------------------------------------------------ progress
@@ -257,8 +258,15 @@ class _Handover(base.HrcTask):
 
   # -------------------------------------------------------- observables
 
-  def target(self, physics):
-    """World position of the target (palm or table target)."""
+  def target(self, physics: mjcf.Physics) -> np.ndarray:
+    """World position of the target (the palm, or the table target).
+
+    Args:
+      physics: the environment's physics.
+
+    Returns:
+      (3,) the position.
+    """
     return self._target(physics)
 
   def _target(self, physics):
