@@ -13,10 +13,12 @@ The cost of a step is read from the next timestep's observation entry
 step's safety cost, hrc_suite/tasks/cost.py); without one it is 0.
 """
 
-from typing import Callable, Dict, Optional
+from typing import Any, Callable, Dict, Mapping, Optional
 
 import dm_env
 import numpy as np
+
+from agents import replay as replay_lib
 
 # Name of the cost observable (hrc_suite/tasks/observations.py,
 # COST_OBSERVABLES; the observation entries that are signals, not state).
@@ -24,8 +26,20 @@ COST_KEY = 'cost'
 COST_OBSERVATIONS = ('cost', 'cost_components')
 
 
-def step_cost(observation, cost_key: Optional[str]) -> float:
-  """The cost an observation reports under `cost_key`, or 0 without one."""
+def step_cost(observation: Mapping[str, Any],
+              cost_key: Optional[str]) -> float:
+  """The cost an observation reports under `cost_key`, or 0 without one.
+
+  Args:
+    observation: a timestep's observation.
+    cost_key: the entry holding the step's cost, or None.
+
+  Returns:
+    The cost.
+
+  Raises:
+    ValueError: an entry that is not one value.
+  """
   if cost_key is None:
     return 0.0
   value = np.asarray(observation[cost_key])
@@ -47,7 +61,8 @@ class TransitionAdder:
       cost when its last step is added.
   """
 
-  def __init__(self, replay, flatten: Callable, normalise_action: Callable,
+  def __init__(self, replay: replay_lib.ReplayBuffer, flatten: Callable,
+               normalise_action: Callable,
                cost_key: Optional[str] = None,
                on_episode_cost: Optional[Callable[[float], None]] = None):
     self._replay = replay
@@ -60,6 +75,7 @@ class TransitionAdder:
 
   @property
   def cost_key(self) -> Optional[str]:
+    """The observation entry holding the step's cost, or None."""
     return self._cost_key
 
   @property
@@ -68,11 +84,24 @@ class TransitionAdder:
     return self._episode_cost
 
   def add_first(self, timestep: dm_env.TimeStep) -> None:
+    """Starts an episode.
+
+    Args:
+      timestep: the episode's first timestep.
+    """
     self._last_observation = self._flatten(timestep.observation)
     self._episode_cost = 0.0
 
-  def add(self, action, next_timestep: dm_env.TimeStep) -> None:
-    """Stores (s, a, r, discount, s', cost) of the step to next_timestep."""
+  def add(self, action: np.ndarray, next_timestep: dm_env.TimeStep) -> None:
+    """Stores (s, a, r, discount, s', cost) of the step to next_timestep.
+
+    Args:
+      action: the environment action taken.
+      next_timestep: the timestep it led to.
+
+    Raises:
+      RuntimeError: if the episode was not started with `add_first`.
+    """
     if self._last_observation is None:
       raise RuntimeError('observe() called before observe_first() of the '
                          'episode')
@@ -100,7 +129,11 @@ class TransitionAdder:
       arrays['episode_cost'] = np.float64(self._episode_cost)
     return arrays
 
-  def restore(self, arrays: Dict[str, np.ndarray]) -> None:
-    """Restores a `state()` (arrays may hold other entries too)."""
+  def restore(self, arrays: Mapping[str, np.ndarray]) -> None:
+    """Restores a `state()`.
+
+    Args:
+      arrays: a `state()` (it may hold other entries too).
+    """
     self._last_observation = arrays.get('last_observation')
     self._episode_cost = float(arrays.get('episode_cost', 0.0))

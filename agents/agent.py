@@ -48,7 +48,8 @@ observables, agents/adders.py COST_OBSERVATIONS) are not part of the
 policy's input.
 """
 
-from typing import Optional
+import threading
+from typing import Any, Dict, List, Mapping, Optional
 
 import dm_env
 import numpy as np
@@ -57,6 +58,7 @@ from agents import action_scaler
 from agents import adders
 from agents import observations
 from agents import replay as replay_lib
+from agents import specs
 from agents import variable_utils
 
 # Slack on the update credit, a float sum of updates_per_step, before it
@@ -66,8 +68,19 @@ _CREDIT_TOLERANCE = 1e-9
 POLICY = 'policy'   # The variable the actor reads.
 
 
-def derive_seeds(seed, count):
-  """`count` independent 31-bit seeds derived from one seed."""
+def derive_seeds(seed: int, count: int) -> List[int]:
+  """Independent 31-bit seeds derived from one seed.
+
+  Args:
+    seed: an integer >= 0.
+    count: how many.
+
+  Returns:
+    `count` seeds.
+
+  Raises:
+    ValueError: a seed that is not an integer >= 0.
+  """
   if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or (
       seed < 0):
     raise ValueError(f'seed={seed!r}: expected an integer >= 0')
@@ -85,10 +98,15 @@ class Agent:
       sampling draw from independent seeds derived from it.
     images: what the observation flattener does with image observations
       (agents/observations.py).
+
+  Raises:
+    ValueError: a bad seed or images mode, image observations with
+      images='error', or an algorithm that learns from the cost on an
+      environment without the cost observables.
   """
 
-  def __init__(self, environment_spec, builder, seed: int = 0,
-               images: str = 'error'):
+  def __init__(self, environment_spec: specs.EnvironmentSpec, builder: Any,
+               seed: int = 0, images: str = 'error'):
     learner_seed, actor_seed, replay_seed = derive_seeds(seed, 3)
     self._builder = builder
     self._config = builder.config
@@ -136,21 +154,39 @@ class Agent:
 
   # Acme's actor interface.
 
-  def select_action(self, observation) -> np.ndarray:
-    """float64 action within the action spec (sampled from the policy)."""
+  def select_action(self, observation: Mapping[str, Any]) -> np.ndarray:
+    """An action sampled from the acting policy.
+
+    Args:
+      observation: the timestep's observation.
+
+    Returns:
+      float64 action within the action spec.
+    """
     return self._scaler.to_environment(
         self._actor.select_action(self._flatten(observation)))
 
   def observe_first(self, timestep: dm_env.TimeStep) -> None:
+    """Starts an episode.
+
+    Args:
+      timestep: the episode's first timestep.
+    """
     self._adder.add_first(timestep)
 
-  def observe(self, action, next_timestep: dm_env.TimeStep) -> None:
-    """Adds the transition that led to next_timestep."""
+  def observe(self, action: np.ndarray,
+              next_timestep: dm_env.TimeStep) -> None:
+    """Adds the transition that led to next_timestep.
+
+    Args:
+      action: the environment action taken.
+      next_timestep: the timestep it led to.
+    """
     self._adder.add(action, next_timestep)
     self._env_steps += 1
     self._steps_since_update += 1
 
-  def update(self):
+  def update(self) -> Optional[Mapping[str, float]]:
     """Dispatches the learner calls due; the last one's mean metrics (read
     lazily: learning.UpdateMetrics), or None."""
     config = self._config
@@ -169,10 +205,20 @@ class Agent:
       metrics = self.learn(config.fused_steps)
     return metrics
 
-  def learn(self, num_steps: int = 1):
-    """One learner call of `num_steps` gradient steps on fresh replay
-    samples, dispatched asynchronously; its mean metrics. The actor moves
-    to the policy from before this call (module docstring)."""
+  def learn(self, num_steps: int = 1) -> Mapping[str, float]:
+    """One learner call of gradient steps on fresh replay samples,
+    dispatched asynchronously. The actor moves to the policy from before
+    this call (module docstring).
+
+    Args:
+      num_steps: gradient steps, each on batch_size samples.
+
+    Returns:
+      The call's mean metrics (read lazily).
+
+    Raises:
+      ValueError: an empty replay buffer.
+    """
     if len(self._replay) == 0:
       raise ValueError('Cannot learn from an empty replay buffer')
     batch = self._replay.sample(num_steps * self._config.batch_size,
@@ -185,7 +231,7 @@ class Agent:
         for field in batch))
     return self._learner.update_steps(batches)
 
-  def compile_update_in_background(self):
+  def compile_update_in_background(self) -> threading.Thread:
     """Starts compiling the learner call `update` makes (fused_steps
     gradient steps on batches of batch_size) on a background thread
     (the learner's compile_in_background); returns the thread."""
@@ -203,11 +249,17 @@ class Agent:
 
   # Evaluation.
 
-  def policy(self, deterministic: bool = True, seed: int = 0):
+  def policy(self, deterministic: bool = True,
+             seed: int = 0) -> 'TimestepPolicy':
     """Callable timestep -> action with the agent's current parameters.
 
-    Deterministic: tanh(mean). Otherwise samples with its own RandomState
-    seeded by `seed` (the training actor's is left alone).
+    Args:
+      deterministic: tanh(mean) actions; else samples with the policy's own
+        RandomState (the training actor's is left alone).
+      seed: that RandomState's seed.
+
+    Returns:
+      The policy.
     """
     actor = self._builder.make_actor(
         self._networks,
@@ -218,43 +270,53 @@ class Agent:
   # Components (read by agents/agent_checkpoint.py and the tests).
 
   @property
-  def builder(self):
+  def builder(self) -> Any:
+    """The algorithm's builder (agents/builders.py)."""
     return self._builder
 
   @property
-  def config(self):
+  def config(self) -> Any:
+    """The builder's config (e.g. `agents.config.SACConfig`)."""
     return self._config
 
   @property
   def seed(self) -> int:
+    """The seed the agent was built with."""
     return self._seed
 
   @property
   def images(self) -> str:
+    """What the flattener does with image observations."""
     return self._images
 
   @property
-  def networks(self):
+  def networks(self) -> Any:
+    """The builder's networks."""
     return self._networks
 
   @property
-  def learner(self):
+  def learner(self) -> Any:
+    """The builder's learner."""
     return self._learner
 
   @property
-  def replay(self):
+  def replay(self) -> replay_lib.ReplayBuffer:
+    """The replay buffer."""
     return self._replay
 
   @property
-  def actor(self):
+  def actor(self) -> Any:
+    """The training actor."""
     return self._actor
 
   @property
-  def adder(self):
+  def adder(self) -> adders.TransitionAdder:
+    """The writer of transitions into the replay."""
     return self._adder
 
   @property
-  def variable_client(self):
+  def variable_client(self) -> variable_utils.VariableClient:
+    """The acting policy's copy of the learner's parameters."""
     return self._variable_client
 
   @property
@@ -263,15 +325,17 @@ class Agent:
     return self._sample_random_state
 
   @property
-  def flattener(self):
+  def flattener(self) -> observations.ObservationFlattener:
+    """The observation flattener (the policy's input)."""
     return self._flattener
 
   @property
-  def action_scaler(self):
+  def action_scaler(self) -> action_scaler.ActionScaler:
+    """The map between [-1, 1] and the action spec."""
     return self._scaler
 
   @property
-  def acting_policy_params(self):
+  def acting_policy_params(self) -> Any:
     """The policy parameters the actor samples with (module docstring)."""
     return self._variable_client.params
 
@@ -280,15 +344,21 @@ class Agent:
     """Transitions observed."""
     return self._env_steps
 
-  def counters(self) -> dict:
+  def counters(self) -> Dict[str, Any]:
     """The update schedule's counters (for checkpoints)."""
     return {'env_steps': self._env_steps,
             'steps_since_update': self._steps_since_update,
             'update_credit': self._update_credit,
             'learner_steps': self._learner.steps}
 
-  def restore_counters(self, counters: dict, seed: Optional[int]) -> None:
-    """Restores `counters()` (and the seed the agent was built with)."""
+  def restore_counters(self, counters: Mapping[str, Any],
+                       seed: Optional[int]) -> None:
+    """Restores `counters()` and the seed the agent was built with.
+
+    Args:
+      counters: of `counters()`.
+      seed: the seed, or None to keep this agent's.
+    """
     self._env_steps = int(counters['env_steps'])
     self._steps_since_update = int(counters['steps_since_update'])
     self._update_credit = float(counters['update_credit'])
@@ -298,13 +368,28 @@ class Agent:
 
 
 class TimestepPolicy:
-  """timestep -> environment action, through a flattener and an actor."""
+  """timestep -> environment action, through a flattener and an actor.
 
-  def __init__(self, flattener, actor, scaler):
+  Args:
+    flattener: the observation flattener.
+    actor: an actor with select_action(flat observation) -> [-1, 1] action.
+    scaler: the map from [-1, 1] to the action spec.
+  """
+
+  def __init__(self, flattener: observations.ObservationFlattener,
+               actor: Any, scaler: action_scaler.ActionScaler):
     self._flattener = flattener
     self._actor = actor
     self._scaler = scaler
 
-  def __call__(self, timestep):
+  def __call__(self, timestep: dm_env.TimeStep) -> np.ndarray:
+    """The action for a timestep.
+
+    Args:
+      timestep: the environment's timestep.
+
+    Returns:
+      float64 action within the action spec.
+    """
     return self._scaler.to_environment(
         self._actor.select_action(self._flattener(timestep.observation)))

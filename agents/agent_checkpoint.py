@@ -18,8 +18,11 @@ policy, for evaluation and rendering.
 """
 
 import collections
+import os
 import pathlib
+from typing import Any, Dict, Mapping, Optional, Union
 
+import dm_env
 import numpy as np
 
 from agents import action_scaler
@@ -62,8 +65,16 @@ def _restore_random_state(arrays, prefix, random_state):
       float(arrays[f'{prefix}/cached_gaussian'])))
 
 
-def describe(agent) -> dict:
-  """agent.json's entries that identify what the agent is."""
+def describe(agent: agent_lib.Agent) -> Dict[str, Any]:
+  """agent.json's entries that identify what the agent is.
+
+  Args:
+    agent: the agent.
+
+  Returns:
+    The algorithm, its config, the seed, the observation keys and sizes,
+    and the action bounds.
+  """
   scaler = agent.action_scaler
   return {
       'format': CHECKPOINT_FORMAT,
@@ -91,7 +102,9 @@ def _normalised(description):
   return description
 
 
-def save(agent, directory, metadata=None, arrays=None) -> None:
+def save(agent: agent_lib.Agent, directory: Union[str, os.PathLike],
+         metadata: Optional[Mapping[str, Any]] = None,
+         arrays: Optional[Mapping[str, np.ndarray]] = None) -> None:
   """Writes the whole agent to `directory` (replaced atomically).
 
   Args:
@@ -120,9 +133,22 @@ def save(agent, directory, metadata=None, arrays=None) -> None:
     checkpoint_files.save_arrays(staging / 'agent.npz', agent_arrays)
 
 
-def restore(agent, directory) -> CheckpointExtras:
+def restore(agent: agent_lib.Agent,
+            directory: Union[str, os.PathLike]) -> CheckpointExtras:
   """Restores a `save`d agent into one built with the same spec, algorithm
-  and config; returns CheckpointExtras(metadata, arrays) given to `save`."""
+  and config.
+
+  Args:
+    agent: the agent to restore into.
+    directory: the checkpoint directory.
+
+  Returns:
+    CheckpointExtras(metadata, arrays) given to `save`.
+
+  Raises:
+    ValueError: a checkpoint of another agent (spec, algorithm or config),
+      or state arrays that do not match.
+  """
   directory = pathlib.Path(directory)
   description = _normalised(checkpoint_files.load_json(directory /
                                                     'agent.json'))
@@ -160,8 +186,9 @@ def restore(agent, directory) -> CheckpointExtras:
   return CheckpointExtras(description['metadata'], extras)
 
 
-def load_policy(directory, environment, deterministic: bool = True,
-                seed: int = 0):
+def load_policy(directory: Union[str, os.PathLike],
+                environment: dm_env.Environment, deterministic: bool = True,
+                seed: int = 0) -> agent_lib.TimestepPolicy:
   """timestep -> action callable of a saved agent's policy on `environment`.
 
   Reads only agent.json and learner.npz's policy parameters; the
@@ -173,6 +200,13 @@ def load_policy(directory, environment, deterministic: bool = True,
     environment: a dm_env environment with the agent's specs.
     deterministic: tanh(mean) actions, else samples seeded by `seed`.
     seed: the sampling seed.
+
+  Returns:
+    The policy: a timestep -> action callable.
+
+  Raises:
+    ValueError: another checkpoint format, or an environment whose
+      observations or actions differ from the checkpoint's.
   """
   directory = pathlib.Path(directory)
   raw = checkpoint_files.load_json(directory / 'agent.json')

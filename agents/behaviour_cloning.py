@@ -15,12 +15,14 @@ the table is agents.evaluate's.
 """
 
 import dataclasses
+from typing import Any, Dict, List, Sequence, Tuple
 
 from absl import app
 from absl import flags
 import jax
 import jax.numpy as jnp
 import numpy as np
+import dm_env
 import optax
 
 from agents import checkpoints
@@ -52,17 +54,38 @@ class BehaviourCloningConfig:
                        f'{self.learning_rate!r}')
 
 
-def environment(dataset, seed):
-  """The dataset's task (its robot, action space and task kwargs)."""
+def environment(dataset: dataset_lib.Dataset,
+                seed: int) -> suite.Environment:
+  """The dataset's task (its robot, action space and task kwargs).
+
+  Args:
+    dataset: the expert dataset.
+    seed: the environment's seed.
+
+  Returns:
+    The environment.
+  """
   meta = dataset.metadata
   return suite.load(meta['domain'], meta['task'],
                     task_kwargs=dict(meta.get('task_kwargs', {})),
                     environment_kwargs={'random_state': int(seed)})
 
 
-def training_pairs(dataset, flattener):
-  """(observations (n, size), actions (n, action size)), float32: every
-  recorded step that has an action."""
+def training_pairs(dataset: dataset_lib.Dataset,
+                   flattener: observations_lib.ObservationFlattener
+                   ) -> Tuple[np.ndarray, np.ndarray]:
+  """Every recorded step that has an action, as float32 arrays.
+
+  Args:
+    dataset: the expert dataset.
+    flattener: of the environment's observations.
+
+  Returns:
+    (observations (n, size), actions (n, action size)).
+
+  Raises:
+    ValueError: a dataset without steps.
+  """
   inputs, targets = [], []
   for episode in dataset.episodes:
     steps = len(episode.actions)
@@ -76,22 +99,56 @@ def training_pairs(dataset, flattener):
 
 
 class ClonedPolicy:
-  """timestep -> action of a fitted MLP (deterministic)."""
+  """timestep -> action of a fitted MLP (deterministic).
 
-  def __init__(self, module, params, flattener, mean, scale):
+  Args:
+    module: the MLP.
+    params: its parameters.
+    flattener: of the environment's observations.
+    mean: (size,) the observations' mean.
+    scale: (size,) their deviation.
+  """
+
+  def __init__(self, module: networks.MLP, params: Any,
+               flattener: observations_lib.ObservationFlattener,
+               mean: np.ndarray, scale: np.ndarray):
     self._flattener = flattener
     self._mean, self._scale = mean, scale
     self._params = params
     self._apply = jax.jit(lambda p, x: jnp.tanh(module.apply(p, x)))
 
-  def __call__(self, timestep):
+  def __call__(self, timestep: dm_env.TimeStep) -> np.ndarray:
+    """The action for a timestep.
+
+    Args:
+      timestep: the environment's timestep.
+
+    Returns:
+      float64 action in [-1, 1].
+    """
     x = (self._flattener(timestep.observation) - self._mean) / self._scale
     return np.asarray(self._apply(self._params, x[None])[0], np.float64)
 
 
-def fit(inputs, targets, flattener, config=BehaviourCloningConfig(),
-        seed=0):
-  """(ClonedPolicy, final training loss) fitted on (inputs, targets)."""
+def fit(inputs: np.ndarray, targets: np.ndarray,
+        flattener: observations_lib.ObservationFlattener,
+        config: BehaviourCloningConfig = BehaviourCloningConfig(),
+        seed: int = 0) -> Tuple[ClonedPolicy, float]:
+  """Fits the policy to observations and actions.
+
+  Args:
+    inputs: (n, size) observations.
+    targets: (n, action size) actions in [-1, 1].
+    flattener: of the environment's observations.
+    config: the fit's settings.
+    seed: the initial parameters' and batches' seed.
+
+  Returns:
+    (ClonedPolicy, final training loss).
+
+  Raises:
+    ValueError: actions outside [-1, 1].
+  """
   if not np.all(np.abs(targets) <= 1.0):
     raise ValueError('actions must lie in [-1, 1] (the normalised action '
                      'space)')
@@ -123,8 +180,21 @@ def fit(inputs, targets, flattener, config=BehaviourCloningConfig(),
           float(loss))
 
 
-def run(dataset_dir, episodes, seed=0, config=BehaviourCloningConfig()):
-  """Fits and evaluates; returns (per-episode metrics, summary, loss)."""
+def run(dataset_dir: str, episodes: int, seed: int = 0,
+        config: BehaviourCloningConfig = BehaviourCloningConfig()
+        ) -> Tuple[List[Dict[str, float]], Dict[str, Dict[str, float]],
+                   float]:
+  """Fits a policy to a dataset and evaluates it.
+
+  Args:
+    dataset_dir: the expert dataset's directory.
+    episodes: evaluation episodes.
+    seed: the fit's and the evaluation environment's seed.
+    config: the fit's settings.
+
+  Returns:
+    (per-episode metrics, summary, final training loss).
+  """
   dataset = dataset_lib.load_dataset(dataset_dir)
   env = environment(dataset, seed)
   flattener = observations_lib.ObservationFlattener(env.observation_spec())
@@ -135,8 +205,12 @@ def run(dataset_dir, episodes, seed=0, config=BehaviourCloningConfig()):
           evaluate_lib.summary(results, np.random.RandomState(seed)), loss)
 
 
-def define_flags(flag_values=flags.FLAGS):
-  """Defines the binary's flags (only when run as a program)."""
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('dataset', None, 'Expert dataset directory '
                       '(python -m agents.collect_expert).', required=True,
@@ -153,7 +227,14 @@ def define_flags(flag_values=flags.FLAGS):
                       flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Fits and evaluates --dataset, prints the table, writes --output.
+
+  Args:
+    argv: the command line (unused).
+    flag_values: the parsed flags.
+  """
   del argv
   f = flag_values
   config = BehaviourCloningConfig(

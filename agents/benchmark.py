@@ -24,6 +24,7 @@ training RL steps with the paper's (64, 64, 64) networks.
 """
 
 import time
+from typing import Dict, Mapping, Sequence, Tuple
 
 from absl import app
 from absl import flags
@@ -43,10 +44,21 @@ REFERENCE_SECONDS_PER_1000_STEPS = 17.61
 # Training target on this 2-core machine, environment and updates included
 # (docs/benchmarks.md, "SAC training throughput").
 TARGET_SECONDS_PER_1000_STEPS = 3.0
+# A section's (steps, wall s, process cpu s, main-thread cpu s).
+Timing = Tuple[int, float, float, float]
 
 
-def make_environment(robot='schunk', seed=0):
-  """reach/dense, Cartesian, default shield (SSM) and human motions."""
+def make_environment(robot: str = 'schunk',
+                     seed: int = 0) -> suite.Environment:
+  """reach/dense, Cartesian, default shield (SSM) and human motions.
+
+  Args:
+    robot: the robot.
+    seed: the environment's seed.
+
+  Returns:
+    The environment.
+  """
   return suite.load('reach', 'dense',
                     task_kwargs={'robot': robot, 'action_space': 'cartesian'},
                     environment_kwargs={'random_state': seed})
@@ -61,9 +73,27 @@ def _timed(function):
           time.thread_time() - thread)
 
 
-def measure(steps=1000, warmup=300, batch_size=256, hidden_sizes=(256, 256),
-            fused_steps=config_lib.FUSED_STEPS, robot='schunk', seed=0):
-  """{section: (steps, wall s, cpu s, main-thread cpu s)}."""
+def measure(steps: int = 1000, warmup: int = 300, batch_size: int = 256,
+            hidden_sizes: Sequence[int] = (256, 256),
+            fused_steps: int = config_lib.FUSED_STEPS, robot: str = 'schunk',
+            seed: int = 0) -> Dict[str, Timing]:
+  """Times the sections (module doc).
+
+  Args:
+    steps: timed steps per section.
+    warmup: training steps before timing (> batch_size + 2 fused_steps).
+    batch_size: SAC's batch size.
+    hidden_sizes: the MLPs' hidden sizes.
+    fused_steps: gradient steps per learner call.
+    robot: the robot.
+    seed: the seed.
+
+  Returns:
+    {section: (steps, wall s, cpu s, main-thread cpu s)}.
+
+  Raises:
+    ValueError: a warmup too short to compile the updates.
+  """
   if warmup < batch_size + 2 * fused_steps:
     raise ValueError(f'warmup ({warmup}) must exceed batch_size '
                      f'({batch_size}) + 2 fused_steps ({fused_steps}) so '
@@ -112,8 +142,15 @@ def measure(steps=1000, warmup=300, batch_size=256, hidden_sizes=(256, 256),
   return results
 
 
-def format_results(results):
-  """A table of the sections, per step and per 1000 steps."""
+def format_results(results: Mapping[str, Timing]) -> str:
+  """A table of the sections, per step and per 1000 steps.
+
+  Args:
+    results: of `measure` (with 'training').
+
+  Returns:
+    The table.
+  """
   lines = [f'{"section":<20} {"steps":>6} {"wall [s]":>9} {"cpu [s]":>8} '
            f'{"main cpu":>8} {"steps/s":>8} {"s/1000":>7} {"cpu/1000":>8} '
            f'{"main/1000":>9}', '-' * 92]
@@ -130,8 +167,12 @@ def format_results(results):
   return '\n'.join(lines)
 
 
-def define_flags(flag_values=flags.FLAGS):
-  """Defines the binary's flags (only when run as a program)."""
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_integer('steps', 1000, 'Timed steps per section.',
                        flag_values=fv)
@@ -147,7 +188,14 @@ def define_flags(flag_values=flags.FLAGS):
   flags.DEFINE_integer('seed', 0, 'Seed.', flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Measures with the flags' settings and prints the table.
+
+  Args:
+    argv: the command line (unused).
+    flag_values: the parsed flags.
+  """
   del argv
   f = flag_values
   results = measure(steps=f.steps, warmup=f.warmup, batch_size=f.batch_size,

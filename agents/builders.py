@@ -22,34 +22,93 @@ class ActorLearnerBuilder(Protocol):
   config: Any        # Its config dataclass (to_dict / from_dict).
   needs_cost: bool   # Whether its learner reads the transitions' cost.
 
-  def make_networks(self, observation_size: int, action_size: int):
-    """The networks (policy first: `policy_init`, `policy_apply`)."""
+  def make_networks(self, observation_size: int, action_size: int) -> Any:
+    """The networks (policy first: `policy_init`, `policy_apply`).
 
-  def make_learner(self, networks, observation_size: int, action_size: int,
-                   seed: int):
-    """The learner: a variable source ('policy') with update, update_steps,
-    compile_in_background, steps, state and restore; optionally
-    observe_episode_cost(cost)."""
+    Args:
+      observation_size: the flat observation's size.
+      action_size: the action's size.
 
-  def make_replay(self, observation_size: int, action_size: int):
-    """The replay buffer the adder writes and the agent samples."""
+    Returns:
+      The networks.
+    """
 
-  def make_actor(self, networks, variables, seed: int,
-                 evaluation: bool = False):
-    """An actor reading the policy from `variables.params`."""
+  def make_learner(self, networks: Any, observation_size: int,
+                   action_size: int, seed: int) -> Any:
+    """The learner.
+
+    Args:
+      networks: of `make_networks`.
+      observation_size: the flat observation's size.
+      action_size: the action's size.
+      seed: the learner's random seed.
+
+    Returns:
+      A variable source ('policy') with update, update_steps,
+      compile_in_background, steps, state and restore; optionally
+      observe_episode_cost(cost).
+    """
+
+  def make_replay(self, observation_size: int, action_size: int) -> Any:
+    """The replay buffer the adder writes and the agent samples.
+
+    Args:
+      observation_size: the flat observation's size.
+      action_size: the action's size.
+
+    Returns:
+      The buffer (e.g. `agents.replay.ReplayBuffer`).
+    """
+
+  def make_actor(self, networks: Any, variables: Any, seed: int,
+                 evaluation: bool = False) -> Any:
+    """An actor reading the policy from `variables.params`.
+
+    Args:
+      networks: of `make_networks`.
+      variables: holds the policy's parameters as `params`
+        (agents/variable_utils.py).
+      seed: the actor's random seed.
+      evaluation: act deterministically.
+
+    Returns:
+      The actor, with select_action(observation).
+    """
 
 
 BUILDERS = {'sac': sac_builder.SACBuilder,
             'sac_lag': sac_lag_builder.SACLagrangianBuilder}
 
 
-def config_class(name: str):
-  """The config dataclass of the algorithm `name`."""
+def config_class(name: str) -> type:
+  """The config dataclass of an algorithm.
+
+  Args:
+    name: a key of BUILDERS.
+
+  Returns:
+    The class.
+
+  Raises:
+    ValueError: an unknown name.
+  """
   return _builder_class(name).CONFIG_CLASS
 
 
-def make_builder(name: str, config: Mapping[str, Any]):
-  """The builder of algorithm `name` with its config from a dict."""
+def make_builder(name: str,
+                 config: Mapping[str, Any]) -> ActorLearnerBuilder:
+  """The builder of an algorithm with its config from a dict.
+
+  Args:
+    name: a key of BUILDERS.
+    config: the config's fields (`from_dict`).
+
+  Returns:
+    The builder.
+
+  Raises:
+    ValueError: an unknown name or a bad config.
+  """
   return _builder_class(name)(config_class(name).from_dict(config))
 
 

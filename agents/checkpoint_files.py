@@ -13,15 +13,26 @@ import os
 import pathlib
 import shutil
 import tempfile
+from typing import Any, Dict, Iterator, Mapping, Union
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+# A file or folder's path.
+Path = Union[str, os.PathLike]
+
 
 @contextlib.contextmanager
-def atomic_directory(path):
-  """Context manager: write into the yielded folder, then move it to path."""
+def atomic_directory(path: Path) -> Iterator[pathlib.Path]:
+  """Context manager: write into the yielded folder, then move it to path.
+
+  Args:
+    path: the directory to write (replaced if it exists).
+
+  Yields:
+    A fresh temporary sibling folder; removed if the block raises.
+  """
   path = pathlib.Path(path)
   path.parent.mkdir(parents=True, exist_ok=True)
   staging = pathlib.Path(tempfile.mkdtemp(prefix=f'.{path.name}.tmp-',
@@ -49,15 +60,30 @@ def _fsync_tree(folder):
       os.fsync(handle.fileno())
 
 
-def save_arrays(path, arrays):
-  """Writes {name: array} to an uncompressed .npz."""
+def save_arrays(path: Path, arrays: Mapping[str, Any]) -> None:
+  """Writes arrays to an uncompressed .npz.
+
+  Args:
+    path: the file.
+    arrays: {name: array}.
+  """
   with open(path, 'wb') as handle:
     np.savez(handle, **{name: np.asarray(value)
                         for name, value in arrays.items()})
 
 
-def load_arrays(path):
-  """{name: array} of an .npz (allow_pickle=False)."""
+def load_arrays(path: Path) -> Dict[str, np.ndarray]:
+  """The arrays of an .npz (allow_pickle=False).
+
+  Args:
+    path: the file.
+
+  Returns:
+    {name: array}.
+
+  Raises:
+    FileNotFoundError: if the file does not exist.
+  """
   path = pathlib.Path(path)
   if not path.is_file():
     raise FileNotFoundError(f'Checkpoint file {path} does not exist')
@@ -65,13 +91,30 @@ def load_arrays(path):
     return {name: data[name] for name in data.files}
 
 
-def save_json(path, value):
+def save_json(path: Path, value: Any) -> None:
+  """Writes a JSON file (indented, keys sorted).
+
+  Args:
+    path: the file.
+    value: JSON-able.
+  """
   with open(path, 'w') as handle:
     json.dump(value, handle, indent=1, sort_keys=True)
     handle.write('\n')
 
 
-def load_json(path):
+def load_json(path: Path) -> Any:
+  """Reads a JSON file.
+
+  Args:
+    path: the file.
+
+  Returns:
+    Its value.
+
+  Raises:
+    FileNotFoundError: if the file does not exist.
+  """
   path = pathlib.Path(path)
   if not path.is_file():
     raise FileNotFoundError(f'Checkpoint file {path} does not exist')
@@ -96,15 +139,34 @@ def _path_name(path):
   return '/'.join(parts)
 
 
-def flatten_to_arrays(tree):
-  """{path name: NumPy array} of every leaf of a pytree."""
+def flatten_to_arrays(tree: Any) -> Dict[str, np.ndarray]:
+  """Every leaf of a pytree as a NumPy array.
+
+  Args:
+    tree: the pytree.
+
+  Returns:
+    {path name ('a/b/0'): a copy of the leaf}.
+  """
   leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
   return {_path_name(path): np.array(leaf, copy=True)
           for path, leaf in leaves}
 
 
-def unflatten_from_arrays(template, arrays):
-  """Pytree shaped like `template` with leaves from `flatten_to_arrays`."""
+def unflatten_from_arrays(template: Any,
+                          arrays: Mapping[str, np.ndarray]) -> Any:
+  """Pytree shaped like `template` with leaves from `flatten_to_arrays`.
+
+  Args:
+    template: a pytree of the structure, shapes and dtypes.
+    arrays: of `flatten_to_arrays`.
+
+  Returns:
+    The pytree, its leaves JAX arrays.
+
+  Raises:
+    ValueError: names missing or unexpected, or other shapes or dtypes.
+  """
   leaves, treedef = jax.tree_util.tree_flatten_with_path(template)
   names = [_path_name(path) for path, _ in leaves]
   missing = [name for name in names if name not in arrays]

@@ -18,9 +18,18 @@ from agents import agent_checkpoint
 from hrc_suite.rendering import episode as render
 
 
-def load(path):
-  """render.TrainedPolicy of a run directory, its checkpoints/ folder or a
-  checkpoint; ValueError if `path` holds none."""
+def load(path: str) -> render.TrainedPolicy:
+  """The policy of a training run's checkpoint, for rendering.
+
+  Args:
+    path: a run directory, its checkpoints/ folder or a checkpoint.
+
+  Returns:
+    The TrainedPolicy: the run's environment and its deterministic policy.
+
+  Raises:
+    ValueError: if `path` holds no checkpoint.
+  """
   directory = checkpoints.resolve(path)
   loop_state, _ = checkpoints.load_loop_state(directory)
   run_config = loop_state['run_config']

@@ -25,9 +25,11 @@ kept.
 import json
 import os
 import shutil
+from typing import Any, Dict, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
+from agents import agent as agent_lib
 from agents import agent_checkpoint
 from hrc_suite.tasks import snapshots
 
@@ -40,14 +42,31 @@ _EPISODE_FILE = 'episode.npz'
 _TASK_PREFIX = 'task/'
 _OBSERVATION_PREFIX = 'observation/'
 AGENT_DIR = 'agent'
+# A file or folder's path.
+Path = Union[str, os.PathLike]
+# The state tuple of np.random.RandomState.get_state.
+RandomStateTuple = Tuple[str, np.ndarray, int, int, float]
 
 
-def checkpoint_root(logdir):
+def checkpoint_root(logdir: Path) -> str:
+  """A run's checkpoints/ folder.
+
+  Args:
+    logdir: the run's log directory.
+
+  Returns:
+    The folder's path.
+  """
   return os.path.join(os.fspath(logdir), 'checkpoints')
 
 
-def write_json(path, value):
-  """Writes JSON atomically (a temporary file of this process, renamed)."""
+def write_json(path: Path, value: Any) -> None:
+  """Writes JSON atomically (a temporary file of this process, renamed).
+
+  Args:
+    path: the file.
+    value: JSON-able.
+  """
   temporary = f'{path}.{os.getpid()}.tmp'
   with open(temporary, 'w') as f:
     json.dump(value, f, indent=2, sort_keys=True)
@@ -55,33 +74,62 @@ def write_json(path, value):
   os.replace(temporary, path)
 
 
-def read_json(path):
+def read_json(path: Path) -> Any:
+  """Reads a JSON file.
+
+  Args:
+    path: the file.
+
+  Returns:
+    Its value.
+  """
   with open(path) as f:
     return json.load(f)
 
 
-def random_state_to_arrays(random_state):
-  """(key array, JSON-ready scalars) of an np.random.RandomState."""
+def random_state_to_arrays(random_state: np.random.RandomState
+                           ) -> Tuple[np.ndarray, Dict[str, Any]]:
+  """A RandomState's state as an array and JSON-ready scalars.
+
+  Args:
+    random_state: the RandomState.
+
+  Returns:
+    (key array, {'name', 'position', 'has_gauss', 'cached_gaussian'}).
+  """
   name, key, position, has_gauss, cached = random_state.get_state()
   return np.asarray(key), {'name': name, 'position': int(position),
                            'has_gauss': int(has_gauss),
                            'cached_gaussian': float(cached)}
 
 
-def random_state_from_arrays(key, scalars):
-  """The state tuple for RandomState.set_state."""
+def random_state_from_arrays(key: np.ndarray,
+                             scalars: Mapping[str, Any]) -> RandomStateTuple:
+  """The state tuple for RandomState.set_state.
+
+  Args:
+    key: the key array of `random_state_to_arrays`.
+    scalars: its scalars.
+
+  Returns:
+    The state tuple.
+  """
   return (scalars['name'], np.asarray(key, dtype=np.uint32),
           int(scalars['position']), int(scalars['has_gauss']),
           float(scalars['cached_gaussian']))
 
 
-def save(logdir, steps, agent, loop_state, random_states, episode=None):
+def save(logdir: Path, steps: int, agent: agent_lib.Agent,
+         loop_state: Mapping[str, Any],
+         random_states: Mapping[str, np.random.RandomState],
+         episode: Optional[Tuple[Mapping[str, Any], Mapping[str, Any],
+                                 Mapping[str, Any]]] = None) -> str:
   """Writes checkpoint step_<steps> of a run and points `latest` to it.
 
   Args:
     logdir: the run's log directory.
     steps: environment steps done (names the checkpoint).
-    agent: has save(directory).
+    agent: the agent (`agent_checkpoint.save`).
     loop_state: JSON-ready dict (counters, schedules, run config).
     random_states: {name: np.random.RandomState} of the training
       environment (and its wrappers).
@@ -129,8 +177,18 @@ def save(logdir, steps, agent, loop_state, random_states, episode=None):
   return final
 
 
-def latest(logdir):
-  """The newest complete checkpoint directory of a run, or None."""
+def latest(logdir: Path) -> Optional[str]:
+  """The newest complete checkpoint directory of a run, or None.
+
+  Args:
+    logdir: the run's log directory.
+
+  Returns:
+    The directory, or None if the run has no checkpoint.
+
+  Raises:
+    ValueError: a `latest` pointer naming no directory.
+  """
   pointer = os.path.join(checkpoint_root(logdir), _LATEST)
   if not os.path.exists(pointer):
     return None
@@ -142,9 +200,19 @@ def latest(logdir):
   return directory
 
 
-def resolve(path):
-  """A checkpoint directory from a run's logdir, its checkpoints/ folder
-  or a checkpoint directory itself."""
+def resolve(path: Path) -> str:
+  """A checkpoint directory from a path.
+
+  Args:
+    path: a run's logdir, its checkpoints/ folder or a checkpoint
+      directory itself.
+
+  Returns:
+    The checkpoint directory (the newest of a run).
+
+  Raises:
+    ValueError: a path that holds no checkpoint.
+  """
   path = os.fspath(path)
   if os.path.exists(os.path.join(path, _LOOP_FILE)):
     return path
@@ -161,9 +229,18 @@ def resolve(path):
   return found
 
 
-def load_episode(directory):
-  """(info, observation dict, task snapshot) of the episode a checkpoint
-  was taken in, or None if it was taken at an episode boundary."""
+def load_episode(directory: Path
+                 ) -> Optional[Tuple[Dict[str, Any], Dict[str, np.ndarray],
+                                     Dict[str, Any]]]:
+  """The episode a checkpoint was taken in.
+
+  Args:
+    directory: the checkpoint directory.
+
+  Returns:
+    (info, observation dict, task snapshot), or None if it was taken at an
+    episode boundary.
+  """
   state = read_json(os.path.join(directory, _LOOP_FILE))
   if state.get('episode') is None:
     return None
@@ -177,17 +254,38 @@ def load_episode(directory):
           snapshots.from_arrays(arrays, prefix=_TASK_PREFIX))
 
 
-def agent_directory(path):
-  """The agent directory (for `agents.agent_checkpoint.load_policy`) of a run
-  logdir, its checkpoints/ folder, a checkpoint or an agent directory."""
+def agent_directory(path: Path) -> str:
+  """The agent directory (for `agents.agent_checkpoint.load_policy`).
+
+  Args:
+    path: a run logdir, its checkpoints/ folder, a checkpoint or an agent
+      directory.
+
+  Returns:
+    The agent directory.
+
+  Raises:
+    ValueError: a path that holds no checkpoint.
+  """
   path = os.fspath(path)
   if os.path.exists(os.path.join(path, 'agent.json')):
     return path
   return os.path.join(resolve(path), AGENT_DIR)
 
 
-def load_loop_state(directory):
-  """(loop state dict, {name: RandomState state tuple})."""
+def load_loop_state(directory: Path
+                    ) -> Tuple[Dict[str, Any], Dict[str, RandomStateTuple]]:
+  """A checkpoint's loop state and random states.
+
+  Args:
+    directory: the checkpoint directory.
+
+  Returns:
+    (loop state dict, {name: RandomState state tuple}).
+
+  Raises:
+    ValueError: random state files that disagree.
+  """
   state = read_json(os.path.join(directory, _LOOP_FILE))
   with np.load(os.path.join(directory, _RNG_FILE),
                allow_pickle=False) as data:

@@ -10,15 +10,20 @@ always uses seed + i), up to --episodes in total.
 """
 
 import json
+from typing import Sequence
 
 from absl import app
 from absl import flags
 
 from hrc_suite.experts import dataset
 
-def define_flags(flag_values=flags.FLAGS):
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
   """Defines the command's flags (only when run as a program, so that the
-  module can be imported next to other binaries)."""
+  module can be imported next to other binaries).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('domain', None, 'Task domain, e.g. reach.',
                       flag_values=fv)
@@ -58,7 +63,17 @@ def _json_object(flag):
   return value
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Collects (or extends) the dataset the flags describe.
+
+  Args:
+    argv: the command line (no arguments).
+    flag_values: the parsed flags.
+
+  Raises:
+    app.UsageError: arguments, or a flag that is not a JSON object.
+  """
   f = flag_values
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')

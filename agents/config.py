@@ -34,7 +34,7 @@ Seeds are not part of a config: agents take them separately.
 
 import dataclasses
 import math
-from typing import Optional, Tuple
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 # Gradient steps per compiled learner call by default: measured on the
 # 2-core machine (docs/benchmarks.md, "SAC training throughput"), 8 fused
@@ -119,24 +119,43 @@ class SACConfig:
     _check(self.cost_penalty >= 0 and math.isfinite(self.cost_penalty),
            'cost_penalty', self.cost_penalty, 'a finite number >= 0')
 
-  def entropy_target(self, action_size):
-    """`target_entropy`, or -action_size when it is None."""
+  def entropy_target(self, action_size: int) -> float:
+    """The entropy the temperature tuning aims at.
+
+    Args:
+      action_size: the action's size.
+
+    Returns:
+      `target_entropy`, or -action_size when it is None.
+    """
     if self.target_entropy is None:
       return -float(action_size)
     return float(self.target_entropy)
 
-  def to_dict(self):
+  def to_dict(self) -> Dict[str, Any]:
     """JSON-ready dict (`SACConfig.from_dict` rebuilds the config)."""
     values = dataclasses.asdict(self)
     values['hidden_sizes'] = list(self.hidden_sizes)
     return values
 
   @classmethod
-  def from_dict(cls, values):
-    """The config of a `to_dict` dict, also one written before
-    fused_steps existed: its update_every (environment steps between
-    bursts of updates_per_step * update_every gradient steps, run as one
-    call) becomes fused_steps."""
+  def from_dict(cls, values: Mapping[str, Any]) -> 'SACConfig':
+    """The config of a `to_dict` dict.
+
+    A dict with update_every instead of fused_steps (environment steps
+    between bursts of updates_per_step * update_every gradient steps, run
+    as one call) has it become fused_steps.
+
+    Args:
+      values: the fields.
+
+    Returns:
+      The config.
+
+    Raises:
+      ValueError: both update_every and fused_steps, a burst that is not
+        an integer >= 1, or a field's bad value.
+    """
     values = dict(values)
     if 'update_every' in values:
       if 'fused_steps' in values:
@@ -157,13 +176,33 @@ def _check(condition, name, value, expected, config_name='SACConfig'):
     raise ValueError(f'{config_name}.{name}={value!r}: expected {expected}')
 
 
-def default_config(**overrides):
-  """Sensible SAC defaults (Haarnoja et al. 2018, Table 1)."""
+def default_config(**overrides: Any) -> SACConfig:
+  """Sensible SAC defaults (Haarnoja et al. 2018, Table 1).
+
+  Args:
+    **overrides: SACConfig fields.
+
+  Returns:
+    The config.
+
+  Raises:
+    ValueError: a field's bad value.
+  """
   return SACConfig(**overrides)
 
 
-def reference_config(**overrides):
-  """The Human-Robot Gym paper's SAC hyperparameters."""
+def reference_config(**overrides: Any) -> SACConfig:
+  """The Human-Robot Gym paper's SAC hyperparameters.
+
+  Args:
+    **overrides: SACConfig fields.
+
+  Returns:
+    The config.
+
+  Raises:
+    ValueError: a field's bad value.
+  """
   values = dict(
       learning_rate=5e-4,
       batch_size=128,
@@ -181,11 +220,21 @@ def reference_config(**overrides):
   return SACConfig(**values)
 
 
-def quick_config(**overrides):
+def quick_config(**overrides: Any) -> SACConfig:
   """The default with (64, 64) networks, rewards x 100, temperature 0.01
   at first and discount 0.95: learns reach/dense (Schunk, Cartesian)
   within 2-2.5 x 10^4 steps (module docstring; docs/benchmarks.md,
-  "Quickstart success by discount")."""
+  "Quickstart success by discount").
+
+  Args:
+    **overrides: SACConfig fields.
+
+  Returns:
+    The config.
+
+  Raises:
+    ValueError: a field's bad value.
+  """
   values = dict(hidden_sizes=(64, 64), reward_scale=100.0,
                 initial_temperature=0.01, discount=0.95)
   values.update(overrides)
@@ -196,8 +245,19 @@ CONFIGS = {'default': default_config, 'reference': reference_config,
            'quick': quick_config}
 
 
-def config_from_name(name, **overrides):
-  """The preset called `name` (a key of CONFIGS) with overrides."""
+def config_from_name(name: str, **overrides: Any) -> SACConfig:
+  """A preset with overrides.
+
+  Args:
+    name: a key of CONFIGS.
+    **overrides: SACConfig fields.
+
+  Returns:
+    The config.
+
+  Raises:
+    ValueError: an unknown name or field, or a field's bad value.
+  """
   if name not in CONFIGS:
     raise ValueError(f'Unknown SAC config {name!r}: expected one of '
                      f'{", ".join(CONFIGS)}')

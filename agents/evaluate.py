@@ -13,6 +13,7 @@ writes the per-episode metrics and the summary as JSON.
 
 import math
 import os
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from absl import app
 from absl import flags
@@ -45,8 +46,19 @@ _TABLE = (
 )
 
 
-def summary(episodes, random_state):
-  """{metric: {'mean', 'low', 'high'} or {'min'}} over the episodes."""
+def summary(episodes: Sequence[Mapping[str, float]],
+            random_state: np.random.RandomState
+            ) -> Dict[str, Dict[str, float]]:
+  """The table's statistics over the episodes.
+
+  Args:
+    episodes: per-episode metrics (loop.evaluate's).
+    random_state: the bootstrap's random numbers.
+
+  Returns:
+    {metric: {'mean', 'low', 'high'} (rates, a 95 % bootstrap CI),
+    {'mean', 'std'} or {'min'}}.
+  """
   result = {}
   for _, name, kind in _TABLE:
     if name not in episodes[0]:
@@ -63,7 +75,17 @@ def summary(episodes, random_state):
   return result
 
 
-def format_table(result, episodes):
+def format_table(result: Mapping[str, Mapping[str, float]],
+                 episodes: int) -> str:
+  """The summary as a text table.
+
+  Args:
+    result: of `summary`.
+    episodes: the number of episodes.
+
+  Returns:
+    The table's lines.
+  """
   lines = [f'{"metric":<26} {"value":>30}', '-' * 57]
   for label, name, kind in _TABLE:
     if name not in result:
@@ -81,8 +103,22 @@ def format_table(result, episodes):
   return '\n'.join(lines)
 
 
-def run(checkpoint, episodes, seed=None):
-  """Evaluates a checkpoint; returns (per-episode metrics, summary)."""
+def run(checkpoint: str, episodes: int, seed: Optional[int] = None
+        ) -> Tuple[List[Dict[str, float]], Dict[str, Dict[str, float]]]:
+  """Evaluates a checkpoint with deterministic episodes.
+
+  Args:
+    checkpoint: a run's log directory, its checkpoints/ folder or a
+      checkpoint directory.
+    episodes: episodes to run.
+    seed: the environment's seed (None: derived from the run seed).
+
+  Returns:
+    (per-episode metrics, summary).
+
+  Raises:
+    ValueError: a path that holds no checkpoint.
+  """
   directory = checkpoints.resolve(checkpoint)
   loop_state, _ = checkpoints.load_loop_state(directory)
   run_config = loop_state['run_config']
@@ -96,8 +132,12 @@ def run(checkpoint, episodes, seed=None):
   return results, summary(results, np.random.RandomState(seed))
 
 
-def define_flags(flag_values=flags.FLAGS):
-  """Defines the binary's flags (only when run as a program)."""
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('checkpoint', None, 'Checkpoint or run directory.',
                       required=True, flag_values=fv)
@@ -108,7 +148,14 @@ def define_flags(flag_values=flags.FLAGS):
                       flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Evaluates --checkpoint, prints the table, writes --output.
+
+  Args:
+    argv: the command line (unused).
+    flag_values: the parsed flags.
+  """
   del argv
   f = flag_values
   results, table = run(f.checkpoint, f.episodes, f.seed)
@@ -119,8 +166,15 @@ def main(argv, flag_values=flags.FLAGS):
                                              'episodes': results}))
 
 
-def finite(value):
-  """A copy with non-finite floats as None (strict JSON)."""
+def finite(value: Any) -> Any:
+  """A copy with non-finite floats as None (strict JSON).
+
+  Args:
+    value: nested dicts, lists and scalars.
+
+  Returns:
+    The copy.
+  """
   if isinstance(value, dict):
     return {k: finite(v) for k, v in value.items()}
   if isinstance(value, list):

@@ -33,6 +33,7 @@ import collections
 import math
 import os
 import sys
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 from absl import app
 from absl import flags
@@ -44,12 +45,21 @@ from agents import report as report_lib
 
 Rates = collections.namedtuple('Rates', ['train', 'evaluation',
                                          'episode_length', 'runs'])
+# {(task, agent): Rates}.
+RateTable = Mapping[Tuple[str, str], Rates]
 
 
-def measured_rates(root):
-  """{(task, agent): Rates} from the sweep's finished runs (their
-  finished.json: steps and the run's wall time over all its starts, less
-  the work a restart did again)."""
+def measured_rates(root: str) -> Dict[Tuple[str, str], Rates]:
+  """The rates of a sweep's finished runs (their finished.json: steps and
+  the run's wall time over all its starts, less the work a restart did
+  again).
+
+  Args:
+    root: the sweep's directory.
+
+  Returns:
+    {(task, agent): Rates}.
+  """
   grid, _ = report_lib.load_sweep(root)
   totals = collections.defaultdict(lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0])
   for run in grid.runs():
@@ -91,8 +101,18 @@ def _rates_of(rates, task, agent):
                runs=0)
 
 
-def run_seconds(grid, run, rates):
-  """Predicted seconds of one run of `grid` (None: its task unmeasured)."""
+def run_seconds(grid: grids_lib.Grid, run: grids_lib.Run,
+                rates: RateTable) -> Optional[float]:
+  """Predicted seconds of one run of a grid.
+
+  Args:
+    grid: the grid.
+    run: one of its runs.
+    rates: the measured rates.
+
+  Returns:
+    The seconds, or None where its task was not measured.
+  """
   measured = _rates_of(rates, run.task, run.agent)
   if measured is None:
     return None
@@ -102,9 +122,17 @@ def run_seconds(grid, run, rates):
           measured.episode_length / measured.evaluation)
 
 
-def makespan(durations, cores):
-  """Seconds until `cores` cores, each running one run at a time, finish
-  all runs, longest first onto the core free soonest."""
+def makespan(durations: Sequence[float], cores: int) -> float:
+  """Seconds until the cores, each running one run at a time, finish all
+  runs, longest first onto the core free soonest.
+
+  Args:
+    durations: each run's seconds.
+    cores: the cores.
+
+  Returns:
+    The seconds.
+  """
   free = [0.0] * int(cores)
   for duration in sorted(durations, reverse=True):
     i = min(range(len(free)), key=free.__getitem__)
@@ -112,9 +140,20 @@ def makespan(durations, cores):
   return max(free) if durations else 0.0
 
 
-def predict(grid, rates, cores, machines):
-  """{'run_seconds': {run name: s}, 'unmeasured': [tasks], 'core_seconds',
-  'longest', 'wall': {machines: s}}."""
+def predict(grid: grids_lib.Grid, rates: RateTable, cores: int,
+            machines: Sequence[int]) -> Dict[str, Any]:
+  """The predicted cost of a grid.
+
+  Args:
+    grid: the grid.
+    rates: the measured rates.
+    cores: cores per machine.
+    machines: machine counts to predict the wall time of.
+
+  Returns:
+    {'run_seconds': {run name: s}, 'unmeasured': [tasks], 'core_seconds',
+    'longest', 'wall': {machines: s}}.
+  """
   seconds, unmeasured = {}, set()
   for run in grid.runs():
     value = run_seconds(grid, run, rates)
@@ -133,8 +172,19 @@ def _hours(seconds):
   return f'{seconds / 3600:.1f} h'
 
 
-def table(grid, rates, cores, machines):
-  """Markdown: the rates, then the prediction."""
+def table(grid: grids_lib.Grid, rates: RateTable, cores: int,
+          machines: Sequence[int]) -> str:
+  """Markdown: the rates, then the prediction.
+
+  Args:
+    grid: the grid.
+    rates: the measured rates.
+    cores: cores per machine.
+    machines: machine counts.
+
+  Returns:
+    The markdown.
+  """
   lines = ['| task | agent | runs measured | training (RL steps/s) | '
            'evaluation (steps/s) | evaluation episode (RL steps) |',
            '|---|---|---|---|---|---|']
@@ -156,7 +206,12 @@ def table(grid, rates, cores, machines):
   return '\n'.join(lines) + '\n'
 
 
-def define_flags(flag_values=flags.FLAGS):
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('sweep', None, 'Measured sweep directory.',
                       flag_values=fv)
@@ -167,7 +222,20 @@ def define_flags(flag_values=flags.FLAGS):
                     'Machine counts.', flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> int:
+  """Prints the prediction of --grid from the rates of --sweep.
+
+  Args:
+    argv: the command line (no arguments).
+    flag_values: the parsed flags.
+
+  Returns:
+    The exit status: 0, or 2 on a bad grid or sweep.
+
+  Raises:
+    app.UsageError: arguments, or no --sweep.
+  """
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
   f = flag_values

@@ -35,7 +35,7 @@ Every field can be replaced (`Grid.replace`, the sweep's flags), and
 import dataclasses
 import os
 import re
-from typing import Dict, List, Mapping, Optional, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from agents import imitation
 from agents import train
@@ -163,8 +163,12 @@ class Grid:
     raise ValueError(f'Grid {self.name!r}: {field}={getattr(self, field)!r}: '
                      f'expected {expected}')
 
-  def check(self):
-    """Raises ValueError naming the first bad field."""
+  def check(self) -> None:
+    """Checks every field.
+
+    Raises:
+      ValueError: naming the first bad field.
+    """
     if not self.tasks:
       self._fail('tasks', 'at least one domain/task')
     for name in self.tasks:
@@ -247,25 +251,56 @@ class Grid:
       if bad:
         self._fail('variants', f'no {bad} in {name!r}\'s task_kwargs')
 
-  def agent_of(self, entry):
-    """The agents.train agent of an entry of `agents`."""
+  def agent_of(self, entry: str) -> str:
+    """The agents.train agent of an entry of `agents`.
+
+    Args:
+      entry: an agent or a variant's name.
+
+    Returns:
+      The agent.
+    """
     return self.variants[entry]['agent'] if entry in self.variants else entry
 
-  def overrides_of(self, entry, task):
-    """The config overrides of the runs of an entry of `agents` on
-    `task`."""
+  def overrides_of(self, entry: str, task: str) -> Dict[str, Any]:
+    """The config overrides of the runs of an entry of `agents` on a task.
+
+    Args:
+      entry: an agent or a variant's name.
+      task: 'domain/task'.
+
+    Returns:
+      The grid's overrides updated with the variant's and its task's.
+    """
     variant = self.variants.get(entry, {})
     return dict(self.overrides, **variant.get('overrides', {}),
                 **variant.get('task_overrides', {}).get(task, {}))
 
-  def label_of(self, entry):
-    """The report's name of an entry of `agents`."""
+  def label_of(self, entry: str) -> str:
+    """The report's name of an entry of `agents`.
+
+    Args:
+      entry: an agent or a variant's name.
+
+    Returns:
+      The variant's label, or the agent's (AGENT_LABELS).
+    """
     if entry in self.variants:
       return self.variants[entry].get('label') or entry
     return AGENT_LABELS.get(entry, entry)
 
-  def replace(self, **changes):
-    """A copy with fields changed (unknown fields are a ValueError)."""
+  def replace(self, **changes: Any) -> 'Grid':
+    """A copy with fields changed.
+
+    Args:
+      **changes: new values of fields.
+
+    Returns:
+      The checked copy.
+
+    Raises:
+      ValueError: unknown fields, or a bad value.
+    """
     fields = {f.name for f in dataclasses.fields(self)}
     unknown = sorted(set(changes) - fields)
     if unknown:
@@ -273,12 +308,19 @@ class Grid:
                        f'{", ".join(sorted(fields))}')
     return dataclasses.replace(self, **changes)
 
-  def steps_of(self, task):
-    """RL steps of the runs of `task`."""
+  def steps_of(self, task: str) -> int:
+    """RL steps of the runs of a task.
+
+    Args:
+      task: 'domain/task' of the grid.
+
+    Returns:
+      The steps.
+    """
     return int(self.steps[task] if isinstance(self.steps, dict)
                else self.steps)
 
-  def to_dict(self):
+  def to_dict(self) -> Dict[str, Any]:
     """JSON-ready dict (Grid(**d) rebuilds it)."""
     values = dataclasses.asdict(self)
     for name in ('tasks', 'agents', 'seeds', 'splits'):
@@ -286,21 +328,48 @@ class Grid:
     return values
 
   @classmethod
-  def from_dict(cls, values):
+  def from_dict(cls, values: Mapping[str, Any]) -> 'Grid':
+    """The grid of a `to_dict` dict.
+
+    Args:
+      values: the fields.
+
+    Returns:
+      The checked grid.
+
+    Raises:
+      ValueError: a bad field.
+    """
     return cls(**values)
 
-  def needs_dataset(self, entry):
-    """Whether the runs of an entry of `agents` need an expert dataset."""
+  def needs_dataset(self, entry: str) -> bool:
+    """Whether the runs of an entry of `agents` need an expert dataset.
+
+    Args:
+      entry: an agent or a variant's name.
+
+    Returns:
+      Whether they do (RSI, SIR, AIR).
+    """
     return self.agent_of(entry) in imitation.NEEDS_DATASET
 
-  def dataset_tasks(self):
+  def dataset_tasks(self) -> List[str]:
     """The tasks whose runs need an expert dataset."""
     if any(self.needs_dataset(agent) for agent in self.agents):
       return list(self.tasks)
     return []
 
-  def task_kwargs_of(self, split=None, side='train'):
-    """The task kwargs of a run (its motions and split side included)."""
+  def task_kwargs_of(self, split: Optional[int] = None,
+                     side: str = 'train') -> Dict[str, Any]:
+    """The task kwargs of a run, its motions and split side included.
+
+    Args:
+      split: None, or the run's motion split seed.
+      side: the split's side, 'train' or 'test'.
+
+    Returns:
+      The kwargs.
+    """
     kwargs = dict(self.task_kwargs)
     if split is not None:
       kwargs['motions'] = {'split': side, 'test_clips': self.test_clips,
@@ -353,9 +422,17 @@ def _integer(value):
   return isinstance(value, int) and not isinstance(value, bool)
 
 
-def default_action_space(domain, task):
+def default_action_space(domain: str, task: str) -> str:
   """The task's default action space (the paper's: joint for reach,
-  Cartesian for the others)."""
+  Cartesian for the others).
+
+  Args:
+    domain: a registered domain.
+    task: a registered task of it.
+
+  Returns:
+    'joint' or 'cartesian'.
+  """
   task_class = suite.task_class(domain, task)
   if task_class is None:
     return 'cartesian'
@@ -447,7 +524,17 @@ GRIDS = {'paper': _paper, 'paper_reduced': _paper_reduced,
 
 
 def get(name: str) -> Grid:
-  """The grid called `name` (a key of GRIDS)."""
+  """A grid by name.
+
+  Args:
+    name: a key of GRIDS.
+
+  Returns:
+    The grid.
+
+  Raises:
+    ValueError: an unknown name.
+  """
   if name not in GRIDS:
     raise ValueError(f'Unknown grid {name!r}: expected one of '
                      f'{", ".join(GRIDS)}')
@@ -455,7 +542,14 @@ def get(name: str) -> Grid:
 
 
 def describe(grid: Grid) -> Dict[str, int]:
-  """{'runs': n, 'steps': total RL steps} of a grid."""
+  """A grid's size.
+
+  Args:
+    grid: the grid.
+
+  Returns:
+    {'runs': n, 'steps': total RL steps}.
+  """
   runs = grid.runs()
   return {'runs': len(runs),
           'steps': sum(int(r.run_config['steps']) for r in runs)}

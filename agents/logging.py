@@ -12,6 +12,10 @@ import csv
 import math
 import numbers
 import os
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
+
+# A file or folder's path.
+Path = Union[str, os.PathLike]
 
 
 def _number(value):
@@ -25,9 +29,14 @@ def _number(value):
 
 
 class CSVLogger:
-  """Appends one row per `write` to a CSV file, flushing each row."""
+  """Appends one row per `write` to a CSV file, flushing each row.
 
-  def __init__(self, path, step_key='step'):
+  Args:
+    path: the CSV file (an existing file's header fixes the columns).
+    step_key: the column of the step.
+  """
+
+  def __init__(self, path: Path, step_key: str = 'step'):
     self.path = os.fspath(path)
     self._step_key = step_key
     self._columns = None
@@ -37,12 +46,20 @@ class CSVLogger:
     self._file = None
 
   @property
-  def columns(self):
+  def columns(self) -> Optional[List[str]]:
+    """The columns, or None before the first row of a new file."""
     return None if self._columns is None else list(self._columns)
 
-  def truncate(self, max_step):
+  def truncate(self, max_step: float) -> None:
     """Drops the rows whose step is larger than max_step (a resumed run
-    logs them again)."""
+    logs them again).
+
+    Args:
+      max_step: the last step kept.
+
+    Raises:
+      ValueError: a file without the step column.
+    """
     if self._columns is None:
       return
     if self._step_key not in self._columns:
@@ -59,7 +76,17 @@ class CSVLogger:
         writer.writerow({k: _format(row[k]) for k in self._columns})
     os.replace(temporary, self.path)
 
-  def write(self, row, step=None):
+  def write(self, row: Mapping[str, Any],
+            step: Optional[int] = None) -> None:
+    """Appends a row (the first row fixes the columns of a new file).
+
+    Args:
+      row: {column: number or string}; missing columns stay empty.
+      step: None, or the row's step column.
+
+    Raises:
+      ValueError: columns the file does not have.
+    """
     row = dict(row)
     if step is not None:
       row[self._step_key] = step
@@ -84,7 +111,8 @@ class CSVLogger:
     self._writer.writerow({k: _format(row.get(k, '')) for k in self._columns})
     self._file.flush()
 
-  def close(self):
+  def close(self) -> None:
+    """Closes the file (a later write reopens it)."""
     if self._file is not None:
       self._file.close()
       self._file = None
@@ -97,14 +125,33 @@ def _format(value):
   return value
 
 
-def read_csv(path):
-  """Rows of a CSV file as dicts of strings."""
+def read_csv(path: Path) -> List[Dict[str, str]]:
+  """Rows of a CSV file as dicts of strings.
+
+  Args:
+    path: the file.
+
+  Returns:
+    The rows.
+  """
   with open(path, newline='') as f:
     return list(csv.DictReader(f))
 
 
-def read_csv_columns(path, columns):
-  """{column: list of floats} of a CSV file (empty cells become NaN)."""
+def read_csv_columns(path: Path,
+                     columns: Sequence[str]) -> Dict[str, List[float]]:
+  """Columns of a CSV file as floats (empty cells become NaN).
+
+  Args:
+    path: the file.
+    columns: the columns to read.
+
+  Returns:
+    {column: list of floats}.
+
+  Raises:
+    ValueError: columns the file lacks.
+  """
   rows = read_csv(path)
   if rows:
     missing = [c for c in columns if c not in rows[0]]
@@ -115,42 +162,73 @@ def read_csv_columns(path, columns):
           for c in columns}
 
 
-def summary_writer(directory, purge_step=None):
-  """A tensorboardX SummaryWriter; purge_step drops the directory's events
-  at and after that step (a resumed run re-creates them)."""
+def summary_writer(directory: Path, purge_step: Optional[int] = None
+                   ) -> Any:
+  """A tensorboardX SummaryWriter.
+
+  Args:
+    directory: the events' directory.
+    purge_step: None, or drop the directory's events at and after that step
+      (a resumed run re-creates them).
+
+  Returns:
+    The writer.
+  """
   from tensorboardX import SummaryWriter   # pylint: disable=g-import-not-at-top
   return SummaryWriter(os.fspath(directory), purge_step=purge_step)
 
 
 class TensorBoardLogger:
   """Scalars tagged '<prefix>/<key>' through a SummaryWriter (shared by
-  several loggers, closed by its owner). Non-numeric values are skipped."""
+  several loggers, closed by its owner). Non-numeric values are skipped.
 
-  def __init__(self, writer, prefix):
+  Args:
+    writer: a tensorboardX SummaryWriter (`summary_writer`).
+    prefix: the tags' prefix.
+  """
+
+  def __init__(self, writer: Any, prefix: str):
     self._writer = writer
     self._prefix = prefix
 
-  def write(self, row, step):
+  def write(self, row: Mapping[str, Any], step: int) -> None:
+    """Adds the row's finite numbers as scalars.
+
+    Args:
+      row: {key: value}.
+      step: the scalars' step.
+    """
     for key, value in row.items():
       value = _number(value)
       if isinstance(value, (int, float)) and math.isfinite(value):
         self._writer.add_scalar(f'{self._prefix}/{key}', value, step)
     self._writer.flush()
 
-  def close(self):
-    pass   # The writer's owner closes it.
+  def close(self) -> None:
+    """Does nothing: the writer's owner closes it."""
 
 
 class Dispatcher:
-  """Writes each row to several loggers."""
+  """Writes each row to several loggers.
 
-  def __init__(self, loggers):
+  Args:
+    loggers: each with write(row, step) and close().
+  """
+
+  def __init__(self, loggers: Sequence[Any]):
     self._loggers = tuple(loggers)
 
-  def write(self, row, step):
+  def write(self, row: Mapping[str, Any], step: int) -> None:
+    """Writes the row to every logger.
+
+    Args:
+      row: {key: value}.
+      step: the row's step.
+    """
     for logger in self._loggers:
       logger.write(row, step)
 
-  def close(self):
+  def close(self) -> None:
+    """Closes every logger."""
     for logger in self._loggers:
       logger.close()

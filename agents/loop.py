@@ -18,24 +18,44 @@ by `env.step` after a last timestep), so every step counted is a transition.
 """
 
 import time
+from typing import (Any, Callable, Dict, List, Mapping, Optional, Sequence,
+                    Tuple)
 
 import dm_env
+from dm_env import specs
 import numpy as np
+
+# An episode's result: {metric name: value}.
+Result = Dict[str, Any]
 
 _COUNTS = ('steps', 'episodes')
 
 
 class Counter:
-  """Steps and episodes done; `state()` / `restore()` for checkpoints."""
+  """Steps and episodes done; `state()` / `restore()` for checkpoints.
 
-  def __init__(self, steps=0, episodes=0):
+  Args:
+    steps: environment steps done.
+    episodes: episodes finished.
+  """
+
+  def __init__(self, steps: int = 0, episodes: int = 0):
     self.steps = int(steps)
     self.episodes = int(episodes)
 
-  def state(self):
+  def state(self) -> Dict[str, int]:
+    """{'steps', 'episodes'} for a checkpoint."""
     return {name: getattr(self, name) for name in _COUNTS}
 
-  def restore(self, state):
+  def restore(self, state: Mapping[str, int]) -> None:
+    """Restores a `state()`.
+
+    Args:
+      state: of `state()`.
+
+    Raises:
+      ValueError: a key missing, or a count that is not an integer >= 0.
+    """
     missing = [name for name in _COUNTS if name not in state]
     if missing:
       raise ValueError(f'Counter state lacks {missing}: expected keys '
@@ -60,10 +80,25 @@ def _check_observers(observers):
 
 
 class EnvironmentLoop:
-  """Runs an agent in a dm_env environment, updating it as it acts."""
+  """Runs an agent in a dm_env environment, updating it as it acts.
 
-  def __init__(self, environment, agent, observers=(), counter=None,
-               should_update=True):
+  Args:
+    environment: the environment.
+    agent: has select_action, observe_first, observe and (with
+      should_update) update.
+    observers: each with observe_first(env, timestep), observe(env,
+      timestep, action) and get_metrics().
+    counter: the steps and episodes done (default: a new Counter).
+    should_update: call agent.update() before every environment step.
+
+  Raises:
+    TypeError: an agent or observer without the methods.
+  """
+
+  def __init__(self, environment: dm_env.Environment, agent: Any,
+               observers: Sequence[Any] = (),
+               counter: Optional[Counter] = None,
+               should_update: bool = True):
     for name in ('select_action', 'observe_first', 'observe'):
       if not callable(getattr(agent, name, None)):
         raise TypeError(f'Agent {agent!r} lacks {name}(): expected the '
@@ -85,11 +120,12 @@ class EnvironmentLoop:
     self._episode_start = 0.0
 
   @property
-  def in_episode(self):
+  def in_episode(self) -> bool:
     """True between an episode's first and last timestep."""
     return self._timestep is not None
 
-  def episode_state(self):
+  def episode_state(self
+                    ) -> Optional[Tuple[Dict[str, Any], Dict[str, np.ndarray]]]:
     """The episode in progress as (JSON-ready dict, {key: observation
     array}), or None between episodes (for mid-episode checkpoints)."""
     if self._timestep is None:
@@ -107,9 +143,15 @@ class EnvironmentLoop:
                    for key, value in timestep.observation.items()}
     return info, observation
 
-  def restore_episode(self, info, observation):
+  def restore_episode(self, info: Mapping[str, Any],
+                      observation: Mapping[str, np.ndarray]) -> None:
     """Continues an episode saved by `episode_state` (the environment and
-    the agent restored separately); observers read the environment."""
+    the agent restored separately); observers read the environment.
+
+    Args:
+      info: the first part of `episode_state()`.
+      observation: its second part.
+    """
     reward, discount = info['reward'], info['discount']
     self._timestep = dm_env.TimeStep(
         step_type=dm_env.StepType(info['step_type']),
@@ -130,7 +172,7 @@ class EnvironmentLoop:
     self._episode_steps = 0
     self._episode_start = time.perf_counter()
 
-  def step(self):
+  def step(self) -> Optional[Result]:
     """One environment step (resetting first if needed); returns the
     episode's result dict if this step ended it, else None."""
     if self._timestep is None:
@@ -173,17 +215,31 @@ class EnvironmentLoop:
       result.update(observer.get_metrics())
     return result
 
-  def run_episode(self):
+  def run_episode(self) -> Result:
     """Runs (the rest of) one episode; returns its result."""
     while True:
       result = self.step()
       if result is not None:
         return result
 
-  def run(self, num_episodes=None, num_steps=None, callback=None):
+  def run(self, num_episodes: Optional[int] = None,
+          num_steps: Optional[int] = None,
+          callback: Optional[Callable[[Result], None]] = None
+          ) -> List[Result]:
     """Runs until num_episodes episodes ended or num_steps steps were taken
-    (whichever first; at least one must be given). `callback(result)` gets
-    each finished episode's result. Returns the list of results."""
+    (whichever first; at least one must be given).
+
+    Args:
+      num_episodes: None or an integer >= 0.
+      num_steps: None or an integer >= 0.
+      callback: None, or called with each finished episode's result.
+
+    Returns:
+      The finished episodes' results.
+
+    Raises:
+      ValueError: counts that are not integers >= 0, or neither given.
+    """
     for name, value in (('num_episodes', num_episodes),
                         ('num_steps', num_steps)):
       if value is not None and (int(value) != value or value < 0):
@@ -205,14 +261,30 @@ class EnvironmentLoop:
     return results
 
 
-def evaluate(env, policy, num_episodes, observers=None):
-  """Plays num_episodes episodes of `policy(timestep) -> action` without
-  learning; returns one metrics dict per episode.
+def evaluate(env: dm_env.Environment,
+             policy: Callable[[dm_env.TimeStep], np.ndarray],
+             num_episodes: int,
+             observers: Optional[Sequence[Any]] = None) -> List[Result]:
+  """Plays episodes of a policy without learning.
 
   With an hrc_suite environment (`env.task.episode_metrics`) each dict holds
   the task's episode metrics (success, return, steps, shield interventions,
   contacts ...) plus episode_return and episode_length; otherwise only the
   latter two.
+
+  Args:
+    env: the environment.
+    policy: timestep -> action.
+    num_episodes: an integer >= 1.
+    observers: None (hrc_suite's EpisodeMetricsObserver where the
+      environment has a task with episode metrics) or observers.
+
+  Returns:
+    One metrics dict per episode.
+
+  Raises:
+    ValueError: num_episodes that is not a positive integer.
+    TypeError: an observer without the methods.
   """
   if int(num_episodes) != num_episodes or num_episodes < 1:
     raise ValueError(f'num_episodes must be a positive integer, got '
@@ -249,9 +321,16 @@ class RandomAgent:
   """Uniform random actions within a bounded action spec; learns nothing.
 
   A baseline for evaluation and the loop's tests.
+
+  Args:
+    action_spec: a bounded spec with finite bounds.
+    seed: the actions' random seed.
+
+  Raises:
+    ValueError: a spec without finite bounds.
   """
 
-  def __init__(self, action_spec, seed):
+  def __init__(self, action_spec: specs.BoundedArray, seed: int):
     if not hasattr(action_spec, 'minimum'):
       raise ValueError(f'RandomAgent needs a bounded action spec, got '
                        f'{action_spec!r}')
@@ -264,18 +343,46 @@ class RandomAgent:
     self._maximum = np.array(maximum, dtype=float)
     self._random_state = np.random.RandomState(seed)
 
-  def select_action(self, observation):
+  def select_action(self, observation: Any) -> np.ndarray:
+    """A uniform random action.
+
+    Args:
+      observation: unused.
+
+    Returns:
+      The action, within the spec's bounds.
+    """
     del observation
     return self._random_state.uniform(self._minimum, self._maximum)
 
-  def policy(self, timestep):
+  def policy(self, timestep: dm_env.TimeStep) -> np.ndarray:
+    """A uniform random action (a policy for `evaluate`).
+
+    Args:
+      timestep: unused.
+
+    Returns:
+      The action.
+    """
     return self.select_action(timestep.observation)
 
-  def observe_first(self, timestep):
+  def observe_first(self, timestep: dm_env.TimeStep) -> None:
+    """Does nothing (Acme's actor protocol).
+
+    Args:
+      timestep: unused.
+    """
     del timestep
 
-  def observe(self, action, next_timestep):
+  def observe(self, action: np.ndarray,
+              next_timestep: dm_env.TimeStep) -> None:
+    """Does nothing (Acme's actor protocol).
+
+    Args:
+      action: unused.
+      next_timestep: unused.
+    """
     del action, next_timestep
 
-  def update(self):
-    pass
+  def update(self) -> None:
+    """Learns nothing."""

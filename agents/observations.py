@@ -13,25 +13,44 @@ name (`exclude`).
 
 import collections
 import collections.abc
+from typing import Any, Dict, Mapping, Sequence, Tuple
 
+from dm_env import specs
 import numpy as np
 
 IMAGE_MODES = ('error', 'skip', 'include')
 
 
-def is_image_spec(spec):
-  """True for uint8 specs of rank 3 (height, width, channels)."""
+def is_image_spec(spec: specs.Array) -> bool:
+  """Whether a spec is an image's: uint8 of rank 3 (height, width,
+  channels).
+
+  Args:
+    spec: a dm_env spec.
+
+  Returns:
+    Whether it is.
+  """
   return np.dtype(spec.dtype) == np.uint8 and len(spec.shape) == 3
 
 
 class ObservationFlattener:
   """Maps an observation dict to a float32 vector in the spec's key order."""
 
-  def __init__(self, observation_spec, images='error', exclude=()):
-    """Args:
+  def __init__(self, observation_spec: Mapping[str, specs.Array],
+               images: str = 'error', exclude: Sequence[str] = ()):
+    """Initializes the flattener.
+
+    Args:
       observation_spec: {name: dm_env spec}, in the observation's order.
-      images: what to do with image observations (module docstring).
+      images: what to do with image observations (module docstring):
+        'error', 'skip' or 'include'.
       exclude: names left out of the vector when the spec has them.
+
+    Raises:
+      ValueError: an unknown images mode, or image observations with
+        images='error'.
+      TypeError: an observation_spec that is not a mapping.
     """
     if images not in IMAGE_MODES:
       raise ValueError(f'images={images!r}: expected one of '
@@ -65,17 +84,17 @@ class ObservationFlattener:
     self._size = start
 
   @property
-  def size(self):
+  def size(self) -> int:
     """Length of the flat vector."""
     return self._size
 
   @property
-  def keys(self):
+  def keys(self) -> Tuple[str, ...]:
     """Names of the flattened observations, in order."""
     return tuple(self._shapes)
 
   @property
-  def slices(self):
+  def slices(self) -> Dict[str, slice]:
     """{name: slice of the flat vector}."""
     return dict(self._slices)
 
@@ -86,8 +105,18 @@ class ObservationFlattener:
       raise ValueError(f'Observation keys do not match the spec: missing '
                        f'{missing}, unexpected {extra}')
 
-  def __call__(self, observation):
-    """float32 (size,) vector of one observation dict."""
+  def __call__(self, observation: Mapping[str, Any]) -> np.ndarray:
+    """The flat vector of one observation.
+
+    Args:
+      observation: {name: array} with the spec's names and shapes.
+
+    Returns:
+      float32 (size,).
+
+    Raises:
+      ValueError: other names or shapes than the spec's.
+    """
     self._check_keys(observation)
     out = np.empty(self._size, dtype=np.float32)
     for name, shape in self._shapes.items():
@@ -100,8 +129,19 @@ class ObservationFlattener:
         out[self._slices[name]] *= self._scales[name]
     return out
 
-  def flatten_batch(self, observations):
-    """float32 (batch, size) array of a dict of batched observations."""
+  def flatten_batch(self, observations: Mapping[str, Any]) -> np.ndarray:
+    """The flat vectors of batched observations.
+
+    Args:
+      observations: {name: (batch,) + the spec's shape}.
+
+    Returns:
+      float32 (batch, size).
+
+    Raises:
+      ValueError: other names or shapes than the spec's, or unequal batch
+        sizes.
+    """
     self._check_keys(observations)
     batch = None
     for name, shape in self._shapes.items():

@@ -31,6 +31,7 @@ dict {robot: number or {"return_mean": ...}}.
 
 import collections
 import os
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from absl import app
 from absl import flags
@@ -59,8 +60,19 @@ Curve = collections.namedtuple(
 COST_COLUMN = 'cost_mean'
 
 
-def load_run(logdir):
-  """(config dict, {column: array}) of one run's evaluations."""
+def load_run(logdir: str) -> Tuple[Dict[str, Any], Dict[str, np.ndarray]]:
+  """One run's config and evaluations.
+
+  Args:
+    logdir: the run's directory.
+
+  Returns:
+    (config dict, {column: array} of eval.csv).
+
+  Raises:
+    ValueError: a directory without config.json or eval.csv, or without
+      evaluations.
+  """
   config_path = os.path.join(logdir, 'config.json')
   eval_path = os.path.join(logdir, 'eval.csv')
   for path in (config_path, eval_path):
@@ -77,9 +89,20 @@ def load_run(logdir):
   return config, {k: np.array(v) for k, v in columns.items()}
 
 
-def expert_return(config, experts_json=None):
-  """The mean expert return of the run's task, robot and action space, or
-  None (no file, or no matching entry)."""
+def expert_return(config: Mapping[str, Any],
+                  experts_json: Optional[str] = None) -> Optional[float]:
+  """The mean expert return of the run's task, robot and action space.
+
+  Args:
+    config: the run's config.json.
+    experts_json: None or an experts file (module doc).
+
+  Returns:
+    The return, or None (no file, or no matching entry).
+
+  Raises:
+    ValueError: an entry that is not a number.
+  """
   if not experts_json or not os.path.exists(experts_json):
     return None
   experts = checkpoints.read_json(experts_json)
@@ -123,15 +146,32 @@ def _label(config):
   return label
 
 
-def learning_curves(logdirs, random_state, expert=None, experts_json=None,
-                    num_resamples=statistics.DEFAULT_RESAMPLES,
-                    minimum='task', per_seed=False):
+def learning_curves(logdirs: Sequence[str],
+                    random_state: np.random.RandomState,
+                    expert: Optional[float] = None,
+                    experts_json: Optional[str] = None,
+                    num_resamples: int = statistics.DEFAULT_RESAMPLES,
+                    minimum: str = 'task',
+                    per_seed: bool = False) -> List[Curve]:
   """One Curve per group of runs that differ only in their seed.
 
-  minimum: the normalisation's 0, 'total' (the lowest possible return,
-  collision penalties included) or 'task' (the task reward's alone).
-  per_seed: one Curve per run instead (its CI is the run's own values),
-  to show how seeds differ where the mean hides it.
+  Args:
+    logdirs: the runs' directories.
+    random_state: the bootstrap's random numbers.
+    expert: the expert return (None: from experts_json).
+    experts_json: None or an experts file.
+    num_resamples: bootstrap resamples.
+    minimum: the normalisation's 0, 'total' (the lowest possible return,
+      collision penalties included) or 'task' (the task reward's alone).
+    per_seed: one Curve per run instead (its CI is the run's own values),
+      to show how seeds differ where the mean hides it.
+
+  Returns:
+    The curves.
+
+  Raises:
+    ValueError: an unknown minimum, runs that repeat seeds or share no
+      evaluation step, or an expert return not above the minimum.
   """
   if minimum not in MINIMA:
     raise ValueError(f'Unknown minimum {minimum!r}: expected one of '
@@ -187,9 +227,19 @@ def learning_curves(logdirs, random_state, expert=None, experts_json=None,
   return curves
 
 
-def title(config, curves, per_seed=False):
+def title(config: Mapping[str, Any], curves: Sequence[Curve],
+          per_seed: bool = False) -> str:
   """The figure's title: the task, the robot and what the curves show (a
-  confidence interval only for curves over several seeds)."""
+  confidence interval only for curves over several seeds).
+
+  Args:
+    config: a run's config.json.
+    curves: the curves drawn.
+    per_seed: one curve per seed.
+
+  Returns:
+    The title.
+  """
   head = f'{config["domain"]}/{config["task"]}, {config["robot"]}: '
   one_seed = [len(curve.seeds) == 1 for curve in curves]
   if per_seed:
@@ -202,8 +252,17 @@ def title(config, curves, per_seed=False):
   return head + 'mean and 95 % bootstrap CI over seeds'
 
 
-def draw(curves, out, title):
-  """Writes the curves as `out` (PNG) and the same stem .svg."""
+def draw(curves: Sequence[Curve], out: str, title: str) -> Tuple[str, str]:
+  """Writes the curves as `out` (PNG) and the same stem .svg.
+
+  Args:
+    curves: the curves.
+    out: the PNG's path.
+    title: the figure's title.
+
+  Returns:
+    The paths written.
+  """
   import matplotlib   # pylint: disable=g-import-not-at-top
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
@@ -253,9 +312,17 @@ def draw(curves, out, title):
   return paths
 
 
-def write_table(curves, path):
-  """The curves as CSV rows (label, step, seed count and ids, mean and CI
-  bounds)."""
+def write_table(curves: Sequence[Curve], path: str) -> str:
+  """Writes the curves as CSV rows (label, step, seed count and ids, mean
+  and CI bounds).
+
+  Args:
+    curves: the curves.
+    path: the CSV file.
+
+  Returns:
+    The path.
+  """
   logger = logging_lib.CSVLogger(path)
   try:
     for curve in curves:
@@ -276,8 +343,12 @@ def write_table(curves, path):
   return path
 
 
-def define_flags(flag_values=flags.FLAGS):
-  """Defines the binary's flags (only when run as a program)."""
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_list('logdirs', None, 'Run directories (comma-separated).',
                     required=True, flag_values=fv)
@@ -299,11 +370,29 @@ def define_flags(flag_values=flags.FLAGS):
                     'mean over seeds.', flag_values=fv)
 
 
-def plot(logdirs, out, seed=0, expert=None, experts_json=_DEFAULT_EXPERTS,
-         num_resamples=statistics.DEFAULT_RESAMPLES, minimum='task',
-         per_seed=False):
-  """Writes the runs' curves as `out` (PNG), .svg and .csv; returns the
-  paths written."""
+def plot(logdirs: Sequence[str], out: str, seed: int = 0,
+         expert: Optional[float] = None,
+         experts_json: str = _DEFAULT_EXPERTS,
+         num_resamples: int = statistics.DEFAULT_RESAMPLES,
+         minimum: str = 'task', per_seed: bool = False) -> List[str]:
+  """Writes the runs' curves as `out` (PNG), .svg and .csv.
+
+  Args:
+    logdirs: the runs' directories.
+    out: the PNG's path.
+    seed: the bootstrap's seed.
+    expert: the expert return (None: from experts_json).
+    experts_json: an experts file (used when present).
+    num_resamples: bootstrap resamples.
+    minimum: the normalisation's 0, 'task' or 'total'.
+    per_seed: one curve per run.
+
+  Returns:
+    The paths written.
+
+  Raises:
+    ValueError: runs or an expert return `learning_curves` rejects.
+  """
   if expert is None and not os.path.exists(experts_json):
     logging.warning('No expert return (%s absent, no --expert_return): '
                     'plotting the raw return', experts_json)
@@ -319,7 +408,14 @@ def plot(logdirs, out, seed=0, expert=None, experts_json=_DEFAULT_EXPERTS,
   return paths + [write_table(curves, table)]
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Plots --logdirs and prints the paths written.
+
+  Args:
+    argv: the command line (unused).
+    flag_values: the parsed flags.
+  """
   del argv
   f = flag_values
   for path in plot(f.logdirs, f.out, f.seed, f.expert_return, f.experts_json,

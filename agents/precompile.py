@@ -22,6 +22,7 @@ import os
 import subprocess
 import sys
 import time
+from typing import Sequence
 
 from absl import app
 from absl import flags
@@ -41,7 +42,7 @@ from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import speed_kernels
 
 
-def compile_second_half(robot):
+def compile_second_half(robot: str) -> None:
   """Compiles (or loads) the kernels of the second process's half for the
   argument types the tasks pass: collision prevention's
   (`cp_kernels.warm_up`), IK's (the TCP position and one IK solve through
@@ -49,7 +50,11 @@ def compile_second_half(robot):
   them), and those every environment warms up when it is built: the
   person's playback (`player_kernels`, `human_kernels`), the plans'
   sampling (`plan_kernels`) and the gripper's grasp check
-  (`gripper_kernels`)."""
+  (`gripper_kernels`).
+
+  Args:
+    robot: the robot whose IK model is used.
+  """
   player_kernels.warm_up()
   human_kernels.warm_up()
   plan_kernels.warm_up()
@@ -71,16 +76,21 @@ def _compiled_here():
   return bool(cycle_kernels.ssm_cycles.stats.cache_misses)
 
 
-def warm_up(robot):
+def warm_up(robot: str) -> float:
   """Compiles (or loads) the shield's kernels here and those of collision
-  prevention and IK in a second process at the same time; returns the
-  seconds it took.
+  prevention and IK in a second process at the same time.
 
   If this half loaded from the cache (nothing compiled here), the second
   process is stopped instead of waited for: its half is cached too and
   loads in this process when first called (the second process's start
   would cost more). If it fails, its kernels compile when the environment
   first calls them (a warning says so).
+
+  Args:
+    robot: the robot whose IK model the second process uses.
+
+  Returns:
+    The seconds it took.
   """
   start = time.perf_counter()
   # The child imports hrc_suite from where this process does.
@@ -109,7 +119,12 @@ def warm_up(robot):
   return time.perf_counter() - start
 
 
-def main(argv):
+def main(argv: Sequence[str]) -> None:
+  """Compiles the second process's half for --robot.
+
+  Args:
+    argv: the command line (unused).
+  """
   del argv
   compile_second_half(flags.FLAGS.robot)
 

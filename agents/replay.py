@@ -6,6 +6,7 @@ none), stored for the learners that constrain it.
 """
 
 import collections
+from typing import Dict, Mapping, Optional
 
 import numpy as np
 
@@ -33,9 +34,17 @@ class ReplayBuffer:
   `discount` is the environment's discount of the step (0 at termination,
   1 otherwise, also at a time-limit truncation); the learner multiplies it
   by its own gamma.
+
+  Args:
+    capacity: transitions kept, an integer >= 1.
+    observation_size: the flat observation's size, an integer >= 1.
+    action_size: the action's size, an integer >= 1.
+
+  Raises:
+    ValueError: a size that is not an integer >= 1.
   """
 
-  def __init__(self, capacity, observation_size, action_size):
+  def __init__(self, capacity: int, observation_size: int, action_size: int):
     for name, value in (('capacity', capacity),
                         ('observation_size', observation_size),
                         ('action_size', action_size)):
@@ -55,32 +64,61 @@ class ReplayBuffer:
     return () if size_name is None else (getattr(self, '_' + size_name),)
 
   @property
-  def capacity(self):
+  def capacity(self) -> int:
+    """Transitions kept."""
     return self._capacity
 
   @property
-  def observation_size(self):
+  def observation_size(self) -> int:
+    """The flat observation's size."""
     return self._observation_size
 
   @property
-  def action_size(self):
+  def action_size(self) -> int:
+    """The action's size."""
     return self._action_size
 
   def __len__(self):
     return self._size
 
-  def add(self, observation, action, reward, discount, next_observation,
-          cost=0.0):
-    """Stores one transition."""
+  def add(self, observation: np.ndarray, action: np.ndarray, reward: float,
+          discount: float, next_observation: np.ndarray,
+          cost: float = 0.0) -> None:
+    """Stores one transition.
+
+    Args:
+      observation: (observation_size,) s.
+      action: (action_size,) a, in [-1, 1].
+      reward: r.
+      discount: the environment's discount of the step.
+      next_observation: (observation_size,) s'.
+      cost: the step's safety cost.
+
+    Raises:
+      ValueError: a field of the wrong shape.
+    """
     self.add_batch(np.asarray(observation)[None], np.asarray(action)[None],
                    np.asarray(reward)[None], np.asarray(discount)[None],
                    np.asarray(next_observation)[None],
                    np.asarray(cost)[None])
 
-  def add_batch(self, observations, actions, rewards, discounts,
-                next_observations, costs=None):
-    """Stores a batch of transitions (leading axis = batch) in order
-    (costs: None for zeros)."""
+  def add_batch(self, observations: np.ndarray, actions: np.ndarray,
+                rewards: np.ndarray, discounts: np.ndarray,
+                next_observations: np.ndarray,
+                costs: Optional[np.ndarray] = None) -> None:
+    """Stores a batch of transitions in order (leading axis = batch).
+
+    Args:
+      observations: (batch, observation_size).
+      actions: (batch, action_size).
+      rewards: (batch,).
+      discounts: (batch,).
+      next_observations: (batch, observation_size).
+      costs: (batch,), or None for zeros.
+
+    Raises:
+      ValueError: fields of the wrong shapes or batch sizes.
+    """
     if costs is None:
       costs = np.zeros(np.shape(rewards), np.float32)
     values = dict(zip(Transition._fields, (
@@ -108,8 +146,21 @@ class ReplayBuffer:
     self._insert_index = int((self._insert_index + batch) % self._capacity)
     self._size = min(self._size + batch, self._capacity)
 
-  def sample(self, batch_size, random_state):
-    """Transition of `batch_size` rows drawn uniformly with replacement."""
+  def sample(self, batch_size: int,
+             random_state: np.random.RandomState) -> Transition:
+    """Transitions drawn uniformly with replacement.
+
+    Args:
+      batch_size: rows to draw.
+      random_state: the draw's random numbers.
+
+    Returns:
+      A Transition of `batch_size` rows per field.
+
+    Raises:
+      ValueError: an empty buffer.
+      TypeError: a random_state that is not a np.random.RandomState.
+    """
     if self._size == 0:
       raise ValueError('Cannot sample from an empty replay buffer')
     if not isinstance(random_state, np.random.RandomState):
@@ -119,7 +170,7 @@ class ReplayBuffer:
     return Transition(*(self._data[field][indices]
                         for field in Transition._fields))
 
-  def state(self):
+  def state(self) -> Dict[str, np.ndarray]:
     """{name: array} of the stored transitions and the insertion index."""
     state = {'capacity': np.int64(self._capacity),
              'insert_index': np.int64(self._insert_index),
@@ -128,8 +179,16 @@ class ReplayBuffer:
       state[field] = self._data[field][:self._size].copy()
     return state
 
-  def restore(self, state):
-    """Restores a `state()` of a buffer of the same capacity and sizes."""
+  def restore(self, state: Mapping[str, np.ndarray]) -> None:
+    """Restores a `state()` of a buffer of the same capacity and sizes.
+
+    Args:
+      state: of `state()` (without 'cost': zeros).
+
+    Raises:
+      ValueError: another capacity, a bad size or index, or fields missing
+        or of the wrong shapes.
+    """
     capacity = int(state['capacity'])
     if capacity != self._capacity:
       raise ValueError(f'Replay state has capacity {capacity}, expected '

@@ -36,6 +36,7 @@ import math
 import os
 import shutil
 import sys
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from absl import app
 from absl import flags
@@ -63,10 +64,23 @@ SAFETY_HEADERS = {'cost': 'cost per episode',
                   'shield_interventions': 'shield interventions per episode'}
 
 Summary = collections.namedtuple('Summary', ['mean', 'low', 'high'])
+# An evaluation row (ROW_KEYS) and a final-values entry.
+Row = Dict[str, Any]
+Entry = Dict[str, Any]
 
 
-def load_sweep(root):
-  """(grid, sweep record) of a sweep directory."""
+def load_sweep(root: str) -> Tuple[grids_lib.Grid, Dict[str, Any]]:
+  """A sweep's grid and record.
+
+  Args:
+    root: the sweep directory.
+
+  Returns:
+    (grid, sweep record).
+
+  Raises:
+    ValueError: a directory that holds no sweep.
+  """
   record = layout.read_json(os.path.join(root, layout.SWEEP_FILE))
   if record is None:
     raise ValueError(f'{root} is not a sweep directory: it has no '
@@ -74,8 +88,16 @@ def load_sweep(root):
   return grids_lib.Grid.from_dict(record['grid']), record
 
 
-def expert_return(root, task):
-  """The deterministic expert's mean return on `task`, or None."""
+def expert_return(root: str, task: str) -> Optional[float]:
+  """The deterministic expert's mean return on a task.
+
+  Args:
+    root: the sweep directory.
+    task: 'domain/task'.
+
+  Returns:
+    The mean return, or None where it was not recorded.
+  """
   record = layout.read_json(layout.expert_file(root, task))
   return None if record is None else float(record['return_mean'])
 
@@ -87,10 +109,18 @@ def _number(value):
   return value if math.isfinite(value) else None
 
 
-def task_minimum(grid, task):
-  """R_min of `task` in `grid`: HrcTask.min_task_return of the task built
+def task_minimum(grid: grids_lib.Grid, task: str) -> float:
+  """R_min of a task in a grid: HrcTask.min_task_return of the task built
   with the grid's robot, action space and kwargs (its people aside: the
-  minimum does not depend on them)."""
+  minimum does not depend on them).
+
+  Args:
+    grid: the grid.
+    task: 'domain/task' of the grid.
+
+  Returns:
+    R_min.
+  """
   domain, name = task.split('/')
   kwargs = {k: v for k, v in grid.task_kwargs_of(None).items()
             if k != 'motions'}
@@ -103,11 +133,21 @@ def task_minimum(grid, task):
     env.close()
 
 
-def evaluation_rows(root, grid=None, minima=None):
-  """(rows, missing): every evaluation of the sweep's runs as dicts with
-  ROW_KEYS, and {run name: state} of the runs without all their steps
-  ('no data', or 'k of n steps'). minima: {task: R_min}, by default
-  `task_minimum` of each task."""
+def evaluation_rows(root: str, grid: Optional[grids_lib.Grid] = None,
+                    minima: Optional[Mapping[str, float]] = None
+                    ) -> Tuple[List[Row], Dict[str, str]]:
+  """Every evaluation of a sweep's runs.
+
+  Args:
+    root: the sweep directory.
+    grid: its grid (None: read from the sweep).
+    minima: {task: R_min}, by default `task_minimum` of each task.
+
+  Returns:
+    (rows, missing): the evaluations as dicts with ROW_KEYS, and {run
+    name: state} of the runs without all their steps ('no data', or 'k of
+    n steps').
+  """
   if grid is None:
     grid, _ = load_sweep(root)
   rows, missing = [], {}
@@ -171,9 +211,21 @@ def _groups(rows, motions=None):
   return groups
 
 
-def curve(runs, name, random_state, resamples):
-  """(steps, Summary of arrays) of one group's `name` over its seeds, at the
-  evaluation steps every seed reached (None if none or a value missing)."""
+def curve(runs: Mapping[Any, Mapping[int, Row]], name: str,
+          random_state: np.random.RandomState, resamples: int
+          ) -> Optional[Tuple[np.ndarray, Summary]]:
+  """One group's metric over its seeds, at the evaluation steps every seed
+  reached.
+
+  Args:
+    runs: {seed key: {step: row}} of one (task, agent).
+    name: a metric of the rows.
+    random_state: the bootstrap's random numbers.
+    resamples: bootstrap resamples.
+
+  Returns:
+    (steps, Summary of arrays), or None if no step or a value is missing.
+  """
   steps = sorted(set.intersection(*(set(r) for r in runs.values())))
   if not steps:
     return None
@@ -187,9 +239,21 @@ def curve(runs, name, random_state, resamples):
                                   np.atleast_1d(high))
 
 
-def final_values(rows, random_state, resamples, motions=None):
-  """Per (task, agent): the last step every seed reached, the seeds, and
-  the Summary of FINAL_KEYS and SAFETY_KEYS there (None where missing)."""
+def final_values(rows: Sequence[Row], random_state: np.random.RandomState,
+                 resamples: int, motions: Optional[str] = None
+                 ) -> List[Entry]:
+  """The final values of each (task, agent).
+
+  Args:
+    rows: of `evaluation_rows`.
+    random_state: the bootstrap's random numbers.
+    resamples: bootstrap resamples.
+    motions: the rows' motions side (None: runs without splits).
+
+  Returns:
+    Per (task, agent): the last step every seed reached, the seeds, and
+    the Summary of FINAL_KEYS and SAFETY_KEYS there (None where missing).
+  """
   table = []
   for (task, agent), runs in _groups(rows, motions).items():
     entry = {'task': task, 'agent': agent, 'seeds': len(runs)}
@@ -206,10 +270,26 @@ def final_values(rows, random_state, resamples, motions=None):
   return table
 
 
-def draw(rows, grid, root, name, ylabel, path, random_state, resamples,
-         motions=None):
+def draw(rows: Sequence[Row], grid: grids_lib.Grid, root: str, name: str,
+         ylabel: str, path: str, random_state: np.random.RandomState,
+         resamples: int, motions: Optional[str] = None) -> List[str]:
   """One panel per task, one line per agent (mean and 95 % CI band), the
-  expert dashed; writes path (.png) and .svg."""
+  expert dashed.
+
+  Args:
+    rows: of `evaluation_rows`.
+    grid: the grid.
+    root: the sweep directory (the expert's records).
+    name: the metric drawn.
+    ylabel: its axis label.
+    path: the .png to write (and .svg beside it).
+    random_state: the bootstrap's random numbers.
+    resamples: bootstrap resamples.
+    motions: the rows' motions side (None: runs without splits).
+
+  Returns:
+    The paths written.
+  """
   import matplotlib   # pylint: disable=g-import-not-at-top
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
@@ -274,9 +354,22 @@ def _expert_reference(root, task, name):
                record['return_mean'])
 
 
-def draw_overfitting(rows, grid, path, random_state, resamples):
+def draw_overfitting(rows: Sequence[Row], grid: grids_lib.Grid, path: str,
+                     random_state: np.random.RandomState,
+                     resamples: int) -> List[str]:
   """Seen against unseen motions: per task and agent, success and
-  normalised return over steps (mean over splits and seeds)."""
+  normalised return over steps (mean over splits and seeds).
+
+  Args:
+    rows: of `evaluation_rows`.
+    grid: the grid (with splits).
+    path: the .png to write (and .svg beside it).
+    random_state: the bootstrap's random numbers.
+    resamples: bootstrap resamples.
+
+  Returns:
+    The paths written.
+  """
   import matplotlib   # pylint: disable=g-import-not-at-top
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt   # pylint: disable=g-import-not-at-top
@@ -309,9 +402,16 @@ def _cell(summary, digits=2):
           f'{summary.high:.{digits}f}]')
 
 
-def evaluation_cost(rows):
+def evaluation_cost(rows: Sequence[Row]) -> Dict[str, Dict[str, float]]:
   """Per task: seconds of evaluation and evaluated episode steps per
-  evaluation, mean over the evaluations that timed themselves."""
+  evaluation, mean over the evaluations that timed themselves.
+
+  Args:
+    rows: of `evaluation_rows`.
+
+  Returns:
+    {task: {'seconds', 'mean_episode_length', 'evaluations'}}.
+  """
   cost = collections.OrderedDict()
   for row in rows:
     if row['eval_seconds'] is None:
@@ -325,9 +425,27 @@ def evaluation_cost(rows):
           for task, (s, l, n) in cost.items()}
 
 
-def markdown(grid, record, final, missing, overfitting, cost,
-             normalisation):
-  """report.md's text."""
+def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
+             final: Sequence[Entry], missing: Mapping[str, str],
+             overfitting: Mapping[str, Sequence[Entry]],
+             cost: Mapping[str, Mapping[str, float]],
+             normalisation: Mapping[str, Tuple[float, Optional[float]]]
+             ) -> str:
+  """report.md's text.
+
+  Args:
+    grid: the grid.
+    record: the sweep record (its commit).
+    final: of `final_values`.
+    missing: the runs not finished, {run name: state}.
+    overfitting: {side: `final_values` of that side} (empty without
+      splits).
+    cost: of `evaluation_cost`.
+    normalisation: {task: (R_min, R_expert or None)}.
+
+  Returns:
+    The markdown.
+  """
   safety = [k for k in SAFETY_KEYS
             if any(entry[k] is not None for entry in final)]
   lines = [f'# Sweep {grid.name}', '',
@@ -387,8 +505,9 @@ def _jsonable(entry):
           for k, v in entry.items()}
 
 
-def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
-           plots=True, minima=None):
+def report(root: str, out: Optional[str] = None, seed: int = 0,
+           resamples: int = statistics.DEFAULT_RESAMPLES, plots: bool = True,
+           minima: Optional[Mapping[str, float]] = None) -> Dict[str, Any]:
   """Writes the report of a sweep.
 
   Args:
@@ -403,6 +522,9 @@ def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
   Returns:
     {'rows', 'final', 'missing', 'overfitting', 'cost', 'normalisation',
     'paths'}.
+
+  Raises:
+    ValueError: a directory that holds no sweep.
   """
   root = os.path.abspath(root)
   out = out or os.path.join(root, 'report')
@@ -472,7 +594,12 @@ def report(root, out=None, seed=0, resamples=statistics.DEFAULT_RESAMPLES,
           'cost': cost, 'paths': paths}
 
 
-def define_flags(flag_values=flags.FLAGS):
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('sweep', None, 'Sweep directory (agents.sweep --out).',
                       flag_values=fv)
@@ -486,7 +613,20 @@ def define_flags(flag_values=flags.FLAGS):
                       '(e.g. docs/results/paper_grid.json).', flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> int:
+  """Writes and prints the report of --sweep.
+
+  Args:
+    argv: the command line (no arguments).
+    flag_values: the parsed flags.
+
+  Returns:
+    The exit status: 0, or 2 where --sweep holds no sweep.
+
+  Raises:
+    app.UsageError: arguments, or no --sweep.
+  """
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
   f = flag_values

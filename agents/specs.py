@@ -2,12 +2,21 @@
 
 import collections
 
+import dm_env
+
 EnvironmentSpec = collections.namedtuple(
     'EnvironmentSpec', ['observations', 'actions', 'rewards', 'discounts'])
 
 
-def make_environment_spec(environment):
-  """EnvironmentSpec of a dm_env.Environment."""
+def make_environment_spec(environment: dm_env.Environment) -> EnvironmentSpec:
+  """EnvironmentSpec of a dm_env.Environment.
+
+  Args:
+    environment: the environment.
+
+  Returns:
+    Its observation, action, reward and discount specs.
+  """
   return EnvironmentSpec(observations=environment.observation_spec(),
                          actions=environment.action_spec(),
                          rewards=environment.reward_spec(),

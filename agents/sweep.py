@@ -42,6 +42,7 @@ import socket
 import subprocess
 import sys
 import time
+from typing import Any, Dict, List, Optional, Sequence, TextIO
 
 from absl import app
 from absl import flags
@@ -67,8 +68,12 @@ _JSON_FIELDS = ('overrides', 'task_kwargs', 'imitation_kwargs', 'variants')
 _STRING_FIELDS = ('robot', 'config', 'motions')
 
 
-def define_flags(flag_values=flags.FLAGS):
-  """Defines the binary's flags (only when run as a program)."""
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the binary's flags (only when run as a program).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('grid', None, 'Grid name: ' + ', '.join(grids_lib.GRIDS),
                       flag_values=fv)
@@ -145,8 +150,18 @@ def _steps(text):
   return steps
 
 
-def grid_from_flags(f):
-  """The grid named by --grid with the fields its flags replace."""
+def grid_from_flags(f: flags.FlagValues) -> grids_lib.Grid:
+  """The grid named by --grid with the fields its flags replace.
+
+  Args:
+    f: the parsed flags.
+
+  Returns:
+    The grid.
+
+  Raises:
+    ValueError: no --grid, a flag's bad value, or a bad grid.
+  """
   if f.grid is None:
     raise ValueError('--grid is required: one of ' + ', '.join(grids_lib.GRIDS))
   grid = grids_lib.get(f.grid)
@@ -191,10 +206,21 @@ def _git_commit():
     return None
 
 
-def open_sweep(out, grid):
+def open_sweep(out: str, grid: grids_lib.Grid) -> Dict[str, Any]:
   """Creates the sweep directory or checks that it holds the same grid
   (but for RESUMABLE_CHANGES); writes sweep.json with this start (commit,
-  time, host) appended to its starts."""
+  time, host) appended to its starts.
+
+  Args:
+    out: the sweep directory.
+    grid: the grid.
+
+  Returns:
+    The sweep record written.
+
+  Raises:
+    ValueError: a directory holding a sweep of another grid.
+  """
   os.makedirs(os.path.join(out, layout.RUNS), exist_ok=True)
   path = os.path.join(out, layout.SWEEP_FILE)
   stored = layout.read_json(path)
@@ -220,8 +246,21 @@ def open_sweep(out, grid):
   return record
 
 
-def start_ray(address=None, num_cpus=None):
-  """Connects to the cluster at `address`, or starts an embedded Ray."""
+def start_ray(address: Optional[str] = None,
+              num_cpus: Optional[int] = None) -> Any:
+  """Connects to the cluster at `address`, or starts an embedded Ray.
+
+  Args:
+    address: None (an embedded Ray), 'auto' or a cluster's HOST:PORT.
+    num_cpus: CPUs of the embedded Ray (None: all of this machine's).
+
+  Returns:
+    The ray module, initialised.
+
+  Raises:
+    ValueError: num_cpus with an address, or a bad address.
+    ConnectionError: a cluster that cannot be reached.
+  """
   import ray   # pylint: disable=g-import-not-at-top
   if address is None:
     # 'local': a new Ray of this process even where a cluster started by
@@ -252,11 +291,20 @@ def start_ray(address=None, num_cpus=None):
   return ray
 
 
-def check_reachable(address, timeout=CONNECT_TIMEOUT_S):
-  """Raises ConnectionError unless a TCP connection to a cluster address
-  (HOST:PORT or ray://HOST:PORT) opens within `timeout` seconds; ray.init
-  itself waits without end for an address nobody answers at. 'auto' is
-  left to Ray, which fails at once when it finds no cluster."""
+def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S
+                    ) -> None:
+  """Checks that a TCP connection to a cluster address opens in time;
+  ray.init itself waits without end for an address nobody answers at.
+  'auto' is left to Ray, which fails at once when it finds no cluster.
+
+  Args:
+    address: 'auto', HOST:PORT or ray://HOST:PORT.
+    timeout: seconds.
+
+  Raises:
+    ValueError: an address of another form.
+    ConnectionError: no answer within `timeout`.
+  """
   if address == 'auto':
     return
   host, sep, port = address.split('://', 1)[-1].rpartition(':')
@@ -291,9 +339,16 @@ def _format_seconds(seconds):
 
 class ProgressReporter:
   """Counts runs and steps from the run directories' records and prints a
-  line: runs done/running/left, steps, rate and estimated time to finish."""
+  line: runs done/running/left, steps, rate and estimated time to finish.
 
-  def __init__(self, out, runs, stream=sys.stdout):
+  Args:
+    out: the sweep directory.
+    runs: the grid's runs.
+    stream: where the lines go.
+  """
+
+  def __init__(self, out: str, runs: Sequence[grids_lib.Run],
+               stream: TextIO = sys.stdout):
     self.out = out
     self._runs = runs
     self._stream = stream
@@ -301,11 +356,20 @@ class ProgressReporter:
     self._first = self.steps_done()
     self.failed = set()
 
-  def steps_done(self):
+  def steps_done(self) -> int:
+    """Steps the runs' records count (each at most its run's steps)."""
     return sum(min(layout.progress(layout.run_directory(self.out, r.name)),
                    int(r.run_config['steps'])) for r in self._runs)
 
-  def line(self, running):
+  def line(self, running: int) -> str:
+    """The progress line.
+
+    Args:
+      running: the runs training now.
+
+    Returns:
+      The line.
+    """
     done = sum(1 for r in self._runs if layout.is_finished(
         layout.run_directory(self.out, r.name), r.run_config['steps']))
     total = sum(int(r.run_config['steps']) for r in self._runs)
@@ -322,13 +386,21 @@ class ProgressReporter:
                f'{_format_seconds((total - steps) / rate)} left')
     return text
 
-  def report(self, running):
+  def report(self, running: int) -> None:
+    """Prints the progress line to the stream.
+
+    Args:
+      running: the runs training now.
+    """
     print(self.line(running), file=self._stream, flush=True)
 
 
-def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
-              gpus_per_run=0.0, max_retries=2, report_every=60.0,
-              stream=sys.stdout):
+def run_sweep(out: str, grid: grids_lib.Grid,
+              ray_address: Optional[str] = None,
+              num_cpus: Optional[int] = None, cpus_per_run: int = 1,
+              gpus_per_run: float = 0.0, max_retries: int = 2,
+              report_every: float = 60.0,
+              stream: TextIO = sys.stdout) -> List[str]:
   """Trains every unfinished run of `grid` in `out`; returns the names of
   the runs that failed.
 
@@ -342,6 +414,13 @@ def run_sweep(out, grid, ray_address=None, num_cpus=None, cpus_per_run=1,
     max_retries: restarts of a run whose worker died.
     report_every: seconds between progress lines.
     stream: where progress goes.
+
+  Returns:
+    The names of the runs that failed.
+
+  Raises:
+    ValueError: a directory holding another grid, or bad Ray settings.
+    ConnectionError: a cluster that cannot be reached.
   """
   if int(cpus_per_run) != cpus_per_run or cpus_per_run < 1:
     raise ValueError(f'cpus_per_run={cpus_per_run!r}: expected an integer '
@@ -504,8 +583,15 @@ def _running(reporter, pending):
   return count
 
 
-def dry_run(out, grid, stream=sys.stdout):
-  """Prints the grid's runs and whether each is finished."""
+def dry_run(out: str, grid: grids_lib.Grid,
+            stream: TextIO = sys.stdout) -> None:
+  """Prints the grid's runs and whether each is finished.
+
+  Args:
+    out: the sweep directory.
+    grid: the grid.
+    stream: where the lines go.
+  """
   for run in grid.runs():
     directory = layout.run_directory(out, run.name)
     steps = layout.progress(directory)
@@ -519,7 +605,20 @@ def dry_run(out, grid, stream=sys.stdout):
         file=stream)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> int:
+  """Runs (or with --dry_run lists) the sweep the flags describe.
+
+  Args:
+    argv: the command line (no arguments).
+    flag_values: the parsed flags.
+
+  Returns:
+    The exit status: 0, 1 where runs failed, 2 on bad settings.
+
+  Raises:
+    app.UsageError: arguments, or bad or missing flags.
+  """
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
   f = flag_values

@@ -32,7 +32,7 @@ the others from their latest checkpoint.
 import json
 import os
 import time
-from typing import Dict, Optional
+from typing import Any, Dict, Optional, Union
 
 from agents import checkpoints
 
@@ -47,10 +47,19 @@ LOG_FILE = 'run.log'
 PROGRESS_SECONDS = 20.0
 
 write_json = checkpoints.write_json   # atomic: temporary file + rename
+# A file or folder's path.
+Path = Union[str, os.PathLike]
 
 
-def read_json(path) -> Optional[Dict]:
-  """The JSON object at path, or None if there is no file."""
+def read_json(path: Path) -> Optional[Dict[str, Any]]:
+  """The JSON object at a path.
+
+  Args:
+    path: the file.
+
+  Returns:
+    The object, or None if there is no file.
+  """
   try:
     with open(path) as f:
       return json.load(f)
@@ -58,33 +67,84 @@ def read_json(path) -> Optional[Dict]:
     return None
 
 
-def run_directory(root, run_name):
+def run_directory(root: Path, run_name: str) -> str:
+  """A run's directory in a sweep.
+
+  Args:
+    root: the sweep's directory.
+    run_name: the run's name (`grids.Run.name`).
+
+  Returns:
+    root/runs/<run_name>.
+  """
   return os.path.join(os.fspath(root), RUNS, run_name)
 
 
-def task_slug(task):
-  """'domain/task' -> 'domain-task' (a folder name)."""
+def task_slug(task: str) -> str:
+  """A task's folder name.
+
+  Args:
+    task: 'domain/task'.
+
+  Returns:
+    'domain-task'.
+  """
   return task.replace('/', '-')
 
 
-def dataset_directory(root, task, split=None):
+def dataset_directory(root: Path, task: str,
+                      split: Optional[int] = None) -> str:
+  """The shared expert dataset of a task (and motion split).
+
+  Args:
+    root: the sweep's directory.
+    task: 'domain/task'.
+    split: None, or the motion split's index.
+
+  Returns:
+    root/shared/datasets/<domain>-<task>[-split<k>].
+  """
   name = task_slug(task) + ('' if split is None else f'-split{split}')
   return os.path.join(os.fspath(root), SHARED, 'datasets', name)
 
 
-def expert_file(root, task):
+def expert_file(root: Path, task: str) -> str:
+  """The record of the expert's episodes on a task.
+
+  Args:
+    root: the sweep's directory.
+    task: 'domain/task'.
+
+  Returns:
+    root/shared/experts/<domain>-<task>.json.
+  """
   return os.path.join(os.fspath(root), SHARED, 'experts',
                       task_slug(task) + '.json')
 
 
-def is_finished(directory, steps):
-  """True if the run in `directory` finished at least `steps` RL steps."""
+def is_finished(directory: Path, steps: int) -> bool:
+  """Whether a run finished at least `steps` RL steps.
+
+  Args:
+    directory: the run's directory.
+    steps: the steps it is to reach.
+
+  Returns:
+    Whether its finished.json records at least that many.
+  """
   record = read_json(os.path.join(directory, FINISHED_FILE))
   return record is not None and int(record['steps']) >= int(steps)
 
 
-def progress(directory):
-  """Steps done by the run in `directory` as far as its records say."""
+def progress(directory: Path) -> int:
+  """Steps done by a run as far as its records say.
+
+  Args:
+    directory: the run's directory.
+
+  Returns:
+    The steps of finished.json, else of progress.json, else 0.
+  """
   for name in (FINISHED_FILE, PROGRESS_FILE):
     record = read_json(os.path.join(directory, name))
     if record is not None:
@@ -93,15 +153,26 @@ def progress(directory):
 
 
 class ProgressWriter:
-  """Writes a run's progress.json at most every PROGRESS_SECONDS."""
+  """Writes a run's progress.json at most every PROGRESS_SECONDS.
 
-  def __init__(self, directory, target):
+  Args:
+    directory: the run's directory.
+    target: the steps the run is to reach.
+  """
+
+  def __init__(self, directory: Path, target: int):
     self._path = os.path.join(directory, PROGRESS_FILE)
     self._target = int(target)
     self._start = time.time()
     self._last = 0.0
 
-  def __call__(self, steps, force=False):
+  def __call__(self, steps: int, force: bool = False) -> None:
+    """Records the steps done (at most every PROGRESS_SECONDS).
+
+    Args:
+      steps: the steps done.
+      force: write now regardless.
+    """
     now = time.time()
     if force or now - self._last >= PROGRESS_SECONDS:
       self._last = now

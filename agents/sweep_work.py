@@ -26,6 +26,7 @@ import socket
 import tempfile
 import time
 import traceback
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Tuple
 
 from agents import sweep_layout as layout
 
@@ -34,10 +35,17 @@ _SLOT_DIRECTORY = os.path.join(tempfile.gettempdir(),
 _RUN_LOCK = '.lock'
 
 
-def thread_environment(cpus):
+def thread_environment(cpus: int) -> Dict[str, str]:
   """Environment variables that keep a run's thread pools to `cpus` cores:
   XLA's intra-op pool (a single-threaded Eigen for one core), numba's
-  parallel pool and BLAS/OpenMP pools."""
+  parallel pool and BLAS/OpenMP pools.
+
+  Args:
+    cpus: the run's cores.
+
+  Returns:
+    {variable: value}.
+  """
   cpus = int(cpus)
   xla = '--xla_force_host_platform_device_count=1'
   if cpus == 1:
@@ -49,12 +57,20 @@ def thread_environment(cpus):
 
 
 @contextlib.contextmanager
-def cpu_slot(cpus, directory=_SLOT_DIRECTORY):
+def cpu_slot(cpus: int, directory: str = _SLOT_DIRECTORY
+             ) -> Iterator[Optional[List[int]]]:
   """Pins this process to a free slot of `cpus` cores of this machine
   (slot i: the i-th group of `cpus` cores this process may run on) and
-  holds the slot's lock (a file in `directory`) until exit. Without a free
-  slot (more runs than slots: a scheduler that oversubscribes) the process
-  is not pinned and None is yielded."""
+  holds the slot's lock (a file in `directory`) until exit.
+
+  Args:
+    cpus: cores per slot.
+    directory: the slots' lock files.
+
+  Yields:
+    The slot's cores; None without a free slot (more runs than slots: a
+    scheduler that oversubscribes), the process then not pinned.
+  """
   allowed = sorted(os.sched_getaffinity(0))
   slots = len(allowed) // int(cpus)
   os.makedirs(directory, exist_ok=True)
@@ -80,9 +96,19 @@ def cpu_slot(cpus, directory=_SLOT_DIRECTORY):
 
 
 @contextlib.contextmanager
-def run_lock(directory):
-  """Holds an exclusive lock on a run directory; a ValueError if another
-  process holds it (the same run started twice, e.g. by two sweeps)."""
+def run_lock(directory: str) -> Iterator[None]:
+  """Holds an exclusive lock on a run directory.
+
+  Args:
+    directory: the run's directory (created if absent).
+
+  Yields:
+    None, while the lock is held.
+
+  Raises:
+    ValueError: if another process holds it (the same run started twice,
+      e.g. by two sweeps).
+  """
   os.makedirs(directory, exist_ok=True)
   handle = open(os.path.join(directory, _RUN_LOCK), 'w')
   try:
@@ -117,16 +143,32 @@ def _log_to(path):
     handler.close()
 
 
-def prepare_node(robot):
-  """Compiles (or loads) the numba kernels on this machine; returns
-  (host, seconds)."""
+def prepare_node(robot: str) -> Tuple[str, float]:
+  """Compiles (or loads) the numba kernels on this machine.
+
+  Args:
+    robot: a robot the kernels are warmed up with.
+
+  Returns:
+    (host, seconds).
+  """
   from agents import precompile   # pylint: disable=g-import-not-at-top
   return socket.gethostname(), precompile.warm_up(robot)
 
 
-def collect_dataset(directory, task, task_kwargs, episodes):
-  """The noisy-expert dataset of `task` in `directory` (resumed where it
-  stopped); returns its directory."""
+def collect_dataset(directory: str, task: str,
+                    task_kwargs: Mapping[str, Any], episodes: int) -> str:
+  """The noisy-expert dataset of a task, resumed where it stopped.
+
+  Args:
+    directory: the dataset's directory.
+    task: 'domain/task'.
+    task_kwargs: the task's kwargs.
+    episodes: episodes the dataset holds.
+
+  Returns:
+    The directory.
+  """
   from hrc_suite.experts import dataset   # pylint: disable=g-import-not-at-top
   domain, name = task.split('/')
   dataset.collect(directory, domain, name, task_kwargs,
@@ -134,10 +176,22 @@ def collect_dataset(directory, task, task_kwargs, episodes):
   return directory
 
 
-def expert_returns(path, task, task_kwargs, episodes):
-  """Runs the deterministic expert `episodes` times on `task` (seeds 0..)
-  and writes {return_mean, success, episodes, rows} to `path`; returns it.
-  An existing file with as many episodes is returned as it is."""
+def expert_returns(path: str, task: str, task_kwargs: Mapping[str, Any],
+                   episodes: int) -> Dict[str, Any]:
+  """Runs the deterministic expert on a task (seeds 0..) and records it.
+
+  An existing file with as many episodes is returned as it is.
+
+  Args:
+    path: the record's file.
+    task: 'domain/task'.
+    task_kwargs: the task's kwargs.
+    episodes: episodes to run.
+
+  Returns:
+    The record {task, task_kwargs, policy, episodes, return_mean,
+    return_std, success, rows}.
+  """
   import numpy as np   # pylint: disable=g-import-not-at-top
   from hrc_suite import experts   # pylint: disable=g-import-not-at-top
   from hrc_suite import suite   # pylint: disable=g-import-not-at-top
@@ -170,7 +224,8 @@ def expert_returns(path, task, task_kwargs, episodes):
   return record
 
 
-def train_run(root, run_name, run_config, cpus, dataset=None):
+def train_run(root: str, run_name: str, run_config: Mapping[str, Any],
+              cpus: int, dataset: Optional[str] = None) -> Dict[str, Any]:
   """Trains (or resumes) one run of a sweep to its steps.
 
   Args:

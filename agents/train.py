@@ -36,10 +36,13 @@ import dataclasses
 import json
 import os
 import time
+from typing import (Any, Callable, Dict, Mapping, Optional, Sequence,
+                    Tuple, Union)
 
 from absl import app
 from absl import flags
 from absl import logging
+import dm_env
 import numpy as np
 import tqdm
 
@@ -73,16 +76,37 @@ _RESUMABLE_CHANGES = ('steps',)
 # Purposes of seeds derived from the run seed (np.random.SeedSequence);
 # agents.evaluate uses 3.
 _TRAIN_ENV, _AGENT, _EVAL_ENV, _IMITATION = 0, 1, 2, 4
+# A run's description (config.json, `make_run_config`).
+RunConfig = Dict[str, Any]
 
 
-def derived_seed(seed, *purpose):
-  """A 31-bit seed for one purpose of a run seed (independent streams)."""
+def derived_seed(seed: int, *purpose: int) -> int:
+  """A 31-bit seed for one purpose of a run seed (independent streams).
+
+  Args:
+    seed: the run seed.
+    *purpose: integers naming the purpose (the module's constants, an
+      evaluation's index, ...).
+
+  Returns:
+    The seed.
+  """
   sequence = np.random.SeedSequence([int(seed)] + [int(p) for p in purpose])
   return int(sequence.generate_state(1)[0] & 0x7FFFFFFF)
 
 
-def parse_overrides(items):
-  """{'field': value} from ['field=json value', ...]."""
+def parse_overrides(items: Sequence[str]) -> Dict[str, Any]:
+  """Config overrides from the command line.
+
+  Args:
+    items: ['field=json value', ...].
+
+  Returns:
+    {'field': value}.
+
+  Raises:
+    ValueError: an item without '=' or a value that is not JSON.
+  """
   overrides = {}
   for item in items:
     name, sep, value = item.partition('=')
@@ -96,18 +120,48 @@ def parse_overrides(items):
   return overrides
 
 
-def make_run_config(domain, task, robot, action_space, agent='sac',
-                    config='default', overrides=None, task_kwargs=None,
-                    seed=0, steps=1000, eval_every=0, eval_episodes=0,
-                    checkpoint_every=0, dataset=None, imitation_kwargs=None,
-                    eval_sets=None):
+def make_run_config(domain: str, task: str, robot: str, action_space: str,
+                    agent: str = 'sac', config: str = 'default',
+                    overrides: Optional[Mapping[str, Any]] = None,
+                    task_kwargs: Optional[Mapping[str, Any]] = None,
+                    seed: int = 0, steps: int = 1000, eval_every: int = 0,
+                    eval_episodes: int = 0, checkpoint_every: int = 0,
+                    dataset: Optional[str] = None,
+                    imitation_kwargs: Optional[Mapping[str, Any]] = None,
+                    eval_sets: Optional[Mapping[str, Mapping[str, Any]]]
+                    = None) -> RunConfig:
   """The JSON-ready description of a run (config.json).
 
-  eval_sets: {name: task kwargs} of further evaluation environments, each
-  the run's task with these kwargs replacing the run's (e.g. the unseen
-  side of a motion split: {'unseen': {'motions': {'split': 'test', ...}}});
-  each is evaluated with the run's main evaluation and logged to
-  eval_<name>.csv.
+  Args:
+    domain: the task's domain.
+    task: the task's name.
+    robot: a robot name or description file.
+    action_space: 'joint' or 'cartesian'.
+    agent: one of AGENTS.
+    config: a SAC preset (`agents.config.CONFIGS`).
+    overrides: config fields (of the agent's algorithm's config).
+    task_kwargs: further task kwargs (not robot, action_space or seed).
+    seed: the run seed.
+    steps: environment steps, an integer >= 0.
+    eval_every: steps between evaluations (0: none).
+    eval_episodes: episodes per evaluation (>= 1 with eval_every).
+    checkpoint_every: steps between checkpoints (0: only at the end).
+    dataset: an expert dataset directory (the imitation agents that need
+      one only).
+    imitation_kwargs: the imitation wrapper's kwargs.
+    eval_sets: {name: task kwargs} of further evaluation environments,
+      each the run's task with these kwargs replacing the run's (e.g. the
+      unseen side of a motion split: {'unseen': {'motions': {'split':
+      'test', ...}}}); each is evaluated with the run's main evaluation and
+      logged to eval_<name>.csv.
+
+  Returns:
+    The run config.
+
+  Raises:
+    ValueError: an unknown agent or config field, a dataset missing or
+      given where unused, bad counts, task kwargs setting a flag's value,
+      or bad eval_sets.
   """
   if agent not in AGENTS:
     raise ValueError(f'Unknown agent {agent!r}: expected one of '
@@ -157,14 +211,34 @@ def make_run_config(domain, task, robot, action_space, agent='sac',
   return run_config
 
 
-def algorithm(agent):
-  """The learning algorithm (agents/builders.py) of an agent name."""
+def algorithm(agent: str) -> str:
+  """The learning algorithm (agents/builders.py) of an agent name.
+
+  Args:
+    agent: one of AGENTS.
+
+  Returns:
+    'sac' or 'sac_lag'.
+  """
   return agent if agent in _BARE_TASK_AGENTS else 'sac'
 
 
-def agent_config(agent, preset, overrides):
-  """The config of `agent`: the SAC preset's values, for sac_lag with the
-  constraint's fields, and overrides of any of them."""
+def agent_config(agent: str, preset: str,
+                 overrides: Mapping[str, Any]) -> config_lib.SACConfig:
+  """The config of an agent: the SAC preset's values, for sac_lag with the
+  constraint's fields, and overrides of any of them.
+
+  Args:
+    agent: one of AGENTS.
+    preset: a SAC preset (`agents.config.CONFIGS`).
+    overrides: fields of the algorithm's config.
+
+  Returns:
+    The config (a SACConfig or a subclass).
+
+  Raises:
+    ValueError: an unknown preset or field, or a field's bad value.
+  """
   if algorithm(agent) == 'sac':
     return config_lib.config_from_name(preset, **overrides)
   config_class = builders.config_class(algorithm(agent))
@@ -199,11 +273,19 @@ def _check_eval_sets(eval_sets, eval_every):
   return {name: dict(kwargs) for name, kwargs in eval_sets.items()}
 
 
-def make_environment(run_config, seed):
+def make_environment(run_config: Mapping[str, Any],
+                     seed: int) -> suite.Environment:
   """The run's environment, compiled, with its RandomState seeded by seed.
 
   The throwaway first reset compiles the model, so that a fresh and a
   resumed run draw the same random numbers from then on.
+
+  Args:
+    run_config: of `make_run_config`.
+    seed: the environment's seed.
+
+  Returns:
+    The environment (the bare task).
   """
   kwargs = dict(run_config['task_kwargs'], robot=run_config['robot'],
                 action_space=run_config['action_space'])
@@ -215,9 +297,17 @@ def make_environment(run_config, seed):
   return env
 
 
-def make_training_environment(run_config):
+def make_training_environment(run_config: Mapping[str, Any]
+                              ) -> dm_env.Environment:
   """The training environment: the task, wrapped for imitation agents
-  (agents.imitation; evaluation always runs the bare task)."""
+  (agents.imitation; evaluation always runs the bare task).
+
+  Args:
+    run_config: of `make_run_config`.
+
+  Returns:
+    The environment.
+  """
   env = make_environment(run_config, derived_seed(run_config['seed'],
                                                   _TRAIN_ENV))
   if run_config['agent'] in _BARE_TASK_AGENTS:
@@ -230,18 +320,32 @@ def make_training_environment(run_config):
                         **run_config['imitation_kwargs'])
 
 
-def mid_episode_checkpoints(run_config):
-  """True if checkpoints of the run may be taken inside an episode: an
-  agent on the bare task (no wrapper state) without delayed
-  observations."""
+def mid_episode_checkpoints(run_config: Mapping[str, Any]) -> bool:
+  """Whether checkpoints of the run may be taken inside an episode: an
+  agent on the bare task (no wrapper state) without delayed observations.
+
+  Args:
+    run_config: of `make_run_config`.
+
+  Returns:
+    Whether they may.
+  """
   return (run_config['agent'] in _BARE_TASK_AGENTS and
           not run_config['task_kwargs'].get('observation_delay'))
 
 
-def random_states(env):
-  """{name: np.random.RandomState} of an environment and its wrappers:
-  'environment' (the composer environment's) and '<depth>/<attribute>' for
-  random states a wrapper keeps (e.g. RSI's draw of reference states)."""
+def random_states(env: dm_env.Environment
+                  ) -> Dict[str, np.random.RandomState]:
+  """The random states of an environment and its wrappers.
+
+  Args:
+    env: the environment, perhaps wrapped.
+
+  Returns:
+    {name: np.random.RandomState}: 'environment' (the composer
+    environment's) and '<depth>/<attribute>' for random states a wrapper
+    keeps (e.g. RSI's draw of reference states).
+  """
   found = {}
   depth = 0
   # A wrapper exposes the environment it wraps as an `environment` property.
@@ -254,20 +358,34 @@ def random_states(env):
   return found
 
 
-def make_agent(run_config, env):
-  """The run's agent for env (agents.agent.Agent with the builder of the
-  run's algorithm), seeded from the run seed."""
+def make_agent(run_config: Mapping[str, Any],
+               env: dm_env.Environment) -> agent_lib.Agent:
+  """The run's agent, seeded from the run seed.
+
+  Args:
+    run_config: of `make_run_config`.
+    env: the training environment.
+
+  Returns:
+    The agent, with the builder of the run's algorithm.
+  """
   builder = builders.make_builder(algorithm(run_config['agent']),
                                   run_config['sac_config'])
   return agent_lib.Agent(specs_lib.make_environment_spec(env), builder,
                          seed=derived_seed(run_config['seed'], _AGENT))
 
 
-def task_facts(env):
-  """Reward range, horizon and minimal episode returns of env's task:
-  min_task_return without the collision penalty (HrcTask.min_task_return;
-  the paper's runs had no penalty) and min_return with it at every step
-  (the lowest possible)."""
+def task_facts(env: suite.Environment) -> Dict[str, Any]:
+  """Reward range, horizon and minimal episode returns of env's task.
+
+  Args:
+    env: an environment of `suite.load`.
+
+  Returns:
+    {'reward_range', 'horizon', 'min_task_return' (without the collision
+    penalty: HrcTask.min_task_return; the paper's runs had no penalty),
+    'min_return' (with it at every step: the lowest possible)}.
+  """
   low, high = env.task.reward_range
   horizon = int(env.task.horizon)
   penalty = min(float(getattr(env.task, 'collision_reward', 0.0)), 0.0)
@@ -277,8 +395,15 @@ def task_facts(env):
           'min_task_return': minimum}
 
 
-def summarize(episodes):
-  """One evaluation row from the episodes' metrics (means and rates)."""
+def summarize(episodes: Sequence[Mapping[str, float]]) -> Dict[str, Any]:
+  """One evaluation row from the episodes' metrics (means and rates).
+
+  Args:
+    episodes: per-episode metrics (`loop.evaluate`'s), at least one.
+
+  Returns:
+    The row.
+  """
   row = {'episodes': len(episodes)}
   returns = np.array([e['episode_return'] for e in episodes])
   row['success_rate'] = float(np.mean([e.get('success', 0.0)
@@ -300,10 +425,22 @@ def summarize(episodes):
   return row
 
 
-def evaluate_policy(run_config, env, agent, index, eval_set=0):
-  """Evaluation number `index`: deterministic episodes, seeded by it
-  (eval_set: 0 for the run's task, k for the k-th of its eval_sets by
-  name)."""
+def evaluate_policy(run_config: Mapping[str, Any], env: suite.Environment,
+                    agent: agent_lib.Agent, index: int,
+                    eval_set: int = 0) -> Dict[str, Any]:
+  """An evaluation: deterministic episodes, seeded by its number.
+
+  Args:
+    run_config: of `make_run_config`.
+    env: the evaluation environment.
+    agent: the agent, whose current policy is evaluated.
+    index: the evaluation's number.
+    eval_set: 0 for the run's task, k for the k-th of its eval_sets by
+      name.
+
+  Returns:
+    The row of `summarize` with 'evaluation'.
+  """
   purpose = (_EVAL_ENV, index) + ((eval_set,) if eval_set else ())
   env.random_state.seed(derived_seed(run_config['seed'], *purpose))
   episodes = loop_lib.evaluate(env, agent.policy(deterministic=True),
@@ -311,9 +448,17 @@ def evaluate_policy(run_config, env, agent, index, eval_set=0):
   return dict(summarize(episodes), evaluation=index)
 
 
-def make_eval_set_environments(run_config):
-  """{name: environment} of the run's eval_sets, sorted by name: the
-  run's task with the set's task kwargs replacing the run's."""
+def make_eval_set_environments(run_config: Mapping[str, Any]
+                               ) -> Dict[str, suite.Environment]:
+  """The environments of the run's eval_sets.
+
+  Args:
+    run_config: of `make_run_config`.
+
+  Returns:
+    {name: environment}, sorted by name: the run's task with the set's
+    task kwargs replacing the run's.
+  """
   environments = {}
   for k, name in enumerate(sorted(run_config.get('eval_sets', {})), 1):
     kwargs = dict(run_config['task_kwargs'], **run_config['eval_sets'][name])
@@ -365,8 +510,10 @@ class _Progress:
       self._bar.close()
 
 
-def train(run_config, logdir, resume=False, progress=False,
-          on_step=None):
+def train(run_config: Mapping[str, Any], logdir: Union[str, os.PathLike],
+          resume: bool = False, progress: bool = False,
+          on_step: Optional[Callable[[int], None]] = None
+          ) -> Tuple[agent_lib.Agent, Dict[str, Any]]:
   """Runs (or resumes) a training run; returns the agent and loop state.
 
   Args:
@@ -376,6 +523,14 @@ def train(run_config, logdir, resume=False, progress=False,
     progress: show a progress bar.
     on_step: None or a function called with the steps done after every
       RL step (e.g. to report progress; keep it cheap).
+
+  Returns:
+    (the agent, the loop state: evaluations, schedules, wall time and
+    counter).
+
+  Raises:
+    ValueError: a logdir holding a run without resume, a resumed run with
+      another configuration, or a checkpoint that does not match.
   """
   logdir = os.fspath(logdir)
   os.makedirs(logdir, exist_ok=True)
@@ -518,9 +673,13 @@ def train(run_config, logdir, resume=False, progress=False,
   return agent, dict(state, counter=loop.counter.state())
 
 
-def define_flags(flag_values=flags.FLAGS):
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
   """Defines the binary's flags (only when run as a program, so that the
-  module can be imported next to the other binaries)."""
+  module can be imported next to the other binaries).
+
+  Args:
+    flag_values: where to define them.
+  """
   fv = flag_values
   flags.DEFINE_string('domain', 'reach', 'Task domain.', flag_values=fv)
   flags.DEFINE_string('task', 'dense', 'Task name within the domain.',
@@ -573,7 +732,14 @@ def define_flags(flag_values=flags.FLAGS):
                     '(agents.precompile).', flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Trains a run from the flags; plots and renders it if asked.
+
+  Args:
+    argv: the command line (unused).
+    flag_values: the parsed flags.
+  """
   del argv
   f = flag_values
   run_config = make_run_config(
@@ -601,10 +767,18 @@ def main(argv, flag_values=flags.FLAGS):
           f'{metrics["return"]:.3g}, {metrics["steps"]:g} steps')
 
 
-def render_final_policy(logdir, seed=0):
+def render_final_policy(logdir: str, seed: int = 0
+                        ) -> Tuple[str, Dict[str, float]]:
   """Renders one deterministic episode of the run's latest checkpoint as
-  logdir/episode.mp4 (hrc_suite.rendering.episode.run); returns (video path, episode
-  metrics)."""
+  logdir/episode.mp4 (hrc_suite.rendering.episode.run).
+
+  Args:
+    logdir: the run directory.
+    seed: the episode's seed.
+
+  Returns:
+    (video path, episode metrics).
+  """
   trained = checkpoint_policy.load(logdir)
   return render.run(trained.domain, trained.task, trained.robot,
                     policy=trained.factory,

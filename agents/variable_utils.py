@@ -20,7 +20,14 @@ class VariableSource(Protocol):
   """Anything that serves named variables, e.g. a learner."""
 
   def get_variables(self, names: Sequence[str]) -> list:
-    """The current values of `names`, in order."""
+    """The current values of variables.
+
+    Args:
+      names: the variables' names.
+
+    Returns:
+      Their values, in order.
+    """
 
 
 class VariableClient:
@@ -46,12 +53,21 @@ class VariableClient:
     self._params = self._source.get_variables([self._key])[0]
 
   def restore(self, params: Any) -> None:
-    """Sets the copy to `params` (from a checkpoint)."""
+    """Sets the copy.
+
+    Args:
+      params: the variable's value (from a checkpoint).
+    """
     self._params = params
 
 
 class LatestVariables:
-  """The source's current value of one variable at every read."""
+  """The source's current value of one variable at every read.
+
+  Args:
+    source: the `VariableSource`.
+    key: the variable's name (e.g. 'policy').
+  """
 
   def __init__(self, source: VariableSource, key: str):
     self._source = source
@@ -59,15 +75,21 @@ class LatestVariables:
 
   @property
   def params(self) -> Any:
+    """The source's current value."""
     return self._source.get_variables([self._key])[0]
 
 
 class FixedVariables:
-  """Parameters given once."""
+  """Parameters given once.
+
+  Args:
+    params: the parameters.
+  """
 
   def __init__(self, params: Any):
     self._params = params
 
   @property
   def params(self) -> Any:
+    """The parameters given."""
     return self._params

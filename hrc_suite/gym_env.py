@@ -29,13 +29,14 @@ the module itself.) A thin layer over the dm_env environment of
 """
 
 import collections
-from typing import Any, Dict, Optional
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import gymnasium
 from gymnasium import spaces
 import numpy as np
 
 from hrc_suite import suite
+from hrc_suite.tasks import base
 from hrc_suite.tasks import cost as cost_lib
 
 NAMESPACE = 'hrc_suite'
@@ -44,7 +45,15 @@ RENDER_MODES = ('rgb_array',)
 
 
 def env_id(domain: str, task: str) -> str:
-  """The Gymnasium id of a task: hrc_suite/<domain>-<task>-v0."""
+  """The Gymnasium id of a task: hrc_suite/<domain>-<task>-v0.
+
+  Args:
+    domain: the task's domain.
+    task: the task's name in the domain.
+
+  Returns:
+    The id.
+  """
   return f'{NAMESPACE}/{domain}-{task}-v{VERSION}'
 
 
@@ -63,9 +72,9 @@ class HrcEnv(gymnasium.Env):
 
   def __init__(self, domain: str, task: str, flatten: bool = True,
                render_mode: Optional[str] = None, camera: str = 'front',
-               render_size=(240, 320),
+               render_size: Sequence[int] = (240, 320),
                environment_kwargs: Optional[Dict[str, Any]] = None,
-               **task_kwargs):
+               **task_kwargs: Any):
     """Builds the task.
 
     Args:
@@ -78,6 +87,11 @@ class HrcEnv(gymnasium.Env):
       environment_kwargs: suite.load's environment_kwargs.
       **task_kwargs: the task's kwargs (docs/tasks.md); cost defaults to
         True.
+
+    Raises:
+      ValueError: an unknown render_mode, a flatten that is not a bool, a
+        task without a cost (cost=False), flatten=True with camera
+        observables, or what suite.load rejects.
     """
     if render_mode is not None and render_mode not in RENDER_MODES:
       raise ValueError(f'Unknown render_mode {render_mode!r}: expected None '
@@ -118,12 +132,13 @@ class HrcEnv(gymnasium.Env):
         np.float32)
 
   @property
-  def dm_env(self):
+  def dm_env(self) -> suite.Environment:
     """The wrapped dm_env environment (suite.load's)."""
     return self._env
 
   @property
-  def task(self):
+  def task(self) -> base.HrcTask:
+    """The task of the wrapped environment."""
     return self._env.task
 
   def _observation(self, observation):
@@ -144,8 +159,22 @@ class HrcEnv(gymnasium.Env):
     return info
 
   def reset(self, *, seed: Optional[int] = None,
-            options: Optional[dict] = None):
-    """Starts an episode; seed (an integer >= 0) seeds the environment."""
+            options: Optional[dict] = None
+            ) -> Tuple[Union[np.ndarray, Dict[str, np.ndarray]],
+                       Dict[str, Any]]:
+    """Starts an episode.
+
+    Args:
+      seed: None or an integer >= 0 that seeds the environment's random
+        state (the same seed gives the same episode).
+      options: none are taken (None or empty).
+
+    Returns:
+      (observation, info): info holds the cost metrics, all 0.
+
+    Raises:
+      ValueError: if options are given.
+    """
     super().reset(seed=seed)
     if options:
       raise ValueError(f'reset takes no options, got {options!r}')
@@ -154,7 +183,23 @@ class HrcEnv(gymnasium.Env):
     timestep = self._env.reset()
     return self._observation(timestep.observation), self._info(False)
 
-  def step(self, action):
+  def step(self, action: np.ndarray
+           ) -> Tuple[Union[np.ndarray, Dict[str, np.ndarray]], float, bool,
+                      bool, Dict[str, Any]]:
+    """Steps the environment.
+
+    Args:
+      action: an action of `action_space`'s shape.
+
+    Returns:
+      (observation, reward, terminated, truncated, info): terminated where
+      the task ends the episode (discount 0), truncated at the time limit;
+      info holds the RL step's cost metrics and, at the last step,
+      'episode_metrics'.
+
+    Raises:
+      ValueError: an action of another shape.
+    """
     action = np.asarray(action, np.float64)
     if action.shape != self.action_space.shape:
       raise ValueError(f'action of shape {action.shape}: expected '
@@ -166,28 +211,43 @@ class HrcEnv(gymnasium.Env):
     return (self._observation(timestep.observation), float(timestep.reward),
             terminated, truncated, self._info(last))
 
-  def render(self):
+  def render(self) -> Optional[np.ndarray]:
+    """The current frame from `camera`, or None without a render_mode.
+
+    Returns:
+      None, or a (height, width, 3) uint8 image.
+    """
     if self.render_mode is None:
       return None
     height, width = self._render_size
     return self._env.physics.render(height=height, width=width,
                                     camera_id=self._camera)
 
-  def close(self):
+  def close(self) -> None:
     """Frees the physics; closing twice is allowed."""
     if not self._closed:
       self._closed = True
       self._env.close()
 
 
-def make_env(**kwargs) -> HrcEnv:
-  """gymnasium.make's entry point: HrcEnv(**kwargs)."""
+def make_env(**kwargs: Any) -> HrcEnv:
+  """gymnasium.make's entry point: HrcEnv(**kwargs).
+
+  Args:
+    **kwargs: HrcEnv's arguments.
+
+  Returns:
+    The environment.
+  """
   return HrcEnv(**kwargs)
 
 
-def register_envs():
-  """Registers every task of the suite (extensions included) as
-  hrc_suite/<domain>-<task>-v0; returns the ids."""
+def register_envs() -> List[str]:
+  """Registers every task of the suite (extensions included) with Gymnasium.
+
+  Returns:
+    The ids, hrc_suite/<domain>-<task>-v0, of every registered task.
+  """
   ids = []
   for domain, task in suite.ALL_TASKS:
     name = env_id(domain, task)

@@ -17,14 +17,17 @@ a task edits no list (docs/extending.md).
 import collections
 import collections.abc
 import importlib
+from typing import Any, Callable, Mapping, Optional, Sequence, Tuple
 
 from dm_control import composer
+import dm_env
 import numpy as np
 
 from hrc_suite import extensions
 from hrc_suite import observation_updater
 from hrc_suite import tasks as tasks_package
 from hrc_suite.safety import modes
+from hrc_suite.tasks import base
 from hrc_suite.tasks import substeps
 
 # Tags of what a task is about and of its reward; each shield mode's name
@@ -51,7 +54,14 @@ class Environment(composer.Environment):
   substep hooks then go to the task, which runs them every physics step.
   """
 
-  def __init__(self, task, **kwargs):
+  def __init__(self, task: base.HrcTask, **kwargs: Any):
+    """Initializes the environment.
+
+    Args:
+      task: the task; a fast-path task is set to run an RL step as one
+        composer substep before composer reads the substep count.
+      **kwargs: composer.Environment's keyword arguments.
+    """
     task.use_one_substep()   # Before composer reads the substep count.
     super().__init__(task, **kwargs)
 
@@ -72,21 +82,42 @@ class Environment(composer.Environment):
     else:
       super()._substep(action)
 
-  def step(self, action):
+  def step(self, action: np.ndarray) -> dm_env.TimeStep:
+    """Steps the environment (composer.Environment.step).
+
+    A running episode restored after a LAST step (HrcTask.set_state)
+    continues instead of being reset.
+
+    Args:
+      action: the agent's action, of the task's action_spec.
+
+    Returns:
+      The time step.
+    """
     # After a LAST step composer resets; a running episode restored since
     # (HrcTask.set_state) continues instead of being discarded.
     if self._reset_next_step and getattr(self.task, 'restored', False):
       self._reset_next_step = False
     return super().step(action)
 
-  def add_extra_hook(self, hook_name, hook_callable):
+  def add_extra_hook(self, hook_name: str,
+                     hook_callable: Callable[..., Any]) -> None:
+    """Adds a hook that runs after the task's hook of the same name.
+
+    On the fast path the physics-step hooks (tasks/substeps.py's HOOKS) go
+    to the task, which runs them every physics step.
+
+    Args:
+      hook_name: composer's hook name (e.g. 'before_substep').
+      hook_callable: called with the hook's arguments.
+    """
     if self.task.one_substep and hook_name in substeps.HOOKS:
       self.task.physics_steps.add_extra_hook(hook_name, hook_callable)
     else:
       super().add_extra_hook(hook_name, hook_callable)
 
 
-def tags():
+def tags() -> Tuple[str, ...]:
   """Every valid tag: TASK_TAGS and the shield modes' names."""
   return TASK_TAGS + modes.names()
 
@@ -98,13 +129,29 @@ def _name(what, value):
   return value
 
 
-def register(domain, task, tags=(), **fixed):
+def register(domain: str, task: str, tags: Sequence[str] = (),
+             **fixed: Any) -> Callable[[Any], Any]:
   """Decorator registering the task `domain`/`task`.
 
   On an HrcTask subclass: the task is the class built with the task kwargs
   and `fixed` (kwargs the name fixes, e.g. reward='dense'; a conflicting
   task kwarg is an error); the class is returned, so decorators stack.
   On a function: `factory(**task_kwargs) -> HrcTask` (no `fixed`).
+
+  Args:
+    domain: the domain's name, an identifier (e.g. 'reach').
+    task: the task's name in the domain, an identifier (e.g. 'dense').
+    tags: tags of the task, each one of `tags()`.
+    **fixed: task kwargs the name fixes (class registrations only).
+
+  Returns:
+    The decorator; it returns what it decorates.
+
+  Raises:
+    ValueError: a name that is not an identifier, tags given as a string,
+      an unknown tag; from the decorator, a name already registered or a
+      target that is neither an HrcTask subclass nor (without `fixed`) a
+      function.
   """
   key = (_name('domain', domain), _name('task', task))
   if isinstance(tags, str):
@@ -140,8 +187,16 @@ def register(domain, task, tags=(), **fixed):
   return decorator
 
 
-def unregister(domain, task):
-  """Removes a registered task (e.g. one a test registered)."""
+def unregister(domain: str, task: str) -> None:
+  """Removes a registered task (e.g. one a test registered).
+
+  Args:
+    domain: the task's domain.
+    task: the task's name.
+
+  Raises:
+    ValueError: if domain/task is not registered.
+  """
   key = (domain, task)
   if key not in _REGISTRY:
     raise ValueError(f'Task {domain}/{task} is not registered')
@@ -152,8 +207,20 @@ def unregister(domain, task):
       keys.remove(key)
 
 
-def fixed_kwargs(task_kwargs, **fixed):
-  """task_kwargs with `fixed` values; a conflicting value is an error."""
+def fixed_kwargs(task_kwargs: Mapping[str, Any],
+                 **fixed: Any) -> dict[str, Any]:
+  """task_kwargs with `fixed` values; a conflicting value is an error.
+
+  Args:
+    task_kwargs: the user's task kwargs.
+    **fixed: the kwargs a registered name fixes.
+
+  Returns:
+    A new dict: task_kwargs updated with `fixed`.
+
+  Raises:
+    ValueError: if task_kwargs gives a fixed kwarg another value.
+  """
   for name, value in fixed.items():
     if name in task_kwargs and task_kwargs[name] != value:
       raise ValueError(f'{name}={task_kwargs[name]!r} conflicts with the '
@@ -170,14 +237,25 @@ def _load_modules():
   extensions.load()
 
 
-def all_tasks():
+def all_tasks() -> Tuple[Tuple[str, str], ...]:
   """Tuple of every registered (domain, task)."""
   _load_modules()
   return tuple(_REGISTRY)
 
 
-def tasks_with_tag(tag):
-  """The (domain, task) pairs carrying `tag`."""
+def tasks_with_tag(tag: str) -> Tuple[Tuple[str, str], ...]:
+  """The (domain, task) pairs carrying `tag`.
+
+  Args:
+    tag: one of `tags()`.
+
+  Returns:
+    The registered (domain, task) pairs with that tag, in registration
+    order.
+
+  Raises:
+    ValueError: if `tag` is unknown.
+  """
   _load_modules()
   if tag not in tags():
     raise ValueError(f'Unknown tag {tag!r}: expected one of '
@@ -207,15 +285,41 @@ def _registered(domain, task):
   return domain, task
 
 
-def task_class(domain, task):
-  """The HrcTask subclass registered as domain/task (its class constants
-  are its facts: MOTIONS, EVENTS, ...), or None where a factory function
-  was registered."""
+def task_class(domain: str, task: str) -> Optional[type[base.HrcTask]]:
+  """The HrcTask subclass registered as domain/task.
+
+  Args:
+    domain: a registered domain.
+    task: a registered task of the domain.
+
+  Returns:
+    The class (its class constants are its facts: MOTIONS, EVENTS, ...),
+    or None where a factory function was registered.
+
+  Raises:
+    ValueError: an unknown domain or task (the message lists the names).
+  """
   return _CLASSES.get(_registered(domain, task))
 
 
-def build_task(domain, task, task_kwargs=None):
-  """The task object of (domain, task) built with task_kwargs."""
+def build_task(domain: str, task: str,
+               task_kwargs: Optional[Mapping[str, Any]] = None
+               ) -> base.HrcTask:
+  """The task object of (domain, task) built with task_kwargs.
+
+  Args:
+    domain: a registered domain.
+    task: a registered task of the domain.
+    task_kwargs: None or the task's keyword arguments
+      (`hrc_suite.tasks.base.HrcTask`).
+
+  Returns:
+    The task, its `suite_name` set to (domain, task).
+
+  Raises:
+    ValueError: an unknown domain or task, task_kwargs that are not a
+      mapping, or a task kwarg the task rejects.
+  """
   hrc_task = _REGISTRY[_registered(domain, task)](
       **_kwargs_dict('task_kwargs', task_kwargs))
   hrc_task.suite_name = (domain, task)   # Experts and datasets key on it.
@@ -243,7 +347,10 @@ def _seed(seed):
   return int(seed)
 
 
-def load(domain, task, task_kwargs=None, environment_kwargs=None):
+def load(domain: str, task: str,
+         task_kwargs: Optional[Mapping[str, Any]] = None,
+         environment_kwargs: Optional[Mapping[str, Any]] = None
+         ) -> Environment:
   """An `Environment` (a composer.Environment) of the task.
 
   task_kwargs go to the task (see `hrc_suite.tasks.base.HrcTask`), except
@@ -259,6 +366,23 @@ def load(domain, task, task_kwargs=None, environment_kwargs=None):
   `physics_errors` = 1 (HrcTask). A physics error while initialising an
   episode draws it again, up to MAX_RESET_ATTEMPTS times
   (max_reset_attempts). environment_kwargs may override both.
+
+  Args:
+    domain: a registered domain (`all_tasks()`).
+    task: a registered task of the domain.
+    task_kwargs: None or the task's keyword arguments
+      (`hrc_suite.tasks.base.HrcTask`, `hrc_suite.tasks.options`), plus
+      'seed': None or an integer in [0, 2**32 - 1].
+    environment_kwargs: None or composer.Environment's keyword arguments
+      (not 'time_limit', which is a task kwarg).
+
+  Returns:
+    The environment.
+
+  Raises:
+    ValueError: an unknown domain or task, kwargs that are not mappings,
+      a bad seed, 'time_limit' in environment_kwargs, or a task kwarg the
+      task rejects.
   """
   task_kwargs = _kwargs_dict('task_kwargs', task_kwargs)
   environment_kwargs = _kwargs_dict('environment_kwargs', environment_kwargs)

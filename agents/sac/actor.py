@@ -4,17 +4,30 @@ Actions live in [-1, 1] (the tanh-Gaussian's range); agents/action_scaler.py
 maps them to and from a bounded dm_env action spec.
 """
 
+from typing import Any, Sequence, Tuple
+
 import jax
 import numpy as np
 
+from agents import variable_utils
 from agents.sac import networks as networks_lib
 
+# A policy's layers: (kernel, bias) pairs of float32 NumPy arrays.
+Layers = Tuple[Tuple[np.ndarray, np.ndarray], ...]
 
-def numpy_policy(params):
+
+def numpy_policy(params: Any) -> Layers:
   """The policy's layers as float32 NumPy (kernel, bias) pairs, input first.
 
-  `params` are `networks.GaussianPolicy` parameters (flax: an MLP of Dense
-  layers, ReLU between them, a last layer giving mean and log std).
+  Args:
+    params: `networks.GaussianPolicy` parameters (flax: an MLP of Dense
+      layers, ReLU between them, a last layer giving mean and log std).
+
+  Returns:
+    The layers.
+
+  Raises:
+    ValueError: params of another structure.
   """
   try:
     mlp = params['params']['MLP_0']
@@ -28,9 +41,20 @@ def numpy_policy(params):
                      f'kernel, bias), got {structure}') from e
 
 
-def policy_mean_log_std(layers, observation):
-  """(mean, clipped log std) of `numpy_policy` layers, in NumPy: the same
-  maths as `networks.GaussianPolicy` (float32)."""
+def policy_mean_log_std(layers: Sequence[Tuple[np.ndarray, np.ndarray]],
+                        observation: np.ndarray
+                        ) -> Tuple[np.ndarray, np.ndarray]:
+  """The policy's Gaussian in NumPy: the same maths as
+  `networks.GaussianPolicy` (float32).
+
+  Args:
+    layers: of `numpy_policy`.
+    observation: (..., observation_size) float32.
+
+  Returns:
+    (mean, log std clipped to [LOG_STD_MIN, LOG_STD_MAX]), each
+    (..., action_size).
+  """
   x = observation
   for kernel, bias in layers[:-1]:
     x = np.maximum(x @ kernel + bias, 0.0)
@@ -58,7 +82,9 @@ class SACActor:
     evaluation: deterministic actions tanh(mean) instead of samples.
   """
 
-  def __init__(self, networks, variables, seed, evaluation=False):
+  def __init__(self, networks: networks_lib.SACNetworks,
+               variables: variable_utils.VariableClient, seed: int,
+               evaluation: bool = False):
     self._variables = variables
     self.random_state = np.random.RandomState(seed)
     self.evaluation = bool(evaluation)
@@ -73,8 +99,18 @@ class SACActor:
       self._source = params
     return self._layers
 
-  def select_action(self, observation):
-    """float64 (action_size,) action in [-1, 1] of a flat observation."""
+  def select_action(self, observation: np.ndarray) -> np.ndarray:
+    """The action for a flat observation.
+
+    Args:
+      observation: (observation_size,).
+
+    Returns:
+      (action_size,) float64 in [-1, 1].
+
+    Raises:
+      ValueError: an observation of another shape.
+    """
     observation = np.asarray(observation, np.float32)
     if observation.shape != (self._observation_size,):
       raise ValueError(f'Observation vector has shape {observation.shape}, '

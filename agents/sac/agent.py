@@ -8,8 +8,11 @@ checkpoints agents/agent_checkpoint.py's (its load_policy rebuilds a
 saved policy).
 """
 
+from typing import Optional
+
 from agents import agent as agent_lib
 from agents import config as config_lib
+from agents import specs
 from agents.sac import builder as builder_lib
 
 
@@ -23,7 +26,9 @@ class SACAgent(agent_lib.Agent):
     images: what to do with image observations (agents/observations.py).
   """
 
-  def __init__(self, environment_spec, config=None, seed=0, images='error'):
+  def __init__(self, environment_spec: specs.EnvironmentSpec,
+               config: Optional[config_lib.SACConfig] = None, seed: int = 0,
+               images: str = 'error'):
     config = config or config_lib.default_config()
     if not isinstance(config, config_lib.SACConfig):
       raise TypeError(f'config must be a SACConfig, got '

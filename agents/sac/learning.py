@@ -21,6 +21,7 @@ import collections
 import collections.abc
 import functools
 import threading
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -28,6 +29,9 @@ import numpy as np
 import optax
 
 from agents import checkpoint_files
+from agents import config as config_lib
+from agents import replay
+from agents.sac import networks as networks_lib
 
 TrainingState = collections.namedtuple('TrainingState', [
     'policy_params', 'q_params', 'target_q_params', 'log_temperature',
@@ -45,9 +49,17 @@ def _optimizer(config):
   return optax.chain(optax.clip_by_global_norm(config.max_grad_norm), adam)
 
 
-def polyak_average(target, online, tau):
-  """Target parameters moved towards the online ones: (1 - tau) target +
-  tau online, leaf by leaf."""
+def polyak_average(target: Any, online: Any, tau: float) -> Any:
+  """Target parameters moved towards the online ones, leaf by leaf.
+
+  Args:
+    target: the target parameters (a pytree).
+    online: the online parameters, of target's structure.
+    tau: the step towards the online ones, in [0, 1].
+
+  Returns:
+    (1 - tau) target + tau online.
+  """
   return jax.tree_util.tree_map(
       lambda t, o: (1.0 - tau) * t + tau * o, target, online)
 
@@ -64,9 +76,12 @@ class UpdateMetrics(collections.abc.Mapping):
   JAX dispatches the update asynchronously: reading its metrics at once
   would wait for it, leaving it unread lets it run while the caller (the
   environment loop) steps the environment.
+
+  Args:
+    device_metrics: {name: device scalar} of an update.
   """
 
-  def __init__(self, device_metrics):
+  def __init__(self, device_metrics: Mapping[str, jax.Array]):
     self._names = tuple(device_metrics)
     self._device = device_metrics
     self._floats = None
@@ -92,9 +107,15 @@ class UpdateFunctions:
 
   `compiled_update_functions` caches its jitted functions, so learners of
   the same networks and config share compilations.
+
+  Args:
+    networks: the policy and critics.
+    config: SAC's hyperparameters.
+    action_size: the action's size (the entropy target's).
   """
 
-  def __init__(self, networks, config, action_size):
+  def __init__(self, networks: networks_lib.SACNetworks,
+               config: config_lib.SACConfig, action_size: int):
     self.networks = networks
     self.config = config
     self.target_entropy = config.entropy_target(action_size)
@@ -102,7 +123,18 @@ class UpdateFunctions:
     self.q_optimizer = _optimizer(config)
     self.temperature_optimizer = _optimizer(config)
 
-  def initial_state(self, policy_params, q_params, key):
+  def initial_state(self, policy_params: Any, q_params: Any,
+                    key: jax.Array) -> TrainingState:
+    """The training state before the first step.
+
+    Args:
+      policy_params: the policy's initial parameters.
+      q_params: the critics' initial parameters (copied to the targets).
+      key: the updates' JAX random key.
+
+    Returns:
+      The state: optimizers initialised, initial_temperature, 0 steps.
+    """
     log_temperature = jnp.log(jnp.asarray(self.config.initial_temperature,
                                           jnp.float32))
     return TrainingState(
@@ -117,7 +149,22 @@ class UpdateFunctions:
         key=key,
         steps=jnp.zeros((), jnp.int32))
 
-  def critic_loss(self, q_params, state, batch, temperature, key):
+  def critic_loss(self, q_params: Any, state: TrainingState,
+                  batch: replay.Transition, temperature: jax.Array,
+                  key: jax.Array) -> Tuple[jax.Array, Tuple[jax.Array,
+                                                             jax.Array]]:
+    """The critics' loss (module doc).
+
+    Args:
+      q_params: the critics' parameters (differentiated).
+      state: the training state (policy and target critics).
+      batch: the transitions.
+      temperature: alpha.
+      key: for the next actions' samples.
+
+    Returns:
+      (loss, (q values (batch, 2), targets (batch,))).
+    """
     networks = self.networks
     next_mean, next_log_std = networks.policy_apply(
         state.policy_params, batch.next_observation)
@@ -136,7 +183,21 @@ class UpdateFunctions:
     loss = 0.5 * jnp.mean(jnp.square(q - target[:, None]))
     return loss, (q, target)
 
-  def actor_loss(self, policy_params, state, batch, temperature, key):
+  def actor_loss(self, policy_params: Any, state: TrainingState,
+                 batch: replay.Transition, temperature: jax.Array,
+                 key: jax.Array) -> Tuple[jax.Array, jax.Array]:
+    """The policy's loss (module doc).
+
+    Args:
+      policy_params: the policy's parameters (differentiated).
+      state: the training state (critics).
+      batch: the transitions.
+      temperature: alpha.
+      key: for the actions' samples.
+
+    Returns:
+      (loss, log probabilities (batch,) of the sampled actions).
+    """
     networks = self.networks
     mean, log_std = networks.policy_apply(policy_params, batch.observation)
     action, log_prob = networks.sample(key, mean, log_std)
@@ -144,8 +205,17 @@ class UpdateFunctions:
     loss = jnp.mean(temperature * log_prob - jnp.min(q, axis=-1))
     return loss, log_prob
 
-  def sgd_step(self, state, batch):
-    """(next TrainingState, metrics) of one gradient step."""
+  def sgd_step(self, state: TrainingState, batch: replay.Transition
+               ) -> Tuple[TrainingState, Dict[str, jax.Array]]:
+    """One gradient step.
+
+    Args:
+      state: the training state.
+      batch: the transitions, (batch, ...) per field.
+
+    Returns:
+      (the next state, {metric name: device scalar}).
+    """
     key, critic_key, actor_key = jax.random.split(state.key, 3)
     temperature = jnp.exp(state.log_temperature)
 
@@ -197,8 +267,17 @@ class UpdateFunctions:
     }
     return new_state, metrics
 
-  def sgd_steps(self, state, batches):
-    """Several steps (leading axis of `batches`) in one lax.scan."""
+  def sgd_steps(self, state: TrainingState, batches: replay.Transition
+                ) -> Tuple[TrainingState, Dict[str, jax.Array]]:
+    """Several steps in one lax.scan.
+
+    Args:
+      state: the training state.
+      batches: the transitions, (steps, batch, ...) per field.
+
+    Returns:
+      (the state after the steps, metrics averaged over the steps).
+    """
     state, metrics = jax.lax.scan(self.sgd_step, state, batches)
     return state, jax.tree_util.tree_map(jnp.mean, metrics)
 
@@ -208,14 +287,24 @@ CompiledUpdate = collections.namedtuple(
 
 
 @functools.lru_cache(maxsize=None)
-def compiled_update_functions(networks, config, action_size,
-                              functions_class=None):
+def compiled_update_functions(networks: networks_lib.SACNetworks,
+                              config: config_lib.SACConfig, action_size: int,
+                              functions_class: Optional[type] = None
+                              ) -> CompiledUpdate:
   """Jitted (initial_state, sgd_step, sgd_steps), shared across learners.
 
-  functions_class: the class holding the maths (default SAC's
-  `UpdateFunctions`; a subclass for a variant of SAC's losses).
   No buffer donation: actors and policies keep reading the parameters of a
   state while the next one is computed.
+
+  Args:
+    networks: the policy and critics.
+    config: the hyperparameters (hashable: the cache's key).
+    action_size: the action's size.
+    functions_class: the class holding the maths (default SAC's
+      `UpdateFunctions`; a subclass for a variant of SAC's losses).
+
+  Returns:
+    The jitted functions.
   """
   functions = (functions_class or UpdateFunctions)(networks, config,
                                                    action_size)
@@ -225,12 +314,25 @@ def compiled_update_functions(networks, config, action_size,
 
 
 class SACLearner:
-  """Holds the TrainingState and applies jit-compiled SAC updates."""
+  """Holds the TrainingState and applies jit-compiled SAC updates.
+
+  Args:
+    networks: the policy and critics, of these sizes.
+    config: the hyperparameters.
+    observation_size: the flat observation's size.
+    action_size: the action's size.
+    seed: seeds the initial parameters and the updates' random key.
+
+  Raises:
+    ValueError: networks built for other sizes.
+  """
 
   # The maths (a subclass of UpdateFunctions for a variant of SAC).
   FUNCTIONS_CLASS = UpdateFunctions
 
-  def __init__(self, networks, config, observation_size, action_size, seed):
+  def __init__(self, networks: networks_lib.SACNetworks,
+               config: config_lib.SACConfig, observation_size: int,
+               action_size: int, seed: int):
     if (networks.observation_size != observation_size
         or networks.action_size != action_size):
       raise ValueError(
@@ -266,26 +368,55 @@ class SACLearner:
         raise ValueError(f'Batch {field} has shape {np.shape(value)}, '
                          f'expected {expected}')
 
-  def update(self, batch):
-    """One gradient step on `batch` (a replay.Transition), dispatched
-    asynchronously; its UpdateMetrics."""
+  def update(self, batch: replay.Transition) -> UpdateMetrics:
+    """One gradient step, dispatched asynchronously.
+
+    Args:
+      batch: the transitions, (batch, ...) per field.
+
+    Returns:
+      The step's metrics.
+
+    Raises:
+      ValueError: fields of the wrong shapes.
+    """
     self._check_batch(batch, leading=1)
     self._state, metrics = self._functions.sgd_step(self._state, batch)
     return UpdateMetrics(metrics)
 
-  def update_steps(self, batches):
-    """len(batches.reward) gradient steps (leading axis = step), in one
-    compiled loop; metrics averaged over the steps."""
+  def update_steps(self, batches: replay.Transition) -> UpdateMetrics:
+    """len(batches.reward) gradient steps in one compiled loop.
+
+    Args:
+      batches: the transitions, (steps, batch, ...) per field.
+
+    Returns:
+      The metrics averaged over the steps.
+
+    Raises:
+      ValueError: fields of the wrong shapes.
+    """
     self._check_batch(batches, leading=2)
     self._state, metrics = self._functions.sgd_steps(self._state, batches)
     return UpdateMetrics(metrics)
 
-  def compile_in_background(self, batches):
-    """Compiles the update for batches shaped like `batches` (leading axes
-    (batch,) as `update` takes them, (steps, batch) as `update_steps`) on
-    a daemon thread, leaving the state alone; returns the thread. XLA
-    compiles outside the GIL, so the caller steps its environment in the
-    meantime instead of waiting at its first update."""
+  def compile_in_background(self, batches: replay.Transition
+                            ) -> threading.Thread:
+    """Compiles the update for batches shaped like `batches` on a daemon
+    thread, leaving the state alone. XLA compiles outside the GIL, so the
+    caller steps its environment in the meantime instead of waiting at its
+    first update.
+
+    Args:
+      batches: leading axes (batch,) as `update` takes them, or (steps,
+        batch) as `update_steps`.
+
+    Returns:
+      The thread.
+
+    Raises:
+      ValueError: fields of the wrong shapes.
+    """
     fused = np.ndim(batches.reward) == 2
     self._check_batch(batches, leading=2 if fused else 1)
     function = (self._functions.sgd_steps if fused
@@ -297,9 +428,18 @@ class SACLearner:
     thread.start()
     return thread
 
-  def get_variables(self, names):
-    """Acme's variable source: [value of each name]; 'policy' is the
-    policy parameters."""
+  def get_variables(self, names: Sequence[str]) -> List[Any]:
+    """Acme's variable source.
+
+    Args:
+      names: variable names; 'policy' is the policy parameters.
+
+    Returns:
+      The value of each name.
+
+    Raises:
+      ValueError: another name.
+    """
     values = []
     for name in names:
       if name != 'policy':
@@ -309,28 +449,38 @@ class SACLearner:
     return values
 
   @property
-  def policy_params(self):
+  def policy_params(self) -> Any:
+    """The policy's current parameters."""
     return self._state.policy_params
 
   @property
-  def training_state(self):
+  def training_state(self) -> TrainingState:
+    """The whole training state."""
     return self._state
 
   @property
-  def steps(self):
+  def steps(self) -> int:
     """Gradient steps taken."""
     return int(self._state.steps)
 
   @property
-  def temperature(self):
+  def temperature(self) -> float:
+    """The current temperature alpha."""
     return float(np.exp(np.asarray(self._state.log_temperature)))
 
-  def state(self):
+  def state(self) -> Dict[str, np.ndarray]:
     """{path: NumPy array} of the whole TrainingState (for .npz)."""
     return checkpoint_files.flatten_to_arrays(self._state._asdict())
 
-  def restore(self, arrays):
-    """Restores a `state()` exactly (shapes and dtypes must match)."""
+  def restore(self, arrays: Mapping[str, np.ndarray]) -> None:
+    """Restores a `state()` exactly.
+
+    Args:
+      arrays: of `state()`.
+
+    Raises:
+      ValueError: arrays missing or of other shapes or dtypes.
+    """
     restored = checkpoint_files.unflatten_from_arrays(self._state._asdict(),
                                                      arrays)
     self._state = type(self._state)(**restored)

@@ -24,7 +24,7 @@ scalar output; `q_apply` returns them stacked on a last axis of size 2.
 import dataclasses
 import functools
 import math
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence, Tuple
 
 import flax
 import flax.linen as nn
@@ -51,7 +51,15 @@ class MLP(nn.Module):
   output_size: int
 
   @nn.compact
-  def __call__(self, inputs):
+  def __call__(self, inputs: jnp.ndarray) -> jnp.ndarray:
+    """The output layer's values.
+
+    Args:
+      inputs: (..., input size).
+
+    Returns:
+      (..., output_size).
+    """
     x = inputs
     for size in self.hidden_sizes:
       x = nn.relu(nn.Dense(size)(x))
@@ -64,7 +72,17 @@ class GaussianPolicy(nn.Module):
   action_size: int
 
   @nn.compact
-  def __call__(self, observation):
+  def __call__(self, observation: jnp.ndarray
+               ) -> Tuple[jnp.ndarray, jnp.ndarray]:
+    """The pre-squash Gaussian of an observation.
+
+    Args:
+      observation: (..., observation size).
+
+    Returns:
+      (mean, log_std clipped to [LOG_STD_MIN, LOG_STD_MAX]), each
+      (..., action_size).
+    """
     out = MLP(self.hidden_sizes, 2 * self.action_size)(observation)
     mean, log_std = jnp.split(out, 2, axis=-1)
     return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
@@ -75,7 +93,17 @@ class TwinCritic(nn.Module):
   hidden_sizes: Sequence[int]
 
   @nn.compact
-  def __call__(self, observation, action):
+  def __call__(self, observation: jnp.ndarray,
+               action: jnp.ndarray) -> jnp.ndarray:
+    """Both critics' values.
+
+    Args:
+      observation: (..., observation size).
+      action: (..., action size).
+
+    Returns:
+      (..., 2).
+    """
     inputs = jnp.concatenate([observation, action], axis=-1)
     q1 = MLP(self.hidden_sizes, 1, name='critic_0')(inputs)
     q2 = MLP(self.hidden_sizes, 1, name='critic_1')(inputs)
@@ -92,8 +120,22 @@ def _truncated_normal(random_state, shape):
   return values
 
 
-def init_params(module, random_state, example_inputs):
-  """Params of `module` drawn from flax's default initialisers in NumPy."""
+def init_params(module: nn.Module, random_state: np.random.RandomState,
+                example_inputs: Sequence[jnp.ndarray]) -> Any:
+  """Params of `module` drawn from flax's default initialisers in NumPy.
+
+  Args:
+    module: the flax module.
+    random_state: the draws' random numbers.
+    example_inputs: arrays of the module's input shapes.
+
+  Returns:
+    The params, as `module.init` shapes them.
+
+  Raises:
+    TypeError: a random_state that is not a np.random.RandomState.
+    ValueError: a parameter that is neither a kernel nor a bias.
+  """
   if not isinstance(random_state, np.random.RandomState):
     raise TypeError('random_state must be a np.random.RandomState, got '
                     f'{type(random_state).__name__}')
@@ -115,40 +157,98 @@ def init_params(module, random_state, example_inputs):
   return flax.traverse_util.unflatten_dict(params)
 
 
-def squash_log_jacobian(pre_squash):
-  """log |d tanh(u)/du| = log(1 - tanh(u)^2), elementwise and stable."""
+def squash_log_jacobian(pre_squash: jnp.ndarray) -> jnp.ndarray:
+  """log |d tanh(u)/du| = log(1 - tanh(u)^2), elementwise and stable.
+
+  Args:
+    pre_squash: u.
+
+  Returns:
+    The log Jacobian, u's shape.
+  """
   return 2.0 * (_LOG_TWO - pre_squash - jax.nn.softplus(-2.0 * pre_squash))
 
 
-def gaussian_log_prob(pre_squash, mean, log_std):
-  """Sum over the last axis of the diagonal Gaussian log density."""
+def gaussian_log_prob(pre_squash: jnp.ndarray, mean: jnp.ndarray,
+                      log_std: jnp.ndarray) -> jnp.ndarray:
+  """Sum over the last axis of the diagonal Gaussian log density.
+
+  Args:
+    pre_squash: (..., n) points u.
+    mean: (..., n).
+    log_std: (..., n).
+
+  Returns:
+    (...,) log densities.
+  """
   z = (pre_squash - mean) * jnp.exp(-log_std)
   return jnp.sum(-0.5 * z * z - log_std - _HALF_LOG_TWO_PI, axis=-1)
 
 
-def tanh_gaussian_log_prob_of_pre_squash(pre_squash, mean, log_std):
-  """log pi(tanh(u)) for pre-squash samples u (the sampler's path)."""
+def tanh_gaussian_log_prob_of_pre_squash(pre_squash: jnp.ndarray,
+                                         mean: jnp.ndarray,
+                                         log_std: jnp.ndarray) -> jnp.ndarray:
+  """log pi(tanh(u)) for pre-squash samples u (the sampler's path).
+
+  Args:
+    pre_squash: (..., n) samples u.
+    mean: (..., n).
+    log_std: (..., n).
+
+  Returns:
+    (...,) log densities.
+  """
   return (gaussian_log_prob(pre_squash, mean, log_std)
           - jnp.sum(squash_log_jacobian(pre_squash), axis=-1))
 
 
-def tanh_gaussian_log_prob(action, mean, log_std, epsilon=1e-6):
-  """log pi(a) of actions a in (-1, 1); |a| is clipped to 1 - epsilon."""
+def tanh_gaussian_log_prob(action: jnp.ndarray, mean: jnp.ndarray,
+                           log_std: jnp.ndarray,
+                           epsilon: float = 1e-6) -> jnp.ndarray:
+  """log pi(a) of actions a in (-1, 1).
+
+  Args:
+    action: (..., n) actions; |a| is clipped to 1 - epsilon.
+    mean: (..., n) of the pre-squash Gaussian.
+    log_std: (..., n).
+    epsilon: the clipping margin.
+
+  Returns:
+    (...,) log densities.
+  """
   action = jnp.clip(action, -1.0 + epsilon, 1.0 - epsilon)
   return tanh_gaussian_log_prob_of_pre_squash(jnp.arctanh(action), mean,
                                               log_std)
 
 
-def sample_tanh_gaussian(key, mean, log_std):
-  """(action, log_prob) of one reparameterised sample per row."""
+def sample_tanh_gaussian(key: jax.Array, mean: jnp.ndarray,
+                         log_std: jnp.ndarray
+                         ) -> Tuple[jnp.ndarray, jnp.ndarray]:
+  """One reparameterised sample per row.
+
+  Args:
+    key: a JAX random key.
+    mean: (..., n) of the pre-squash Gaussian.
+    log_std: (..., n).
+
+  Returns:
+    (action (..., n) in (-1, 1), log_prob (...,)).
+  """
   noise = jax.random.normal(key, mean.shape, mean.dtype)
   pre_squash = mean + jnp.exp(log_std) * noise
   return (jnp.tanh(pre_squash),
           tanh_gaussian_log_prob_of_pre_squash(pre_squash, mean, log_std))
 
 
-def deterministic_action(mean):
-  """The policy's mode-like action tanh(mean) used for evaluation."""
+def deterministic_action(mean: jnp.ndarray) -> jnp.ndarray:
+  """The policy's mode-like action tanh(mean) used for evaluation.
+
+  Args:
+    mean: (..., n) of the pre-squash Gaussian.
+
+  Returns:
+    (..., n) actions.
+  """
   return jnp.tanh(mean)
 
 
@@ -173,11 +273,23 @@ class SACNetworks:
   deterministic_action: Callable = deterministic_action
 
 
-def make_networks(observation_size, action_size, hidden_sizes=(256, 256)):
+def make_networks(observation_size: int, action_size: int,
+                  hidden_sizes: Sequence[int] = (256, 256)) -> SACNetworks:
   """SACNetworks for flat float32 observations and actions in [-1, 1].
 
   Equal arguments give the same (immutable) object, so compiled functions
   keyed on it are shared.
+
+  Args:
+    observation_size: an integer >= 1.
+    action_size: an integer >= 1.
+    hidden_sizes: the MLPs' hidden layer sizes, integers >= 1.
+
+  Returns:
+    The networks.
+
+  Raises:
+    ValueError: sizes that are not integers >= 1.
   """
   for name, value in (('observation_size', observation_size),
                       ('action_size', action_size)):

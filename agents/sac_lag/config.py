@@ -6,7 +6,7 @@ ones made here, are in docs/safe_rl.md.
 
 import dataclasses
 import math
-from typing import Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 from agents import config as config_lib
 
@@ -89,14 +89,27 @@ class SACLagrangianConfig(config_lib.SACConfig):
     return float(self.reward_scale if self.cost_scale is None
                  else self.cost_scale)
 
-  def to_dict(self):
+  def to_dict(self) -> Dict[str, Any]:
+    """The fields as JSON values (pid_gains a list)."""
     values = super().to_dict()
     values['pid_gains'] = list(self.pid_gains)
     return values
 
 
-def from_sac_config(sac_config, **overrides):
-  """The SAC-Lagrangian config with a SAC config's fields and overrides."""
+def from_sac_config(sac_config: config_lib.SACConfig,
+                    **overrides: Any) -> SACLagrangianConfig:
+  """The SAC-Lagrangian config with a SAC config's fields and overrides.
+
+  Args:
+    sac_config: SAC's config (its cost_penalty must be 0).
+    **overrides: fields of SACLagrangianConfig.
+
+  Returns:
+    The config.
+
+  Raises:
+    ValueError: a field's bad value.
+  """
   values = dataclasses.asdict(sac_config)
   values.update(overrides)
   return SACLagrangianConfig(**values)

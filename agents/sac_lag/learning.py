@@ -19,13 +19,17 @@ multiplier.py), never by a gradient step.
 """
 
 import collections
+from typing import Any, Dict, Mapping, Tuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
+from agents import replay
 from agents.sac import learning as sac_learning
+from agents.sac import networks as networks_lib
+from agents.sac_lag import config as config_lib
 from agents.sac_lag import multiplier as multiplier_lib
 
 LagrangianTrainingState = collections.namedtuple(
@@ -40,13 +44,34 @@ _MULTIPLIER_PREFIX = 'multiplier_controller/'
 
 
 class LagrangianUpdateFunctions(sac_learning.UpdateFunctions):
-  """SAC's maths with cost critics and lambda in the policy loss."""
+  """SAC's maths with cost critics and lambda in the policy loss.
 
-  def __init__(self, networks, config, action_size):
+  Args:
+    networks: the policy and critics (the cost critics share q_apply).
+    config: the hyperparameters.
+    action_size: the action's size.
+  """
+
+  def __init__(self, networks: networks_lib.SACNetworks,
+               config: config_lib.SACLagrangianConfig, action_size: int):
     super().__init__(networks, config, action_size)
     self.cost_q_optimizer = sac_learning._optimizer(config)   # pylint: disable=protected-access
 
-  def initial_state(self, policy_params, q_params, cost_q_params, key):
+  def initial_state(self, policy_params: Any, q_params: Any,
+                    cost_q_params: Any, key: jax.Array
+                    ) -> LagrangianTrainingState:
+    """The training state before the first step.
+
+    Args:
+      policy_params: the policy's initial parameters.
+      q_params: the reward critics' initial parameters.
+      cost_q_params: the cost critics' initial parameters.
+      key: the updates' JAX random key.
+
+    Returns:
+      SAC's initial state with the cost critics, their targets and
+      optimizer, and lambda = initial_multiplier.
+    """
     sac_state = super().initial_state(policy_params, q_params, key)
     return LagrangianTrainingState(
         *sac_state,
@@ -55,12 +80,34 @@ class LagrangianUpdateFunctions(sac_learning.UpdateFunctions):
         cost_q_optimizer_state=self.cost_q_optimizer.init(cost_q_params),
         multiplier=jnp.asarray(self.config.initial_multiplier, jnp.float32))
 
-  def aggregate(self, cost_q):
+  def aggregate(self, cost_q: jax.Array) -> jax.Array:
+    """The twin cost critics combined (cost_critic_aggregate).
+
+    Args:
+      cost_q: (..., 2) the two cost critics' values.
+
+    Returns:
+      (...,) their max or mean.
+    """
     if self.config.cost_critic_aggregate == 'max':
       return jnp.max(cost_q, axis=-1)
     return jnp.mean(cost_q, axis=-1)
 
-  def cost_critic_loss(self, cost_q_params, state, batch, key):
+  def cost_critic_loss(self, cost_q_params: Any,
+                       state: LagrangianTrainingState,
+                       batch: replay.Transition, key: jax.Array
+                       ) -> Tuple[jax.Array, jax.Array]:
+    """The cost critics' loss (module doc).
+
+    Args:
+      cost_q_params: the cost critics' parameters (differentiated).
+      state: the training state (policy and target cost critics).
+      batch: the transitions.
+      key: for the next actions' samples.
+
+    Returns:
+      (loss, cost critic values (batch, 2)).
+    """
     networks = self.networks
     next_mean, next_log_std = networks.policy_apply(
         state.policy_params, batch.next_observation)
@@ -74,7 +121,21 @@ class LagrangianUpdateFunctions(sac_learning.UpdateFunctions):
     loss = 0.5 * jnp.mean(jnp.square(cost_q - target[:, None]))
     return loss, cost_q
 
-  def actor_loss(self, policy_params, state, batch, temperature, key):
+  def actor_loss(self, policy_params: Any, state: LagrangianTrainingState,
+                 batch: replay.Transition, temperature: jax.Array,
+                 key: jax.Array) -> Tuple[jax.Array, jax.Array]:
+    """The policy's loss with lambda's cost term (module doc).
+
+    Args:
+      policy_params: the policy's parameters (differentiated).
+      state: the training state (critics, lambda).
+      batch: the transitions.
+      temperature: alpha.
+      key: for the actions' samples.
+
+    Returns:
+      (loss, log probabilities (batch,) of the sampled actions).
+    """
     networks = self.networks
     mean, log_std = networks.policy_apply(policy_params, batch.observation)
     action, log_prob = networks.sample(key, mean, log_std)
@@ -88,8 +149,18 @@ class LagrangianUpdateFunctions(sac_learning.UpdateFunctions):
       loss = loss / (1.0 + multiplier)
     return loss, log_prob
 
-  def sgd_step(self, state, batch):
-    """(next LagrangianTrainingState, metrics) of one gradient step."""
+  def sgd_step(self, state: LagrangianTrainingState,
+               batch: replay.Transition
+               ) -> Tuple[LagrangianTrainingState, Dict[str, jax.Array]]:
+    """One gradient step.
+
+    Args:
+      state: the training state.
+      batch: the transitions, (batch, ...) per field.
+
+    Returns:
+      (the next state, {metric name: device scalar}).
+    """
     cost_key = jax.random.fold_in(state.key, _COST_KEY_DATA)
     (cost_loss, cost_q), cost_grads = jax.value_and_grad(
         self.cost_critic_loss, has_aux=True)(state.cost_q_params, state,
@@ -117,11 +188,23 @@ class SACLagrangianLearner(sac_learning.SACLearner):
 
   `observe_episode_cost(cost)` updates the multiplier after a finished
   training episode (the agent's adder calls it).
+
+  Args:
+    networks: the policy and critics, of these sizes.
+    config: the hyperparameters.
+    observation_size: the flat observation's size.
+    action_size: the action's size.
+    seed: seeds the initial parameters and the updates' random key.
+
+  Raises:
+    ValueError: networks built for other sizes.
   """
 
   FUNCTIONS_CLASS = LagrangianUpdateFunctions
 
-  def __init__(self, networks, config, observation_size, action_size, seed):
+  def __init__(self, networks: networks_lib.SACNetworks,
+               config: config_lib.SACLagrangianConfig, observation_size: int,
+               action_size: int, seed: int):
     self._multiplier = multiplier_lib.LagrangeMultiplier(config)
     super().__init__(networks, config, observation_size, action_size, seed)
 
@@ -133,7 +216,14 @@ class SACLagrangianLearner(sac_learning.SACLearner):
                                          cost_q_params, key)
 
   def observe_episode_cost(self, cost: float) -> None:
-    """Updates lambda with a finished episode's cost."""
+    """Updates lambda with a finished episode's cost.
+
+    Args:
+      cost: the episode's summed cost.
+
+    Raises:
+      ValueError: a cost that is not finite.
+    """
     value = self._multiplier.update(cost)
     self._state = self._state._replace(
         multiplier=jnp.asarray(np.float32(value)))
@@ -143,13 +233,22 @@ class SACLagrangianLearner(sac_learning.SACLearner):
     """The current lambda."""
     return self._multiplier.value
 
-  def state(self):
+  def state(self) -> Dict[str, np.ndarray]:
+    """{path: NumPy array} of the training state and the multiplier's."""
     arrays = super().state()
     for key, value in self._multiplier.state().items():
       arrays[_MULTIPLIER_PREFIX + key] = value
     return arrays
 
-  def restore(self, arrays):
+  def restore(self, arrays: Mapping[str, np.ndarray]) -> None:
+    """Restores a `state()` exactly.
+
+    Args:
+      arrays: of `state()`.
+
+    Raises:
+      ValueError: arrays missing or of other shapes or dtypes.
+    """
     controller = {key[len(_MULTIPLIER_PREFIX):]: value
                   for key, value in arrays.items()
                   if key.startswith(_MULTIPLIER_PREFIX)}

@@ -19,9 +19,11 @@ All in float64 NumPy on the host: a few operations per episode, exact and
 part of the learner's checkpoint.
 """
 
-from typing import Dict
+from typing import Dict, Mapping
 
 import numpy as np
+
+from agents.sac_lag import config as config_lib
 
 
 class LagrangeMultiplier:
@@ -31,7 +33,7 @@ class LagrangeMultiplier:
     config: `agents.sac_lag.config.SACLagrangianConfig`.
   """
 
-  def __init__(self, config):
+  def __init__(self, config: config_lib.SACLagrangianConfig):
     self._config = config
     self._value = float(config.initial_multiplier)
     ki = config.pid_gains[1]
@@ -45,7 +47,17 @@ class LagrangeMultiplier:
     return self._value
 
   def update(self, episode_cost: float) -> float:
-    """lambda after an episode of cost `episode_cost`."""
+    """Updates lambda after a finished episode.
+
+    Args:
+      episode_cost: the episode's cost J_c.
+
+    Returns:
+      The new lambda.
+
+    Raises:
+      ValueError: a cost that is not finite.
+    """
     cost = float(episode_cost)
     if not np.isfinite(cost):
       raise ValueError(f'episode cost {episode_cost!r}: expected a finite '
@@ -73,8 +85,15 @@ class LagrangeMultiplier:
                                         else self._previous_cost),
             'updates': np.int64(self._updates)}
 
-  def restore(self, arrays: Dict[str, np.ndarray]) -> None:
-    """Restores a `state()`."""
+  def restore(self, arrays: Mapping[str, np.ndarray]) -> None:
+    """Restores a `state()`.
+
+    Args:
+      arrays: of `state()`.
+
+    Raises:
+      ValueError: entries missing.
+    """
     missing = sorted({'value', 'integral', 'previous_cost', 'updates'}
                      - set(arrays))
     if missing:

@@ -11,6 +11,8 @@ symmetrically, like the real linkage) and driven through one fixed tendon
 in [-1, 1] (-1 fully open, +1 closed) sets the opening target.
 """
 
+from typing import Sequence, Tuple
+
 from dm_control import composer
 from dm_control import mjcf
 from dm_control.composer.observation import observable
@@ -80,10 +82,19 @@ class ParallelGripper(composer.Entity):
   TCP_OFFSET = TCP_OFFSET
   MAX_APERTURE = MAX_APERTURE
 
-  def _build(self, name='gripper', grip_force=GRIP_FORCE):
-    """grip_force: N, the opening's force limit (2F-85: 20-235 N). The
-    servo squeezes with all of it objects at least grip_force /
-    OPENING_STIFFNESS + CLOSED_TARGET thick (0 m at 40 N, 3 cm at 100 N)."""
+  def _build(self, name: str = 'gripper', grip_force: float = GRIP_FORCE):
+    """Builds the palm, the fingers, their coupling and the actuator.
+
+    Args:
+      name: the MJCF model's name.
+      grip_force: N, the opening's force limit (2F-85: 20-235 N). The
+        servo squeezes with all of it objects at least grip_force /
+        OPENING_STIFFNESS + CLOSED_TARGET thick (0 m at 40 N, 3 cm at
+        100 N).
+
+    Raises:
+      ValueError: a grip_force outside [20, 235] N.
+    """
     if not (np.isfinite(grip_force) and 20.0 <= grip_force <= 235.0):
       raise ValueError(f'grip_force={grip_force!r}: expected a force in '
                        '[20, 235] N (the Robotiq 2F-85 range)')
@@ -164,46 +175,60 @@ class ParallelGripper(composer.Entity):
     return GripperObservables(self)
 
   @property
-  def mjcf_model(self):
+  def mjcf_model(self) -> mjcf.RootElement:
+    """The gripper's MJCF model."""
     return self._mjcf_root
 
   @property
-  def tcp_site(self):
+  def tcp_site(self) -> mjcf.Element:
+    """The tool centre point, between the fingertips (TCP_OFFSET along z)."""
     return self._tcp_site
 
   @property
-  def grip_force(self):
+  def grip_force(self) -> float:
     """N, the force limit of the opening (how hard a grasp squeezes)."""
     return self._grip_force
 
   @property
-  def finger_geoms(self):
+  def finger_geoms(self) -> Tuple[mjcf.Element, ...]:
     """The (left, right) finger pads."""
     return self._finger_geoms
 
   @property
-  def finger_bodies(self):
+  def finger_bodies(self) -> Tuple[mjcf.Element, ...]:
+    """The (left, right) finger bodies."""
     return self._fingers
 
   @property
-  def finger_joints(self):
+  def finger_joints(self) -> Tuple[mjcf.Element, ...]:
+    """The (left, right) slide joints, m (each half the aperture)."""
     return self._finger_joints
 
   @property
-  def geoms(self):
+  def geoms(self) -> Tuple[mjcf.Element, ...]:
     """Every collision geom of the gripper."""
     return self._geoms
 
   @property
-  def actuator(self):
+  def actuator(self) -> mjcf.Element:
+    """The position actuator on the opening."""
     return self._actuator
 
   @property
-  def actuators(self):
+  def actuators(self) -> Tuple[mjcf.Element, ...]:
+    """The gripper's actuators: (actuator,)."""
     return (self._actuator,)
 
-  def set_command(self, physics, u):
-    """u in [-1, 1]: -1 fully open, +1 closed (clipped)."""
+  def set_command(self, physics: mjcf.Physics, u: float) -> None:
+    """Sets the opening's target.
+
+    Args:
+      physics: the physics.
+      u: in [-1, 1]: -1 fully open, +1 closed (clipped).
+
+    Raises:
+      ValueError: a non-finite u.
+    """
     u = float(u)
     if not np.isfinite(u):
       raise ValueError(f'gripper command must be finite, got {u}')
@@ -212,22 +237,46 @@ class ParallelGripper(composer.Entity):
     # whole mj_forward (a control changes no position or velocity).
     physics.data.ctrl[self._actuator_id(physics)[0]] = min(max(u, -1.0), 1.0)
 
-  def aperture(self, physics) -> float:
-    """Opening between the pads, normalised: 0 closed, 1 fully open."""
+  def aperture(self, physics: mjcf.Physics) -> float:
+    """Opening between the pads, normalised: 0 closed, 1 fully open.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      The aperture in [0, 1].
+    """
     # The joints' qpos rows (what their binding reads; a qpos read never
     # runs mj_forward), summed in the binding's order.
     rows = physics.model.jnt_qposadr[self._finger_joint_ids(physics)]
     opening = np.sum(physics.data.qpos[rows])
     return float(min(max(opening / MAX_APERTURE, 0.0), 1.0))
 
-  def is_grasping(self, physics, body) -> bool:
-    """True if both fingers touch geoms of `body` (and its subtree)."""
+  def is_grasping(self, physics: mjcf.Physics, body: mjcf.Element) -> bool:
+    """Whether both fingers touch geoms of `body` (and its subtree).
+
+    Args:
+      physics: the physics.
+      body: an MJCF body (e.g. a prop's `body`).
+
+    Returns:
+      Whether it is grasped.
+    """
     return bool(self.grasping(physics, (body,))[0])
 
-  def grasping(self, physics, bodies):
-    """is_grasping for each of `bodies`, (n,) bools, from one pass over
-    the contacts (compiled: gripper_kernels.grasped, the decisions of
-    `grasping_reference`)."""
+  def grasping(self, physics: mjcf.Physics,
+               bodies: Sequence[mjcf.Element]) -> np.ndarray:
+    """is_grasping for each of `bodies`, from one pass over the contacts
+    (compiled: gripper_kernels.grasped, the decisions of
+    `grasping_reference`).
+
+    Args:
+      physics: the physics.
+      bodies: n MJCF bodies.
+
+    Returns:
+      (n,) bools.
+    """
     data = physics.data
     grasped = np.zeros(len(bodies), dtype=bool)
     ncon = data.ncon
@@ -248,8 +297,17 @@ class ParallelGripper(composer.Entity):
       ids = self._body_ids[key] = element_ids.ElementIds(bodies)
     return ids(physics)
 
-  def grasping_reference(self, physics, bodies):
-    """NumPy reference of `grasping` (same arguments)."""
+  def grasping_reference(self, physics: mjcf.Physics,
+                         bodies: Sequence[mjcf.Element]) -> np.ndarray:
+    """NumPy reference of `grasping`.
+
+    Args:
+      physics: the physics.
+      bodies: n MJCF bodies.
+
+    Returns:
+      (n,) bools.
+    """
     data, model = physics.data, physics.model
     grasped = np.zeros(len(bodies), dtype=bool)
     ncon = data.ncon
@@ -276,9 +334,13 @@ class ParallelGripper(composer.Entity):
       return model.body_rootid[bodies] == target
     return bodies == target
 
-  def enclosing_capsule(self):
-    """(p1, p2, radius) in the mount frame covering the gripper fully open
-    or closed: a segment along z through the bounding boxes of all geoms."""
+  def enclosing_capsule(self) -> Tuple[np.ndarray, np.ndarray, float]:
+    """A capsule in the mount frame covering the gripper fully open or
+    closed: a segment along z through the bounding boxes of all geoms.
+
+    Returns:
+      (p1 (3,), p2 (3,), radius), m.
+    """
     corners = _all_corners()
     radius = float(np.max(np.linalg.norm(corners[:, :2], axis=1)))
     p1 = np.array([0.0, 0.0, corners[:, 2].min()])
@@ -290,6 +352,7 @@ class GripperObservables(composer.Observables):
   """Normalised aperture of the gripper."""
 
   @composer.observable
-  def aperture(self):
+  def aperture(self) -> observable.Generic:
+    """The normalised aperture (1,)."""
     return observable.Generic(
         lambda physics: np.array([self._entity.aperture(physics)]))

@@ -27,6 +27,8 @@ objects: a hand that holds one object does not collide with another held
 object either.)
 """
 
+from typing import Dict, Optional, Sequence, Tuple, Union
+
 import numpy as np
 from dm_control import composer
 from dm_control import mjcf
@@ -35,8 +37,12 @@ from dm_control.composer.observation import observable
 from hrc_suite import rotations
 from hrc_suite.entities import collision_groups
 from hrc_suite.entities import element_ids
+from hrc_suite.entities import human_playback
+from hrc_suite.entities import human_segments
 from hrc_suite.human import body as body_lib
+from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
+from hrc_suite.human import player as player_lib
 
 # Capsule radii (m) at the reference stature, scaled with stature: about half
 # the limb's breadth/depth (head ~0.19 m breadth, chest depth ~0.24 m, upper
@@ -47,7 +53,9 @@ CAPSULE_RADII = {
     'upper_arm': 0.05, 'forearm': 0.04, 'hand': 0.045,
     'thigh': 0.075, 'shin': 0.055,
 }
-SEGMENTS = keypoints.SEGMENTS + (('pelvis', 'left_hip', 'right_hip'),)
+# The capsules' segments and frames (entities/human_segments.py).
+SEGMENTS = human_segments.SEGMENTS
+segment_frames = human_segments.segment_frames
 HANDS = ('left', 'right')
 _SKIN = (0.85, 0.65, 0.5, 1.0)
 # Collision bit of a held object (unused by collision_groups' scheme): every
@@ -64,56 +72,35 @@ def _part(name):
       else name
 
 
-_NEXT = np.array([1, 2, 0])
-_PREV = np.array([2, 0, 1])
+def row_norms(vectors: np.ndarray) -> np.ndarray:
+  """np.linalg.norm of each row, each exactly as on one row.
 
-
-def row_norms(vectors):
-  """np.linalg.norm of each row of (n, k) vectors, each exactly as on one
-  row (np.linalg.norm takes a row's dot product through BLAS; a stacked
+  np.linalg.norm takes a row's dot product through BLAS; a stacked
   np.matmul does the same row by row, where a sum of squares would round
-  differently)."""
-  return np.sqrt(np.matmul(vectors[:, None, :], vectors[:, :, None])[:, 0, 0])
+  differently.
 
+  Args:
+    vectors: (n, k) rows.
 
-def _row_dots(x, y):
-  """Row-wise dot products of (N, 3) arrays, summed in a fixed order
-  (terms 0 + 2, then 1): the order np.einsum('ij,ij->i') took on this
-  machine, written out so that the compiled frames (human_kernels) match
-  on any machine."""
-  products = x * y
-  return (products[:, 0] + products[:, 2]) + products[:, 1]
-
-
-def segment_frames(positions, proximal, distal, reference):
-  """Midpoints (S, 3), half lengths (S,) and quaternions (S, 4) of segments.
-
-  The frame's z axis runs along the segment; x is `reference` made
-  orthogonal to it (or, where the two are nearly parallel, the horizontal
-  perpendicular of z), so frames change continuously with the keypoints.
+  Returns:
+    (n,) their norms.
   """
-  a = positions[proximal]
-  b = positions[distal]
-  axis = b - a
-  length = np.sqrt(_row_dots(axis, axis))
-  z = axis / np.maximum(length, 1e-9)[:, None]
-  x = reference - _row_dots(reference, z)[:, None] * z
-  norm = np.sqrt(_row_dots(x, x))
-  weak = norm < 0.2
-  if weak.any():
-    fallback = np.stack([-z[weak, 1], z[weak, 0], np.zeros(weak.sum())], -1)
-    fallback[np.abs(fallback).sum(-1) < 1e-6] = (1.0, 0.0, 0.0)
-    x[weak] = fallback
-    norm[weak] = np.sqrt(_row_dots(fallback, fallback))
-  x /= norm[:, None]
-  y = z[:, _NEXT] * x[:, _PREV] - z[:, _PREV] * x[:, _NEXT]   # z cross x
-  return 0.5 * (a + b), 0.5 * length, rotations.axes_to_quat(x, y, z)
+  return np.sqrt(np.matmul(vectors[:, None, :], vectors[:, :, None])[:, 0, 0])
 
 
 class Human(composer.Entity):
   """Kinematic human: capsules and keypoint sites on mocap bodies."""
 
-  def _build(self, name='human', anthropometrics=None):
+  def _build(self, name: str = 'human',
+             anthropometrics: Optional[body_lib.Anthropometrics] = None):
+    """Builds the capsules and keypoint sites (attach with `attach_to`).
+
+    Args:
+      name: the MJCF model's name, the stem of its parts' names.
+      anthropometrics: the body's measures, which size the capsules
+        (default: proportional to REFERENCE_STATURE); `resize` sets
+        a clip's.
+    """
     self._mjcf_root = mjcf.RootElement(model=name)
     self._name = name
     self._anthropometrics = (anthropometrics or
@@ -158,13 +145,24 @@ class Human(composer.Entity):
     return HumanObservables(self)
 
   @property
-  def mjcf_model(self):
+  def mjcf_model(self) -> mjcf.RootElement:
+    """The human's MJCF model (its parts attach to the arena)."""
     return self._mjcf_root
 
   # ------------------------------------------------------------- assembly
 
-  def attach_to(self, arena):
-    """Attaches the human to `arena` (an Entity), parts as mocap bodies."""
+  def attach_to(self, arena: composer.Entity) -> 'Human':
+    """Attaches the human to `arena`, its parts as mocap bodies.
+
+    Args:
+      arena: the arena (e.g. the workcell).
+
+    Returns:
+      The human.
+
+    Raises:
+      RuntimeError: if it is already attached.
+    """
     if self._segment_frames is not None:
       raise RuntimeError(f'Human {self._name!r} is already attached')
     arena.attach(self)
@@ -179,8 +177,19 @@ class Human(composer.Entity):
     self._root = arena.mjcf_model
     return self
 
-  def add_holdable(self, object_body):
-    """Prepares weld constraints from each hand to `object_body` (off)."""
+  def add_holdable(self, object_body: mjcf.Element
+                   ) -> Dict[str, mjcf.Element]:
+    """Prepares weld constraints from each hand to `object_body` (off).
+
+    Args:
+      object_body: the body of a free prop, before compiling.
+
+    Returns:
+      The welds, {hand: weld element}.
+
+    Raises:
+      RuntimeError: if the human is not attached.
+    """
     self._require_attached()
     welds = {}
     for hand in HANDS:
@@ -198,19 +207,27 @@ class Human(composer.Entity):
                          'human.attach_to(arena) first')
 
   @property
-  def anthropometrics(self):
+  def anthropometrics(self) -> body_lib.Anthropometrics:
+    """The body's measures at construction."""
     return self._anthropometrics
 
   @property
-  def geoms(self):
+  def geoms(self) -> Tuple[mjcf.Element, ...]:
+    """The capsules, in SEGMENTS' order."""
     return tuple(self._segment_geoms)
 
   @property
-  def keypoint_sites(self):
+  def keypoint_sites(self) -> Tuple[mjcf.Element, ...]:
+    """The keypoint sites, in keypoints.KEYPOINT_NAMES' order."""
     return tuple(self._sites)
 
   @property
-  def segment_bodies(self):
+  def segment_bodies(self) -> Tuple[mjcf.Element, ...]:
+    """The capsules' mocap bodies (attachment frames), in SEGMENTS' order.
+
+    Raises:
+      RuntimeError: if the human is not attached.
+    """
     self._require_attached()
     return self._segment_frames
 
@@ -242,8 +259,17 @@ class Human(composer.Entity):
     self._cache = (physics, cache)
     return cache
 
-  def set_keypoints(self, physics, positions):
-    """Moves capsules and sites to (NUM_KEYPOINTS, 3) world positions."""
+  def set_keypoints(self, physics: mjcf.Physics, positions: np.ndarray
+                    ) -> None:
+    """Moves capsules and sites to keypoint positions.
+
+    Args:
+      physics: the physics.
+      positions: (NUM_KEYPOINTS, 3) world positions.
+
+    Raises:
+      ValueError: positions of another shape.
+    """
     positions = np.asarray(positions, dtype=np.float64)
     if positions.shape != (keypoints.NUM_KEYPOINTS, 3):
       raise ValueError(f'Expected keypoint positions of shape '
@@ -254,15 +280,29 @@ class Human(composer.Entity):
     reference[:8] = (positions[k['left_shoulder']]
                      - positions[k['right_shoulder']])
     reference[8:12] = positions[k['left_hip']] - positions[k['right_hip']]
-    mid, _, quat = segment_frames(positions, self._proximal, self._distal,
+    mid, _, quat = human_segments.segment_frames(positions, self._proximal, self._distal,
                                   reference)
     data = physics.data
     data.mocap_pos[cache['segment_mocap']] = mid
     data.mocap_quat[cache['segment_mocap']] = quat
     data.mocap_pos[cache['keypoint_mocap']] = positions
 
-  def resize(self, physics, clip_or_positions):
-    """Sets capsule lengths to the segment lengths of a clip (or positions)."""
+  def resize(self, physics: mjcf.Physics,
+             clip_or_positions: Union[clip_lib.Clip, np.ndarray]
+             ) -> Dict[str, float]:
+    """Sets capsule lengths to the segment lengths of a clip (or positions).
+
+    Each length is the median over the frames; the radii scale with the
+    clip's stature (its metadata's, else estimated from the first frame).
+
+    Args:
+      physics: the physics (its model is changed).
+      clip_or_positions: a clip, or keypoint positions (T, NUM_KEYPOINTS,
+        3) or (NUM_KEYPOINTS, 3).
+
+    Returns:
+      {segment name: capsule length between its keypoints, m}.
+    """
     positions = getattr(clip_or_positions, 'positions', clip_or_positions)
     positions = np.asarray(positions, dtype=np.float64)
     if positions.ndim == 2:
@@ -286,33 +326,48 @@ class Human(composer.Entity):
     model.geom_aabb[geoms, :3] = 0.0
     return dict(zip([s[0] for s in SEGMENTS], 2 * half))
 
-  def keypoint_positions(self, physics):
-    """(NUM_KEYPOINTS, 3) world positions of the keypoint sites."""
+  def keypoint_positions(self, physics: mjcf.Physics) -> np.ndarray:
+    """World positions of the keypoint sites.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (NUM_KEYPOINTS, 3) a copy.
+    """
     return physics.data.site_xpos[self._bound(physics)['sites']].copy()
 
   # ---------------------------------------------------------------- driving
 
-  def follow(self, player):
-    """Lets `player` (human.player.Player) drive the human in an episode.
+  def follow(self, player: Optional[player_lib.Player]) -> None:
+    """Lets `player` drive the human in an episode.
 
     At episode start the player is reset with the episode's random_state;
     before every physics step it advances by the physics timestep and the
     capsules move to its keypoints (resized whenever the clip changes), by
     the tasks' own playback (entities/human_playback.py, one substep at a
-    time). The task triggers the player's events itself. None stops
-    following.
+    time). The task triggers the player's events itself.
+
+    Args:
+      player: the clip player, or None to stop following.
     """
-    # Imported here: human_playback builds on this module.
-    from hrc_suite.entities import human_playback
     self._player = player
     self._playback = (None if player is None else
                       human_playback.HumanPlayback(self, player, substeps=1))
 
   @property
-  def player(self):
+  def player(self) -> Optional[player_lib.Player]:
+    """The player the human follows, or None."""
     return self._player
 
-  def initialize_episode(self, physics, random_state):
+  def initialize_episode(self, physics: mjcf.Physics,
+                         random_state: np.random.RandomState) -> None:
+    """Resets the followed player and shows its pose (composer's hook).
+
+    Args:
+      physics: the physics.
+      random_state: the episode's random numbers (the player's reset).
+    """
     if self._player is not None:
       self._player.reset(random_state)
       self._playback.bind(physics)
@@ -320,25 +375,44 @@ class Human(composer.Entity):
       self._playback.show_current(physics)
 
   @property
-  def substep_hooks_idle(self):
+  def substep_hooks_idle(self) -> bool:
     """Whether before_substep does nothing (no player to follow):
     tasks/substeps.py may then skip it."""
     return self._player is None
 
-  def before_substep(self, physics, random_state):
+  def before_substep(self, physics: mjcf.Physics,
+                     random_state: np.random.RandomState) -> None:
+    """Advances the followed player by a physics step (composer's hook).
+
+    Args:
+      physics: the physics.
+      random_state: unused.
+    """
     if self._player is not None:
       self._playback.advance(physics.timestep())
       self._playback.apply(physics, 0)
 
   # ---------------------------------------------------------------- holding
 
-  def hold(self, physics, object_body, hand, relative_pose=None):
-    """Welds `object_body` to `hand` ('left'/'right').
+  def hold(self, physics: mjcf.Physics, object_body: mjcf.Element,
+           hand: str,
+           relative_pose: Optional[Sequence[np.ndarray]] = None) -> None:
+    """Welds `object_body` to `hand`.
 
-    relative_pose: None (keep the current pose relative to the hand) or
-    (position (3,), quaternion (4,) w-first) of the object in the hand
-    capsule's frame. Contacts between that hand and the object are off
-    until `release` (module doc).
+    Contacts between that hand and the object are off until `release`
+    (module doc).
+
+    Args:
+      physics: the physics (its model is changed).
+      object_body: a body made holdable with `add_holdable`.
+      hand: 'left' or 'right'.
+      relative_pose: None (keep the current pose relative to the hand) or
+        (position (3,), quaternion (4,) w first) of the object in the hand
+        capsule's frame.
+
+    Raises:
+      ValueError: an unknown hand, a body that is not holdable, or a bad
+        relative pose.
     """
     if hand not in HANDS:
       raise ValueError(f'Unknown hand {hand!r}: expected "left" or "right"')
@@ -362,8 +436,18 @@ class Human(composer.Entity):
     hand_geom = self._bound(physics)['geoms'][self._hand_segment[hand]]
     model.geom_conaffinity[hand_geom] &= ~HELD_OBJECT_BIT
 
-  def relative_pose(self, physics, object_body, hand):
-    """(position, quaternion) of `object_body` in `hand`'s capsule frame."""
+  def relative_pose(self, physics: mjcf.Physics, object_body: mjcf.Element,
+                    hand: str) -> Tuple[np.ndarray, np.ndarray]:
+    """The pose of `object_body` in `hand`'s capsule frame.
+
+    Args:
+      physics: the physics.
+      object_body: an MJCF body.
+      hand: 'left' or 'right'.
+
+    Returns:
+      (position (3,), quaternion (4,) w first).
+    """
     hand_body = self._bound(physics)['hand_bodies'][hand]
     obj = physics.bind(object_body)
     data = physics.data
@@ -373,14 +457,37 @@ class Human(composer.Entity):
         rotations.quat_conj(data.xquat[hand_body]), obj.xquat)
     return rel_pos, rel_quat
 
-  def set_grip(self, physics, object_body, position, quaternion):
-    """Changes the pose at which a held object is welded to the hand."""
+  def set_grip(self, physics: mjcf.Physics, object_body: mjcf.Element,
+               position: np.ndarray, quaternion: np.ndarray) -> None:
+    """Changes the pose at which a held object is welded to the hand.
+
+    Args:
+      physics: the physics (its model is changed).
+      object_body: a held body.
+      position: (3,) in the hand capsule's frame.
+      quaternion: (4,) w first, non-zero (normalised here).
+
+    Raises:
+      ValueError: a body that is not held, or a bad pose.
+    """
     target, index = self.grip_slots(physics, object_body)
     target[index] = self.grip_values(position, quaternion)
 
-  def grip_slots(self, physics, object_body):
-    """(MjModel's eq_data, flat, and the indices of the held object's
-    weld's relative pose in it) for `grip_values`."""
+  def grip_slots(self, physics: mjcf.Physics, object_body: mjcf.Element
+                 ) -> Tuple[np.ndarray, np.ndarray]:
+    """Where the held object's weld keeps its relative pose.
+
+    Args:
+      physics: the physics.
+      object_body: a held body.
+
+    Returns:
+      (MjModel's eq_data, flat, and the 10 indices in it that
+      `grip_values` fills).
+
+    Raises:
+      ValueError: a body that is not held.
+    """
     hand = self._held.get(object_body)
     if hand is None:
       name = getattr(object_body, 'full_identifier', object_body)
@@ -390,9 +497,21 @@ class Human(composer.Entity):
     return eq_data.reshape(-1), eq_id * eq_data.shape[1] + np.arange(10)
 
   @staticmethod
-  def grip_values(position, quaternion):
-    """The weld's eq_data[0:10] holding an object at (position,
-    quaternion) in the hand's frame (anchor 0, the unit quaternion)."""
+  def grip_values(position: np.ndarray, quaternion: np.ndarray
+                  ) -> np.ndarray:
+    """The weld's eq_data[0:10] holding an object at a pose in the hand's
+    frame (anchor 0, the unit quaternion).
+
+    Args:
+      position: (3,) finite.
+      quaternion: (4,) w first, finite and non-zero.
+
+    Returns:
+      (10,) the weld's data.
+
+    Raises:
+      ValueError: a bad position or quaternion.
+    """
     position = np.asarray(position, dtype=np.float64)
     quaternion = np.asarray(quaternion, dtype=np.float64)
     if position.shape != (3,) or quaternion.shape != (4,):
@@ -402,9 +521,20 @@ class Human(composer.Entity):
     return Human.grip_rows(position[None], quaternion[None])[0]
 
   @staticmethod
-  def grip_rows(positions, quaternions):
-    """grip_values of n poses (positions (n, 3), quaternions (n, 4)):
-    (n, 10), each row as grip_values gives it."""
+  def grip_rows(positions: np.ndarray, quaternions: np.ndarray
+                ) -> np.ndarray:
+    """grip_values of n poses, each row as grip_values gives it.
+
+    Args:
+      positions: (n, 3) finite.
+      quaternions: (n, 4) w first, finite and non-zero.
+
+    Returns:
+      (n, 10) the welds' data.
+
+    Raises:
+      ValueError: bad positions or quaternions.
+    """
     positions = np.asarray(positions, dtype=np.float64)
     quaternions = np.asarray(quaternions, dtype=np.float64)
     norms = np.full(len(quaternions), np.nan)
@@ -421,9 +551,18 @@ class Human(composer.Entity):
     values[:, 6:10] = quaternions / norms[:, None]
     return values
 
-  def grip(self, physics, object_body):
-    """(position, quaternion) at which a held object is welded to its hand
-    (its capsule frame), or None if it is not held."""
+  def grip(self, physics: mjcf.Physics, object_body: mjcf.Element
+           ) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """The pose at which a held object is welded to its hand.
+
+    Args:
+      physics: the physics.
+      object_body: a holdable body.
+
+    Returns:
+      (position (3,), quaternion (4,)) in the hand capsule's frame, or
+      None if it is not held.
+    """
     hand = self._held.get(object_body)
     if hand is None:
       return None
@@ -431,8 +570,17 @@ class Human(composer.Entity):
     data = physics.model.eq_data[eq_id]
     return data[3:6].copy(), data[6:10].copy()
 
-  def release(self, physics, object_body):
-    """Releases `object_body` from whichever hand holds it."""
+  def release(self, physics: mjcf.Physics, object_body: mjcf.Element
+              ) -> None:
+    """Releases `object_body` from whichever hand holds it.
+
+    Args:
+      physics: the physics (its model is changed).
+      object_body: a holdable body (nothing happens if it is not held).
+
+    Raises:
+      ValueError: a body that is not holdable.
+    """
     if object_body not in self._holdables:
       name = getattr(object_body, 'full_identifier', object_body)
       raise ValueError(f'{name!r} is not holdable')
@@ -449,18 +597,36 @@ class Human(composer.Entity):
         hand_geom = self._bound(physics)['geoms'][self._hand_segment[hand]]
         model.geom_conaffinity[hand_geom] |= HELD_OBJECT_BIT
 
-  def holding(self, object_body):
-    """The hand holding `object_body`, or None."""
+  def holding(self, object_body: mjcf.Element) -> Optional[str]:
+    """The hand holding `object_body`.
+
+    Args:
+      object_body: an MJCF body.
+
+    Returns:
+      'left', 'right', or None.
+    """
     return self._held.get(object_body)
 
   # ----------------------------------------------------------- observables
 
-  def add_relative_observables(self, site, subset=('head', 'left_hand',
-                                                   'right_hand'),
-                               name=None):
-    """Observables of keypoints in `site`'s frame and their distances;
-    returns both (named 'keypoints_in_{name}_frame' and
-    'keypoint_distances_to_{name}', name defaulting to the site's)."""
+  def add_relative_observables(
+      self, site: mjcf.Element,
+      subset: Sequence[str] = ('head', 'left_hand', 'right_hand'),
+      name: Optional[str] = None
+  ) -> Tuple[observable.Generic, observable.Generic]:
+    """Observables of keypoints in `site`'s frame and their distances.
+
+    Args:
+      site: the MJCF site whose frame the keypoints are taken in.
+      subset: keypoint names.
+      name: the observables' name suffix (default: the site's name).
+
+    Returns:
+      ('keypoints_in_{name}_frame' (len(subset), 3),
+      'keypoint_distances_to_{name}' (len(subset),)), both added to the
+      human's observables.
+    """
     name = name or site.name
     # The frame's site, then the subset's keypoint sites.
     site_ids = element_ids.ElementIds(
@@ -498,5 +664,6 @@ class HumanObservables(composer.Observables):
   """Keypoint positions in the world frame."""
 
   @composer.observable
-  def keypoint_positions(self):
+  def keypoint_positions(self) -> observable.Generic:
+    """The keypoints' world positions (NUM_KEYPOINTS, 3)."""
     return observable.Generic(self._entity.keypoint_positions)

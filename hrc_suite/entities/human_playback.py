@@ -5,9 +5,9 @@ trigger between RL steps (after_step). So at the start of an RL step the
 player is advanced through all L substeps in one call
 (`Player.advance_many`: the keypoints of each substep, one array operation
 per clip), and the capsule frames of all L x S segments come from one
-vectorised `human.segment_frames` call instead of L calls (compiled=True,
-the task's fast path: its kernel, `human_kernels.segment_frames`, the
-same values). Each substep only copies its rows into MuJoCo's
+vectorised `human_segments.segment_frames` call instead of L calls
+(compiled=True, the task's fast path: its kernel,
+`human_kernels.segment_frames`, the same values). Each substep only copies its rows into MuJoCo's
 mocap arrays and hands its keypoints to the shield, exactly as if the player
 had been advanced in that substep.
 
@@ -18,8 +18,8 @@ legs, world z for the pelvis); tests check the two agree.
 
 import numpy as np
 
-from hrc_suite.entities import human as human_lib
 from hrc_suite.entities import human_kernels
+from hrc_suite.entities import human_segments
 from hrc_suite.human import keypoints
 
 _LEG_PARTS = ('thigh', 'shin')
@@ -42,16 +42,16 @@ class HumanPlayback:
     self._compiled = bool(compiled)
     self._player = player
     self.substeps = int(substeps)
-    k, s = keypoints.NUM_KEYPOINTS, len(human_lib.SEGMENTS)
+    k, s = keypoints.NUM_KEYPOINTS, len(human_segments.SEGMENTS)
     index = keypoints.KEYPOINT_INDEX
     proximal = np.array(keypoints.index([seg[1] for seg in
-                                         human_lib.SEGMENTS]))
+                                         human_segments.SEGMENTS]))
     distal = np.array(keypoints.index([seg[2] for seg in
-                                       human_lib.SEGMENTS]))
+                                       human_segments.SEGMENTS]))
     offsets = (k * np.arange(self.substeps))[:, None]
     self._proximal = (proximal[None] + offsets).ravel()
     self._distal = (distal[None] + offsets).ravel()
-    names = [seg[0] for seg in human_lib.SEGMENTS]
+    names = [seg[0] for seg in human_segments.SEGMENTS]
     self._hip_line = np.array([any(p in n for p in _LEG_PARTS)
                                for n in names])
     self._vertical = np.array([n == 'pelvis' for n in names])
@@ -141,7 +141,7 @@ class HumanPlayback:
     left, right = self._hips
     reference[:, self._hip_line] = (self.positions[:, left]
                                    - self.positions[:, right])[:, None]
-    middles, _, quaternions = human_lib.segment_frames(
+    middles, _, quaternions = human_segments.segment_frames(
         self.positions.reshape(-1, 3), self._proximal, self._distal,
         reference.reshape(-1, 3))
     self._middles[:] = middles.reshape(self._middles.shape)

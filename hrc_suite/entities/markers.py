@@ -11,6 +11,7 @@ that body.
 """
 
 import numbers
+from typing import Any, Sequence
 
 from dm_control import composer
 from dm_control import mjcf
@@ -27,11 +28,26 @@ MARKER_GROUP = 0                         # visible by default.
 class TargetMarker(composer.Entity):
   """A translucent sphere or disc marking a goal; it touches nothing."""
 
-  def _build(self, radius=MARKER_RADIUS, rgba=MARKER_RGBA, shape='sphere',
-             name='target', half_thickness=DISC_HALF_THICKNESS,
-             offset=(0.0, 0.0, 0.0)):
-    """radius: of the sphere or disc (m); half_thickness: the disc's (m);
-    offset: the site's position in the marker's frame (m)."""
+  def _build(self, radius: float = MARKER_RADIUS,
+             rgba: Sequence[float] = MARKER_RGBA, shape: str = 'sphere',
+             name: str = 'target',
+             half_thickness: float = DISC_HALF_THICKNESS,
+             offset: Sequence[float] = (0.0, 0.0, 0.0)):
+    """Builds the marker's body and site.
+
+    Args:
+      radius: of the sphere or disc, m, > 0.
+      rgba: 4 values in [0, 1].
+      shape: 'sphere' or 'disc'.
+      name: the MJCF model's and the body's name.
+      half_thickness: the disc's, m, > 0.
+      offset: (3,) the site's position in the marker's frame, m.
+
+    Raises:
+      ValueError: a radius or half_thickness that is not a positive finite
+        number, an unknown shape, bad rgba, or an offset that is not a
+        finite 3-vector.
+    """
     self._radius = _positive(radius, 'radius')
     half_thickness = _positive(half_thickness, 'half_thickness')
     if shape not in SHAPES:
@@ -60,27 +76,45 @@ class TargetMarker(composer.Entity):
     return TargetMarkerObservables(self)
 
   @property
-  def mjcf_model(self):
+  def mjcf_model(self) -> mjcf.RootElement:
+    """The marker's MJCF model."""
     return self._mjcf_root
 
   @property
-  def radius(self):
+  def radius(self) -> float:
+    """The sphere's or disc's radius, m."""
     return self._radius
 
   @property
-  def body(self):
+  def body(self) -> mjcf.Element:
+    """The marker's body (no joints, no geoms)."""
     return self._body
 
   @property
-  def site(self):
+  def site(self) -> mjcf.Element:
     """The marker's visual site; its origin is the goal."""
     return self._site
 
-  def position(self, physics):
+  def position(self, physics: mjcf.Physics) -> np.ndarray:
+    """The site's world position, the goal.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (3,) a copy.
+    """
     return physics.bind(self._site).xpos.copy()
 
-  def attach_mocap(self, arena):
-    """Attaches the marker to `arena` on a mocap frame; returns the frame."""
+  def attach_mocap(self, arena: composer.Entity) -> mjcf.Element:
+    """Attaches the marker to `arena` on a mocap frame.
+
+    Args:
+      arena: the arena (e.g. the workcell).
+
+    Returns:
+      The mocap attachment frame.
+    """
     frame = arena.attach(self)
     frame.mocap = 'true'
     self._mocap_frame = frame
@@ -92,12 +126,31 @@ class TargetMarker(composer.Entity):
                        'frame: attach it with attach_mocap(arena)')
     return physics.bind(self._mocap_frame)
 
-  def set_mocap_position(self, physics, position):
-    """Moves the mocap frame (the site follows at `offset`)."""
+  def set_mocap_position(self, physics: mjcf.Physics,
+                         position: Sequence[float]) -> None:
+    """Moves the mocap frame (the site follows at `offset`).
+
+    Args:
+      physics: the physics.
+      position: (3,) world position.
+
+    Raises:
+      ValueError: a marker not attached with `attach_mocap`.
+    """
     self._mocap(physics).mocap_pos = position
 
-  def mocap_position(self, physics):
-    """World position of the mocap frame, the marker's goal."""
+  def mocap_position(self, physics: mjcf.Physics) -> np.ndarray:
+    """World position of the mocap frame, the marker's goal.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (3,) a copy.
+
+    Raises:
+      ValueError: a marker not attached with `attach_mocap`.
+    """
     return self._mocap(physics).mocap_pos.copy()
 
 
@@ -118,13 +171,25 @@ class TargetMarkerObservables(composer.Observables):
   """World position of the marker's centre."""
 
   @composer.observable
-  def position(self):
+  def position(self) -> observable.MJCFFeature:
+    """The site's world position (3,)."""
     return observable.MJCFFeature('xpos', self._entity.site)
 
 
-def position_of(physics, thing):
-  """World position of a prop or marker (its body or site), an MJCF body or
-  site, or a 3-vector."""
+def position_of(physics: mjcf.Physics, thing: Any) -> np.ndarray:
+  """World position of a prop or marker, an MJCF element, or a 3-vector.
+
+  Args:
+    physics: the physics.
+    thing: a TargetMarker (its site), an entity with a `body` (a prop), an
+      MJCF body, site or geom, or a finite 3-vector (itself).
+
+  Returns:
+    (3,) the position (the binding's array for entities and elements).
+
+  Raises:
+    ValueError: an element of another kind, or anything else.
+  """
   if isinstance(thing, TargetMarker):
     return physics.bind(thing.site).xpos
   body = getattr(thing, 'body', None)
@@ -143,14 +208,38 @@ def position_of(physics, thing):
   return position
 
 
-def distance_to_target(physics, obj, target):
-  """Euclidean distance (m) between `obj` and `target` (see position_of)."""
+def distance_to_target(physics: mjcf.Physics, obj: Any, target: Any
+                       ) -> float:
+  """Euclidean distance between `obj` and `target`.
+
+  Args:
+    physics: the physics.
+    obj: anything `position_of` takes.
+    target: anything `position_of` takes.
+
+  Returns:
+    The distance, m.
+  """
   delta = position_of(physics, obj) - position_of(physics, target)
   return float(np.sqrt(delta @ delta))
 
 
-def is_within(physics, obj, target, distance):
-  """True if `obj` is within `distance` metres of `target`."""
+def is_within(physics: mjcf.Physics, obj: Any, target: Any,
+              distance: float) -> bool:
+  """Whether `obj` is within `distance` of `target`.
+
+  Args:
+    physics: the physics.
+    obj: anything `position_of` takes.
+    target: anything `position_of` takes.
+    distance: m, >= 0.
+
+  Returns:
+    Whether their distance is at most `distance`.
+
+  Raises:
+    ValueError: a negative (or NaN) distance.
+  """
   if not distance >= 0:
     raise ValueError(f'distance must be non-negative, got {distance!r}')
   return distance_to_target(physics, obj, target) <= distance

@@ -12,7 +12,10 @@ on the handle, fingers closing along x, see props.py), `nail_head_site` (top
 centre of the nail head; it moves as the nail goes in).
 """
 
+from typing import Sequence
+
 from dm_control import composer
+from dm_control import mjcf
 from dm_control.composer.observation import observable
 import numpy as np
 
@@ -63,11 +66,22 @@ NAIL_ARMATURE = 0.5          # kg
 class NailBoard(props.Prop):
   """A block with a handle and a nail on a slide joint."""
 
-  def _build(self, name='nail_board', block_half_size=BLOCK_HALF_SIZE,
-             nail_x=NAIL_X):
-    """block_half_size: half extents (m) of the block (at least the nail's
-    length thick); nail_x: the nail's distance (m) from the block's centre
-    along +x (hammering/robot_hammers uses a longer plank)."""
+  def _build(self, name: str = 'nail_board',
+             block_half_size: Sequence[float] = BLOCK_HALF_SIZE,
+             nail_x: float = NAIL_X):
+    """Builds the block, its handle and the nail.
+
+    Args:
+      name: the MJCF model's and the body's name.
+      block_half_size: half extents (m) of the block (at least the nail's
+        length thick).
+      nail_x: the nail's distance (m) from the block's centre along +x
+        (hammering/robot_hammers uses a longer plank).
+
+    Raises:
+      ValueError: half sizes that are not 3 positive lengths, a block
+        thinner than the nail, or a nail off the block.
+    """
     block_half_size = np.asarray(block_half_size, float)
     if (block_half_size.shape != (3,) or not np.all(block_half_size > 0)
         or 2 * block_half_size[2] < NAIL_LENGTH
@@ -133,32 +147,38 @@ class NailBoard(props.Prop):
     return NailBoardObservables(self)
 
   @property
-  def block(self):
+  def block(self) -> mjcf.Element:
+    """The block's box geom."""
     return self._block
 
   @property
-  def handle(self):
+  def handle(self) -> mjcf.Element:
+    """The handle's box geom."""
     return self._handle
 
   @property
-  def nail(self):
+  def nail(self) -> mjcf.Element:
     """The nail's body."""
     return self._nail
 
   @property
-  def nail_head(self):
+  def nail_head(self) -> mjcf.Element:
+    """The nail head's geom (the nail's only collision geom)."""
     return self._head
 
   @property
-  def nail_joint(self):
+  def nail_joint(self) -> mjcf.Element:
+    """The nail's slide joint: its position is the depth driven."""
     return self._joint
 
   @property
-  def grip_site(self):
+  def grip_site(self) -> mjcf.Element:
+    """TCP frame of a top grasp on the handle, fingers closing along x."""
     return self._grip_site
 
   @property
-  def nail_head_site(self):
+  def nail_head_site(self) -> mjcf.Element:
+    """The top centre of the nail head."""
     return self._nail_head_site
 
   def _qpos_address(self, physics):
@@ -167,16 +187,38 @@ class NailBoard(props.Prop):
                           int(physics.bind(self._joint).qposadr))
     return self._qpos_cache[1]
 
-  def depth(self, physics):
-    """Depth (m) the nail has been driven since the start."""
+  def depth(self, physics: mjcf.Physics) -> float:
+    """Depth the nail has been driven since the start.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      The depth, m.
+    """
     return float(physics.data.qpos[self._qpos_address(physics)])
 
-  def progress(self, physics):
-    """0 as started, 1 with the head on the wood."""
+  def progress(self, physics: mjcf.Physics) -> float:
+    """How far the nail is in.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      In [0, 1]: 0 as started, 1 with the head on the wood.
+    """
     return min(max(self.depth(physics) / NAIL_TRAVEL, 0.0), 1.0)
 
-  def set_progress(self, physics, progress):
-    """Puts the nail at `progress` in [0, 1] (at rest)."""
+  def set_progress(self, physics: mjcf.Physics, progress: float) -> None:
+    """Puts the nail at `progress`, at rest.
+
+    Args:
+      physics: the physics.
+      progress: in [0, 1] (`progress`).
+
+    Raises:
+      ValueError: a progress outside [0, 1].
+    """
     progress = float(progress)
     if not 0.0 <= progress <= 1.0:
       raise ValueError(f'Nail progress must be in [0, 1], got {progress}')
@@ -189,10 +231,12 @@ class NailBoardObservables(props.PropObservables):
   """Adds the nail's progress and its head's world position."""
 
   @composer.observable
-  def nail_progress(self):
+  def nail_progress(self) -> observable.Generic:
+    """The nail's progress (1,)."""
     return observable.Generic(
         lambda physics: np.array([self._entity.progress(physics)]))
 
   @composer.observable
-  def nail_head_position(self):
+  def nail_head_position(self) -> observable.MJCFFeature:
+    """The nail head site's world position (3,)."""
     return observable.MJCFFeature('xpos', self._entity.nail_head_site)

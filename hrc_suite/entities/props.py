@@ -17,6 +17,7 @@ is in the OBJECT collision group.
 """
 
 import numbers
+from typing import Sequence, Tuple
 
 from dm_control import composer
 from dm_control import mjcf
@@ -25,6 +26,7 @@ import numpy as np
 
 from hrc_suite.entities import collision_groups
 from hrc_suite.entities import element_ids
+from hrc_suite.entities import gripper as gripper_lib
 
 # --- Cubes. The reference's pick and place cube: 4 cm, here 0.1 kg (dense
 # plastic or hardwood, ~1.6 g/cm^3). Stacking uses four 5 cm cubes, the size
@@ -115,27 +117,42 @@ class Prop(composer.Entity):
     return PropObservables(self)
 
   @property
-  def mjcf_model(self):
+  def mjcf_model(self) -> mjcf.RootElement:
+    """The prop's MJCF model."""
     return self._mjcf_root
 
   @property
-  def body(self):
+  def body(self) -> mjcf.Element:
     """The prop's body: grasp, hold and observe this one."""
     return self._body
 
   @property
-  def geoms(self):
+  def geoms(self) -> Tuple[mjcf.Element, ...]:
     """Every collision geom of the prop."""
     return tuple(self._geoms)
 
-  def position(self, physics):
+  def position(self, physics: mjcf.Physics) -> np.ndarray:
     """World position of the body (a copy of its MjData row, as its
-    binding reads it: element_ids)."""
+    binding reads it: element_ids).
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (3,) the position.
+    """
     row = self._body_ids(physics)[0]
     return element_ids.synced_data(physics).xpos[row].copy()
 
-  def quaternion(self, physics):
-    """World orientation (w, x, y, z)."""
+  def quaternion(self, physics: mjcf.Physics) -> np.ndarray:
+    """World orientation of the body.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (4,) the quaternion (w, x, y, z), a copy.
+    """
     row = self._body_ids(physics)[0]
     return element_ids.synced_data(physics).xquat[row].copy()
 
@@ -144,19 +161,33 @@ class PropObservables(composer.Observables):
   """World position and orientation quaternion (w, x, y, z) of a prop."""
 
   @composer.observable
-  def position(self):
+  def position(self) -> observable.MJCFFeature:
+    """The body's world position (3,)."""
     return observable.MJCFFeature('xpos', self._entity.body)
 
   @composer.observable
-  def quaternion(self):
+  def quaternion(self) -> observable.MJCFFeature:
+    """The body's world quaternion (4,), w first."""
     return observable.MJCFFeature('xquat', self._entity.body)
 
 
 class Cube(Prop):
   """A solid cube with a top-grasp site at its centre."""
 
-  def _build(self, size=CUBE_SIZE, mass=CUBE_MASS, rgba=CUBE_RGBA,
-             name='cube'):
+  def _build(self, size: float = CUBE_SIZE, mass: float = CUBE_MASS,
+             rgba: Sequence[float] = CUBE_RGBA, name: str = 'cube'):
+    """Builds the cube.
+
+    Args:
+      size: edge length, m, > 0.
+      mass: kg, > 0.
+      rgba: 4 values in [0, 1].
+      name: the MJCF model's and the body's name.
+
+    Raises:
+      ValueError: a size or mass that is not a positive finite number, or
+        bad rgba.
+    """
     self._size = _check_positive(size, 'Cube size')
     self._mass = _check_positive(mass, 'Cube mass')
     body = self._build_root(name)
@@ -167,27 +198,44 @@ class Cube(Prop):
                                xyaxes=TOP_GRASP_CLOSING_Y, group=4)
 
   @property
-  def size(self):
+  def size(self) -> float:
     """Edge length (m)."""
     return self._size
 
   @property
-  def mass(self):
+  def mass(self) -> float:
+    """Mass (kg)."""
     return self._mass
 
   @property
-  def geom(self):
+  def geom(self) -> mjcf.Element:
+    """The cube's box geom."""
     return self._geom
 
   @property
-  def grip_site(self):
+  def grip_site(self) -> mjcf.Element:
     """TCP frame for a top grasp at the centre, fingers closing along y."""
     return self._grip_site
 
 
-def make_stacking_cubes(size=STACKING_CUBE_SIZE, mass=STACKING_CUBE_MASS,
-                        colours=STACKING_COLOURS, name='stacking_cube'):
-  """Four cubes of one size in distinct colours, named `{name}_1` .. `_4`."""
+def make_stacking_cubes(size: float = STACKING_CUBE_SIZE,
+                        mass: float = STACKING_CUBE_MASS,
+                        colours: Sequence[Sequence[float]] = STACKING_COLOURS,
+                        name: str = 'stacking_cube') -> Tuple[Cube, ...]:
+  """Four cubes of one size in distinct colours, named `{name}_1` .. `_4`.
+
+  Args:
+    size: edge length, m.
+    mass: each cube's, kg.
+    colours: 4 rgba colours.
+    name: the names' stem.
+
+  Returns:
+    The four cubes.
+
+  Raises:
+    ValueError: not 4 colours, or what `Cube` rejects.
+  """
   if len(colours) != 4:
     raise ValueError(f'Expected 4 colours for the stacking cubes, got '
                      f'{len(colours)}')
@@ -203,7 +251,12 @@ class Hammer(Prop):
   handle, frame = body frame), `head_site` (centre of the striking face).
   """
 
-  def _build(self, name='hammer'):
+  def _build(self, name: str = 'hammer'):
+    """Builds the hammer.
+
+    Args:
+      name: the MJCF model's and the body's name.
+    """
     body = self._build_root(name)
     wood = self._mjcf_root.asset.add('material', name='hickory',
                                      rgba=(0.72, 0.52, 0.3, 1), specular=0.2)
@@ -248,28 +301,33 @@ class Hammer(Prop):
     return HammerObservables(self)
 
   @property
-  def mass(self):
+  def mass(self) -> float:
+    """Mass (kg): head and handle."""
     return HAMMER_HEAD_MASS + HAMMER_HANDLE_MASS
 
   @property
-  def handle(self):
+  def handle(self) -> mjcf.Element:
+    """The handle's box geom."""
     return self._handle
 
   @property
-  def head(self):
+  def head(self) -> mjcf.Element:
     """The round part of the head, ending in the striking face."""
     return self._head
 
   @property
-  def grip_site(self):
+  def grip_site(self) -> mjcf.Element:
+    """The robot's grasp: TCP frame at the centre of mass."""
     return self._grip_site
 
   @property
-  def human_grip_site(self):
+  def human_grip_site(self) -> mjcf.Element:
+    """The person's palm on the handle (frame = body frame)."""
     return self._human_grip_site
 
   @property
-  def head_site(self):
+  def head_site(self) -> mjcf.Element:
+    """The centre of the striking face."""
     return self._head_site
 
 
@@ -277,7 +335,8 @@ class HammerObservables(PropObservables):
   """Adds the world position of the striking face's centre."""
 
   @composer.observable
-  def head_position(self):
+  def head_position(self) -> observable.MJCFFeature:
+    """The striking face's world position (3,)."""
     return observable.MJCFFeature('xpos', self._entity.head_site)
 
 
@@ -308,8 +367,22 @@ class Board(Prop):
   can put the handle where its robots reach.
   """
 
-  def _build(self, size=BOARD_SIZE, mass=BOARD_MASS,
-             handle_inset=HANDLE_INSET, name='board'):
+  def _build(self, size: Sequence[float] = BOARD_SIZE,
+             mass: float = BOARD_MASS, handle_inset: float = HANDLE_INSET,
+             name: str = 'board'):
+    """Builds the board and its handle.
+
+    Args:
+      size: (length, width, thickness), m.
+      mass: kg, including the handle.
+      handle_inset: m from the board's robot end to the handle.
+      name: the MJCF model's and the body's name.
+
+    Raises:
+      ValueError: a size that is not 3 positive lengths or too small for
+        the handle, a negative handle_inset, or a mass that is not above
+        the handle's.
+    """
     self._size = _check_board_size(size, handle_inset)
     self._mass = _check_positive(mass, 'Board mass')
     handle_mass = WOOD_DENSITY * 8 * np.prod(HANDLE_HALF_SIZE)
@@ -341,38 +414,58 @@ class Board(Prop):
     return BoardObservables(self)
 
   @property
-  def size(self):
+  def size(self) -> Tuple[float, float, float]:
+    """(length, width, thickness), m."""
     return tuple(self._size)
 
   @property
-  def mass(self):
+  def mass(self) -> float:
+    """Mass (kg), including the handle."""
     return self._mass
 
   @property
-  def plate(self):
+  def plate(self) -> mjcf.Element:
+    """The board's box geom."""
     return self._plate
 
   @property
-  def handle(self):
+  def handle(self) -> mjcf.Element:
+    """The handle block's geom."""
     return self._handle
 
   @property
-  def robot_grip_site(self):
+  def robot_grip_site(self) -> mjcf.Element:
+    """TCP frame of a top grasp on the handle, fingers closing along x."""
     return self._robot_grip_site
 
   @property
-  def human_grip_site(self):
+  def human_grip_site(self) -> mjcf.Element:
+    """The centre of the person's end, on the top face."""
     return self._human_grip_site
 
   def _body_id(self, physics):
     return self._body_ids(physics)[0]
 
-  def normal(self, physics):
-    """World direction of the board's top-face normal."""
+  def normal(self, physics: mjcf.Physics) -> np.ndarray:
+    """World direction of the board's top-face normal.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (3,) unit vector.
+    """
     return physics.data.xmat[self._body_id(physics), 2::3].copy()  # z column
 
-  def tilt(self, physics):
-    """Angle (rad) between the board's normal and world z."""
+  def tilt(self, physics: mjcf.Physics) -> float:
+    """Angle between the board's normal and world z.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      The angle, rad, in [0, pi].
+    """
     cosine = physics.data.xmat[self._body_id(physics), 8]
     return float(np.arccos(min(max(cosine, -1.0), 1.0)))
 
@@ -381,10 +474,21 @@ class BoardObservables(PropObservables):
   """Adds the board's normal (its z component is the reference's balance)."""
 
   @composer.observable
-  def normal(self):
+  def normal(self) -> observable.Generic:
+    """The board's top-face normal (3,)."""
     return observable.Generic(self._entity.normal)
 
 
-def is_gripped(physics, gripper, prop):
-  """True if both fingers of `gripper` touch `prop`'s body."""
+def is_gripped(physics: mjcf.Physics, gripper: gripper_lib.ParallelGripper,
+               prop: Prop) -> bool:
+  """Whether both fingers of `gripper` touch `prop`'s body.
+
+  Args:
+    physics: the physics.
+    gripper: the gripper.
+    prop: the prop.
+
+  Returns:
+    Whether it is gripped.
+  """
   return gripper.is_grasping(physics, prop.body)

@@ -8,7 +8,7 @@ Body `link{i}`'s frame is therefore exactly link frame i of the description
 equal `description.forward_kinematics(q)[i]` composed with the base pose.
 """
 
-from typing import Union
+from typing import Optional, Tuple, Union
 
 from absl import logging
 from dm_control import composer
@@ -49,8 +49,18 @@ _BASE_HEIGHT = 0.02   # m
 
 
 def make_robot(name: str) -> 'Robot':
-  """A `Robot` by name or description path (`robot_description.resolve`);
-  unknown names raise a ValueError listing the valid."""
+  """A `Robot` by name or description path (`robot_description.resolve`).
+
+  Args:
+    name: a robot name (`robot_description.names()`) or the path of a
+      .json description file.
+
+  Returns:
+    The robot, without a gripper.
+
+  Raises:
+    ValueError: an unknown name (the message lists the valid ones).
+  """
   return Robot(robot_description.load(robot_description.resolve(name)))
 
 
@@ -80,6 +90,18 @@ class Robot(composer.Entity):
   def _build(self,
              description: Union[robot_description.RobotDescription, str],
              name: Union[str, None] = None):
+    """Builds the arm's MJCF from its description.
+
+    Args:
+      description: the robot's description, or a robot name or
+        description path (`robot_description.resolve`).
+      name: the MJCF model's name (default: the description's name).
+
+    Raises:
+      TypeError: a description that is neither a RobotDescription nor a
+        string.
+      ValueError: an unknown robot name.
+    """
     if isinstance(description, str):
       description = robot_description.load(
           robot_description.resolve(description))
@@ -161,49 +183,69 @@ class Robot(composer.Entity):
     return RobotObservables(self)
 
   @property
-  def mjcf_model(self):
+  def mjcf_model(self) -> mjcf.RootElement:
+    """The arm's MJCF model."""
     return self._mjcf_root
 
   @property
   def description(self) -> robot_description.RobotDescription:
+    """The description the arm is built from."""
     return self._description
 
   @property
   def dof(self) -> int:
+    """The number of joints."""
     return self._description.dof
 
   @property
-  def joints(self):
+  def joints(self) -> Tuple[mjcf.Element, ...]:
+    """The hinge joints, base to flange."""
     return self._joints
 
   @property
-  def actuators(self):
+  def actuators(self) -> Tuple[mjcf.Element, ...]:
+    """The joints' torque motors (N m, limited to the joints' torques)."""
     return self._actuators
 
   @property
-  def link_bodies(self):
+  def link_bodies(self) -> Tuple[mjcf.Element, ...]:
+    """The link bodies; body i's frame is the description's link frame i."""
     return self._link_bodies
 
   @property
-  def link_geoms(self):
+  def link_geoms(self) -> Tuple[mjcf.Element, ...]:
+    """The links' collision capsules (spheres where a capsule is a point)."""
     return self._link_geoms
 
   @property
-  def flange_site(self):
+  def flange_site(self) -> mjcf.Element:
+    """The site where a gripper is mounted."""
     return self._flange_site
 
   @property
-  def gripper(self):
+  def gripper(self) -> Optional[composer.Entity]:
+    """The attached gripper, or None."""
     return self._gripper
 
   @property
-  def tcp_site(self):
+  def tcp_site(self) -> mjcf.Element:
+    """The tool centre point: the gripper's TCP site, or the flange's."""
     if self._gripper is not None:
       return self._gripper.tcp_site
     return self._flange_site
 
-  def attach_gripper(self, gripper: composer.Entity):
-    """Mounts a gripper at the flange site (one gripper per robot)."""
+  def attach_gripper(self, gripper: composer.Entity) -> composer.Entity:
+    """Mounts a gripper at the flange site (one gripper per robot).
+
+    Args:
+      gripper: the gripper entity (e.g. `gripper.ParallelGripper`).
+
+    Returns:
+      The gripper.
+
+    Raises:
+      ValueError: if the robot already has a gripper.
+    """
     if self._gripper is not None:
       raise ValueError(f'Robot {self.mjcf_model.model!r} already has a '
                        f'gripper ({self._gripper.mjcf_model.model!r})')
@@ -218,24 +260,67 @@ class Robot(composer.Entity):
                        f'({self.dof},), got {values.shape}')
     return values
 
-  def set_joint_positions(self, physics, q):
-    """Writes joint positions (call physics.forward() before reading poses)."""
+  def set_joint_positions(self, physics: mjcf.Physics, q: np.ndarray
+                          ) -> None:
+    """Writes joint positions (call physics.forward() before reading poses).
+
+    Args:
+      physics: the physics.
+      q: (dof,) joint positions, rad.
+
+    Raises:
+      ValueError: q of another shape.
+    """
     physics.bind(self._joints).qpos = self._check_vector(q, 'joint positions')
 
-  def set_joint_velocities(self, physics, dq):
+  def set_joint_velocities(self, physics: mjcf.Physics, dq: np.ndarray
+                           ) -> None:
+    """Writes joint velocities.
+
+    Args:
+      physics: the physics.
+      dq: (dof,) joint velocities, rad/s.
+
+    Raises:
+      ValueError: dq of another shape.
+    """
     physics.bind(self._joints).qvel = self._check_vector(dq,
                                                          'joint velocities')
 
-  def joint_positions(self, physics) -> np.ndarray:
+  def joint_positions(self, physics: mjcf.Physics) -> np.ndarray:
+    """A copy of the joint positions.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (dof,) joint positions, rad.
+    """
     return physics.bind(self._joints).qpos.copy()
 
-  def joint_velocities(self, physics) -> np.ndarray:
+  def joint_velocities(self, physics: mjcf.Physics) -> np.ndarray:
+    """A copy of the joint velocities.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (dof,) joint velocities, rad/s.
+    """
     return physics.bind(self._joints).qvel.copy()
 
-  def tcp_frame(self, physics):
-    """(position (3,), rotation matrix (9,) row-major) of the TCP site in
-    the world: copies of MjData's rows, the values its binding reads
-    (element_ids), for code that runs every RL step."""
+  def tcp_frame(self, physics: mjcf.Physics
+                ) -> Tuple[np.ndarray, np.ndarray]:
+    """The TCP site's frame in the world: copies of MjData's rows, the
+    values its binding reads (element_ids), for code that runs every RL
+    step.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (position (3,), rotation matrix (9,) row-major).
+    """
     site = self.tcp_site   # Changes when a gripper is attached.
     if self._tcp_id[0] is not site:
       self._tcp_id = (site, element_ids.ElementIds([site]))
@@ -243,8 +328,16 @@ class Robot(composer.Entity):
     data = element_ids.synced_data(physics)
     return data.site_xpos[row].copy(), data.site_xmat[row].copy()
 
-  def tcp_pose(self, physics):
-    """(position (3,), quaternion (4,) w-first) of the TCP in the world."""
+  def tcp_pose(self, physics: mjcf.Physics
+               ) -> Tuple[np.ndarray, np.ndarray]:
+    """The TCP's pose in the world.
+
+    Args:
+      physics: the physics.
+
+    Returns:
+      (position (3,), quaternion (4,) w first).
+    """
     position, rotation = self.tcp_frame(physics)
     return position, rotations.mat_to_quat(rotation.reshape(3, 3))
 
@@ -253,19 +346,23 @@ class RobotObservables(composer.Observables):
   """Joint state and end-effector (TCP) pose of a robot."""
 
   @composer.observable
-  def joint_positions(self):
+  def joint_positions(self) -> observable.MJCFFeature:
+    """The joint positions, rad."""
     return observable.MJCFFeature('qpos', self._entity.joints)
 
   @composer.observable
-  def joint_velocities(self):
+  def joint_velocities(self) -> observable.MJCFFeature:
+    """The joint velocities, rad/s."""
     return observable.MJCFFeature('qvel', self._entity.joints)
 
   @composer.observable
-  def end_effector_position(self):
+  def end_effector_position(self) -> observable.Generic:
+    """The TCP's world position (3,)."""
     # Generic, so the TCP follows a gripper attached after construction.
     return observable.Generic(
         lambda physics: self._entity.tcp_frame(physics)[0])
 
   @composer.observable
-  def end_effector_quaternion(self):
+  def end_effector_quaternion(self) -> observable.Generic:
+    """The TCP's world quaternion (4,), w first."""
     return observable.Generic(lambda physics: self._entity.tcp_pose(physics)[1])

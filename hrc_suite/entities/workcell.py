@@ -5,11 +5,15 @@ Coordinates come from `hrc_suite.layout`. The physics timestep is set here
 workcell runs the shield and the controller at 250 Hz.
 """
 
+from typing import Sequence, Tuple
+
 import numpy as np
 from dm_control import composer
+from dm_control import mjcf
 
 from hrc_suite import layout
 from hrc_suite.entities import collision_groups
+from hrc_suite.entities import robot as robot_lib
 
 PHYSICS_TIMESTEP = 0.004   # s; the shield/controller cycle of the reference.
 FLOOR_HALF_SIZE = 4.0      # m
@@ -28,8 +32,17 @@ _CAMERAS = {
 }
 
 
-def look_at_xyaxes(position, target):
-  """MJCF camera `xyaxes` looking from `position` at `target`, z up."""
+def look_at_xyaxes(position: Sequence[float], target: Sequence[float]
+                   ) -> np.ndarray:
+  """MJCF camera `xyaxes` looking from `position` at `target`, z up.
+
+  Args:
+    position: (3,) the camera's world position.
+    target: (3,) the world point it looks at.
+
+  Returns:
+    (6,) the image's x (right) and y (up) axes in the world.
+  """
   forward = np.asarray(target, float) - np.asarray(position, float)
   forward /= np.linalg.norm(forward)
   up = np.array([0.0, 0.0, 1.0])
@@ -43,8 +56,17 @@ def look_at_xyaxes(position, target):
 class Workcell(composer.Arena):
   """A table with the robot's pedestal at its near edge."""
 
-  def _build(self, name='workcell', table=layout.DEFAULT_TABLE):
-    """`table`: the task's table (layout.Table)."""
+  def _build(self, name: str = 'workcell',
+             table: layout.Table = layout.DEFAULT_TABLE):
+    """Builds the floor, the table, the pedestal, lights and cameras.
+
+    Args:
+      name: the MJCF model's name.
+      table: the task's table.
+
+    Raises:
+      TypeError: a table that is not a layout.Table.
+    """
     if not isinstance(table, layout.Table):
       raise TypeError(f'table must be a layout.Table, got {table!r}')
     super()._build(name=name)
@@ -126,40 +148,50 @@ class Workcell(composer.Arena):
           xyaxes=look_at_xyaxes(position, target), fovy=50)
 
   @property
-  def floor(self):
+  def floor(self) -> mjcf.Element:
+    """The floor plane geom."""
     return self._floor
 
   @property
-  def table(self):
+  def table(self) -> mjcf.Element:
     """The table top geom (its top face is at layout.TABLE_TOP_Z)."""
     return self._table_top
 
   @property
-  def table_extent(self):
+  def table_extent(self) -> layout.Table:
     """The table's extent (layout.Table)."""
     return self._table_extent
 
   @property
-  def table_legs(self):
+  def table_legs(self) -> Tuple[mjcf.Element, ...]:
+    """The four table leg geoms."""
     return self._table_legs
 
   @property
-  def pedestal(self):
+  def pedestal(self) -> mjcf.Element:
+    """The robot's pedestal geom, sized to the robot's mount."""
     return self._pedestal
 
   @property
-  def static_geoms(self):
+  def static_geoms(self) -> Tuple[mjcf.Element, ...]:
     """Floor, table top and legs, pedestal: everything that never moves."""
     return self._static_geoms
 
   @property
-  def cameras(self):
+  def cameras(self) -> Tuple[mjcf.Element, ...]:
+    """The fixed cameras: 'front', 'side', 'top', 'human_view'."""
     return tuple(self._cameras.values())
 
-  def attach_robot(self, robot):
+  def attach_robot(self, robot: robot_lib.Robot) -> mjcf.Element:
     """Attaches the robot with its base frame at its mount
     (layout.robot_mount), facing +x, and sizes the pedestal to the mount.
-    Returns the attachment frame."""
+
+    Args:
+      robot: the robot arm.
+
+    Returns:
+      The attachment frame.
+    """
     mount = layout.robot_mount(robot.description.name)
     self._set_pedestal(mount)
     frame = self.attach(robot)

@@ -68,9 +68,12 @@ quantity, e.g. `self._board.observables.position`). Hooks they use:
 
 import functools
 import operator
+from typing import Any, Mapping, Optional, Sequence, Union
 
 from dm_control import composer
+from dm_control import mjcf
 from dm_control.rl import control as rl_control
+from dm_env import specs
 import numpy as np
 
 from hrc_suite import layout
@@ -134,23 +137,38 @@ class HrcTask(composer.Task, options_lib.OptionNames,
   GRIP_FORCE = gripper_lib.GRIP_FORCE        # N, the gripper's squeeze
   TASK_STATE = ()                            # attributes, for snapshots
 
-  def __init__(self, robot='panda', action_space=None, shield=None,
-               shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
-               physics_timestep=DEFAULT_PHYSICS_TIMESTEP,
-               control_timestep=DEFAULT_CONTROL_TIMESTEP, motions=None,
-               reward=None, reward_delay=None, done_at_success=True,
-               collision_prevention='zero', time_limit=None,
-               observations='paper', observation_noise=None,
-               observation_delay=None, cameras=(),
-               camera_size=DEFAULT_CAMERA_SIZE, v_safe=DEFAULT_V_SAFE,
-               critical_speed=None,
-               collision_reward=DEFAULT_COLLISION_REWARD,
-               outside_human_model='refuse', cost=None, fast_path=True):
+  def __init__(self, robot: str = 'panda', action_space: Optional[str] = None,
+               shield: Optional[str] = None,
+               shield_substeps: int = DEFAULT_SHIELD_SUBSTEPS,
+               physics_timestep: float = DEFAULT_PHYSICS_TIMESTEP,
+               control_timestep: float = DEFAULT_CONTROL_TIMESTEP,
+               motions: Any = None, reward: Optional[str] = None,
+               reward_delay: Optional[int] = None,
+               done_at_success: bool = True,
+               collision_prevention: str = 'zero',
+               time_limit: Optional[float] = None,
+               observations: Union[str, Sequence[str]] = 'paper',
+               observation_noise: Optional[Mapping[str, float]] = None,
+               observation_delay: Optional[Mapping[str, float]] = None,
+               cameras: Sequence[str] = (),
+               camera_size: Sequence[int] = DEFAULT_CAMERA_SIZE,
+               v_safe: float = DEFAULT_V_SAFE,
+               critical_speed: Optional[float] = None,
+               collision_reward: float = DEFAULT_COLLISION_REWARD,
+               outside_human_model: str = 'refuse', cost: Any = None,
+               fast_path: bool = True):
     """Builds the scene from the checked arguments (`self.options`).
 
     Args:
       robot, ..., fast_path: the task's options, each documented in
-        `options.TaskOptions` (docs/tasks.md, "Task kwargs": the table).
+        `options.TaskOptions` (its fields, `TaskOptions.of`'s arguments,
+        and in its docstring motions, outside_human_model, observations,
+        observation_noise, observation_delay, cameras, camera_size and
+        cost); docs/tasks.md, "Task kwargs" is the table.
+
+    Raises:
+      ValueError: an option's bad value, naming the option, the value and
+        what was expected.
     """
     defaults = type(self).defaults()
     options = options_lib.TaskOptions.of(
@@ -202,8 +220,12 @@ class HrcTask(composer.Task, options_lib.OptionNames,
         options.physics_timestep)
 
   @classmethod
-  def defaults(cls):
-    """The task's class constants, checked (`defaults.TaskDefaults`)."""
+  def defaults(cls) -> defaults_lib.TaskDefaults:
+    """The task's class constants, checked (`defaults.TaskDefaults`).
+
+    Raises:
+      ValueError: a class constant of the wrong kind.
+    """
     return defaults_lib.TaskDefaults.of(cls)
 
   # The task's parts and what it reports, read-only.
@@ -232,11 +254,11 @@ class HrcTask(composer.Task, options_lib.OptionNames,
   restored = _read('_restored', 'An episode was restored since the step.')
 
   @property
-  def q_goal(self):
+  def q_goal(self) -> np.ndarray:
     """The joint goal given to the shield by the last action."""
     return self._episode.q_goal.copy()
 
-  def start_robot_at(self, physics, q):
+  def start_robot_at(self, physics: mjcf.Physics, q: np.ndarray) -> None:
     """Starts the episode's robot at rest elsewhere than home (in
     `_initialize_task`): the joints, the joint goal and the shield; forwards
     the physics.
@@ -250,7 +272,7 @@ class HrcTask(composer.Task, options_lib.OptionNames,
     self._shield.reset(q, 0.0)
     physics.forward()
 
-  def set_cartesian_yaw(self, yaw):
+  def set_cartesian_yaw(self, yaw: float) -> None:
     """Sets the gripper yaw of Cartesian actions' IK goals (nothing in
     joint action spaces).
 
@@ -260,7 +282,15 @@ class HrcTask(composer.Task, options_lib.OptionNames,
     if self._action_space.name == 'cartesian':
       self._action_space.yaw = yaw
 
-  def action_spec(self, physics):
+  def action_spec(self, physics: mjcf.Physics) -> specs.BoundedArray:
+    """The agent's action: in [-1, 1], the arm's then the gripper's.
+
+    Args:
+      physics: unused (composer's signature).
+
+    Returns:
+      The spec; its name lists the entries, tab-separated.
+    """
     del physics
     return actions.action_spec(self._action_space, self.HAS_GRIPPER_ACTION)
 
@@ -327,7 +357,14 @@ class HrcTask(composer.Task, options_lib.OptionNames,
     self._step_info = {}
     self._stepper.reset()
 
-  def after_compile(self, physics, random_state):
+  def after_compile(self, physics: mjcf.Physics,
+                    random_state: np.random.RandomState) -> None:
+    """Binds the task to the newly compiled physics (composer's hook).
+
+    Args:
+      physics: the compiled physics.
+      random_state: unused.
+    """
     del random_state
     self._bind(physics)
 
@@ -341,7 +378,18 @@ class HrcTask(composer.Task, options_lib.OptionNames,
     (self._qpos_index, self._qvel_index,
      self._finger_qpos_index) = self._joint_indices
 
-  def initialize_episode(self, physics, random_state):
+  def initialize_episode(self, physics: mjcf.Physics,
+                         random_state: np.random.RandomState) -> None:
+    """Starts an episode: robot home, person, shield, task (composer's hook).
+
+    Args:
+      physics: the environment's physics.
+      random_state: the episode's random numbers.
+
+    Raises:
+      composer.EpisodeInitializationError: a MuJoCo physics error while
+        initialising (the environment draws the episode again).
+    """
     try:
       self._initialize_episode(physics, random_state)
     except rl_control.PhysicsError as error:
@@ -369,7 +417,19 @@ class HrcTask(composer.Task, options_lib.OptionNames,
     physics.forward()
     self._initialize_task(physics, random_state)
 
-  def before_step(self, physics, action, random_state):
+  def before_step(self, physics: mjcf.Physics, action: np.ndarray,
+                  random_state: np.random.RandomState) -> None:
+    """Turns the action into the shield's new goal (composer's hook).
+
+    Args:
+      physics: the environment's physics.
+      action: the agent's action (`action_spec`).
+      random_state: unused (collision prevention draws from the episode's
+        own seeded stream).
+
+    Raises:
+      ValueError: an action of the wrong shape or with non-finite entries.
+    """
     del random_state
     self._restored = False
     goal = actions.step_goal(
@@ -388,27 +448,53 @@ class HrcTask(composer.Task, options_lib.OptionNames,
   # The physics steps (tasks/shielded_stepping.py).
 
   @property
-  def physics_steps_per_control_step(self):
+  def physics_steps_per_control_step(self) -> int:
     """Composer's substeps per RL step: shield_substeps, or 1 when the
     task runs the RL step's physics steps itself (`one_substep`)."""
     return (1 if self._stepper.one_substep
             else super().physics_steps_per_control_step)
 
-  def use_one_substep(self):
+  def use_one_substep(self) -> bool:
     """One composer substep per RL step if the fast path is on and no
     enabled observable needs reading between physics steps (call before
-    the environment is built); returns whether it is used."""
+    the environment is built).
+
+    Returns:
+      Whether it is used.
+    """
     return self._stepper.use_one_substep(self.observables)
 
-  def before_substep(self, physics, action, random_state):
+  def before_substep(self, physics: mjcf.Physics, action: np.ndarray,
+                     random_state: np.random.RandomState) -> None:
+    """Prepares a physics step: person, shield, controller (composer's hook).
+
+    Args:
+      physics: the environment's physics.
+      action: the RL step's action (unused).
+      random_state: unused.
+    """
     self._stepper.prepare_physics_step(physics)
 
-  def run_physics_steps(self, physics, action, random_state):
+  def run_physics_steps(self, physics: mjcf.Physics, action: np.ndarray,
+                        random_state: np.random.RandomState) -> None:
     """The RL step's physics steps as suite.Environment's only substep
-    (`one_substep`; `ShieldedStepper.run_physics_steps`)."""
+    (`one_substep`; `ShieldedStepper.run_physics_steps`).
+
+    Args:
+      physics: the environment's physics (its proxy).
+      action: the RL step's action.
+      random_state: the environment's random state.
+    """
     self._stepper.run_physics_steps(physics, action, random_state)
 
-  def after_substep(self, physics, random_state):
+  def after_substep(self, physics: mjcf.Physics,
+                    random_state: np.random.RandomState) -> None:
+    """Checks tracking and contacts after a physics step (composer's hook).
+
+    Args:
+      physics: unused (the stepper holds its views).
+      random_state: unused.
+    """
     del physics, random_state
     self._stepper.after_physics_step()
 
@@ -436,7 +522,15 @@ class HrcTask(composer.Task, options_lib.OptionNames,
   def _before_physics_step(self, physics):
     """A task's own work before every physics step (e.g. a grip)."""
 
-  def after_step(self, physics, random_state):
+  def after_step(self, physics: mjcf.Physics,
+                 random_state: np.random.RandomState) -> None:
+    """Updates the task, the person's events, reward and metrics after an
+    RL step (composer's hook).
+
+    Args:
+      physics: the environment's physics.
+      random_state: unused.
+    """
     del random_state
     progress = self._episode
     progress.steps += 1
@@ -480,29 +574,70 @@ class HrcTask(composer.Task, options_lib.OptionNames,
       step.update(self._cost.step_metrics(step, self._shield.reach_distance))
     self._metrics.record(step)
 
-  def get_reward(self, physics):
+  def get_reward(self, physics: mjcf.Physics) -> float:
+    """The reward of the RL step just done.
+
+    Args:
+      physics: unused.
+
+    Returns:
+      The reward, delayed and with collision_reward, as `after_step` set it.
+    """
     del physics
     return self._episode.reward
 
-  def should_terminate_episode(self, physics):
+  def should_terminate_episode(self, physics: mjcf.Physics) -> bool:
+    """Whether the episode ends now (success with done_at_success, failure,
+    a physics error).
+
+    Args:
+      physics: unused.
+
+    Returns:
+      Whether it ends.
+    """
     del physics
     return self._episode.terminate
 
-  def get_discount(self, physics):
+  def get_discount(self, physics: mjcf.Physics) -> float:
+    """The discount of the RL step: 0 where the task ended the episode.
+
+    Args:
+      physics: unused.
+
+    Returns:
+      0.0 or 1.0.
+    """
     del physics
     return self._episode.discount
 
-  def get_state(self, physics):
-    """A snapshot of the episode: physics, human, shield, task, metrics
-    (`snapshots.EpisodeSnapshots`)."""
+  def get_state(self, physics: mjcf.Physics) -> dict[str, Any]:
+    """A snapshot of the episode: physics, human, shield, task, metrics.
+
+    Args:
+      physics: the environment's physics.
+
+    Returns:
+      The snapshot (`snapshots.EpisodeSnapshots.take`), for `set_state`.
+    """
     return self._snapshots.take(
         physics, self._episode, functools.partial(self._task_state, physics))
 
-  def set_state(self, physics, state):
+  def set_state(self, physics: mjcf.Physics, state: Mapping[str, Any]
+                ) -> None:
     """Restores a snapshot from get_state (same task configuration) into
     an environment that has been reset. A snapshot of a running episode
     restored after a LAST step continues at the next step (environments
-    of suite.load) instead of being discarded by a reset."""
+    of suite.load) instead of being discarded by a reset.
+
+    Args:
+      physics: the environment's physics.
+      state: a snapshot of `get_state`.
+
+    Raises:
+      ValueError: an environment that has not been reset, or a physics
+        state of another model's size.
+    """
     own = self._snapshots.restore(physics, state, self._episode)
     self._set_task_state(physics, own)
     self._restored = not self._episode.terminate

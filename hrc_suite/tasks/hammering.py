@@ -35,6 +35,7 @@ drives its nail in (docs/reference_benchmark.md, Tasks).
   hammering/robot_hammers (hammering_robot.py, docs/tasks.md).
 """
 
+from dm_control import mjcf
 from dm_control.composer.observation import observable
 import numpy as np
 
@@ -88,9 +89,18 @@ _HAND_SEGMENTS = {hand: [s[0] for s in human_lib.SEGMENTS].index(
 _HALF_TURN = np.diag([-1.0, -1.0, 1.0])   # about the TCP's z axis
 
 
-def place_in_gripper(physics, tcp_site, prop, grip_site, turned=False):
-  """Sets `prop` so its grip site's frame is the TCP frame (turned half
-  about the TCP axis if `turned`: the gripper is symmetric)."""
+def place_in_gripper(physics: mjcf.Physics, tcp_site: mjcf.Element,
+                     prop: props.Prop, grip_site: mjcf.Element,
+                     turned: bool = False) -> None:
+  """Sets `prop` so its grip site's frame is the TCP frame, at rest.
+
+  Args:
+    physics: the environment's physics.
+    tcp_site: the robot's TCP site.
+    prop: the free prop to place.
+    grip_site: the prop's site that the TCP's frame is to hold.
+    turned: turned half about the TCP axis (the gripper is symmetric).
+  """
   tcp = physics.bind(tcp_site)
   tcp_rotation = tcp.xmat.reshape(3, 3)
   if turned:
@@ -102,11 +112,21 @@ def place_in_gripper(physics, tcp_site, prop, grip_site, turned=False):
   prop.set_velocity(physics, np.zeros(3), np.zeros(3))
 
 
-def turn_at_home(task, physics, ik, yaw):
+def turn_at_home(task: base.HrcTask, physics: mjcf.Physics,
+                 ik: ik_lib.InverseKinematics, yaw: float) -> bool:
   """Turns `task`'s gripper about its axis to `yaw` at the home TCP (IK
   from home, collision-checked); where the IK finds no such turn the robot
-  keeps its home pose and Cartesian actions the suite's yaw. Returns
-  whether it turned."""
+  keeps its home pose and Cartesian actions the suite's yaw.
+
+  Args:
+    task: the task, at the start of its episode (`_initialize_task`).
+    physics: the episode's physics.
+    ik: inverse kinematics of the task's robot.
+    yaw: rad about world z.
+
+  Returns:
+    Whether it turned.
+  """
   home = task.robot.description.q_home
   position = task.kinematics.tcp_pose(home)[:3, 3]
   result = ik.solve(position, home, yaw)
@@ -219,15 +239,17 @@ class Hammering(NailOutcome, base.HrcTask):
   # ------------------------------------------------------------- episode
 
   @property
-  def board(self):
+  def board(self) -> nail_board_lib.NailBoard:
+    """The board with the nail, held by the robot."""
     return self._board
 
   @property
-  def hammer(self):
+  def hammer(self) -> props.Hammer:
+    """The person's hammer."""
     return self._hammer
 
   @property
-  def nail_target(self):
+  def nail_target(self) -> np.ndarray:
     """World position the nail head should be held at."""
     return self._nail_target.copy()
 

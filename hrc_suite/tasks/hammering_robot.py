@@ -100,14 +100,28 @@ CARRIED, PLACED, TAKEN = 'carried', 'placed', 'taken'
 SHIELD = 'pfl'
 
 
-def heading(points):
-  """The person's facing yaw (rad) from world keypoints: perpendicular to
-  the shoulder line, horizontal."""
+def heading(points: np.ndarray) -> float:
+  """The person's facing yaw from world keypoints: perpendicular to the
+  shoulder line, horizontal.
+
+  Args:
+    points: (N_kp, 3) world keypoints.
+
+  Returns:
+    The yaw, rad.
+  """
   return float(headings(np.asarray(points)[None])[0])
 
 
-def headings(points):
-  """`heading` of each row of keypoints (n, N_kp, 3): (n,)."""
+def headings(points: np.ndarray) -> np.ndarray:
+  """`heading` of each row of keypoints.
+
+  Args:
+    points: (n, N_kp, 3) world keypoints.
+
+  Returns:
+    (n,) yaws, rad.
+  """
   across = (points[:, keypoints.KEYPOINT_INDEX['left_shoulder']]
             - points[:, keypoints.KEYPOINT_INDEX['right_shoulder']])
   return np.arctan2(-across[:, 0], across[:, 1])
@@ -171,15 +185,17 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     self._place_pose = (np.zeros(3), np.eye(3))
 
   @property
-  def board(self):
+  def board(self) -> nail_board_lib.NailBoard:
+    """The plank with the nail, which the person brings."""
     return self._board
 
   @property
-  def hammer(self):
+  def hammer(self) -> props.Hammer:
+    """The robot's hammer."""
     return self._hammer
 
   @property
-  def board_phase(self):
+  def board_phase(self) -> str:
     """'carried' (in), 'placed' (on the table) or 'taken' (back)."""
     return self._phase
 

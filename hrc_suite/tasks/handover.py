@@ -45,7 +45,9 @@ target is the holding hand's palm (robot to human) or the table target.
 """
 
 import math
+from typing import Any, Optional, Sequence
 
+from dm_control import mjcf
 from dm_control.composer.observation import observable
 import numpy as np
 
@@ -146,9 +148,18 @@ class _Handover(base.HrcTask):
   TASK_STATE = ('_success', '_gripped', '_event_time', '_holding_hand')
   EVENT = None   # the event after which success_after counts
 
-  def __init__(self, success_after=None, **kwargs):
-    """success_after: None (success when the first clip ends) or seconds
-    after the handover event; other kwargs: `base.HrcTask`."""
+  def __init__(self, success_after: Optional[float] = None, **kwargs: Any):
+    """Builds the handover task.
+
+    Args:
+      success_after: None (success when the first clip ends) or seconds
+        after the handover event.
+      **kwargs: `base.HrcTask`'s task kwargs.
+
+    Raises:
+      ValueError: a success_after that is not None or a number >= 0, or
+        a task kwarg HrcTask rejects.
+    """
     if success_after is not None and not (
         isinstance(success_after, (int, float))
         and math.isfinite(success_after) and success_after >= 0):
@@ -183,7 +194,8 @@ class _Handover(base.HrcTask):
     self._at_target = False
 
   @property
-  def hammer(self):
+  def hammer(self) -> props.Hammer:
+    """The hammer handed over."""
     return self._hammer
 
   # ------------------------------------------------------------ progress
@@ -246,8 +258,15 @@ class _Handover(base.HrcTask):
 
   # -------------------------------------------------------- observables
 
-  def target(self, physics):
-    """World position of the target (palm or table target)."""
+  def target(self, physics: mjcf.Physics) -> np.ndarray:
+    """World position of the target (the palm, or the table target).
+
+    Args:
+      physics: the environment's physics.
+
+    Returns:
+      (3,) the position.
+    """
     return self._target(physics)
 
   def _target(self, physics):
@@ -299,9 +318,16 @@ class RobotToHuman(_Handover):
     self._gripper.set_command(physics, 1.0)
     physics.forward()
 
-  def palm_touches_handle(self, physics):
-    """True if the holding hand's capsule is within TOUCH_TOLERANCE of the
-    handle (both as capsules)."""
+  def palm_touches_handle(self, physics: mjcf.Physics) -> bool:
+    """Whether the holding hand's capsule is within TOUCH_TOLERANCE of the
+    handle (both as capsules).
+
+    Args:
+      physics: the environment's physics.
+
+    Returns:
+      Whether they touch.
+    """
     ids = self._touch_geoms(physics)
     hand, handle = ids[self._hand_segment()], ids[-1]
     data, size = element_ids.synced_data(physics), physics.model.geom_size
@@ -378,11 +404,20 @@ class HumanToRobot(_Handover):
     self._pick_grip = None
     self._turn = 0.0
 
-  def presenting_grip(self, physics, hand_pose=None):
-    """(position, quaternion) of the hammer in the holding hand's capsule
-    frame when presented (`presenting_grips`). The hand's frame is read
-    from its mocap pose (this physics step's keypoints), or given:
-    hand_pose = (centre (3,), quaternion (4,)) of the hand's capsule."""
+  def presenting_grip(self, physics: mjcf.Physics,
+                      hand_pose: Optional[Sequence[np.ndarray]] = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The hammer's pose in the holding hand's capsule frame when presented
+    (`presenting_grips`).
+
+    Args:
+      physics: the environment's physics.
+      hand_pose: None (the hand's mocap pose: this physics step's
+        keypoints) or (centre (3,), quaternion (4,)) of the hand's capsule.
+
+    Returns:
+      (position (3,), quaternion (4,)).
+    """
     if hand_pose is None:
       mocap = physics.bind(
           self._human.segment_bodies[self._hand_segment()]).mocapid
@@ -393,10 +428,13 @@ class HumanToRobot(_Handover):
         np.asarray(hand_pose[1], dtype=float)[None])
     return positions[0], quaternions[0]
 
-  def presenting_grips(self, physics, centres, hand_quaternions):
-    """(positions (n, 3), quaternions (n, 4)) of the hammer in the holding
-    hand's capsule frame when presented, for n poses of the hand's capsule
-    (centres (n, 3), quaternions (n, 4)): along the hand's axis (head
+  def presenting_grips(self, physics: mjcf.Physics, centres: np.ndarray,
+                       hand_quaternions: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """The hammer's poses in the holding hand's capsule frame when
+    presented, for n poses of the hand's capsule.
+
+    The hammer lies along the hand's axis (head
     forward), lying on its side (body y in the vertical plane through the
     handle, upwards), `human_grip_site` at the capsule's distal end; never
     pointing up, and tilted down at most so far that its head's axis stays
@@ -405,7 +443,16 @@ class HumanToRobot(_Handover):
     which points 15-35 degrees down while presenting; held along it, a palm
     0.05 m above the table put the hammer into the table. Row by row the
     values of one pose (products and norms by stacked np.matmul, which
-    gives each row what a single product gives)."""
+    gives each row what a single product gives).
+
+    Args:
+      physics: the environment's physics.
+      centres: (n, 3) centres of the hand's capsule.
+      hand_quaternions: (n, 4) its quaternions, w first.
+
+    Returns:
+      (positions (n, 3), quaternions (n, 4)).
+    """
     half = physics.bind(self._human.geoms[self._hand_segment()]).size[1]
     r_hand = rotations.quat_to_mat(hand_quaternions)
     r_hand_t = r_hand.transpose(0, 2, 1)

@@ -123,11 +123,13 @@ class Inspection(base.HrcTask):
   # ------------------------------------------------------ objects, goals
 
   @property
-  def cube(self):
+  def cube(self) -> props.Cube:
+    """The cube the robot shows the person."""
     return self._cube
 
   @property
-  def target_position(self):
+  def target_position(self) -> np.ndarray:
+    """(3,) world position where the cube is to be held up."""
     return self._target.copy()
 
   def _reachable(self, point, q_home):

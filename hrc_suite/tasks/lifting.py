@@ -46,6 +46,8 @@ keep it level while the person moves (docs/reference_benchmark.md, Tasks).
 * Snapshots: the base saves and restores the hold welds (model data).
 """
 
+from typing import Optional
+
 from dm_control.composer.observation import observable
 import numpy as np
 
@@ -157,11 +159,12 @@ class Lifting(base.HrcTask):
     self._lifted = 0
 
   @property
-  def board(self):
+  def board(self) -> props.Board:
+    """The board the robot and the person lift together."""
     return self._board
 
   @property
-  def holding_hand(self):
+  def holding_hand(self) -> Optional[str]:
     """The hand the person holds the board with (None: not holding)."""
     return self._human.holding(self._board.body)
 

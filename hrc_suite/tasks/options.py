@@ -13,6 +13,7 @@ and delay, cameras (tasks/observations.py).
 import dataclasses
 import math
 import operator
+from typing import Any, Optional, Sequence
 
 from hrc_suite import robot_description
 from hrc_suite.entities import workcell as workcell_lib
@@ -20,6 +21,7 @@ from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import modes as modes_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import defaults as defaults_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (docs/reference_benchmark.md, Timing)
 DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
@@ -33,16 +35,39 @@ DEFAULT_V_SAFE = 0.05                 # m/s
 DEFAULT_COLLISION_REWARD = -10.0
 
 
-def choice(name, value, valid):
-  """value if it is one of `valid`, else a ValueError naming `name`."""
+def choice(name: str, value: Any, valid: Sequence[Any]) -> Any:
+  """value if it is one of `valid`, else a ValueError naming `name`.
+
+  Args:
+    name: the argument's name, for the error.
+    value: its value.
+    valid: the values it may take.
+
+  Returns:
+    value.
+
+  Raises:
+    ValueError: if value is not one of `valid`.
+  """
   if value not in valid:
     raise ValueError(f'Unknown {name} {value!r}: expected one of '
                      f'{", ".join(map(repr, valid))}')
   return value
 
 
-def positive(name, value):
-  """value as a float if it is a finite number > 0, else a ValueError."""
+def positive(name: str, value: Any) -> float:
+  """value as a float if it is a finite number > 0, else a ValueError.
+
+  Args:
+    name: the argument's name, for the error.
+    value: its value.
+
+  Returns:
+    float(value).
+
+  Raises:
+    ValueError: if value is not a finite number > 0 (bools are not).
+  """
   if not (isinstance(value, (int, float)) and not isinstance(value, bool)
           and math.isfinite(value) and value > 0):
     raise ValueError(f'{name} must be a positive number, got {value!r}')
@@ -141,16 +166,47 @@ class TaskOptions:
   fast_path: bool
 
   @classmethod
-  def of(cls, defaults, robot='panda', action_space=None, shield=None,
-         shield_substeps=DEFAULT_SHIELD_SUBSTEPS,
-         physics_timestep=DEFAULT_PHYSICS_TIMESTEP,
-         control_timestep=DEFAULT_CONTROL_TIMESTEP, reward=None,
-         reward_delay=None, done_at_success=True,
-         collision_prevention='zero', time_limit=None, v_safe=DEFAULT_V_SAFE,
-         critical_speed=None, collision_reward=DEFAULT_COLLISION_REWARD,
-         fast_path=True):
-    """The options of a task with `defaults` (TaskDefaults); None takes
-    the task's default."""
+  def of(cls, defaults: defaults_lib.TaskDefaults, robot: str = 'panda',
+         action_space: Optional[str] = None, shield: Optional[str] = None,
+         shield_substeps: int = DEFAULT_SHIELD_SUBSTEPS,
+         physics_timestep: float = DEFAULT_PHYSICS_TIMESTEP,
+         control_timestep: float = DEFAULT_CONTROL_TIMESTEP,
+         reward: Optional[str] = None, reward_delay: Optional[int] = None,
+         done_at_success: bool = True, collision_prevention: str = 'zero',
+         time_limit: Optional[float] = None, v_safe: float = DEFAULT_V_SAFE,
+         critical_speed: Optional[float] = None,
+         collision_reward: float = DEFAULT_COLLISION_REWARD,
+         fast_path: bool = True) -> 'TaskOptions':
+    """The checked options of a task; None takes the task's default.
+
+    Each argument is the field of the same name (its comment there).
+
+    Args:
+      defaults: the task's facts and defaults (its class constants).
+      robot: a robot name or a description file's path (default 'panda').
+      action_space: 'joint' or 'cartesian' (default: the task's).
+      shield: a shield mode's name (default: the task's).
+      shield_substeps: L, an integer >= 1 (default 25).
+      physics_timestep: s, > 0 (default 0.004).
+      control_timestep: s, L x physics_timestep (default 0.1).
+      reward: one of the task's rewards (default: its first).
+      reward_delay: RL steps, an integer >= 0 (default: the task's).
+      done_at_success: whether success ends the episode (default True).
+      collision_prevention: 'zero', 'resample', 'closest' or 'off'
+        (default 'zero').
+      time_limit: s, > 0 (default: the task's horizon x control_timestep).
+      v_safe: m/s, > 0 (default 0.05).
+      critical_speed: m/s, > 0 (default: v_safe in modes that allow
+        contact, contacts.SSM_STOPPED_SPEED else).
+      collision_reward: a finite number <= 0 (default -10).
+      fast_path: whether the fast path runs (default True).
+
+    Returns:
+      The options.
+
+    Raises:
+      ValueError: naming the argument, the bad value and what was expected.
+    """
     robot = robot_description.resolve(robot)   # A name or a .json path.
     action_space = choice('action_space',
                           action_space or defaults.action_space,

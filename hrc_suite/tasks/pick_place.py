@@ -34,6 +34,7 @@ FINGERTIP_TABLE_CLEARANCE) so the fingers can go down around the cube
 
 import math
 
+from dm_control import mjcf
 import numpy as np
 
 from hrc_suite import layout
@@ -131,21 +132,30 @@ class PickPlace(base.HrcTask):
   # ---------------------------------------------------------------- props
 
   @property
-  def cube(self):
+  def cube(self) -> props.Cube:
+    """The cube to pick and place."""
     return self._cube
 
   @property
-  def region_x(self):
+  def region_x(self) -> tuple[float, float]:
     """x range (m, base frame) of the cube and target: REGION_X, or the
     robot's own (layout.cube_region_x)."""
     return self._region_x
 
   @property
-  def target_position(self):
+  def target_position(self) -> np.ndarray:
     """World position of the target point (a resting cube's centre)."""
     return self._target.copy()
 
-  def object_position(self, physics):
+  def object_position(self, physics: mjcf.Physics) -> np.ndarray:
+    """The cube's world position.
+
+    Args:
+      physics: the environment's physics.
+
+    Returns:
+      (3,) position.
+    """
     return self._cube.position(physics)
 
   def _reachable(self, centre):

@@ -76,11 +76,13 @@ class Reach(base.HrcTask):
   # --------------------------------------------------------------- goals
 
   @property
-  def goal_position(self):
+  def goal_position(self) -> np.ndarray:
+    """(3,) world position of the episode's goal."""
     return self._goal_position.copy()
 
   @property
-  def goal_joint_positions(self):
+  def goal_joint_positions(self) -> np.ndarray:
+    """(dof,) joint positions that reach the goal."""
     return self._goal_q.copy()
 
   def _beside_person(self, q):

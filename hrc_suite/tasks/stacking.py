@@ -185,16 +185,18 @@ class Stacking(base.HrcTask):
     self._toppled = False
 
   @property
-  def cubes(self):
+  def cubes(self) -> tuple[props.Cube, ...]:
+    """The cubes to stack, in stacking order."""
     return self._cubes
 
   @property
-  def slots(self):
+  def slots(self) -> np.ndarray:
     """(4, 3) world positions of the cubes' places in the stack."""
     return self._slots.copy()
 
   @property
-  def stacked(self):
+  def stacked(self) -> np.ndarray:
+    """(4,) bools: which cubes lie in their place in the stack."""
     return self._stacked.copy()
 
   # ------------------------------------------------------------- episode
