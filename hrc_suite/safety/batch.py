@@ -24,6 +24,8 @@ restores the checkpoint and replays cycles 0..k (deterministic: the same
 set-points) before `Shield.resync`.
 """
 
+import math
+
 import numpy as np
 
 from hrc_suite.safety import cycle_kernels as ck
@@ -74,16 +76,12 @@ def _cycle_state(state):
   """The kernel's arrays of a `ShieldState` (copies: the kernel changes
   them in place)."""
   human = state.human
-  scalars = np.zeros(1, dtype=ck.SCALARS)
-  flags = scalars[0]
-  flags['has_intended'] = state.intended is not None
-  flags['goal_pending'] = state.goal_pending
-  flags['has_candidate'] = state.candidate is not None
-  flags['adopted_at'] = -1
-  flags['key_s'], flags['key_s_dot'] = state.candidate_key or (0.0, 0.0)
-  flags['last_t'] = human.last_measurement_time
-  flags['last_period'] = human.last_period
-  flags['count'] = human.num_measurements
+  key = state.candidate_key or (0.0, 0.0)
+  scalars = np.array([(
+      state.intended is not None, state.goal_pending,
+      state.candidate is not None, -1, key[0], key[1],
+      human.last_measurement_time, human.last_period,
+      human.num_measurements)], dtype=ck.SCALARS)   # In SCALARS' order.
   return ck.CycleState(
       command=np.array(state.command),
       previous_q=np.array(state.previous_q, dtype=float),
@@ -101,8 +99,8 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
   state = shield.state
   if state.goal_pending:   # What Shield.step does first.
     candidate, key = shield.candidate(state)
-    state = state.replace(candidate=candidate, candidate_key=key)
-    shield.state = state
+    if candidate is not state.candidate or key != state.candidate_key:
+      state = state.replace(candidate=candidate, candidate_key=key)
   plan, candidate, key = state.plan, state.candidate, state.candidate_key
   s = state.verified.s
   arrays = _cycle_state(state)
@@ -114,7 +112,7 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
     if candidate is not None:
       candidate_group = _kernel_plan(shield, candidate, s, len(times))
     (done, status, first, distance, s_edges, t_edges, q_edges,
-     missing) = ck.ssm_cycles(
+     missing) = ck.run_cycles(
          constants, mode, arrays, plan_group, candidate_group,
          frames[total:], times[total:], setpoints[total:],
          intervened[total:])
@@ -147,6 +145,8 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
     if candidate is not None:
       candidate.samples()
   if not total:
+    if state is not shield.state:   # The candidate made, kept for step.
+      shield.state = state
     return 0
   shield.state = _next_state(state, arrays, plan, candidate, key, check,
                              frames, times, total, intervened)
@@ -157,9 +157,9 @@ def _next_state(state, arrays, plan, candidate, key, check, frames, times,
                 total, intervened):
   """The `ShieldState` after `total` compiled cycles from `state`."""
   status, first, distance, s_edges, t_edges, q_edges = check
-  flags = arrays.scalars[0]
+  flags = dict(zip(ck.SCALARS.names, arrays.scalars[0].item()))
   human = state.human
-  count = int(flags['count'])
+  count = flags['count']
   length_positions = human.length_positions
   if count != human.num_measurements:
     # HumanReach.measure keeps the positions of the last velocity update
@@ -170,19 +170,19 @@ def _next_state(state, arrays, plan, candidate, key, check, frames, times,
     length_positions = (arrays.positions if last == total - 1
                         else np.array(frames[last], dtype=float))
   has_candidate = bool(flags['has_candidate'])
-  return state.replace(
+  return shield_state.ShieldState(
       command=arrays.command, previous_q=arrays.previous_q,
       verified=shield_state.path_from_array(arrays.verified),
       intended=(shield_state.path_from_array(arrays.intended)
                 if flags['has_intended'] else None),
-      plan=plan, goal_pending=bool(flags['goal_pending']),
+      plan=plan, goal=state.goal, goal_pending=bool(flags['goal_pending']),
       candidate=candidate if has_candidate else None,
       candidate_key=key if has_candidate else None,
       time=float(times[total - 1]),
       intervened=bool(intervened[total - 1]),
       verification=shield_state.Verification(
           is_safe=status == 1, first_unsafe_interval=int(first),
-          reach_distance=None if np.isnan(distance) else float(distance),
+          reach_distance=None if math.isnan(distance) else float(distance),
           edges=None if status == 2 else shield_state.ReachEdges(
               plan, s_edges.tolist(), t_edges.tolist(), q_edges)),
       human=human_reach_lib.HumanState(

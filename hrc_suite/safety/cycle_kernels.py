@@ -275,9 +275,22 @@ def _stop(c, check, missing):
   return c, status, first, distance, s_edges, t_edges, q_edges, missing
 
 
-@_jit
-def ssm_cycles(constants, mode, state, plan, candidate, frames, times,
+def run_cycles(constants, mode, state, plan, candidate, frames, times,
                setpoints, intervened):
+  """`ssm_cycles` on named groups: `Constants` constants, the mode's
+  parameter group, `CycleState` state, `Plan` plan and candidate. They
+  cross into compiled code as plain tuples (numba takes a plain tuple
+  several times faster than a NamedTuple: tens of microseconds a call),
+  and ssm_cycles names them again; the mode's group and its tables keep
+  their class (it selects the mode's kernels)."""
+  return ssm_cycles(tuple(tuple(group) for group in constants), mode,
+                    tuple(state), tuple(plan), tuple(candidate), frames,
+                    times, setpoints, intervened)
+
+
+@_jit
+def ssm_cycles(constant_fields, mode, state_fields, plan_fields,
+               candidate_fields, frames, times, setpoints, intervened):
   """Runs shield cycles for keypoints frames (n, N_kp, 3) at times (n,)
   on `CycleState` state, changed in place; `Constants` constants; the
   mode's parameter group `mode` (mode_kernels). plan and candidate
@@ -289,12 +302,21 @@ def ssm_cycles(constants, mode, state, plan, candidate, frames, times,
   and whether it intervened to intervened (>= n,), from row 0; the cycle
   that adopts the candidate to state.scalars' adopted_at.
 
+  The groups arrive as plain tuples of their fields (`run_cycles`).
+
   Returns (cycles done, the last cycle's check: status (1 verified, 0
   not, 2 no monitored path), first unsafe slice, reach distance (nan: not
   computed), s_edges, t_edges, q_edges; and whether it stopped for a plan
   sample not computed yet). Stops before a cycle it cannot run (see the
   module).
   """
+  constants = Constants(CycleConstants(*constant_fields[0]),
+                        JointTerms(*constant_fields[1]),
+                        RobotModel(*constant_fields[2]),
+                        HumanModel(*constant_fields[3]))
+  state = CycleState(*state_fields)
+  plan = Plan(*plan_fields)
+  candidate = Plan(*candidate_fields)
   cycle, joints = constants.cycle, constants.joints
   command, previous_q = state.command, state.previous_q
   verified, intended = state.verified, state.intended
@@ -497,6 +519,6 @@ def warm_up():
       (mode_kernels.SpeedLimitParameters(0.0, 0.0),
        mode_kernels.SpeedTables(floats(1), floats(1)))):
     plan = Plan(floats(1, 4, dof), 0.0, 1, tables)
-    ssm_cycles(constants, mode, state, plan, plan, floats(0, count_n, 3),
+    run_cycles(constants, mode, state, plan, plan, floats(0, count_n, 3),
                floats(0), floats(0, 3, dof), np.zeros(0, dtype=np.bool_))
   _warm = True
