@@ -25,6 +25,7 @@ as soon as one model is collision-free).
 import dataclasses
 import json
 import pathlib
+from typing import Optional
 
 import numpy as np
 
@@ -160,6 +161,23 @@ class HumanModelConfig:
                                       'kalman.initial_vel_var'))
 
 
+@dataclasses.dataclass(frozen=True)
+class HumanState:
+  """The measurement record of a `HumanReach` (docs/shield_maths.md, 8.1):
+  what a measurement reads and changes. Arrays are replaced, never changed
+  in place, so a record is a snapshot."""
+  positions: Optional[np.ndarray]     # (N_kp, 3); None before a measurement.
+  velocities: np.ndarray              # (N_kp, 3) m/s.
+  last_measurement_time: Optional[float]  # s, of the last velocity update.
+  last_period: float                  # s, its sample period (0 before).
+  num_measurements: int               # Velocity updates, the first included.
+  covariance: np.ndarray              # (2, 2) the Kalman filter's.
+  extremity_lengths: np.ndarray       # (E,) m, the POS model's arm lengths.
+  # Positions whose arm lengths are not in extremity_lengths yet (those of
+  # the last velocity update; None: none).
+  length_positions: Optional[np.ndarray]
+
+
 def combined_balls(p, v, v_max, a_max, t):
   """COMBINED model balls (docs/shield_maths.md, 8.3) without measurement
   errors.
@@ -233,6 +251,10 @@ class HumanReach:
     self._kernel_ends = np.ascontiguousarray(self._ends, dtype=np.int64)
     self._kernel_v_max = np.ascontiguousarray(config.v_max, dtype=float)
     self._kernel_a_max = np.ascontiguousarray(config.a_max, dtype=float)
+    # Caches derived from the record: the extremity lengths of its
+    # length positions, the velocity errors of a sample period.
+    self._lengths = (None, None)
+    self._error_vel = (None, None)
     self.reset()
 
   def _chain(self, extremity):
@@ -242,36 +264,76 @@ class HumanReach:
              for b in self.config.bodies if b.name in extremity.covers]
     return np.array(pairs, dtype=int).reshape(-1, 2)
 
+  def initial_state(self):
+    """The measurement record before any measurement (`reset`)."""
+    return HumanState(
+        positions=None, velocities=np.zeros((self.num_keypoints, 3)),
+        last_measurement_time=None, last_period=0.0, num_measurements=0,
+        covariance=np.diag([self.config.kalman_initial_pos_var,
+                            self.config.kalman_initial_vel_var]),
+        extremity_lengths=self._ext_length.copy(), length_positions=None)
+
   def reset(self):
     """Forgets all measurements."""
-    self.positions = None
-    self.velocities = np.zeros((self.num_keypoints, 3))
-    self.last_measurement_time = None
-    self.num_measurements = 0
-    self._last_period = 0.0
-    self._covariance = np.diag([self.config.kalman_initial_pos_var,
-                                self.config.kalman_initial_vel_var])
-    self._extremity_lengths = self._ext_length.copy()
-    self._length_positions = None   # Positions awaiting a length update.
-    self._error_vel = (None, None)    # (sample period, velocity errors).
+    self._state = self.initial_state()
+
+  @property
+  def state(self):
+    """The measurement record (`HumanState`); settable (the shield's
+    state carries it, safety/shield_state.py)."""
+    return self._state
+
+  @state.setter
+  def state(self, state):
+    if not isinstance(state, HumanState):
+      raise TypeError(f'HumanReach.state: expected a HumanState, got '
+                      f'{type(state).__name__}')
+    self._state = state
+
+  @property
+  def positions(self):
+    """Keypoint positions (N_kp, 3) of the last measurement (None: none)."""
+    return self._state.positions
+
+  @property
+  def velocities(self):
+    """Keypoint velocities (N_kp, 3) (zero until two measurements)."""
+    return self._state.velocities
+
+  @property
+  def last_measurement_time(self):
+    """Time (s) of the last measurement that updated the velocities."""
+    return self._state.last_measurement_time
+
+  @property
+  def last_period(self):
+    """The sample period (s) of the last velocity update (0 before)."""
+    return self._state.last_period
+
+  @property
+  def num_measurements(self):
+    """Measurements that updated the velocities, the first included."""
+    return self._state.num_measurements
 
   def get_state(self):
     """The measurement state as arrays and scalars (for .npz / JSON):
     `set_state` restores it exactly."""
+    state = self._state
     none = np.zeros((self.num_keypoints, 3))
-    lengths_pending = self._length_positions is not None
+    lengths_pending = state.length_positions is not None
     return {
-        'has_positions': self.positions is not None,
-        'positions': none if self.positions is None else self.positions.copy(),
-        'velocities': self.velocities.copy(),
-        'last_measurement_time': (0.0 if self.last_measurement_time is None
-                                  else self.last_measurement_time),
-        'num_measurements': self.num_measurements,
-        'last_period': self._last_period,
-        'covariance': self._covariance.copy(),
-        'extremity_lengths': self._extremity_lengths.copy(),
+        'has_positions': state.positions is not None,
+        'positions': (none if state.positions is None
+                      else state.positions.copy()),
+        'velocities': state.velocities.copy(),
+        'last_measurement_time': (0.0 if state.last_measurement_time is None
+                                  else state.last_measurement_time),
+        'num_measurements': state.num_measurements,
+        'last_period': state.last_period,
+        'covariance': state.covariance.copy(),
+        'extremity_lengths': state.extremity_lengths.copy(),
         'lengths_pending': lengths_pending,
-        'length_positions': (self._length_positions.copy() if lengths_pending
+        'length_positions': (state.length_positions.copy() if lengths_pending
                              else none),
     }
 
@@ -285,25 +347,29 @@ class HumanReach:
       return value
     points = (self.num_keypoints, 3)
     has_positions = bool(state['has_positions'])
-    self.positions = array('positions', points) if has_positions else None
-    self.velocities = array('velocities', points)
-    self.last_measurement_time = (float(state['last_measurement_time'])
-                                  if has_positions else None)
-    self.num_measurements = int(state['num_measurements'])
-    self._last_period = float(state['last_period'])
-    self._covariance = array('covariance', (2, 2))
-    self._extremity_lengths = array('extremity_lengths',
-                                    self._ext_length.shape)
-    self._length_positions = (array('length_positions', points)
-                              if bool(state['lengths_pending']) else None)
-    self._error_vel = (None, None)
+    self._state = HumanState(
+        positions=array('positions', points) if has_positions else None,
+        velocities=array('velocities', points),
+        last_measurement_time=(float(state['last_measurement_time'])
+                               if has_positions else None),
+        last_period=float(state['last_period']),
+        num_measurements=int(state['num_measurements']),
+        covariance=array('covariance', (2, 2)),
+        extremity_lengths=array('extremity_lengths', self._ext_length.shape),
+        length_positions=(array('length_positions', points)
+                          if bool(state['lengths_pending']) else None))
 
   @property
   def has_velocity(self):
-    return self.num_measurements >= 2
+    return self._state.num_measurements >= 2
 
   def measure(self, keypoints, t):
     """Takes one measurement of all keypoints (N_kp, 3) at time t (s)."""
+    self._state = self.measured(self._state, keypoints, t)
+
+  def measured(self, state, keypoints, t):
+    """The record `state` (`HumanState`) after a measurement of all
+    keypoints (N_kp, 3) at time t (s); `state` is not changed."""
     keypoints = np.asarray(keypoints, dtype=float)
     if keypoints.shape != (self.num_keypoints, 3):
       raise ValueError(f'keypoints: expected shape ({self.num_keypoints}, 3),'
@@ -311,65 +377,72 @@ class HumanReach:
     if not np.all(np.isfinite(keypoints)):
       raise ValueError('keypoints: expected finite positions')
     t = float(t)
-    if self.positions is None:
-      self.positions = keypoints.copy()
-      self.velocities = np.zeros((self.num_keypoints, 3))
-      self.last_measurement_time = t
-      self.num_measurements = 1
-      self._update_extremity_lengths()
-      return
-    dt = t - self.last_measurement_time
+    if state.positions is None:
+      positions = keypoints.copy()
+      # The POS model's lengths come from the positions of the last
+      # velocity update, computed when first needed
+      # (`_extremity_lengths_now`).
+      return dataclasses.replace(
+          state, positions=positions,
+          velocities=np.zeros((self.num_keypoints, 3)),
+          last_measurement_time=t, num_measurements=1,
+          length_positions=positions)
+    dt = t - state.last_measurement_time
     if dt < 0:
       raise ValueError(f'measurement time {t} is before the previous one '
-                       f'({self.last_measurement_time}); call reset() first')
+                       f'({state.last_measurement_time}); call reset() first')
     if dt < _MIN_SAMPLE_PERIOD:
-      self.positions = keypoints.copy()
-      return
+      return dataclasses.replace(state, positions=keypoints.copy())
+    covariance = state.covariance
     if self.use_kalman_filter:
-      self._kalman_update(keypoints, dt)
+      positions, velocities, covariance = self._kalman_update(state,
+                                                              keypoints, dt)
     else:
-      self.velocities = (keypoints - self.positions) / dt
-      self.positions = keypoints.copy()
-    self.last_measurement_time = t  # dt of the next sample from here (B2).
-    self._last_period = dt
-    self.num_measurements += 1
-    self._update_extremity_lengths()
+      velocities = (keypoints - state.positions) / dt
+      positions = keypoints.copy()
+    return HumanState(
+        positions=positions, velocities=velocities,
+        last_measurement_time=t,   # dt of the next sample from here (B2).
+        last_period=dt, num_measurements=state.num_measurements + 1,
+        covariance=covariance, extremity_lengths=state.extremity_lengths,
+        length_positions=positions)
 
-  def _kalman_update(self, z, dt):
+  def _kalman_update(self, state, z, dt):
     """Constant-velocity KF per coordinate (docs/shield_maths.md, 8.1); all
-    share the same 2x2 covariance, so it is propagated once."""
+    share the same 2x2 covariance, so it is propagated once. Returns
+    positions, velocities and covariance."""
     cfg = self.config
-    if self.num_measurements == 1:  # State (p, 0) from the first sample.
-      self.velocities = np.zeros_like(z)
+    velocities = state.velocities
+    if state.num_measurements == 1:  # State (p, 0) from the first sample.
+      velocities = np.zeros_like(z)
     transition = np.array([[1.0, dt], [0.0, 1.0]])
     noise = cfg.kalman_s_w * np.array([[dt ** 3 / 3, dt ** 2 / 2],
                                        [dt ** 2 / 2, dt]])
-    cov = transition @ self._covariance @ transition.T + noise
-    predicted = self.positions + dt * self.velocities
+    cov = transition @ state.covariance @ transition.T + noise
+    predicted = state.positions + dt * velocities
     gain = cov[:, 0] / (cov[0, 0] + cfg.kalman_s_v)
     innovation = z - predicted
-    self.positions = predicted + gain[0] * innovation
-    self.velocities = self.velocities + gain[1] * innovation
-    self._covariance = cov - np.outer(gain, cov[0])
-
-  def _update_extremity_lengths(self):
-    # Only the POS model uses the lengths: computed when first needed from
-    # the positions of this measurement (positions are replaced, never
-    # modified in place, so keeping the reference is enough).
-    self._length_positions = self.positions
+    return (predicted + gain[0] * innovation,
+            velocities + gain[1] * innovation,
+            cov - np.outer(gain, cov[0]))
 
   def _extremity_lengths_now(self):
     """Arm extremity lengths: the model's, or longer if the arm measured
-    at the last velocity update was longer."""
-    p = self._length_positions
+    at the last velocity update was longer. A cache of this object,
+    derived from the record's positions kept for the lengths."""
+    state = self._state
+    p = state.length_positions
     if p is None:
-      return self._extremity_lengths
-    self._length_positions = None
-    for e, chain in enumerate(self._ext_chains):
-      if len(chain):
-        length = np.linalg.norm(p[chain[:, 1]] - p[chain[:, 0]], axis=-1).sum()
-        self._extremity_lengths[e] = max(self._ext_length[e], length)
-    return self._extremity_lengths
+      return state.extremity_lengths
+    if self._lengths[0] is not p:
+      lengths = state.extremity_lengths.copy()
+      for e, chain in enumerate(self._ext_chains):
+        if len(chain):
+          length = np.linalg.norm(p[chain[:, 1]] - p[chain[:, 0]],
+                                  axis=-1).sum()
+          lengths[e] = max(self._ext_length[e], length)
+      self._lengths = (p, lengths)
+    return self._lengths[1]
 
   def body_capsules(self, keypoints):
     """Real-size body capsules: p1 (B, 3), p2 (B, 3), r (B,)."""
@@ -381,7 +454,7 @@ class HumanReach:
   def _velocity_error(self):
     error = self.config.measurement_error_vel
     if not self.use_kalman_filter:
-      error = error + self.config.a_max * (0.5 * self._last_period)
+      error = error + self.config.a_max * (0.5 * self.last_period)
     return error
 
   def keypoint_balls(self, t):
@@ -428,8 +501,8 @@ class HumanReach:
     b = self.num_bodies
     ends = self._ends
     if compiled and self.has_velocity:
-      if self._error_vel[0] != self._last_period:
-        self._error_vel = (self._last_period, np.array(
+      if self._error_vel[0] != self.last_period:
+        self._error_vel = (self.last_period, np.array(
             np.broadcast_to(self._velocity_error(), (self.num_keypoints,)),
             dtype=float))   # A writeable copy: one kernel signature.
       error_vel = self._error_vel[1]

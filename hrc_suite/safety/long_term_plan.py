@@ -61,7 +61,8 @@ class LongTermPlan:
     coefficients.flags.writeable = False
     self._init(coefficients, shape[0], cycle_time, start_time, None)
 
-  def _init(self, coefficients, filled, cycle_time, start_time, sampler):
+  def _init(self, coefficients, filled, cycle_time, start_time, sampler,
+            made_by=None):
     self._coefficients = coefficients
     self._filled = filled          # Samples [0, filled) are computed.
     self._sampler = sampler        # Computes samples [a, b) on demand.
@@ -69,17 +70,21 @@ class LongTermPlan:
     self.start_time = float(start_time)
     self._inverse_cycle = 1.0 / self.cycle_time
     self._last = coefficients.shape[0] - 1
-    self._inputs = None   # plan_to_goal's (q0, dq0, ddq0, goal), (4, dof).
-    self._limits = None   # plan_to_goal's limits.
+    # plan_to_goal's (pieces (the sampler's arguments), goal (dof,), inputs
+    # (q0, dq0, ddq0, goal) (4, dof), limits), or None.
+    made_by = made_by or (None, None, None, None)
+    self._pieces, self._goal, self._inputs, self._limits = made_by
+    self._derived = {}   # name -> (owner, value): `derived`.
 
   @classmethod
-  def _lazy(cls, num_samples, dof, sampler, cycle_time, start_time):
+  def _lazy(cls, num_samples, dof, sampler, cycle_time, start_time,
+            made_by=None):
     """A plan whose `sampler(a, b, out)` computes samples a..b - 1 into
     out[a:b] (its samples (num_samples, 4, dof)) when first needed (most
-    of a plan is replaced before it is used)."""
+    of a plan is replaced before it is used); made_by: `_init`'s."""
     plan = cls.__new__(cls)
     plan._init(np.empty((num_samples, 4, dof)), 0, cycle_time, start_time,
-               sampler)
+               sampler, made_by)
     return plan
 
   def _fill(self, k):
@@ -92,6 +97,38 @@ class LongTermPlan:
     if self._filled <= self._last:
       self._fill(self._last)
     return self._coefficients
+
+  @property
+  def filled(self):
+    """How many samples, from the first, are computed."""
+    return self._filled
+
+  @property
+  def fully_sampled(self):
+    """Whether every sample is computed."""
+    return self._filled > self._last
+
+  def samples(self):
+    """All samples (num_samples, 4, dof): q, dq, ddq, dddq (computed now
+    where not yet; read-only once complete for plans made from samples)."""
+    return self._all()
+
+  def samples_through(self, k):
+    """The samples array (num_samples, 4, dof) with at least samples
+    0..k computed (k clamped to the last); later rows may not be."""
+    if k >= self._filled and self._filled <= self._last:
+      self._fill(min(k, self._last))
+    return self._coefficients
+
+  def derived(self, name, owner, compute):
+    """A value derived from this plan for `owner` (compared by identity):
+    compute() the first time, then the kept value (one per name; a plan
+    kept in long_term_plan's recent plans may serve several shields)."""
+    kept = self._derived.get(name)
+    if kept is None or kept[0] is not owner:
+      kept = (owner, compute())
+      self._derived[name] = kept
+    return kept[1]
 
   @property
   def q(self):
@@ -569,12 +606,9 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   def sampler(first, stop, out):
     plan_kernels.sample_pieces(*pieces, first, stop, out)
 
-  plan = LongTermPlan._lazy(num, dof, sampler, cycle_time, start_time)
-  plan._pieces = pieces   # sampler's arguments (tests: the reference)
-  plan._goal = goal
-  plan._inputs = np.array((q0, dq0, ddq0, goal))
-  plan._limits = limits
-  return plan
+  return LongTermPlan._lazy(
+      num, dof, sampler, cycle_time, start_time,
+      made_by=(pieces, goal, np.array((q0, dq0, ddq0, goal)), limits))
 
 
 def sample_pieces_reference(table, starts, joint_shift, goal, cycle_time,

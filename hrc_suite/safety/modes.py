@@ -14,9 +14,17 @@ A mode says what the shield does with each cycle's verification
   the mode's rules (tasks then call contacts critical above v_safe
   instead of above the stopped speed; tasks/contacts.py).
 
-Both the readable shield and its compiled twin (`batch`,
-`cycle_kernels`) run every mode expressed through these. A new mode is
-a subclass registered by name (docs/extending.md, "A shield mode"):
+* the verification, readable and compiled: `failsafe_target` (the
+  failsafe's final path velocity), `verdict` (the exact check of a
+  cycle's slices) and, for the compiled cycles (`batch`,
+  `cycle_kernels`), `kernel_parameters` (one named group whose class
+  selects the compiled twins of those two, `mode_kernels`) and
+  `plan_tables`. The defaults are SSM's, or PFL's where `speed_limit`
+  gives a limit.
+
+A mode that only changes the speed limit needs nothing else. A new mode
+is a subclass registered by name (docs/extending.md, "A shield mode";
+with a check of its own: "A compiled verification"):
 
   @modes.register
   class SlowPfl(modes.Pfl):
@@ -27,15 +35,38 @@ a subclass registered by name (docs/extending.md, "A shield mode"):
 Tasks, rendering, tags and the binaries' flags ask `names()` / `get()`.
 """
 
+from typing import Any, NamedTuple, Optional
+
+import numpy as np
+
 from hrc_suite import extensions
+from hrc_suite.safety import kernels
+from hrc_suite.safety import mode_kernels
 
 # PFL: speeds are compared with this fraction of v_safe. Surface speeds are
 # taken at the plan's samples; between samples (2 ms either side) they change
 # by at most the surface acceleration times 2 ms, a few percent of v_safe at
 # the path speeds PFL allows. A design margin of this port.
 PFL_SPEED_MARGIN = 0.9
+# Relative tolerance on path velocities in the PFL speed test (round-off of
+# the path profiles, docs/shield_maths.md, 4).
+S_DOT_TOLERANCE = 1e-9
 
 _MODES = {}   # name -> ShieldMode instance, in registration order
+
+
+class Slices(NamedTuple):
+  """A cycle's check for a mode's readable `verdict` (Shield._verify):
+  K slices (the current step, then the failsafe's) and their K + 1
+  edges; the compiled twin is mode_kernels.Slices."""
+  plan: Any          # long_term_plan.LongTermPlan the path is on.
+  current: Any       # path.Path at the cycle's start.
+  failsafe: Any      # path.Path of the failsafe.
+  times: list        # (K) failsafe times of the edges after the first.
+  s_edges: list      # (K + 1) plan times of the edges.
+  pieces: list       # failsafe.segments().
+  robot: tuple       # Robot reach capsules c1, c2 (K, L, 3), r (K, L).
+  human: tuple       # Human reach capsules c1, c2 (M, K, B, 3), r.
 
 
 class ShieldMode:
@@ -53,8 +84,69 @@ class ShieldMode:
   def allows_contact(self):
     return self.speed_limit(1.0) is not None
 
+  # The verification: readable (Shield.step) and compiled (mode_kernels),
+  # each the other's twin. These implement SSM (speed_limit None) and a
+  # speed limit where contact is possible (PFL).
+
+  def failsafe_target(self, shield, plan, s) -> Optional[float]:
+    """The failsafe's final path velocity when the intended step ends at
+    plan time s on `plan` (None: brake to rest). With a speed limit: the
+    largest path velocity (1 at most) at which the rest of the plan stays
+    under it, since the robot keeps moving after the failsafe."""
+    allowed = shield.speed_limit
+    if allowed is None:
+      return None
+    remaining = shield.plan_speeds(plan)[1][plan.sample_index(s)]
+    return 1.0 if remaining <= allowed else allowed / remaining
+
+  def verdict(self, shield, slices):
+    """(safe, first unsafe slice (-1: none)) of the exact check of a
+    cycle's `Slices`, run when no broad phase settled it: SSM's
+    (docs/shield_maths.md, 9.2); with a speed limit also safe when from
+    the first slice where contact is possible on the robot stays under it
+    (9.3)."""
+    first = kernels.ssm_first_unsafe(
+        *slices.robot, *(np.ascontiguousarray(x) for x in slices.human))
+    if first < 0 or shield.speed_limit is None:
+      return first < 0, first
+    return _slow_enough(shield, slices, first), first
+
+  def kernel_parameters(self, shield):
+    """The compiled verification's parameters: one group (a NamedTuple
+    registered with mode_kernels.register) from this shield."""
+    if shield.speed_limit is None:
+      return mode_kernels.SsmParameters()
+    return mode_kernels.SpeedLimitParameters(float(shield.speed_limit),
+                                             S_DOT_TOLERANCE)
+
+  def plan_tables(self, shield, plan):
+    """The compiled verification's tables of `plan` (one group; the same
+    class for every plan of a mode)."""
+    if shield.speed_limit is None:
+      return mode_kernels.NoTables()
+    return mode_kernels.SpeedTables(*shield.plan_speeds(plan))
+
   def __repr__(self):
     return f'<shield mode {self.name!r}>'
+
+
+def _slow_enough(shield, slices, first):
+  """PFL: the robot's surface speed stays below the shield's speed limit
+  from slice `first` on (and after the failsafe, coasting at its final
+  path velocity)."""
+  plan, failsafe, times = slices.plan, slices.failsafe, slices.times
+  s_edges, pieces = slices.s_edges, slices.pieces
+  window, suffix = shield.plan_speeds(plan)
+  allowed = shield.speed_limit * (1.0 + S_DOT_TOLERANCE)
+  for i in range(first, len(times)):
+    if i == 0:
+      s_dot = max(slices.current.s_dot, failsafe.s_dot)
+    else:
+      s_dot = failsafe.max_s_dot(times[i - 1], times[i], pieces)
+    if window[plan.sample_index(s_edges[i])] * s_dot > allowed:
+      return False
+  return (suffix[plan.sample_index(s_edges[-1])] * failsafe.final()[1]
+          <= allowed)
 
 
 def register(cls):

@@ -34,6 +34,13 @@ Differences to the original (docs/shield_maths.md, 10), on purpose:
   (kernels.swept_balls_gap, docs/shield_maths.md, 5.3), which settles
   most such cycles without the reach capsules.
 
+State: everything a cycle reads and changes is one frozen record,
+`state` (`shield_state.ShieldState`, with the human's measurement,
+`HumanReach.state`); each cycle makes the next record, here or in the
+compiled cycles (`batch`), and a checkpoint is the record itself. What a
+mode checks comes from the mode (`modes.ShieldMode.failsafe_target`,
+`verdict`, and their compiled twins, `mode_kernels`).
+
 Speed: the per-cycle geometry runs in compiled kernels (`kernels`, numba),
 each tested against its readable NumPy reference (kept in `robot_reach`,
 `human_reach`, `verification`, `long_term_plan` and here); the verdict
@@ -41,6 +48,7 @@ stops at the first unsafe slice and `reach_distance` is computed when
 asked.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -56,6 +64,7 @@ from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import robot_reach as robot_reach_lib
+from hrc_suite.safety import shield_state
 from hrc_suite.safety import speed_kernels
 from hrc_suite.safety import verification
 
@@ -68,8 +77,6 @@ PFL_SPEED_MARGIN = modes_lib.PFL_SPEED_MARGIN
 # reachability_interval_cycles = 5 cycles of plan time at s_dot <= 1; one
 # more for the Taylor step past the last sample).
 PFL_WINDOW = 6
-# Relative tolerance on path velocities in the PFL speed test.
-_S_DOT_TOLERANCE = 1e-9
 # Subtracted from broad-phase distance bounds (m): covers the round-off of
 # computing distances from squared norms.
 _BROAD_PHASE_SLACK = 1e-6
@@ -174,6 +181,7 @@ class Shield:
     self._human_v_max = np.ascontiguousarray(config.v_max, dtype=float)
     self._human_delay = float(config.delay)
     self._human_error_pos = float(config.measurement_error_pos)
+    self._kernel_constants = None   # kernel_constants, made when first asked.
     self.reset(robot_description.q_home if q_init is None else q_init)
 
   @property
@@ -186,6 +194,83 @@ class Shield:
     self._mode = modes_lib.get(name)
     self._gates = self._mode.gates
     self.speed_limit = self._mode.speed_limit(self.v_safe)
+    self._kernel_parameters = self._mode.kernel_parameters(self)
+
+  @property
+  def gates(self):
+    """Whether the mode's verdict decides the command (`modes`)."""
+    return self._gates
+
+  # ------------------------------------------------------------ the state
+
+  @property
+  def state(self):
+    """Everything a cycle reads and changes (`shield_state.ShieldState`,
+    frozen): a checkpoint; settable (a restore, or the compiled cycles'
+    result, safety/batch.py). Its `human` is `self.human.state`."""
+    human = self.human.state
+    if self._state.human is not human:   # Measured through self.human.
+      self._state = self._state.replace(human=human)
+    return self._state
+
+  @state.setter
+  def state(self, state):
+    if not isinstance(state, shield_state.ShieldState):
+      raise TypeError(f'Shield.state: expected a ShieldState, got '
+                      f'{type(state).__name__}')
+    self._install(state)
+
+  def _install(self, state, keep_readouts=False):
+    """Makes `state` the shield's (and its human's) state; the lazy
+    read-outs are those of the new state (keep_readouts: they are)."""
+    self._state = state
+    self.human.state = state.human
+    if not keep_readouts:
+      self._lazy = {}
+
+  @property
+  def kernel_constants(self):
+    """The compiled cycles' constants of this shield
+    (`cycle_kernels.Constants`; computed once)."""
+    if self._kernel_constants is None:
+      self._kernel_constants = self._make_kernel_constants()
+    return self._kernel_constants
+
+  def _make_kernel_constants(self):
+    config = self.human.config
+    robot, human = self.robot, self.human
+    arrays = lambda *xs: [np.ascontiguousarray(x, dtype=float) for x in xs]
+    return cycle_kernels.Constants(
+        cycle=cycle_kernels.CycleConstants(
+            cycle=self.cycle_time, interval=float(self.interval),
+            workspace=float(self._workspace_radius),
+            error_pos=float(config.measurement_error_pos),
+            error_vel=float(config.measurement_error_vel),
+            delay=float(config.delay),
+            min_period=human_reach_lib._MIN_SAMPLE_PERIOD,
+            same=_SAME_COMMAND, slack=_BROAD_PHASE_SLACK,
+            rest=REST_TOLERANCE),
+        joints=cycle_kernels.JointTerms(*arrays(
+            self._den_offset, self._acc_numerator, self._jerk_numerator,
+            self._jerk_acc, self._q_min, self._q_max,
+            self.limits.a_max_ltt, self._clip)),
+        robot=cycle_kernels.RobotModel(
+            *robot._kernel_model, robot._kernel_frames, robot._kernel_alpha,
+            robot._kernel_static, robot._kernel_levers,
+            robot._kernel_half_lengths, *arrays(self._base)),
+        human=cycle_kernels.HumanModel(
+            human._kernel_v_max, human._kernel_a_max, self._body_ends,
+            human._kernel_ends, *arrays(human._half_thickness)))
+
+  def kernel_parameters(self):
+    """The mode's parameter group for the compiled cycles
+    (`ShieldMode.kernel_parameters`, mode_kernels)."""
+    return self._kernel_parameters
+
+  def kernel_tables(self, plan):
+    """The mode's tables of `plan` for the compiled cycles
+    (`ShieldMode.plan_tables`)."""
+    return self._mode.plan_tables(self, plan)
 
   # --------------------------------------------------------------- commands
 
@@ -200,22 +285,17 @@ class Shield:
                        f'[{self.limits.q_min.tolist()}, '
                        f'{self.limits.q_max.tolist()}]')
     self.human.reset()
-    self._plan = ltp.LongTermPlan.at_rest(q, self.cycle_time, 0.0)
-    self._verified = path_lib.Path(0.0, 0.0, 0.0, 0.0)
-    self._intended = None
-    self._state = self._plan.state(0.0, 0.0, 0.0, 0.0)
-    self._goal = None
-    self._goal_pending = False
-    self._candidate = None       # (plan, start state key) awaiting approval.
-    self.time = float(t)
-    self._is_safe = not self._gates
-    self.intervened = False
-    self._first_unsafe_interval = -1
-    self._reach_distance = np.inf
-    self._reach_arguments = None
-    self._pending_check = None   # Mode 'off': the cycle's check, if asked.
-    self._previous_q = self._state[0]
-    self._lazy = {}
+    plan = ltp.LongTermPlan.at_rest(q, self.cycle_time, 0.0)
+    command = plan.state(0.0, 0.0, 0.0, 0.0)
+    self._install(shield_state.ShieldState(
+        command=command, previous_q=command[0],
+        verified=path_lib.Path(0.0, 0.0, 0.0, 0.0), intended=None,
+        plan=plan, goal=None, goal_pending=False, candidate=None,
+        candidate_key=None, time=float(t), intervened=False,
+        verification=shield_state.Verification(
+            is_safe=not self._gates, first_unsafe_interval=-1,
+            reach_distance=np.inf, edges=None),
+        human=self.human.state))
 
   def new_goal(self, q_goal, plan=None):
     """Plans to rest at q_goal (clamped 0.01 rad inside the limits) from the
@@ -226,16 +306,19 @@ class Shield:
     first candidate where it is the plan the shield would make now (the
     same inputs, bit for bit: `LongTermPlan.made_from`), else ignored.
     """
-    self._goal = ltp.clamp_goal(q_goal, self.limits)
-    self._goal_pending = True
-    self._candidate = None
+    state = self.state
+    goal = ltp.clamp_goal(q_goal, self.limits)
+    candidate, key = None, None
     if plan is not None:
-      s = self._verified.s
-      if (self._can_plan_from(self._state)
-          and plan.made_from(self._state, self._goal, self.limits,
+      s = state.verified.s
+      if (self._can_plan_from(state.command)
+          and plan.made_from(state.command, goal, self.limits,
                              self.cycle_time, s)):
-        # What _candidate_plan would make (candidate_from's conditions).
-        self._candidate = (plan, (s, self._verified.s_dot))
+        # What `candidate` would make (candidate_from's conditions).
+        candidate, key = plan, (s, state.verified.s_dot)
+    self._install(state.replace(goal=goal, goal_pending=True,
+                                candidate=candidate, candidate_key=key),
+                  keep_readouts=True)
 
   def resync(self, q):
     """The robot was measured at q, off the command by more than the
@@ -259,14 +342,14 @@ class Shield:
       raise ValueError(f'q: expected {self.dof} finite joint positions for '
                        f'{self.description.name}, got {q.tolist()}')
     q = np.clip(q, self.limits.q_min, self.limits.q_max)
-    s = self._verified.s
-    self._plan = ltp.LongTermPlan.at_rest(q, self.cycle_time, s)
-    self._verified = path_lib.Path(s, 0.0, 0.0, 0.0)
-    self._intended = None
-    self._state = self._plan.state(s, 0.0, 0.0, 0.0)
-    self._goal_pending = self._goal is not None
-    self._candidate = None
-    self._lazy = {}
+    state = self.state
+    s = state.verified.s
+    plan = ltp.LongTermPlan.at_rest(q, self.cycle_time, s)
+    self._install(state.replace(
+        plan=plan, verified=path_lib.Path(s, 0.0, 0.0, 0.0), intended=None,
+        command=plan.state(s, 0.0, 0.0, 0.0),
+        goal_pending=state.goal is not None, candidate=None,
+        candidate_key=None))
 
   @property
   def tracking_tolerance(self):
@@ -307,7 +390,7 @@ class Shield:
     return float(np.sqrt(np.einsum('ni,ni->n', moved, moved).max()))
 
   def _joint_pair(self, q, reference):
-    reference = self._state[0] if reference is None else reference
+    reference = self._state.command[0] if reference is None else reference
     q = np.asarray(q, dtype=float)
     reference = np.asarray(reference, dtype=float)
     if q.shape != (self.dof,) or reference.shape != (self.dof,):
@@ -319,63 +402,76 @@ class Shield:
   @property
   def goal(self):
     """The goal being planned to (None before the first new_goal)."""
-    return self._goal
+    return self._state.goal
 
   @property
   def plan(self):
     """The adopted (verified) long-term plan."""
-    return self._plan
+    return self._state.plan
 
   @property
   def goal_pending(self):
     """A goal was given whose plan has not been adopted yet."""
-    return self._goal_pending
+    return self._state.goal_pending
 
-  # ----------------------------------------------------------------- state
+  # ------------------------------------------------------------- read-outs
 
   @property
   def q(self):
-    return self._state[0]
+    return self._state.command[0]
 
   @property
   def dq(self):
-    return self._state[1]
+    return self._state.command[1]
 
   @property
   def ddq(self):
-    return self._state[2]
+    return self._state.command[2]
 
   @property
   def dddq(self):
-    return self._state[3]
+    return self._state.command[3]
 
   @property
   def s(self):
     """Position along the adopted plan (plan time, s)."""
-    return self._verified.s
+    return self._state.verified.s
 
   @property
   def s_dot(self):
-    return self._verified.s_dot
+    return self._state.verified.s_dot
+
+  @property
+  def time(self):
+    """Time (s) of the last cycle (or of `reset`)."""
+    return self._state.time
+
+  @property
+  def intervened(self):
+    """The last cycle did not take the step its plan wanted."""
+    return self._state.intervened
 
   def _check_now(self):
     """Mode 'off': runs this cycle's check when a read-out needs it."""
-    if self._pending_check is not None:
-      arguments, self._pending_check = self._pending_check, None
-      self._is_safe = self._verify(*arguments)
+    state = self._state
+    pending = state.verification.pending
+    if pending is not None:
+      self._state = state.replace(verification=self._verify(
+          pending.plan, pending.current, pending.failsafe, state.previous_q,
+          state.time))
 
   @property
   def is_safe(self):
     """The last cycle's monitored path verified (mode 'off': computed when
     first asked; True before the first step)."""
     self._check_now()
-    return self._is_safe
+    return self._state.verification.is_safe
 
   @property
   def first_unsafe_interval(self):
     """First slice of the last check that was not verified (-1: none)."""
     self._check_now()
-    return self._first_unsafe_interval
+    return self._state.verification.first_unsafe_interval
 
   @property
   def robot_reach_capsules(self):
@@ -383,11 +479,11 @@ class Shield:
     slice 0 is the current step, then the failsafe (None before a check)."""
     self._check_now()
     if 'robot_reach' not in self._lazy:
-      if self._reach_arguments is None:
+      edges = self._state.verification.edges
+      if edges is None:
         return None
-      _, s_edges, _, q_edges = self._reach_arguments
       self._lazy['robot_reach'] = self.robot.reach_capsules(
-          q_edges, np.array(s_edges))
+          edges.q_edges, np.array(edges.s_edges))
     return self._lazy['robot_reach']
 
   @property
@@ -396,10 +492,11 @@ class Shield:
     B) (None without a measurement or check)."""
     self._check_now()
     if 'human_reach' not in self._lazy:
-      if self._reach_arguments is None or self.human.positions is None:
+      edges = self._state.verification.edges
+      if edges is None or self.human.positions is None:
         return None
       self._lazy['human_reach'] = self.human.reach_capsules(
-          self.time, np.array(self._reach_arguments[2]))
+          self._state.time, np.array(edges.t_edges))
     return self._lazy['human_reach']
 
   @property
@@ -409,18 +506,22 @@ class Shield:
     when one settled the cycle; -inf when no path could be checked).
     Computed when first asked (the verdict itself stops early)."""
     self._check_now()
-    if self._reach_distance is None:
-      self._reach_distance = verification.ssm_verdict(
+    checked = self._state.verification
+    if checked.reach_distance is None:
+      distance = verification.ssm_verdict(
           self.robot_reach_capsules, self.human_reach_capsules,
           compiled=True)[2]
-    return self._reach_distance
+      self._state = self._state.replace(verification=dataclasses.replace(
+          checked, reach_distance=distance))
+    return self._state.verification.reach_distance
 
   @property
   def max_cartesian_speed(self):
     """Largest surface speed of any robot capsule at the command (m/s)."""
     if 'speed' not in self._lazy:
+      command = self._state.command
       self._lazy['speed'] = float(self.robot.surface_speeds(
-          self._state[0], self._state[1]).max())
+          command[0], command[1]).max())
     return self._lazy['speed']
 
   @property
@@ -434,7 +535,7 @@ class Shield:
       else:   # The NumPy reference: min_distance_reference.
         human = self.human
         self._lazy['distance'] = float(kernels.capsules_min_distance(
-            self._state[0], *self.robot._kernel_model,
+            self._state.command[0], *self.robot._kernel_model,
             self.robot._kernel_frames, self.robot._kernel_radii,
             np.ascontiguousarray(human.positions, dtype=float),
             human._kernel_ends, human._half_thickness))
@@ -445,7 +546,7 @@ class Shield:
     the kernel agrees to round-off (tests/safety/test_shield.py)."""
     if self.human.positions is None:
       return np.inf
-    r1, r2, rr = self.robot.capsules(self._state[0])
+    r1, r2, rr = self.robot.capsules(self._state.command[0])
     h1, h2, hr = self.human.body_capsules(self.human.positions)
     return float(geometry.capsule_distance(
         r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
@@ -464,33 +565,38 @@ class Shield:
     In mode 'off' the cycle's check runs first (the read-outs are saved).
     """
     self._check_now()
-    plan = self._plan.get_state()
+    reach_distance = float(self.reach_distance)
+    state = self.state
+    plan = state.plan.get_state()
     human = self.human.get_state()
-    arguments = self._reach_arguments
-    state = {
+    checked = state.verification
+    edges = checked.edges
+    snapshot = {
         'robot': self.description.name, 'mode': self.mode,
-        'cycle_time': self.cycle_time, 'time': self.time,
-        'command': np.array(self._state), 'previous_q': np.array(
-            self._previous_q),
-        'verified': _path_array(self._verified),
-        'has_intended': self._intended is not None,
-        'intended': _path_array(self._intended or path_lib.Path()),
-        'has_goal': self._goal is not None,
-        'goal': (np.zeros(self.dof) if self._goal is None
-                 else np.array(self._goal)),
-        'goal_pending': self._goal_pending,
-        'is_safe': bool(self._is_safe), 'intervened': bool(self.intervened),
-        'first_unsafe_interval': int(self._first_unsafe_interval),
-        'reach_distance': float(self.reach_distance),
-        'has_reach': arguments is not None,
-        's_edges': np.array([] if arguments is None else arguments[1]),
-        't_edges': np.array([] if arguments is None else arguments[2]),
-        'q_edges': (np.zeros((0, self.dof)) if arguments is None
-                    else np.array(arguments[3])),
+        'cycle_time': self.cycle_time, 'time': state.time,
+        'command': np.array(state.command), 'previous_q': np.array(
+            state.previous_q),
+        'verified': shield_state.path_array(state.verified),
+        'has_intended': state.intended is not None,
+        'intended': shield_state.path_array(state.intended
+                                            or path_lib.Path()),
+        'has_goal': state.goal is not None,
+        'goal': (np.zeros(self.dof) if state.goal is None
+                 else np.array(state.goal)),
+        'goal_pending': state.goal_pending,
+        'is_safe': bool(checked.is_safe),
+        'intervened': bool(state.intervened),
+        'first_unsafe_interval': int(checked.first_unsafe_interval),
+        'reach_distance': reach_distance,
+        'has_reach': edges is not None,
+        's_edges': np.array([] if edges is None else edges.s_edges),
+        't_edges': np.array([] if edges is None else edges.t_edges),
+        'q_edges': (np.zeros((0, self.dof)) if edges is None
+                    else np.array(edges.q_edges)),
     }
-    state.update({f'plan_{k}': v for k, v in plan.items()})
-    state.update({f'human_{k}': v for k, v in human.items()})
-    return state
+    snapshot.update({f'plan_{k}': v for k, v in plan.items()})
+    snapshot.update({f'human_{k}': v for k, v in human.items()})
+    return snapshot
 
   def set_state(self, state):
     """Restores a `get_state` of a shield of the same robot, mode and cycle
@@ -506,33 +612,35 @@ class Shield:
     if command.shape != (5, self.dof):
       raise ValueError(f'shield state command: expected shape (5, '
                        f'{self.dof}), got {command.shape}')
-    self._plan = ltp.LongTermPlan.from_state(
+    plan = ltp.LongTermPlan.from_state(
         {k[5:]: v for k, v in state.items() if k.startswith('plan_')},
         self.limits)
     self.human.set_state(
         {k[6:]: v for k, v in state.items() if k.startswith('human_')})
-    self.time = float(scalar('time'))
-    self._state = command
-    self._previous_q = np.array(state['previous_q'], dtype=float)
-    self._verified = _path_from_array(state['verified'])
-    self._intended = (_path_from_array(state['intended'])
-                      if scalar('has_intended') else None)
-    self._goal = (np.array(state['goal'], dtype=float)
-                  if scalar('has_goal') else None)
-    self._goal_pending = bool(scalar('goal_pending'))
-    self._candidate = None
-    self._is_safe = bool(scalar('is_safe'))
-    self.intervened = bool(scalar('intervened'))
-    self._first_unsafe_interval = int(scalar('first_unsafe_interval'))
-    self._reach_distance = float(scalar('reach_distance'))
-    self._reach_arguments = None
+    edges = None
     if scalar('has_reach'):
-      self._reach_arguments = (
-          self._plan, np.asarray(state['s_edges'], dtype=float).tolist(),
+      edges = shield_state.ReachEdges(
+          plan, np.asarray(state['s_edges'], dtype=float).tolist(),
           np.asarray(state['t_edges'], dtype=float).tolist(),
           np.array(state['q_edges'], dtype=float).reshape(-1, self.dof))
-    self._pending_check = None
-    self._lazy = {}
+    self._install(shield_state.ShieldState(
+        command=command,
+        previous_q=np.array(state['previous_q'], dtype=float),
+        verified=shield_state.path_from_array(state['verified']),
+        intended=(shield_state.path_from_array(state['intended'])
+                  if scalar('has_intended') else None),
+        plan=plan,
+        goal=(np.array(state['goal'], dtype=float)
+              if scalar('has_goal') else None),
+        goal_pending=bool(scalar('goal_pending')),
+        candidate=None, candidate_key=None,
+        time=float(scalar('time')),
+        intervened=bool(scalar('intervened')),
+        verification=shield_state.Verification(
+            is_safe=bool(scalar('is_safe')),
+            first_unsafe_interval=int(scalar('first_unsafe_interval')),
+            reach_distance=float(scalar('reach_distance')), edges=edges),
+        human=self.human.state))
 
   # ------------------------------------------------------------------ step
 
@@ -548,9 +656,8 @@ class Shield:
     t = float(t)
     if human_keypoints is not None:
       self.human.measure(human_keypoints, t)
-    self.time = t
-    self._pending_check = None
-    self._previous_q = self._state[0]
+    state = self._state
+    previous_q = state.command[0]
     dt = self.cycle_time
 
     # Replanning: a candidate plan starts at the current command with path
@@ -560,98 +667,111 @@ class Shield:
     # along the path as a stopped robot resumes its plan, so a robot
     # stopped next to a person can start again (docs/safety.md,
     # "Starting from rest").
-    plan, current = self._plan, self._verified
-    candidate = self._candidate_plan()
+    plan, current = state.plan, state.verified
+    candidate, key = (self.candidate(state) if state.goal_pending
+                      else (None, None))
     starts = (None,)
     if candidate is not None:
       plan = candidate
-      starts = (1.0, 0.0) if self._at_rest() else (1.0,)
+      starts = (1.0, 0.0) if self._at_rest(state.command) else (1.0,)
     nominal = None   # The first start's intended step: what was wanted.
     for start in starts:
       self._lazy = {}   # Read-outs are those of this cycle and start.
       if start is not None:
-        current = path_lib.Path(self._verified.s, start, 0.0, 0.0)
-      intended, failsafe, s_dot_limit = self._monitored(plan, current,
-                                                        candidate)
+        current = path_lib.Path(state.verified.s, start, 0.0, 0.0)
+      intended, failsafe = self._monitored(state, plan, current,
+                                           candidate)
       nominal = intended if start != 0.0 else nominal
-      safe = self._check(plan, current, intended, failsafe, s_dot_limit)
-      if safe is not False:
+      checked = self._check(state, plan, current, intended, failsafe,
+                            previous_q, t)
+      if checked.is_safe is not False:
         break
-    self._is_safe = safe
+    safe = checked.is_safe
 
     follow = failsafe is not None and (safe or not self._gates)
+    kept = {}
     if follow:
-      if candidate is not None:
-        self._adopt(candidate)
-      self._verified = failsafe
-      self._intended = intended
-      state = plan.state(intended.s, intended.s_dot, intended.s_ddot,
-                         intended.jerk)
-      self.intervened = False
+      if candidate is not None:   # Adopted: the goal's plan is verified.
+        kept = dict(plan=candidate, goal_pending=False)
+        candidate, key = None, None
+      verified, kept_intended = failsafe, intended
+      command = plan.state(intended.s, intended.s_dot, intended.s_ddot,
+                           intended.jerk)
+      intervened = False
     else:
-      self._verified = self._verified.copy()
-      self._verified.advance(dt)
-      self._intended = None
-      v = self._verified
-      state = self._plan.state(v.s, v.s_dot, v.s_ddot, v.jerk)
+      verified = state.verified.copy()
+      verified.advance(dt)
+      kept_intended = None
+      v = verified
+      command = state.plan.state(v.s, v.s_dot, v.s_ddot, v.jerk)
       if nominal is None:
-        self.intervened = True
+        intervened = True
       else:
         wanted = plan.state(nominal.s, nominal.s_dot, nominal.s_ddot,
                             nominal.jerk)
-        self.intervened = not (
-            np.abs(wanted[0] - state[0]).max() <= _SAME_COMMAND and
-            np.abs(wanted[1] - state[1]).max() <= _SAME_COMMAND)
-    rates = state[1:4]   # np.clip's max-then-min, without its overhead.
+        intervened = not (
+            np.abs(wanted[0] - command[0]).max() <= _SAME_COMMAND and
+            np.abs(wanted[1] - command[1]).max() <= _SAME_COMMAND)
+    rates = command[1:4]   # np.clip's max-then-min, without its overhead.
     np.minimum(np.maximum(rates, self._clip_low, out=rates), self._clip,
                out=rates)
-    self._state = state
-    return state[0], state[1], state[2]
+    self._install(shield_state.ShieldState(
+        command=command, previous_q=previous_q, verified=verified,
+        intended=kept_intended, plan=kept.get('plan', state.plan),
+        goal=state.goal,
+        goal_pending=kept.get('goal_pending', state.goal_pending),
+        candidate=candidate, candidate_key=key, time=t,
+        intervened=intervened, verification=checked,
+        human=self.human.state), keep_readouts=True)
+    return command[0], command[1], command[2]
 
   # -------------------------------------------------------------- internals
 
-  def _at_rest(self):
-    """Whether the command is at rest (velocity and acceleration zero)."""
-    rates = self._state[1:3]
+  def _at_rest(self, command):
+    """Whether command (5, dof) is at rest (velocity and acceleration
+    zero)."""
+    rates = command[1:3]
     return bool((np.abs(rates) <= REST_TOLERANCE).all())
 
-  def _monitored(self, plan, current, candidate):
-    """The monitored path from `current` on `plan`: (intended step,
-    failsafe, PFL final path velocity); None for what does not exist."""
+  def _monitored(self, state, plan, current, candidate):
+    """The monitored path from `current` on `plan` in `state`: (intended
+    step, failsafe); None for what does not exist."""
     dt = self.cycle_time
-    max_acc, max_jerk = self._path_limits(self._state[4])
+    max_acc, max_jerk = self._path_limits(state.command[4])
     intended = None
-    if candidate is None and self._intended is not None and not (
-        self._intended.is_finished() and self._intended.s_dot != 1.0):
-      intended = self._intended
+    kept = state.intended
+    if candidate is None and kept is not None and not (
+        kept.is_finished() and kept.s_dot != 1.0):
+      intended = kept
     if intended is None:
       intended = path_lib.plan_profile(
           current.s, current.s_dot, current.s_ddot, 1.0, max_acc, max_jerk, dt)
-    failsafe, s_dot_limit = None, None
+    failsafe = None
     if intended is not None:
       intended = intended.copy()
       intended.advance(dt)
-      s_dot_limit = self._s_dot_limit(plan, intended.s)
+      target = self._mode.failsafe_target(self, plan, intended.s)
       failsafe = path_lib.plan_profile(
           intended.s, intended.s_dot, intended.s_ddot,
-          0.0 if s_dot_limit is None else s_dot_limit, max_acc, max_jerk, dt)
-    return intended, failsafe, s_dot_limit
+          0.0 if target is None else target, max_acc, max_jerk, dt)
+    return intended, failsafe
 
-  def _check(self, plan, current, intended, failsafe, s_dot_limit):
-    """Verifies the monitored path: True, False, or None (mode 'off': the
-    check runs when a read-out needs it)."""
+  def _check(self, state, plan, current, intended, failsafe, previous_q,
+             now):
+    """Verifies the monitored path: a `shield_state.Verification` whose
+    is_safe is True, False, or None (mode 'off': the check runs when a
+    read-out needs it)."""
     if failsafe is None or intended.s < current.s:
       # No monitored path: keep braking on the verified one.
-      self._reach_arguments = None
-      self._first_unsafe_interval, self._reach_distance = 0, -np.inf
-      return False
+      return shield_state.Verification(False, 0, -np.inf, None)
     if not self._gates:
       # Unshielded: the check only feeds read-outs; run it when one is
       # read (its inputs do not change until the next step).
-      self._reach_arguments = None
-      self._pending_check = (plan, current, failsafe, s_dot_limit)
-      return None
-    return self._verify(plan, current, failsafe, s_dot_limit)
+      last = state.verification
+      return shield_state.Verification(
+          None, last.first_unsafe_interval, last.reach_distance, None,
+          shield_state.PendingCheck(plan, current, failsafe))
+    return self._verify(plan, current, failsafe, previous_q, now)
 
   def _path_limits(self, v_nominal):
     """path.path_limits for this robot with precomputed per-joint terms."""
@@ -662,89 +782,59 @@ class Shield:
         self._jerk_numerator, self._jerk_acc, dens))
     return acc, (jerk if jerk > 0.0 else 0.0)
 
-  def _candidate_plan(self):
-    """The plan to the pending goal from the current command, or None."""
-    if not self._goal_pending:
-      return None
-    key = (self._verified.s, self._verified.s_dot)
-    if self._candidate is not None and self._candidate[1] == key:
-      return self._candidate[0]   # The robot has not moved: still valid.
-    self._candidate = (self.candidate_from(self._state, *key)
-                       if self._can_plan_from(self._state) else None)
-    return None if self._candidate is None else self._candidate[0]
+  def candidate(self, state):
+    """(the plan to the pending goal from `state`'s command, its key) as a
+    cycle from `state` takes it: the state's candidate while the verified
+    path has not moved since it was planned, else a new one (`candidate_
+    from`); (None, None) where none can be made. The compiled cycles make
+    the same test (cycle_kernels.ssm_cycles stops for a candidate only
+    where a plan may start)."""
+    key = (state.verified.s, state.verified.s_dot)
+    if state.candidate is not None and state.candidate_key == key:
+      return state.candidate, key   # The robot has not moved: still valid.
+    if not self._can_plan_from(state.command):
+      return None, None
+    made = self.candidate_from(state.command, *key)
+    return (None, None) if made is None else made
 
-  def _can_plan_from(self, state):
-    """Whether a plan may start at command `state` (q, dq, ddq rows first):
+  def _can_plan_from(self, command):
+    """Whether a plan may start at `command` (q, dq, ddq rows first):
     not while braking harder than the planning limits
-    (docs/shield_maths.md, 1). The compiled cycles make the same test
-    (cycle_kernels.ssm_cycles stops for a candidate only where it holds)."""
-    return not (np.abs(state[2]) > self.limits.a_max_ltt).any()
+    (docs/shield_maths.md, 1)."""
+    return not (np.abs(command[2]) > self.limits.a_max_ltt).any()
 
-  def candidate_from(self, state, s, s_dot, recent=True):
-    """(plan to the pending goal from command `state` (q, dq, ddq rows
-    first) at verified path position s and velocity s_dot, its key (s,
-    s_dot)), or None where none can be made; the caller has found that a
-    plan may start there (`_can_plan_from`). recent: as plan_to_goal's
-    (False: a command moved since anyone planned from it)."""
+  def candidate_from(self, command, s, s_dot, recent=True):
+    """(plan to the pending goal from `command` (q, dq, ddq rows first)
+    at verified path position s and velocity s_dot, its key (s, s_dot)),
+    or None where none can be made; the caller has found that a plan may
+    start there (`_can_plan_from`). recent: as plan_to_goal's (False: a
+    command moved since anyone planned from it)."""
     try:
-      plan = ltp.plan_to_goal(state[0], state[1], state[2], self._goal,
-                              self.limits, self.cycle_time, s, recent=recent)
+      plan = ltp.plan_to_goal(command[0], command[1], command[2],
+                              self._state.goal, self.limits, self.cycle_time,
+                              s, recent=recent)
     except ltp.PlanningError:
       return None
     return plan, (s, s_dot)
 
-  def _adopt(self, plan):
-    self._plan = plan
-    self._goal_pending = False
-    self._candidate = None
+  def plan_speeds(self, plan):
+    """PFL tables of a plan's largest capsule surface speed at nominal
+    path speed: over the next PFL_WINDOW samples, and from each sample to
+    the end (both (N,), m/s). Kept on the plan for this robot
+    (`LongTermPlan.derived`): a candidate's tables stay its own when it
+    is adopted, and a plan shared through long_term_plan's cache of
+    recent plans is not tabled twice."""
+    robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
+    return plan.derived('pfl_speed_tables', robot,
+                        lambda: speed_kernels.plan_speed_tables(
+                            plan.samples(), *robot._kernel_model,
+                            robot._kernel_frames, robot._kernel_radii,
+                            PFL_WINDOW))
 
-  def _plan_speeds(self, plan):
-    """PFL tables of a plan's largest capsule surface speed at nominal path
-    speed: over the next PFL_WINDOW samples, and from each sample to the
-    end (both (N,), m/s)."""
-    # Kept on the plan (for this robot): a candidate's tables stay its
-    # own when it is adopted, and a plan shared through long_term_plan's
-    # cache of recent plans is not tabled twice.
-    cached = plan.__dict__.get('_pfl_tables')
-    if cached is None or cached[0] is not self.robot:
-      robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
-      cached = (robot,) + speed_kernels.plan_speed_tables(
-          plan._all(), *robot._kernel_model, robot._kernel_frames,
-          robot._kernel_radii, PFL_WINDOW)
-      plan._pfl_tables = cached
-    return cached[1], cached[2]
-
-  def _s_dot_limit(self, plan, s):
-    """PFL: the failsafe's final path velocity (None: brake to rest).
-
-    The robot keeps moving at this path velocity after the failsafe, so the
-    bound covers the plan's fastest capsule surface from s to its end.
-    """
-    allowed = self.speed_limit
-    if allowed is None:
-      return None
-    remaining = self._plan_speeds(plan)[1][plan.sample_index(s)]
-    return 1.0 if remaining <= allowed else allowed / remaining
-
-  def _slow_enough(self, plan, current, failsafe, times, s_edges, first,
-                   pieces):
-    """PFL: the robot's surface speed stays below v_safe from slice `first`
-    on (and after the failsafe, coasting at its final path velocity).
-    pieces: failsafe.segments()."""
-    window, suffix = self._plan_speeds(plan)
-    allowed = self.speed_limit * (1.0 + _S_DOT_TOLERANCE)
-    for i in range(first, len(times)):
-      if i == 0:
-        s_dot = max(current.s_dot, failsafe.s_dot)
-      else:
-        s_dot = failsafe.max_s_dot(times[i - 1], times[i], pieces)
-      if window[plan.sample_index(s_edges[i])] * s_dot > allowed:
-        return False
-    return (suffix[plan.sample_index(s_edges[-1])] * failsafe.final()[1]
-            <= allowed)
-
-  def _verify(self, plan, current, failsafe, s_dot_limit):
-    """Checks the slice current -> intended step, then the failsafe."""
+  def _verify(self, plan, current, failsafe, previous_q, now):
+    """Checks the slice current -> intended step, then the failsafe, at
+    cycle time `now` from the command previous_q; returns a
+    `shield_state.Verification`."""
     dt = self.cycle_time
     end = failsafe.end_time()
     count = max(math.ceil(end / self.interval - 1e-9), 1)
@@ -754,30 +844,28 @@ class Shield:
     s_edges = [current.s] + s
     t_edges = [0.0] + [x + dt for x in times]
     q_edges = np.empty((count + 2, self.dof))
-    q_edges[0] = self._previous_q
+    q_edges[0] = previous_q
     plan.positions(s, out=q_edges, first=1)
-    self._reach_arguments = (plan, s_edges, t_edges, q_edges)
+    edges = shield_state.ReachEdges(plan, s_edges, t_edges, q_edges)
+    result = lambda safe, first, distance: shield_state.Verification(
+        safe, first, distance, edges)
     end_q = q_edges[-1].tolist()
     if not all(low <= q <= high for low, q, high in zip(
         self._q_min, end_q, self._q_max)):
-      self._first_unsafe_interval, self._reach_distance = count, -np.inf
-      return False
+      return result(False, count, -np.inf)
     human = self.human
     if human.positions is None:
-      self._first_unsafe_interval, self._reach_distance = -1, np.inf
-      return True
+      return result(True, -1, np.inf)
     # Broad phase 1: the human's horizon balls against the robot's whole
     # workspace ball (no kinematics needed).
-    age = (self.time - human.last_measurement_time + self._human_delay
-           + t_edges[-1])
+    age = now - human.last_measurement_time + self._human_delay + t_edges[-1]
     centre, radius, gap = kernels.horizon_balls(
         human.positions, human.velocities, self._human_v_max,
         self._body_ends, self._half_thickness, age, self._human_error_pos,
         self._base)
     bound = gap - self._workspace_radius
     if bound > 0.0:
-      self._first_unsafe_interval, self._reach_distance = -1, bound
-      return True
+      return result(True, -1, bound)
     # Broad phase 2, bounded from the robot's capsules at q_edges[0] alone
     # (one forward kinematics instead of one per edge; a lower bound of
     # the test below, so it settles only cycles that test settles).
@@ -790,31 +878,26 @@ class Shield:
         model._kernel_levers, model._kernel_half_lengths, centre, radius,
         _BROAD_PHASE_SLACK) - _BROAD_PHASE_SLACK
     if bound > 0.0:
-      self._first_unsafe_interval, self._reach_distance = -1, bound
-      return True
-    robot = self.robot_reach_capsules
+      return result(True, -1, bound)
+    robot = self._lazy['robot_reach'] = self.robot.reach_capsules(
+        q_edges, np.array(s_edges))
     # Broad phase 2: the same balls against every robot reach capsule.
     bound = kernels.balls_capsules_distance(centre, radius,
                                             *robot) - _BROAD_PHASE_SLACK
     if bound > 0.0:
-      self._first_unsafe_interval, self._reach_distance = -1, bound
-      return True
-    human = self.human_reach_capsules
-    first = kernels.ssm_first_unsafe(
-        *robot, *(np.ascontiguousarray(x) for x in human))
-    self._first_unsafe_interval, self._reach_distance = first, None
-    if first < 0 or s_dot_limit is None:
-      return first < 0
-    # PFL: contact is possible from slice `first` on; from then on the
-    # robot must be slower than v_safe.
-    return self._slow_enough(plan, current, failsafe, times, s_edges, first,
-                             pieces)
+      return result(True, -1, bound)
+    human = self._lazy['human_reach'] = self.human.reach_capsules(
+        now, np.array(t_edges))
+    # The exact check: the mode's verdict (modes.ShieldMode.verdict).
+    safe, first = self._mode.verdict(self, modes_lib.Slices(
+        plan, current, failsafe, times, s_edges, pieces, robot, human))
+    return result(safe, first, None)
 
-  def _human_horizon_balls(self, horizon):
+  def _human_horizon_balls(self, now, horizon):
     """NumPy reference of the first broad phase's balls (the shield runs
     kernels.horizon_balls): one ball per human body containing its
     maximal-velocity (VEL) reachable set over the whole horizon (s after
-    this cycle's time):
+    the cycle's time `now`):
     the measured body capsule grown by max(v_max, measured speed) of its
     faster end times the measurement's age plus horizon and delay, plus the
     position error. Returns centres (B, 3) and radii (B,)."""
@@ -824,31 +907,12 @@ class Shield:
                                human.velocities))
     np.maximum(speeds, config.v_max, out=speeds)
     ends = speeds[self._body_ends]
-    age = self.time - human.last_measurement_time + config.delay + horizon
+    age = now - human.last_measurement_time + config.delay + horizon
     half = p2 - p1
     grow = (np.maximum(ends[0], ends[1]) * age + radius
             + config.measurement_error_pos)
     grow += 0.5 * np.sqrt(np.einsum('bi,bi->b', half, half))
     return 0.5 * (p1 + p2), grow
-
-
-def _path_array(path):
-  """A `path.Path` as 10 floats: s, s_dot, s_ddot, jerk, phase ends and
-  phase jerks."""
-  return np.array([path.s, path.s_dot, path.s_ddot, path.jerk]
-                  + list(path.phase_ends) + list(path.phase_jerks))
-
-
-def _path_from_array(values):
-  """The `path.Path` of `_path_array` (attributes set as stored)."""
-  values = np.asarray(values, dtype=float).ravel().tolist()
-  if len(values) != 10:
-    raise ValueError(f'path state: expected 10 numbers, got {len(values)}')
-  path = path_lib.Path.__new__(path_lib.Path)
-  path.s, path.s_dot, path.s_ddot, path.jerk = values[:4]
-  path.phase_ends = values[4:7]
-  path.phase_jerks = values[7:]
-  return path
 
 
 def pfl_speed_tables(speeds, compiled=True):

@@ -151,16 +151,16 @@ def test_shield_broad_phases_match_reference():
   for i in range(20):
     human.measure(base + rng.normal(0, 0.01 * (1 + i % 3), base.shape),
                   0.004 * i)
-    shield.time = 0.004 * i + 0.001
+    now = 0.004 * i + 0.001
     horizon = rng.uniform(0, 0.3)
     config = human.config
-    age = (shield.time - human.last_measurement_time + config.delay
+    age = (now - human.last_measurement_time + config.delay
            + horizon)
     centre, radius, gap = kernels.horizon_balls(
         human.positions, human.velocities, shield._human_v_max,
         shield._body_ends, shield._half_thickness, age,
         config.measurement_error_pos, shield._base)
-    ref_centre, ref_radius = shield._human_horizon_balls(horizon)
+    ref_centre, ref_radius = shield._human_horizon_balls(now, horizon)
     np.testing.assert_allclose(centre, ref_centre, rtol=0, atol=1e-12)
     np.testing.assert_allclose(radius, ref_radius, rtol=0, atol=1e-12)
     assert gap == pytest.approx(
@@ -308,7 +308,7 @@ def test_shield_reach_distance_is_the_reference_clearance():
     points = np.tile(p2[-1] + (0.35, 0.0, 0.0), (shield.human.num_keypoints,
                                                  1))
     shield.step(points + rng.normal(0, 0.01, points.shape), 0.004 * i)
-    if shield._reach_distance is None:   # Decided by the exact check.
+    if shield.state.verification.reach_distance is None:   # The exact check.
       robot, human = shield.robot_reach_capsules, shield.human_reach_capsules
       safe, first, distance = verification.ssm_verdict(robot, human)
       assert shield.first_unsafe_interval == first

@@ -160,7 +160,7 @@ def test_slices_cover_the_failsafe(panda):
   for i in range(100):
     shield.step(human, i * CYCLE)
   assert shield.is_safe and shield.s_dot == pytest.approx(1.0)
-  failsafe = shield._verified
+  failsafe = shield.state.verified
   interval = panda.shield.reachability_interval_cycles * CYCLE
   k = shield.robot_reach_capsules[2].shape[0]
   assert k == 1 + math.ceil(failsafe.end_time() / interval - 1e-9)
@@ -259,7 +259,7 @@ def test_a_robot_stopped_next_to_a_person_starts_again(panda,
     goal[1] -= 0.4   # Back, away from the person.
     with monkeypatch.context() as patch:
       if not rest_start:
-        patch.setattr(shield_lib.Shield, '_at_rest', lambda self: False)
+        patch.setattr(shield_lib.Shield, '_at_rest', lambda self, command: False)
       return harness.simulate(shield, lambda t: person, 1.0,
                               first_goal=goal)
   stuck, started = run(False), run(True)
@@ -338,7 +338,8 @@ def test_broad_phase_is_conservative(panda):
     if i % 12 == 0:
       shield.new_goal(goals())
     shield.step(human(i * CYCLE), i * CYCLE)
-    if shield.is_safe and 'human_reach' not in shield._lazy:
+    if shield.is_safe and (   # Decided by a broad phase.
+        shield.state.verification.reach_distance is not None):
       decided += 1
       robot = shield.robot_reach_capsules
       c1, c2, r = shield.human_reach_capsules

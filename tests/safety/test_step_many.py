@@ -1,6 +1,7 @@
 """The compiled shield cycles (safety.batch, cycle_kernels, path_kernels)
 against the readable reference (Shield.step, path.Path)."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,9 +10,12 @@ import pytest
 from hrc_suite import robot_description
 from hrc_suite.safety import batch
 from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety import mode_kernels
+from hrc_suite.safety import modes
 from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import path_kernels
 from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety import shield_state
 
 import shield_harness as harness
 
@@ -19,7 +23,7 @@ L = 25   # Cycles per RL step (tasks.base.DEFAULT_SHIELD_SUBSTEPS).
 
 
 def _path_array(path):
-  return shield_lib._path_array(path)  # pylint: disable=protected-access
+  return shield_state.path_array(path)
 
 
 def test_path_kernels_match_path():
@@ -151,3 +155,40 @@ def test_rl_step_benchmark_runs_both_paths():
   close = rows[0]
   assert close[-1] > 0.0   # The close scene makes the shield intervene.
   assert all(value > 0.0 for value in close[2:6])
+
+
+def test_mode_parameter_groups_and_their_registration():
+  assert isinstance(shield_lib.Shield('panda').kernel_parameters(),
+                    mode_kernels.SsmParameters)
+  pfl = shield_lib.Shield('panda', mode='pfl')
+  assert pfl.kernel_parameters() == mode_kernels.SpeedLimitParameters(
+      pfl.speed_limit, modes.S_DOT_TOLERANCE)
+  with pytest.raises(TypeError, match='NamedTuple class'):
+    mode_kernels.register(dict, mode_kernels._ssm_failsafe_target,
+                          mode_kernels._ssm_verdict)
+  with pytest.raises(TypeError, match='numba-jitted'):
+    mode_kernels.register(mode_kernels.NoTables, lambda *a: 0.0,
+                          mode_kernels._ssm_verdict)
+  with pytest.raises(ValueError, match='already has'):
+    mode_kernels.register(mode_kernels.SsmParameters,
+                          mode_kernels._ssm_failsafe_target,
+                          mode_kernels._ssm_verdict)
+
+
+def test_a_checkpoint_is_the_frozen_state_record():
+  case = _scenario('panda', harness.hand_attack((0.5, 0.1, 0.9)), 0.2, 3)
+  make, goals, frames, times = case
+  shield = make()
+  shield.new_goal(goals[0])
+  batch.step_many(shield, frames[:L], times[:L])
+  saved = batch.checkpoint(shield)
+  assert saved is shield.state
+  assert saved.human is shield.human.state
+  with pytest.raises(dataclasses.FrozenInstanceError):
+    saved.time = 0.0
+  batch.step_many(shield, frames[L:2 * L], times[L:2 * L])
+  assert shield.state is not saved and shield.time > saved.time
+  batch.restore(shield, saved)
+  assert shield.state is saved and shield.human.state is saved.human
+  with pytest.raises(TypeError, match='ShieldState'):
+    shield.state = {}

@@ -1,0 +1,237 @@
+"""Compiled verification of each shield mode: what a mode adds to the
+compiled cycles (`cycle_kernels`).
+
+A mode (safety/modes.py) hands the compiled cycles one named group of
+parameters (`ShieldMode.kernel_parameters`, a `typing.NamedTuple`) and,
+per plan, one named group of tables (`ShieldMode.plan_tables`). The
+group's class is the mode's id in the kernels: `register` binds it to
+two compiled functions, and numba compiles the cycles once per class
+(the overloads below choose them while typing, so no branch of another
+mode is typed):
+
+* `failsafe_target(parameters, plan, inverse, s)`: the failsafe's final
+  path velocity when the intended step ends at plan time s on `plan` (a
+  `Plan`; inverse = 1 / cycle time); 0 brakes to rest.
+* `verdict(parameters, slices)`: (safe, first unsafe slice) of the exact
+  check of a cycle's `Slices` (robot and human reach capsules, the
+  monitored path), run when no broad phase settled the cycle.
+
+Each is the compiled twin of the mode's readable method of the same name
+(`modes.ShieldMode.failsafe_target`, `verdict`), in its operations and
+order, so the compiled cycles give the readable shield's bits
+(tests/safety/test_step_many.py). SSM (`SsmParameters`) and the speed
+limit of PFL and its variants (`SpeedLimitParameters`) are registered
+here; docs/extending.md, "A compiled verification", adds one.
+"""
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+from numba import extending
+
+from hrc_suite.safety import kernels
+from hrc_suite.safety import path_kernels as pk
+
+_jit = kernels._jit
+
+
+class Plan(NamedTuple):
+  """A plan for the compiled cycles (LongTermPlan)."""
+  samples: np.ndarray   # (N, 4, dof) q, dq, ddq, dddq; writeable.
+  start: float          # Plan time (s) of sample 0.
+  filled: int           # Samples [0, filled) are computed.
+  tables: tuple         # The mode's tables of this plan (plan_tables).
+
+
+class Slices(NamedTuple):
+  """A cycle's check for a mode's `verdict`: K slices (the current step,
+  then the failsafe's), their K + 1 edges and the monitored path."""
+  robot_c1: np.ndarray    # (K, L, 3) robot reach capsules ...
+  robot_c2: np.ndarray    # (K, L, 3)
+  robot_r: np.ndarray     # (K, L)
+  human_c1: np.ndarray    # (M, K, B, 3) human reach capsules ...
+  human_c2: np.ndarray    # (M, K, B, 3)
+  human_r: np.ndarray     # (M, K, B)
+  s_edges: np.ndarray     # (K + 1,) plan times of the edges.
+  t_edges: np.ndarray     # (K + 1,) s after the cycle's time.
+  q_edges: np.ndarray     # (K + 1, dof) joint positions at the edges.
+  current: np.ndarray     # Path array (path_kernels) at the cycle's start.
+  failsafe: np.ndarray    # Path array of the failsafe.
+  pieces: np.ndarray      # (MAX_PIECES, 5) its segments ...
+  num_pieces: int         # ... of which this many are used.
+  interval: float         # s, the failsafe's slices' length.
+  plan: Plan
+  inverse: float          # 1 / cycle time.
+
+
+class SsmParameters(NamedTuple):
+  """SSM: no contact while moving; no parameters."""
+
+
+class SpeedLimitParameters(NamedTuple):
+  """PFL (docs/shield_maths.md, 9.3): the surface speed limit where
+  contact is possible."""
+  allowed: float           # m/s (ShieldMode.speed_limit).
+  s_dot_tolerance: float   # Relative (modes.S_DOT_TOLERANCE).
+
+
+class NoTables(NamedTuple):
+  """No tables of a plan (SSM)."""
+
+
+class SpeedTables(NamedTuple):
+  """PFL tables of a plan (Shield.plan_speeds): the largest capsule
+  surface speed at nominal path speed over the next samples, and from
+  each sample to the end (both (N,), m/s)."""
+  window: np.ndarray
+  suffix: np.ndarray
+
+
+# Parameter group class -> (failsafe_target, verdict), compiled functions.
+_VERIFICATIONS = {}
+
+
+def register(parameters_class, failsafe_target_fn, verdict_fn):
+  """Binds a mode's parameter group class (a typing.NamedTuple subclass)
+  to its compiled `failsafe_target` and `verdict` (numba-jitted
+  functions with the signatures of the module docstring)."""
+  if not (isinstance(parameters_class, type)
+          and issubclass(parameters_class, tuple)
+          and hasattr(parameters_class, '_fields')):
+    raise TypeError(f'mode_kernels.register: expected a NamedTuple class, '
+                    f'got {parameters_class!r}')
+  for name, fn in (('failsafe_target', failsafe_target_fn),
+                   ('verdict', verdict_fn)):
+    if not isinstance(fn, numba.core.dispatcher.Dispatcher):
+      raise TypeError(f'mode_kernels.register: {name} of '
+                      f'{parameters_class.__name__}: expected a numba-'
+                      f'jitted function, got {fn!r}')
+  if parameters_class in _VERIFICATIONS:
+    raise ValueError(f'{parameters_class.__name__} already has a compiled '
+                     'verification')
+  _VERIFICATIONS[parameters_class] = (failsafe_target_fn, verdict_fn)
+
+
+def _registered(parameters, which):
+  kind = getattr(parameters, 'instance_class', None)
+  if kind not in _VERIFICATIONS:
+    raise numba.core.errors.TypingError(
+        f'no compiled verification for mode parameters {parameters}; '
+        f'expected one of {[c.__name__ for c in _VERIFICATIONS]} '
+        '(mode_kernels.register)')
+  return _VERIFICATIONS[kind][which]
+
+
+def failsafe_target(parameters, plan, inverse, s):
+  """The mode's failsafe target (compiled code only; see the module)."""
+  raise NotImplementedError('compiled code only')
+
+
+def verdict(parameters, slices):
+  """The mode's exact verdict (compiled code only; see the module)."""
+  raise NotImplementedError('compiled code only')
+
+
+@extending.overload(failsafe_target)
+def _failsafe_target(parameters, plan, inverse, s):
+  target = _registered(parameters, 0)
+
+  def impl(parameters, plan, inverse, s):
+    return target(parameters, plan, inverse, s)
+  return impl
+
+
+@extending.overload(verdict)
+def _verdict(parameters, slices):
+  check = _registered(parameters, 1)
+
+  def impl(parameters, slices):
+    return check(parameters, slices)
+  return impl
+
+
+@_jit
+def sample_index(s, start, inverse, last):
+  """LongTermPlan.sample_index."""
+  k = int(math.floor((s - start) * inverse))
+  return 0 if k < 0 else (last if k > last else k)
+
+
+@_jit
+def ssm_first_unsafe(slices):
+  """The first slice where every human model meets a robot capsule, or
+  -1 (kernels.ssm_first_unsafe)."""
+  return kernels.ssm_first_unsafe(slices.robot_c1, slices.robot_c2,
+                                  slices.robot_r, slices.human_c1,
+                                  slices.human_c2, slices.human_r)
+
+
+# ------------------------------------------------------------------- SSM
+
+
+@_jit
+def _ssm_failsafe_target(parameters, plan, inverse, s):
+  """SSM: brake to rest."""
+  return 0.0
+
+
+@_jit
+def _ssm_verdict(parameters, slices):
+  """SSM (docs/shield_maths.md, 9.2): safe iff no slice can meet the
+  person."""
+  first = ssm_first_unsafe(slices)
+  return first < 0, first
+
+
+register(SsmParameters, _ssm_failsafe_target, _ssm_verdict)
+
+
+# ------------------------------------------------------------------- PFL
+
+
+@_jit
+def _speed_limit_failsafe_target(parameters, plan, inverse, s):
+  """modes.ShieldMode.failsafe_target with a speed limit: the largest
+  path velocity at which the rest of the plan stays under it (1 at
+  most)."""
+  remaining = plan.tables.suffix[sample_index(
+      s, plan.start, inverse, plan.samples.shape[0] - 1)]
+  allowed = parameters.allowed
+  return 1.0 if remaining <= allowed else allowed / remaining
+
+
+@_jit
+def _speed_limit_verdict(parameters, slices):
+  """modes.ShieldMode.verdict with a speed limit: SSM-safe, or from the
+  first slice where contact is possible on (and after the failsafe) the
+  robot's surface speed stays under the limit."""
+  first = ssm_first_unsafe(slices)
+  if first < 0:
+    return True, first
+  plan = slices.plan
+  start, inverse = plan.start, slices.inverse
+  last = plan.samples.shape[0] - 1
+  window, suffix = plan.tables.window, plan.tables.suffix
+  failsafe, pieces, num = slices.failsafe, slices.pieces, slices.num_pieces
+  s_edges = slices.s_edges
+  count = s_edges.shape[0] - 2
+  interval = slices.interval
+  end = failsafe[6]
+  allowed = parameters.allowed * (1.0 + parameters.s_dot_tolerance)
+  for i in range(first, count + 1):
+    if i == 0:
+      s_dot = max(slices.current[1], failsafe[1])
+    else:
+      before = i * interval if i < count else end
+      s_dot = pk.max_s_dot(pieces, num, (i - 1) * interval, before)
+    if window[sample_index(s_edges[i], start, inverse, last)] * s_dot > (
+        allowed):
+      return False, first
+  return (suffix[sample_index(s_edges[count + 1], start, inverse, last)]
+          * pk.final_s_dot(failsafe) <= allowed), first
+
+
+register(SpeedLimitParameters, _speed_limit_failsafe_target,
+         _speed_limit_verdict)
