@@ -226,8 +226,8 @@ class ParallelGripper(composer.Entity):
 
   def grasping(self, physics, bodies):
     """is_grasping for each of `bodies`, (n,) bools, from one pass over
-    the contacts (compiled: gripper_kernels.grasped, the decisions of
-    `grasping_reference`)."""
+    the contacts (compiled: gripper_kernels.grasped; its NumPy reference
+    is in tests/entities/entity_references.py)."""
     data = physics.data
     grasped = np.zeros(len(bodies), dtype=bool)
     ncon = data.ncon
@@ -247,34 +247,6 @@ class ParallelGripper(composer.Entity):
     if ids is None:
       ids = self._body_ids[key] = element_ids.ElementIds(bodies)
     return ids(physics)
-
-  def grasping_reference(self, physics, bodies):
-    """NumPy reference of `grasping` (same arguments)."""
-    data, model = physics.data, physics.model
-    grasped = np.zeros(len(bodies), dtype=bool)
-    ncon = data.ncon
-    if ncon == 0:
-      return grasped
-    contact = data.contact
-    body1 = model.geom_bodyid[contact.geom1[:ncon]]
-    body2 = model.geom_bodyid[contact.geom2[:ncon]]
-    fingers = self._finger_ids(physics)
-    if len(fingers) and not ((body1[:, None] == fingers).any()
-                             or (body2[:, None] == fingers).any()):
-      return grasped   # No finger touches anything.
-    for i, target in enumerate(self._target_ids(physics, bodies)):
-      in_target1 = self._in_subtree(model, body1, target)
-      in_target2 = self._in_subtree(model, body2, target)
-      grasped[i] = all(
-          (((body1 == finger) & in_target2)
-           | ((body2 == finger) & in_target1)).any() for finger in fingers)
-    return grasped
-
-  @staticmethod
-  def _in_subtree(model, bodies, target):
-    if model.body_rootid[target] == target:
-      return model.body_rootid[bodies] == target
-    return bodies == target
 
   def enclosing_capsule(self):
     """(p1, p2, radius) in the mount frame covering the gripper fully open
