@@ -21,11 +21,7 @@ MAX_KERNEL_PARAMETERS = 15
 # parameters, relative to the repository root; the kernel check skips
 # them until their kernels take named groups.
 KERNEL_PARAMETER_CHECK_SKIPS = (
-    'hrc_suite/control/ik_kernels.py',
-    'hrc_suite/human/player_kernels.py',
-    'hrc_suite/safety/cp_kernels.py',
     'hrc_suite/safety/energy_check_kernels.py',
-    'hrc_suite/tasks/physics_loop.py',
 )
 # Decorator names that compile a function with numba.
 _JIT_NAMES = frozenset(('jit', 'njit', 'generated_jit'))

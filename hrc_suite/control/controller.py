@@ -19,15 +19,17 @@ only through bias forces, which is negligible.
 Physics state must be forwarded (qM, qfrc_bias, qfrc_passive current), as it
 is after dm_control's `physics.step()` or `physics.forward()`.
 
-compiled=True (the tasks' fast path) computes the acceleration and the
-torque in two numba kernels around mj_mulM instead of a dozen NumPy
-calls: the same IEEE operations in the same order (fastmath=False), so
-the torques are the same bit for bit (tests/control/test_controller.py).
+compiled=True (the default) computes the acceleration and the torque in
+two numba kernels around mj_mulM (control/controller_kernels.py) instead
+of a dozen NumPy calls; compiled=False runs the NumPy calls, the readable
+reference: the same IEEE operations in the same order, so the torques are
+the same bit for bit (tests/control/test_controller.py).
 """
 
 import mujoco
-import numba
 import numpy as np
+
+from hrc_suite.control import controller_kernels
 
 # Closed-loop natural frequency and damping ratio of the joint error
 # dynamics. 60 rad/s (~10 Hz) is well below the 4 ms step's stability limit
@@ -35,33 +37,6 @@ import numpy as np
 # 10 rad/s^2 with 400 rad/s^3 ramps, i.e. ~25 ms).
 DEFAULT_NATURAL_FREQUENCY = 60.0   # rad/s
 DEFAULT_DAMPING_RATIO = 1.0        # critically damped
-
-
-_jit = numba.njit(cache=True, fastmath=False, nogil=True)
-
-
-@_jit
-def _acceleration(q_d, dq_d, ddq_d, q, dq, kp, kd, half_step, out):
-  """out = ddq_d + Kp (q_d - q) + Kd (dq_d - h/2 ddq_d - dq), in the
-  order of the NumPy calls in __call__."""
-  for i in range(out.shape[0]):
-    damping = ((ddq_d[i] * -half_step + dq_d[i]) - dq[i]) * kd
-    out[i] = ((q_d[i] - q[i]) * kp + damping) + ddq_d[i]
-
-
-@_jit
-def _torque(damping_step, acceleration, product, bias, passive, limit,
-            torque, ctrl):
-  """torque = clip(h D a + M a + c - f_passive, -limit, limit) -> ctrl."""
-  for i in range(torque.shape[0]):
-    value = (((damping_step[i] * acceleration[i]) + product[i]) + bias[i]
-             - passive[i])
-    if value < -limit[i]:
-      value = -limit[i]
-    elif value > limit[i]:
-      value = limit[i]
-    torque[i] = value
-    ctrl[i] = value
 
 
 def _contiguous(ids, what):
@@ -81,7 +56,7 @@ class JointTrackingController:
   def __init__(self, physics, robot,
                natural_frequency: float = DEFAULT_NATURAL_FREQUENCY,
                damping_ratio: float = DEFAULT_DAMPING_RATIO,
-               compiled: bool = False):
+               compiled: bool = True):
     if not natural_frequency > 0:
       raise ValueError('natural_frequency must be positive, got '
                        f'{natural_frequency}')
@@ -119,6 +94,15 @@ class JointTrackingController:
     self._torque = np.zeros(self._dof)
     self._scratch = np.zeros(self._dof)
     self._compiled = bool(compiled)
+    # The controller's gains and memory as the compiled physics loop
+    # (tasks/physics_loop.py) runs it.
+    self.gains = controller_kernels.TrackingGains(
+        float(self.kp), float(self.kd), float(self._half_step),
+        self._damping_step, self._torque_limit)
+    self.memory = controller_kernels.ControllerMemory(
+        self._q, self._dq, self._bias, self._passive, self._ctrl,
+        self._acceleration, self._arm_acceleration, self._product,
+        self._arm_product, self._torque)
 
   @property
   def torque_limit(self) -> np.ndarray:
@@ -159,20 +143,14 @@ class JointTrackingController:
     self._ctrl[:] = torque
     return torque
 
-  def kernel_arguments(self):
-    """The arrays and gains of the compiled call, in the order of
-    tasks/physics_loop.run (which runs it inside its physics loop)."""
-    return (self._q, self._dq, self._bias, self._passive, self._ctrl,
-            self._acceleration, self._arm_acceleration, self._product,
-            self._arm_product, self.kp, self.kd, self._half_step,
-            self._damping_step, self._torque_limit, self._torque)
-
   def _call_compiled(self, q_d, dq_d, ddq_d):
     """__call__'s arithmetic in the two kernels (float64 inputs)."""
-    _acceleration(q_d, dq_d, ddq_d, self._q, self._dq, self.kp, self.kd,
-                  self._half_step, self._arm_acceleration)
+    controller_kernels.acceleration(
+        q_d, dq_d, ddq_d, self._q, self._dq, self.kp, self.kd,
+        self._half_step, self._arm_acceleration)
     mujoco.mj_mulM(self._model, self._data, self._product, self._acceleration)
-    _torque(self._damping_step, self._arm_acceleration, self._arm_product,
-            self._bias, self._passive, self._torque_limit, self._torque,
-            self._ctrl)
+    controller_kernels.torque(
+        self._damping_step, self._arm_acceleration, self._arm_product,
+        self._bias, self._passive, self._torque_limit, self._torque,
+        self._ctrl)
     return self._torque

@@ -114,6 +114,14 @@ class InverseKinematics:
         [p.homogeneous[:3] for p in pin_model.jointPlacements[1:]])
     self._tcp = np.ascontiguousarray(
         pin_model.frames[model.tcp_frame_id].placement.homogeneous[:3])
+    self._chain = ik_kernels.IkChain(self._placements, self._tcp,
+                                     model.q_min, model.q_max)
+    self._settings = ik_kernels.IkSettings(
+        self._weights, self._base_damping, self._max_step,
+        self.max_iterations, self.position_tolerance,
+        self.orientation_tolerance, STALL_ITERATIONS, STALL_PROGRESS)
+    # As solve_gripper_down takes them (kernels.as_fields).
+    self._kernel_groups = (tuple(self._chain), tuple(self._settings))
 
   @property
   def model(self) -> kinematics.KinematicModel:
@@ -161,11 +169,7 @@ class InverseKinematics:
       q, success, position_error, angle_error, iterations, used = (
           ik_kernels.solve_gripper_down(
               np.ascontiguousarray(q), target, float(yaw),
-              self.half_turn_symmetric,
-              self._placements, self._tcp, self._model.q_min,
-              self._model.q_max, self._weights, self._base_damping,
-              self._max_step, self.max_iterations, self.position_tolerance,
-              self.orientation_tolerance, STALL_ITERATIONS, STALL_PROGRESS))
+              self.half_turn_symmetric, *self._kernel_groups))
       return IkResult(q, bool(success), float(position_error),
                       float(angle_error), int(iterations), float(used))
     q = np.minimum(np.maximum(q, self._model.q_min), self._model.q_max)

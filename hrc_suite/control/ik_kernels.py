@@ -10,11 +10,13 @@ the damped normal equations by Cholesky. The results agree with the
 reference to round-off (tests/control/test_ik_kernels.py), not bit for
 bit. `solve_gripper_down` is InverseKinematics.solve's compiled path in
 one call (the start clipped, the half-turn choice of the yaw, both
-runs). Same compilation settings as the shield's kernels (cache, IEEE
-arithmetic).
+runs). Both take the robot's chain (`IkChain`) and the iteration's
+settings (`IkSettings`) as named groups. Same compilation settings as
+the shield's kernels (cache, IEEE arithmetic).
 """
 
 import math
+import typing
 
 import numba
 import numpy as np
@@ -27,6 +29,27 @@ _NEAR_PI = 1e-3
 # Below this angle (rad) the logarithm is half the antisymmetric part
 # (theta / (2 sin theta) = 1/2 to double precision below ~1e-8).
 _SMALL_ANGLE = 1e-8
+
+
+class IkChain(typing.NamedTuple):
+  """The robot's revolute-z chain and joint limits (float64 arrays)."""
+  placements: np.ndarray   # (dof, 3, 4) joint placements (`forward`)
+  tcp: np.ndarray          # (3, 4) the TCP in the last joint's frame
+  q_min: np.ndarray        # (dof,) rad
+  q_max: np.ndarray        # (dof,) rad
+
+
+class IkSettings(typing.NamedTuple):
+  """The Levenberg-Marquardt iteration's settings (ik.InverseKinematics'
+  arguments and constants)."""
+  weights: np.ndarray            # (6,) position and orientation weights
+  base_damping: float
+  max_step: float                # rad, largest joint step
+  max_iterations: int
+  position_tolerance: float      # m
+  orientation_tolerance: float   # rad
+  stall_iterations: int          # iterations without progress to stop
+  stall_progress: float          # relative cost decrease that counts
 
 
 @_jit
@@ -204,13 +227,22 @@ def _step(q, error, jacobian, cost, q_min, q_max, base_damping, max_step,
 
 
 @_jit
-def solve(q_init, target, rotation, placements, tcp, q_min, q_max, weights,
-          base_damping, max_step, max_iterations, position_tolerance,
-          orientation_tolerance, stall_iterations, stall_progress):
+def solve(q_init, target, rotation, chain, settings):
   """One LM run (ik.InverseKinematics._solve_reference) from q_init (within
-  the limits) to the TCP at target (3,) with rotation (3, 3). Returns (q,
-  success, position error, angle error, iterations): the first iterate
-  within tolerance, else the lowest-cost one."""
+  the limits) to the TCP at target (3,) with rotation (3, 3), for the
+  IkChain `chain` with the IkSettings `settings`. Returns (q, success,
+  position error, angle error, iterations): the first iterate within
+  tolerance, else the lowest-cost one."""
+  placements, tcp, q_min, q_max = (chain.placements, chain.tcp, chain.q_min,
+                                   chain.q_max)
+  weights, base_damping, max_step = (settings.weights,
+                                     settings.base_damping,
+                                     settings.max_step)
+  max_iterations = settings.max_iterations
+  position_tolerance = settings.position_tolerance
+  orientation_tolerance = settings.orientation_tolerance
+  stall_iterations = settings.stall_iterations
+  stall_progress = settings.stall_progress
   dof = q_init.shape[0]
   q = q_init.copy()
   frames = np.empty((dof, 3, 4))
@@ -274,43 +306,37 @@ def _gripper_down(yaw):
 
 
 @_jit
-def solve_gripper_down(q_init, target, yaw, half_turn, placements, tcp,
-                       q_min, q_max, weights, base_damping, max_step,
-                       max_iterations, position_tolerance,
-                       orientation_tolerance, stall_iterations,
-                       stall_progress):
+def solve_gripper_down(q_init, target, yaw, half_turn, chain, settings):
   """ik.InverseKinematics.solve's compiled path in one call: q_init (dof,)
   clipped to the limits; with `half_turn` the target yaw or yaw + pi,
   whichever is nearer the start's TCP heading, and the other if that run
   fails (the run that succeeds, else the one nearer the target; the
-  iterations of both counted). Returns (q, success, position error,
-  angle error, iterations, yaw used)."""
+  iterations of both counted). chain: IkChain, settings: IkSettings, as
+  the plain tuples of their fields (safety.kernels.as_fields: called
+  every RL step). Returns (q, success, position error, angle error,
+  iterations, yaw used)."""
+  chain, settings = IkChain(*chain), IkSettings(*settings)
+  q_min, q_max = chain.q_min, chain.q_max
   dof = q_init.shape[0]
   q = np.empty(dof)
   for i in range(dof):
     q[i] = min(max(q_init[i], q_min[i]), q_max[i])
   if not half_turn:
     q_out, success, position, angle, count = solve(
-        q, target, _gripper_down(yaw), placements, tcp, q_min, q_max,
-        weights, base_damping, max_step, max_iterations, position_tolerance,
-        orientation_tolerance, stall_iterations, stall_progress)
+        q, target, _gripper_down(yaw), chain, settings)
     return q_out, success, position, angle, count, yaw
-  pose = tcp_pose(q, placements, tcp)
+  pose = tcp_pose(q, chain.placements, chain.tcp)
   seed_yaw = math.atan2(pose[1, 0], pose[0, 0])
   nearer = yaw
   if abs(_wrap(seed_yaw - yaw)) > math.pi / 2:
     nearer = _wrap(yaw + math.pi)
   q_out, success, position, angle, count = solve(
-      q, target, _gripper_down(nearer), placements, tcp, q_min, q_max,
-      weights, base_damping, max_step, max_iterations, position_tolerance,
-      orientation_tolerance, stall_iterations, stall_progress)
+      q, target, _gripper_down(nearer), chain, settings)
   if success:
     return q_out, success, position, angle, count, nearer
   other = _wrap(nearer + math.pi)
   q_other, success_other, position_other, angle_other, count_other = solve(
-      q, target, _gripper_down(other), placements, tcp, q_min, q_max,
-      weights, base_damping, max_step, max_iterations, position_tolerance,
-      orientation_tolerance, stall_iterations, stall_progress)
+      q, target, _gripper_down(other), chain, settings)
   if success_other or position_other < position:
     return (q_other, success_other, position_other, angle_other,
             count_other + count, other)

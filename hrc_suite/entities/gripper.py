@@ -267,8 +267,8 @@ class ParallelGripper(composer.Entity):
   def grasping(self, physics: mjcf.Physics,
                bodies: Sequence[mjcf.Element]) -> np.ndarray:
     """is_grasping for each of `bodies`, from one pass over the contacts
-    (compiled: gripper_kernels.grasped, the decisions of
-    `grasping_reference`).
+    (compiled: gripper_kernels.grasped; its NumPy reference is in
+    tests/entities/entity_references.py).
 
     Args:
       physics: the physics.
@@ -296,43 +296,6 @@ class ParallelGripper(composer.Entity):
     if ids is None:
       ids = self._body_ids[key] = element_ids.ElementIds(bodies)
     return ids(physics)
-
-  def grasping_reference(self, physics: mjcf.Physics,
-                         bodies: Sequence[mjcf.Element]) -> np.ndarray:
-    """NumPy reference of `grasping`.
-
-    Args:
-      physics: the physics.
-      bodies: n MJCF bodies.
-
-    Returns:
-      (n,) bools.
-    """
-    data, model = physics.data, physics.model
-    grasped = np.zeros(len(bodies), dtype=bool)
-    ncon = data.ncon
-    if ncon == 0:
-      return grasped
-    contact = data.contact
-    body1 = model.geom_bodyid[contact.geom1[:ncon]]
-    body2 = model.geom_bodyid[contact.geom2[:ncon]]
-    fingers = self._finger_ids(physics)
-    if len(fingers) and not ((body1[:, None] == fingers).any()
-                             or (body2[:, None] == fingers).any()):
-      return grasped   # No finger touches anything.
-    for i, target in enumerate(self._target_ids(physics, bodies)):
-      in_target1 = self._in_subtree(model, body1, target)
-      in_target2 = self._in_subtree(model, body2, target)
-      grasped[i] = all(
-          (((body1 == finger) & in_target2)
-           | ((body2 == finger) & in_target1)).any() for finger in fingers)
-    return grasped
-
-  @staticmethod
-  def _in_subtree(model, bodies, target):
-    if model.body_rootid[target] == target:
-      return model.body_rootid[bodies] == target
-    return bodies == target
 
   def enclosing_capsule(self) -> Tuple[np.ndarray, np.ndarray, float]:
     """A capsule in the mount frame covering the gripper fully open or

@@ -1,9 +1,10 @@
 """Compiled (numba) grasp test of the parallel gripper.
 
-`grasped` decides what ParallelGripper's NumPy reference
-(`ParallelGripper.grasping_reference`) decides, from the same contacts:
-a target body is grasped when every finger touches it (or, for a root
-body, anything in its subtree) in some contact. Only integer
+`grasped` decides what its NumPy reference (`grasping` in
+tests/entities/entity_references.py; the gripper has no NumPy path)
+decides, from the same contacts: a target body is grasped when every
+finger touches it (or, for a root body, anything in its subtree) in some
+contact. Only integer
 comparisons: the two agree exactly (tests/entities/test_gripper.py).
 Same compilation settings as the shield's kernels (safety/kernels.py).
 """

@@ -5,11 +5,12 @@ trigger between RL steps (after_step). So at the start of an RL step the
 player is advanced through all L substeps in one call
 (`Player.advance_many`: the keypoints of each substep, one array operation
 per clip), and the capsule frames of all L x S segments come from one
-vectorised `human_segments.segment_frames` call instead of L calls
-(compiled=True, the task's fast path: its kernel,
-`human_kernels.segment_frames`, the same values). Each substep only copies its rows into MuJoCo's
-mocap arrays and hands its keypoints to the shield, exactly as if the player
-had been advanced in that substep.
+vectorised call instead of L calls: compiled=True (the default) its
+kernel, `human_kernels.segment_frames`; compiled=False the NumPy
+reference `human_segments.segment_frames` (the same values). Each substep
+only copies its rows into MuJoCo's mocap arrays and hands its keypoints
+to the shield, exactly as if the player had been advanced in that
+substep.
 
 The capsule frames follow `Human.set_keypoints` (same segments, same
 reference lines: shoulder line for head, torso and arms, hip line for the
@@ -37,7 +38,7 @@ def _as_slice(ids):
 class HumanPlayback:
   """Batches a Player's keypoints over an RL step onto a Human."""
 
-  def __init__(self, human, player, substeps, compiled=False):
+  def __init__(self, human, player, substeps, compiled=True):
     self._human = human
     self._compiled = bool(compiled)
     self._player = player

@@ -85,7 +85,22 @@ class Player:
 
   def __init__(self, clips, station=(0.0, 0.0, 0.0),
                placement_range=(0.0, 0.0, 0.0), fps_out=None,
-               sequence_length=None, transition_speed=TRANSITION_SPEED):
+               sequence_length=None, transition_speed=TRANSITION_SPEED,
+               compiled: bool = True):
+    """Args:
+      clips: the clips to play (at least one).
+      station: (x, y, yaw) where the sequence is placed.
+      placement_range: (x, y, yaw) half widths of the uniform random
+        offset from the station.
+      fps_out: frames per second the clips are resampled to (None: as
+        they are).
+      sequence_length: clips per episode (None: endless).
+      transition_speed: m/s, the peak keypoint speed of a blend.
+      compiled: whether `advance_many` plays a block of steps within a
+        clip or an idle phase in one compiled call (player_kernels); False
+        runs the readable Python path, step by step (the reference, the
+        same values).
+    """
     clips = list(clips)
     if not clips:
       raise ValueError('Player needs at least one clip, got none')
@@ -119,6 +134,7 @@ class Player:
     self._from = np.zeros((k, 3))
     self._delta = np.zeros((k, 3))
     self._ready = False
+    self._compiled = bool(compiled)
     player_kernels.warm_up()   # Once per process, not mid-episode.
 
   # ---------------------------------------------------------------- episode
@@ -166,6 +182,11 @@ class Player:
     self._idle_arrays = [tuple(np.array(x, dtype=float) for x in phase)
                          for phase in zip(self._u, self._omega, self._speed)]
     self._current = self._clips[self._index]
+    prepared = self._current
+    # The clip as player_kernels take it (kernels.as_fields).
+    self._frames = tuple(player_kernels.ClipFrames(
+        prepared.fps, prepared.last, prepared.positions, prepared.steps,
+        self._rot_t, self._trans))
     self._linear = 0.0
     self._offset = 0.0
     self._phase = 0
@@ -225,7 +246,8 @@ class Player:
     if len(times) < n or len(clips) < n:
       raise ValueError(f'times and clips need {n} entries, got '
                        f'{len(times)} and {len(clips)}')
-    if (self._advance_within_clip(dt, positions, times, clips)
+    if self._compiled and (
+        self._advance_within_clip(dt, positions, times, clips)
         or self._advance_waiting(dt, positions, times, clips)):
       return
     frames = {}     # prepared clip -> (rows, frame index, fraction)
@@ -276,10 +298,8 @@ class Player:
     if self._phase < len(prepared.anchors):
       end = min(end, prepared.anchors[self._phase])
     within, linear, episode_time = player_kernels.play_within_clip(
-        self._linear, self._offset, self._episode_time, float(dt), end,
-        prepared.fps, prepared.last, prepared.positions, prepared.steps,
-        self._rot_t, self._trans, positions, times[:n], self._positions,
-        self._velocities)
+        self._clock(), float(dt), end, self._frames, self._played(
+            positions, times[:n]))
     if not within:
       return False
     self._linear, self._episode_time = linear, episode_time
@@ -296,15 +316,25 @@ class Player:
         or self._finished):
       return False
     prepared = self._current
-    amplitudes, omegas, speeds = self._idle_arrays[self._phase]
+    waves = tuple(player_kernels.IdleWaves(self._anchor,
+                                           *self._idle_arrays[self._phase]))
     self._linear, self._episode_time = player_kernels.play_waiting(
-        self._linear, self._offset, self._anchor, self._episode_time,
-        float(dt), amplitudes, omegas, speeds, prepared.duration,
-        prepared.fps, prepared.last, prepared.positions, prepared.steps,
-        self._rot_t, self._trans, positions, times[:n], self._positions,
-        self._velocities)
+        self._clock(), float(dt), waves, prepared.duration, self._frames,
+        self._played(positions, times[:n]))
     clips[:n] = [prepared.clip] * n
     return True
+
+  def _clock(self):
+    """The clock, as player_kernels take it (kernels.as_fields)."""
+    return tuple(player_kernels.PlayerClock(self._linear, self._offset,
+                                            self._episode_time))
+
+  def _played(self, positions, times):
+    """player_kernels' outputs (the steps' rows, then the player's), as
+    they take them (kernels.as_fields)."""
+    return tuple(player_kernels.PlayedSteps(positions, times,
+                                            self._positions,
+                                            self._velocities))
 
   def _check_advance(self, dt):
     if not self._ready:

@@ -7,12 +7,20 @@ product to BLAS, whose rounding depends on the BLAS kernel the CPU gets;
 order of OpenBLAS's Haswell/Zen kernel (on such CPUs it equals np.matmul
 bit for bit, and it is the same on every CPU). `play_within_clip` is
 `Player._advance_within_clip` (an RL step's frames inside one clip) and
-the outputs after it, the same operations in the same order. Same
+the outputs after it, `play_waiting` its steps in an idle phase, the same
+operations in the same order as the Player's Python path (its
+`compiled=False` reference). They take named groups: the clip being
+played (`ClipFrames`), the player's clock (`PlayerClock`), the idle
+phase's waves (`IdleWaves`) and the arrays they write (`PlayedSteps`),
+each as the plain tuple of its fields (kernels.as_fields: they are
+called every RL step).
+Same
 compilation settings as the shield's kernels (safety/kernels.py: cache,
 IEEE arithmetic: no contraction but the explicit fma).
 """
 
 import math
+import typing
 
 import numpy as np
 from numba import types
@@ -21,6 +29,43 @@ from numba.extending import intrinsic
 from hrc_suite.safety import kernels
 
 _jit = kernels._jit
+
+
+class ClipFrames(typing.NamedTuple):
+  """A clip's frames as played (player._Prepared) and where it is placed
+  (Player._set_placement)."""
+  fps: float               # frames per second
+  last: int                # the last frame an interpolation starts at
+  positions: np.ndarray    # (T, K, 3) keypoints per frame
+  steps: np.ndarray        # (T - 1, K, 3) change per frame
+  rot_t: np.ndarray        # (3, 3) placement rotation, transposed
+  trans: np.ndarray        # (3,) placement translation
+
+
+class PlayerClock(typing.NamedTuple):
+  """The player's clock: linear time since the clip started, the clip
+  time's offset from it, and the episode time (s)."""
+  linear: float
+  offset: float
+  episode_time: float
+
+
+class IdleWaves(typing.NamedTuple):
+  """An idle phase's clip time t_I + sum u sin(w s) (Player._warped) and
+  rate sum S cos(w s): its keyframe time and waves."""
+  anchor: float              # t_I, s
+  amplitudes: np.ndarray     # u (s)
+  omegas: np.ndarray         # w (rad/s)
+  speeds: np.ndarray         # S
+
+
+class PlayedSteps(typing.NamedTuple):
+  """What the playback writes: each step's keypoints and episode time,
+  and the player's outputs after the last step."""
+  positions: np.ndarray        # (n, K, 3)
+  times: np.ndarray            # (n,)
+  now_positions: np.ndarray    # (K, 3)
+  now_velocities: np.ndarray   # (K, 3)
 
 
 @intrinsic
@@ -93,21 +138,24 @@ def _velocities(index, rate, clip_steps, rot_t, local, out):
 
 
 @_jit
-def play_within_clip(linear, offset, episode_time, dt, end, fps, last,
-                     clip_positions, clip_steps, rot_t, trans, positions,
-                     times, now_positions, now_velocities):
-  """Player._advance_within_clip for len(times) steps of dt: returns
-  (True, linear, episode time) after writing each step's keypoints
-  (n, K, 3) and episode time, and the player's outputs after the last
-  (positions and velocities (K, 3)); (False, linear, episode_time),
-  writing nothing, if the clip time reaches `end` within the steps."""
+def play_within_clip(clock, dt, end, clip, out):
+  """Player._advance_within_clip for len(out.times) steps of dt from the
+  PlayerClock `clock` in the ClipFrames `clip`: returns (True, linear,
+  episode time) after writing each step's keypoints (n, K, 3) and
+  episode time, and the player's outputs after the last (positions and
+  velocities (K, 3)) into the PlayedSteps `out`; (False, linear,
+  episode_time), writing nothing, if the clip time reaches `end` within
+  the steps. Groups as fields (kernels.as_fields)."""
+  clock, clip, out = PlayerClock(*clock), ClipFrames(*clip), PlayedSteps(*out)
+  linear, offset, episode_time = clock.linear, clock.offset, clock.episode_time
+  positions, times = out.positions, out.times
   n = times.shape[0]
-  clock = linear
+  clock_time = linear
   for _ in range(n):
-    clock += dt
-  if not clock - offset < end:   # The clip time grows: the last decides.
+    clock_time += dt
+  if not clock_time - offset < end:   # The clip time grows: the last decides.
     return False, linear, episode_time
-  local = np.empty((clip_positions.shape[1], 3))
+  local = np.empty((clip.positions.shape[1], 3))
   t = 0.0
   index = 0
   for k in range(n):
@@ -115,28 +163,33 @@ def play_within_clip(linear, offset, episode_time, dt, end, fps, last,
     episode_time += dt
     times[k] = episode_time
     t = linear - offset
-    index = _pose(t, fps, last, clip_positions, clip_steps, rot_t, trans,
-                  local, positions[k])
+    index = _pose(t, clip.fps, clip.last, clip.positions, clip.steps,
+                  clip.rot_t, clip.trans, local, positions[k])
   # The outputs (Player._update_outputs): the last step's keypoints, and
   # the interpolation's derivative at clip rate 1 (0 before the clip).
-  now_positions[:] = positions[n - 1]
-  _velocities(index, (0.0 if t < 0.0 else 1.0) * fps, clip_steps, rot_t,
-              local, now_velocities)
+  out.now_positions[:] = positions[n - 1]
+  _velocities(index, (0.0 if t < 0.0 else 1.0) * clip.fps, clip.steps,
+              clip.rot_t, local, out.now_velocities)
   return True, linear, episode_time
 
 
 @_jit
-def play_waiting(linear, offset, anchor, episode_time, dt, amplitudes,
-                 omegas, speeds, duration, fps, last, clip_positions,
-                 clip_steps, rot_t, trans, positions, times, now_positions,
-                 now_velocities):
-  """advance_many for len(times) steps of dt in an idle phase (the wait
-  lasts until an event, which comes between RL steps): each step's clip
-  time t_I + sum u sin(w s) (Player._warped, clamped to the clip as
-  Player._clip_time_and_rate) and keypoints, as play_within_clip.
-  Returns (linear, episode time)."""
+def play_waiting(clock, dt, waves, duration, clip, out):
+  """advance_many for len(out.times) steps of dt from the PlayerClock
+  `clock` in an idle phase of the ClipFrames `clip` (the wait lasts until
+  an event, which comes between RL steps): each step's clip time t_I +
+  sum u sin(w s) (IdleWaves; Player._warped, clamped to the clip's
+  `duration` as Player._clip_time_and_rate) and keypoints, as
+  play_within_clip, into the PlayedSteps `out`. Returns (linear, episode
+  time). Groups as fields (kernels.as_fields)."""
+  clock, waves = PlayerClock(*clock), IdleWaves(*waves)
+  clip, out = ClipFrames(*clip), PlayedSteps(*out)
+  linear, offset, episode_time = clock.linear, clock.offset, clock.episode_time
+  anchor, amplitudes, omegas, speeds = (waves.anchor, waves.amplitudes,
+                                        waves.omegas, waves.speeds)
+  positions, times = out.positions, out.times
   n = times.shape[0]
-  local = np.empty((clip_positions.shape[1], 3))
+  local = np.empty((clip.positions.shape[1], 3))
   t = 0.0
   rate = 0.0
   index = 0
@@ -155,10 +208,11 @@ def play_waiting(linear, offset, anchor, episode_time, dt, amplitudes,
       t, rate = 0.0, (0.0 if t < 0.0 else rate)
     elif t >= duration:
       t, rate = duration, (0.0 if t > duration else rate)
-    index = _pose(t, fps, last, clip_positions, clip_steps, rot_t, trans,
-                  local, positions[k])
-  now_positions[:] = positions[n - 1]
-  _velocities(index, rate * fps, clip_steps, rot_t, local, now_velocities)
+    index = _pose(t, clip.fps, clip.last, clip.positions, clip.steps,
+                  clip.rot_t, clip.trans, local, positions[k])
+  out.now_positions[:] = positions[n - 1]
+  _velocities(index, rate * clip.fps, clip.steps, clip.rot_t, local,
+              out.now_velocities)
   return linear, episode_time
 
 
@@ -180,10 +234,11 @@ def warm_up():
   now = np.zeros((keypoints, 3))
   place(now, rot_t, trans, np.empty((keypoints, 3)))
   rotate(now, rot_t, np.empty((keypoints, 3)))
-  play_within_clip(0.0, 0.0, 0.0, 0.004, 1.0, 1.0, frames - 1, clip, clip,
-                   rot_t, trans, positions, times, now, np.zeros_like(now))
+  clock = tuple(PlayerClock(0.0, 0.0, 0.0))
+  frames_ = tuple(ClipFrames(1.0, frames - 1, clip, clip, rot_t, trans))
+  out = tuple(PlayedSteps(positions, times, now, np.zeros_like(now)))
+  play_within_clip(clock, 0.004, 1.0, frames_, out)
   waves = np.zeros(1)
-  play_waiting(0.0, 0.0, 0.0, 0.0, 0.004, waves, waves, waves, 1.0, 1.0,
-               frames - 1, clip, clip, rot_t, trans, positions, times, now,
-               np.zeros_like(now))
+  play_waiting(clock, 0.004, tuple(IdleWaves(0.0, waves, waves, waves)),
+               1.0, frames_, out)
   _warm = True

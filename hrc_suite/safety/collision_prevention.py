@@ -58,6 +58,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import geometry
+from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
 
@@ -123,6 +124,14 @@ def _lever_sum(x, levers):
   return total
 
 
+def _polynomial(plan):
+  """The compiled sweep's PlanPolynomial of a LongTermPlan."""
+  cycle = plan.cycle_time
+  return cp_kernels.PlanPolynomial(
+      plan._all(), plan.start_time, plan._inverse_cycle, cycle, cycle ** 2,
+      cycle ** 3, plan.num_samples - 1)
+
+
 class CollisionPrevention:
   """Checks goals and straight joint paths; replaces unsafe actions."""
 
@@ -149,6 +158,18 @@ class CollisionPrevention:
                       table)
     self._setup_levers()
     self._setup_pairs(int(exclusion_samples), seed)
+    # The compiled plan sweep's fixed groups (cp_kernels), as it takes
+    # them (kernels.as_fields).
+    fixed, points = self.reach._kernel_model
+    self._sweep_groups = kernels.as_fields((
+        cp_kernels.SweepSettings(self.levers, self._kernel_pair_levers,
+                                 self.max_step, _REFINE_OFFSETS,
+                                 REFINE_LEVELS, SWEEP_RUN),
+        cp_kernels.RobotCapsules(fixed, points, self.reach._kernel_frames,
+                                 self._kernel_radii),
+        cp_kernels.CollisionTests(self.box_min, self.box_max,
+                                  self._box_checked, self._box_allowance,
+                                  self._kernel_pairs)))
     self.num_checks = 0
     self.num_replacements = 0
 
@@ -525,15 +546,8 @@ class CollisionPrevention:
     """1 if a plan from start (1, dof) collides, 0 if not, -1 if the start
     collides (then `_planned_sweep` decides): the compiled sweep of
     `_planned_sweep` (cp_kernels.planned_path_collides)."""
-    cycle = plan.cycle_time
     return cp_kernels.planned_path_collides(
-        start, plan._all(), plan.start_time, plan._inverse_cycle, cycle,
-        cycle ** 2, cycle ** 3, plan.num_samples - 1, self.levers,
-        self._kernel_pair_levers, self.max_step, _REFINE_OFFSETS,
-        REFINE_LEVELS, SWEEP_RUN, *self.reach._kernel_model,
-        self.reach._kernel_frames, self._kernel_radii, self.box_min,
-        self.box_max, self._box_checked, self._box_allowance,
-        self._kernel_pairs)
+        start, tuple(_polynomial(plan)), *self._sweep_groups)
 
   def _planned_sweep(self, q0, plans, cycle):
     """Collision flags of plans (None: not made, not flagged) from q0, by

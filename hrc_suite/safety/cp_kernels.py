@@ -11,7 +11,9 @@ operations in the same order (`segment_box_distance`); capsule pairs use
 
 `planned_path_collides` is collision prevention's whole sweep of one
 long-term plan (`CollisionPrevention._planned_sweep`, the reference) in
-one call: the plan's per-cycle Taylor polynomial sampled from its samples
+one call, its arguments in named groups (`PlanPolynomial`,
+`SweepSettings`, `RobotCapsules`, `CollisionTests`): the plan's
+per-cycle Taylor polynomial sampled from its samples
 (LongTermPlan.nominal), the margins of its motion bound, the checks and
 their refinement, the same operations in the same order, so that it
 rejects exactly the plans the reference rejects. A conservative broad
@@ -21,6 +23,7 @@ settings as `kernels` (cache, IEEE arithmetic).
 """
 
 import math
+import typing
 
 import numpy as np
 
@@ -28,6 +31,46 @@ from hrc_suite.safety import cp_bounds
 from hrc_suite.safety import kernels
 
 _jit = kernels._jit
+
+
+class PlanPolynomial(typing.NamedTuple):
+  """A long-term plan's per-cycle Taylor polynomial (LongTermPlan.nominal;
+  collision_prevention._polynomial)."""
+  coefficients: np.ndarray   # (N, 4, dof) q, dq, ddq, jerk per cycle
+  start_time: float          # s, plan time of sample 0
+  inverse_cycle: float       # 1/s
+  cycle: float               # s
+  cycle2: float              # cycle ** 2
+  cycle3: float              # cycle ** 3
+  last: int                  # N - 1
+
+
+class SweepSettings(typing.NamedTuple):
+  """How a plan is swept (collision_prevention's constants and levers)."""
+  levers: np.ndarray        # (dof, L) capsule motion per joint motion
+  pair_levers: np.ndarray   # (dof, P) relative motion of each pair
+  max_step: float           # m, largest capsule motion between samples
+  offsets: np.ndarray       # (R,) sub-sample positions in half widths
+  levels: int               # refinement levels
+  run: int                  # samples per run of the broad phase
+
+
+class RobotCapsules(typing.NamedTuple):
+  """The robot's capsule model (robot_reach.RobotReach's kernel model)."""
+  fixed: np.ndarray         # (dof, 3, 4) fixed joint transforms
+  points: np.ndarray        # (L, 2, 4) capsule ends in their frames
+  frame_index: np.ndarray   # (L,) int64 each capsule's frame
+  radii: np.ndarray         # (L,)
+
+
+class CollisionTests(typing.NamedTuple):
+  """The tests of a configuration: capsules against the workcell's boxes,
+  and the checked capsule pairs."""
+  box_min: np.ndarray         # (Bx, 3)
+  box_max: np.ndarray         # (Bx, 3)
+  box_checked: np.ndarray     # (Bx, L) bool
+  box_allowance: np.ndarray   # (Bx, L) m of allowed penetration
+  pairs: np.ndarray           # (P, 2) int64
 
 
 @_jit
@@ -186,16 +229,16 @@ def _lever_sum(x, levers, column):
 
 
 @_jit
-def _plan_point(coefficients, start_time, inverse_cycle, cycle, last, s,
-                half, row, q, reach):
-  """The plan's Taylor polynomial at plan time s (LongTermPlan.nominal)
-  into q[row], and the reach of its motion within `half` of s into
-  reach[row] (the motion bound of planned_paths_free's `evaluate`, whose
-  lever sums are the margins: `_margins`)."""
+def _plan_point(plan, s, half, row, q, reach):
+  """The plan's Taylor polynomial (PlanPolynomial) at plan time s
+  (LongTermPlan.nominal) into q[row], and the reach of its motion within
+  `half` of s into reach[row] (the motion bound of planned_paths_free's
+  `evaluate`, whose lever sums are the margins: `_margins`)."""
+  coefficients = plan.coefficients
   dof = coefficients.shape[2]
-  k = math.floor((s - start_time) * inverse_cycle)
-  k = int(min(max(k, 0.0), float(last)))
-  tau = s - start_time - k * cycle
+  k = math.floor((s - plan.start_time) * plan.inverse_cycle)
+  k = int(min(max(k, 0.0), float(plan.last)))
+  tau = s - plan.start_time - k * plan.cycle
   for d in range(dof):
     c0, c1 = coefficients[k, 0, d], coefficients[k, 1, d]
     c2, j = coefficients[k, 2, d], coefficients[k, 3, d]
@@ -217,15 +260,20 @@ def _margins(reach, row, levers, pair_levers, capsule_margin, pair_margin,
 
 
 @_jit
-def _cycle_pieces(coefficients, start_time, inverse_cycle, cycle, cycle2,
-                  cycle3, last, levers, max_step):
+def _cycle_pieces(plan, levers, max_step):
   """Samples per plan cycle (planned_paths_free's `pieces`): the motion
-  over a whole cycle bounded from the cycle's sample, over max_step.
+  over a whole cycle of the plan (PlanPolynomial) bounded from the
+  cycle's sample, over max_step.
 
   A cycle whose travel moves no capsule more than max_step even with each
   joint's largest lever needs one sample without the per-capsule sums:
   floating-point products and sums of non-negative numbers are monotone,
   so every capsule's computed sum is at most that one."""
+  coefficients, start_time, inverse_cycle = (plan.coefficients,
+                                             plan.start_time,
+                                             plan.inverse_cycle)
+  cycle, cycle2, cycle3, last = (plan.cycle, plan.cycle2, plan.cycle3,
+                                 plan.last)
   count = last + 1
   dof = coefficients.shape[2]
   pieces = np.empty(count, dtype=np.int64)
@@ -255,14 +303,13 @@ def _cycle_pieces(coefficients, start_time, inverse_cycle, cycle, cycle2,
 
 
 @_jit
-def sweep_samples(coefficients, start_time, inverse_cycle, cycle, cycle2,
-                  cycle3, last, levers, max_step):
-  """The plan sweep's base samples: (plan times (S,), half widths (S,),
-  configurations q (S, dof), reach (S, dof) (`_plan_point`)), each cycle
-  cut into `_cycle_pieces` samples."""
-  dof = coefficients.shape[2]
-  pieces = _cycle_pieces(coefficients, start_time, inverse_cycle, cycle,
-                         cycle2, cycle3, last, levers, max_step)
+def sweep_samples(plan, levers, max_step):
+  """The plan sweep's base samples of a PlanPolynomial: (plan times (S,),
+  half widths (S,), configurations q (S, dof), reach (S, dof)
+  (`_plan_point`)), each cycle cut into `_cycle_pieces` samples."""
+  dof = plan.coefficients.shape[2]
+  start_time, cycle = plan.start_time, plan.cycle
+  pieces = _cycle_pieces(plan, levers, max_step)
   total = 0
   for i in range(pieces.shape[0]):
     total += pieces[i]
@@ -278,8 +325,7 @@ def sweep_samples(coefficients, start_time, inverse_cycle, cycle, cycle2,
   q = np.empty((total, dof))
   reach = np.empty((total, dof))
   for n in range(total):
-    _plan_point(coefficients, start_time, inverse_cycle, cycle, last,
-                params[n], halves[n], n, q, reach)
+    _plan_point(plan, params[n], halves[n], n, q, reach)
   return params, halves, q, reach
 
 
@@ -298,16 +344,23 @@ def run_motion(q, reach, first, stop, centre, motion):
 
 
 @_jit
-def _refine_collides(coefficients, start_time, inverse_cycle, cycle, last,
-                     levers, pair_levers, offsets, levels, fixed, points,
-                     frame_index, radii, box_min, box_max, box_checked,
-                     box_allowance, pairs, base_ends, base_s, base_half):
+def _refine_collides(plan, sweep, robot, tests, base_ends, base_s,
+                     base_half):
   """Whether a base sample (plan time base_s, half width base_half, ends
   base_ends (1, L, 2, 3)) that hits with its margins collides: a hit
   without margins does; else its len(offsets) sub-samples are checked
   with their margins, `levels` times, and at the last level a hit with
-  margins collides. Depth first, with an early exit."""
-  dof = coefficients.shape[2]
+  margins collides. Depth first, with an early exit. plan:
+  PlanPolynomial, sweep: SweepSettings, robot: RobotCapsules, tests:
+  CollisionTests."""
+  levers, pair_levers = sweep.levers, sweep.pair_levers
+  offsets, levels = sweep.offsets, sweep.levels
+  fixed, points, frame_index, radii = (robot.fixed, robot.points,
+                                       robot.frame_index, robot.radii)
+  box_min, box_max, box_checked, box_allowance, pairs = (
+      tests.box_min, tests.box_max, tests.box_checked, tests.box_allowance,
+      tests.pairs)
+  dof = plan.coefficients.shape[2]
   count_l = levers.shape[1]
   count_p = pair_levers.shape[1]
   no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
@@ -333,8 +386,7 @@ def _refine_collides(coefficients, start_time, inverse_cycle, cycle, last,
       sample_ends = base_ends
       first = False
     else:
-      _plan_point(coefficients, start_time, inverse_cycle, cycle, last, s,
-                  half, 0, one_q, one_reach)
+      _plan_point(plan, s, half, 0, one_q, one_reach)
       _margins(one_reach, 0, levers, pair_levers, one_capsule, one_pair, 0)
       sample_ends = kernels._endpoints(kernels._frames(one_q, fixed),
                                        points, frame_index)
@@ -356,30 +408,38 @@ def _refine_collides(coefficients, start_time, inverse_cycle, cycle, last,
 
 
 @_jit
-def planned_path_collides(start, coefficients, start_time, inverse_cycle,
-                          cycle, cycle2, cycle3, last, levers, pair_levers,
-                          max_step, offsets, levels, run, fixed, points,
-                          frame_index, radii, box_min, box_max, box_checked,
-                          box_allowance, pairs):
-  """Whether a plan (samples (N, 4, dof) one cycle apart from start_time)
-  from configuration start (1, dof) collides: 1 if it does, 0 if not, -1
-  if the start itself collides (not swept: the escape rule's reference
-  sweep decides then). collision_prevention.planned_paths_free's sweep
-  for a start not in collision, in one call. Each cycle is cut into
-  samples moving no capsule point more than max_step (cycle2, cycle3:
-  cycle**2, cycle**3); a sample colliding with its margins is checked
+def planned_path_collides(start, plan, sweep, robot, tests):
+  """Whether a plan (PlanPolynomial: samples (N, 4, dof) one cycle apart
+  from start_time) from configuration start (1, dof) collides: 1 if it
+  does, 0 if not, -1 if the start itself collides (not swept: the escape
+  rule's reference sweep decides then). collision_prevention.
+  planned_paths_free's sweep for a start not in collision, in one call,
+  with the SweepSettings `sweep`, the robot's RobotCapsules and the
+  CollisionTests. Each cycle is cut into samples moving no capsule point
+  more than max_step; a sample colliding with its margins is checked
   exactly (a hit: the path collides) and else refined into len(offsets)
   sub-samples, `levels` times; at the last level a hit with margins
-  collides
-  (`_refine_collides`). A path collides iff some sample of the
+  collides (`_refine_collides`). A path collides iff some sample of the
   refinement tree does, as in the reference's level-by-level sweep; here
   all samples are checked exactly before any is refined (an early exit
   at the first hit without margins, and most colliding plans have one).
 
   Broad phase: runs of `run` samples are checked at their centre sample
   first (cp_bounds.unproven); only the tests it cannot prove free are
-  done at each sample of the run, so the same samples hit."""
-  dof = coefficients.shape[2]
+  done at each sample of the run, so the same samples hit.
+
+  The groups are the plain tuples of their fields (kernels.as_fields:
+  called for every goal checked)."""
+  plan, sweep = PlanPolynomial(*plan), SweepSettings(*sweep)
+  robot, tests = RobotCapsules(*robot), CollisionTests(*tests)
+  levers, pair_levers = sweep.levers, sweep.pair_levers
+  levels, run = sweep.levels, sweep.run
+  fixed, points, frame_index, radii = (robot.fixed, robot.points,
+                                       robot.frame_index, robot.radii)
+  box_min, box_max, box_checked, box_allowance, pairs = (
+      tests.box_min, tests.box_max, tests.box_checked, tests.box_allowance,
+      tests.pairs)
+  dof = plan.coefficients.shape[2]
   count_l = levers.shape[1]
   count_p = pair_levers.shape[1]
   no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
@@ -391,9 +451,7 @@ def planned_path_collides(start, coefficients, start_time, inverse_cycle,
   if _hit(ends, 0, radii, zero_l, zero_p, box_min, box_max, box_checked,
           box_allowance, pairs, no_boxes, no_pairs):
     return -1
-  params, halves, q, reach = sweep_samples(
-      coefficients, start_time, inverse_cycle, cycle, cycle2, cycle3, last,
-      levers, max_step)
+  params, halves, q, reach = sweep_samples(plan, levers, sweep.max_step)
   total = params.shape[0]
   motion = np.empty((1, dof))
   capsule_motion = np.empty((1, count_l))
@@ -437,10 +495,7 @@ def planned_path_collides(start, coefficients, start_time, inverse_cycle,
     n = pending[k]
     ends = kernels._endpoints(kernels._frames(q[n:n + 1], fixed), points,
                               frame_index)
-    if _refine_collides(coefficients, start_time, inverse_cycle, cycle,
-                        last, levers, pair_levers, offsets, levels, fixed,
-                        points, frame_index, radii, box_min, box_max,
-                        box_checked, box_allowance, pairs, ends, params[n],
+    if _refine_collides(plan, sweep, robot, tests, ends, params[n],
                         halves[n]):
       return 1
   return 0
@@ -483,14 +538,16 @@ def warm_up():
               np.ones((count_x, count_l), dtype=bool),
               floats((count_x, count_l)),
               np.zeros((count_p, 2), dtype=np.int64), boxes, pairs)
-  planned_path_collides(
-      floats((1, dof)), floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1,
-      floats((dof, count_l)), floats((dof, count_p)), 1.0, floats(2), 1, 1,
-      floats((dof, 3, 4)), floats((count_l, 2, 4)),
-      np.zeros(count_l, dtype=np.int64), floats(count_l),
-      floats((count_x, 3)), floats((count_x, 3)),
-      np.ones((count_x, count_l), dtype=bool), floats((count_x, count_l)),
-      np.zeros((count_p, 2), dtype=np.int64))
+  planned_path_collides(floats((1, dof)), *kernels.as_fields((
+      PlanPolynomial(floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1),
+      SweepSettings(floats((dof, count_l)), floats((dof, count_p)), 1.0,
+                    floats(2), 1, 1),
+      RobotCapsules(floats((dof, 3, 4)), floats((count_l, 2, 4)),
+                    np.zeros(count_l, dtype=np.int64), floats(count_l)),
+      CollisionTests(floats((count_x, 3)), floats((count_x, 3)),
+                     np.ones((count_x, count_l), dtype=bool),
+                     floats((count_x, count_l)),
+                     np.zeros((count_p, 2), dtype=np.int64)))))
   limit = floats(dof)
   limit.flags.writeable = False   # JointLimits' arrays are read-only.
   within_limits(floats((1, dof)), limit, limit)

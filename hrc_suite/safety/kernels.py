@@ -47,6 +47,17 @@ _inline = numba.njit(cache=True, fastmath=False, nogil=True, inline='always')
 _MIN_SPEED = 1e-12
 
 
+def as_fields(group):
+  """A named group of kernel arguments (a typing.NamedTuple, named tuples
+  inside it too) as plain tuples of its fields, the form in which the
+  kernels called every RL step take their groups: numba's dispatcher
+  types a plain tuple in C, a named tuple with Python work each call
+  (docs/architecture.md, "Kernels and their references"). The kernel
+  names it again (`Group(*fields)`)."""
+  return tuple(as_fields(value) if isinstance(value, tuple) else value
+               for value in group)
+
+
 @_jit
 def _clamp01(x):
   return min(max(x, 0.0), 1.0)

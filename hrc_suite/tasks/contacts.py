@@ -40,17 +40,19 @@ Robot geoms never collide with each other in MuJoCo (collision_groups), so
 self-collision is judged geometrically by the task from the robot's capsule
 model (the one collision prevention uses), once per RL step.
 
-compiled=True (the tasks' fast path) classifies the contacts' geom pairs
-in one numba call over a table of every pair's type instead of a dozen
-NumPy calls; robot-human contacts are then judged as above (the same
-flags, tests/tasks/test_base.py).
+compiled=True (the default) classifies the contacts' geom pairs in one
+numba call over a table of every pair's type (tasks/contact_kernels.py)
+instead of a dozen NumPy calls; compiled=False runs the NumPy calls, the
+readable reference. Robot-human contacts are then judged as above (the
+same flags, tests/tasks/test_base.py).
 """
 
 import enum
 
 import mujoco
-import numba
 import numpy as np
+
+from hrc_suite.tasks import contact_kernels
 
 # Geom categories (what a geom belongs to; not contact types).
 NONE, STATIC, ROBOT, OBJECT, HUMAN = range(5)
@@ -86,38 +88,12 @@ _PUSHED = int(ContactType.human_pushed)
 SSM_STOPPED_SPEED = 0.001   # m/s
 
 
-@numba.njit(cache=True, nogil=True)
-def _classify(geom, pair_types, flags):
-  """flags[type] for each contact's geom pair (geom (ncon, 2)); returns
-  whether one is a robot-human pair (flagged human_allowed)."""
-  human = False
-  for i in range(geom.shape[0]):
-    kind = pair_types[geom[i, 0], geom[i, 1]]
-    if kind >= 0:
-      flags[kind] = True
-      human |= kind == _ALLOWED
-  return human
-
-
-@numba.njit(cache=True, nogil=True)
-def commanded_speed(jacobian, dofs, dq_command):
-  """|J[:, dofs] dq_command| (m/s), summed joint by joint in order (the
-  same value in the Python loop and tasks/physics_loop.py)."""
-  v0 = v1 = v2 = 0.0
-  for k in range(dofs.shape[0]):
-    column = dofs[k]
-    v0 += jacobian[0, column] * dq_command[k]
-    v1 += jacobian[1, column] * dq_command[k]
-    v2 += jacobian[2, column] * dq_command[k]
-  return np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-
-
 class ContactMonitor:
   """Counts contacts by type for one compiled physics."""
 
   def __init__(self, physics, static_geoms, robot_geoms, object_geoms=(),
                human_geoms=(), critical_speed=SSM_STOPPED_SPEED,
-               robot_dofs=None, robot_qpos=None, compiled=False):
+               robot_dofs=None, robot_qpos=None, compiled=True):
     """robot_dofs, robot_qpos: the robot's joints' dof and qpos addresses
     (the order of dq and q commands); robot_dofs None: every dof. Judging
     at a commanded configuration needs robot_qpos. compiled: classify
@@ -155,13 +131,10 @@ class ContactMonitor:
     self._commanded = None   # MjData posed at a commanded configuration.
     self._flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
     self.max_human_contact_speed = 0.0
-
-  def kernel_arguments(self):
-    """What tasks/physics_loop.run judges contacts with: the type of every
-    geom pair (ngeom, ngeom; -1: none), geom categories and bodies, the
-    robot's dofs, a Jacobian buffer and critical_speed."""
-    return (self._pair_types, self._categories, self._geom_body,
-            self._dofs, self._jacobian, self.critical_speed)
+    # What tasks/physics_loop.run judges contacts with.
+    self.tables = contact_kernels.ContactTables(
+        self._pair_types, self._categories, self._geom_body, self._dofs,
+        self._jacobian, self.critical_speed)
 
   def reset(self):
     """Starts a new interval for `max_human_contact_speed`."""
@@ -188,8 +161,9 @@ class ContactMonitor:
       point = posed.xpos[body] + posed.xmat[body].reshape(3, 3) @ local
       data = posed
     mujoco.mj_jac(self._model, data, self._jacobian, None, point, body)
-    return float(commanded_speed(self._jacobian, self._dofs,
-                                 np.asarray(dq_command, dtype=np.float64)))
+    return float(contact_kernels.commanded_speed(
+        self._jacobian, self._dofs, np.asarray(dq_command,
+                                               dtype=np.float64)))
 
   def _posed(self, q_command):
     """A scratch MjData with the measured state and the robot at q_command
@@ -240,8 +214,8 @@ class ContactMonitor:
     if ncon == 0:
       return flags
     contact = data.contact
-    if self._compiled and not _classify(contact.geom, self._pair_types,
-                                        flags):
+    if self._compiled and not contact_kernels.classify(
+        contact.geom, self._pair_types, flags):
       return flags   # No robot-human contact to judge by speed.
     geom1, geom2 = contact.geom1[:ncon], contact.geom2[:ncon]
     cat1, cat2 = self._categories[geom1], self._categories[geom2]

@@ -5,7 +5,7 @@ On the fast path the task runs the L physics steps of an RL step itself
 Python, `CompiledSteps.run` runs a stretch of them in one numba call:
 per step the person's mocap rows (HumanPlayback's precomputed arrays),
 the shield's precomputed set-point, the controller's torque
-(control/controller.py's kernels around mj_mulM), MuJoCo's mj_step2 and
+(control/controller_kernels.py around mj_mulM), MuJoCo's mj_step2 and
 mj_step1 (dm_control's legacy step; libmujoco's own functions, called
 by name from compiled code), dm_control's warning check, then the task's
 after_substep: the tracking bound (over the tolerance, the exact
@@ -13,7 +13,11 @@ distance, Shield.tracking_error's kernel) and the contacts' classification,
 robot-human contacts judged by the commanded speed at the contact point
 (mj_jac, as tasks/contacts.py). The arithmetic is the Python loop's,
 operation for operation, so both give the same states bit for bit
-(tests/tasks/test_fast_path.py).
+(tests/tasks/test_fast_path.py). `run` takes its arguments in named
+groups (MuJoCo's pointers, the person's mocap rows, the shield's
+set-points, the controller's memory and gains, the tracking check, the
+contacts' layout and tables, the step record, the task's writes and
+hold), which `CompiledSteps` builds once per physics.
 
 The call stops and hands back to Python, which runs the rest exactly as
 before, at a step that needs it:
@@ -48,6 +52,7 @@ runs. The mj_* functions are libmujoco's own, the copy the bindings use.
 import ctypes
 import functools
 import os
+import typing
 
 from llvmlite import binding as llvm
 import mujoco
@@ -55,8 +60,9 @@ import numba
 from numba.core import types
 import numpy as np
 
-from hrc_suite.control import controller as controller_lib
+from hrc_suite.control import controller_kernels
 from hrc_suite.safety import kernels
+from hrc_suite.tasks import contact_kernels
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import tool_hold_kernels
 
@@ -166,6 +172,12 @@ class ContactMemory:
       if not np.array_equal(self.geom_pairs(), data.contact.geom):
         raise ValueError('contact geoms are not where expected')
 
+  def layout(self):
+    """The `ContactLayout` of `run`."""
+    return ContactLayout(self.ncon, self.contact_slot, np.uint64(self.arena),
+                         self.arena_ints, self.stride, self.geom,
+                         self.stride_bytes, self.pos_bytes)
+
   def geom_pairs(self):
     """The current contacts' geom pairs (ncon, 2), read as `run` does."""
     start = (int(self.contact_slot[0]) - self.arena) // 4
@@ -210,30 +222,130 @@ def _contact_fields():
   return dist.strides[0], offset, pos
 
 
+class Mujoco(typing.NamedTuple):
+  """MuJoCo's model and data (their addresses, for libmujoco's functions)
+  and data's warning counters."""
+  model: int                  # mjModel*
+  data: int                   # mjData*
+  warnings: np.ndarray        # (mjNWARNING,) int32, MjData.warning.number
+  warnings_before: np.ndarray  # (mjNWARNING,) int32, before a step
+
+
+class PersonMocap(typing.NamedTuple):
+  """The person's mocap rows of every physics step of the RL step
+  (HumanPlayback.mocap_layout) and where they go in MjData."""
+  mocap_pos: np.ndarray    # MjData.mocap_pos
+  rows: np.ndarray         # (L, S + K, 3) capsule middles and keypoints
+  pos_start: int           # their first mocap_pos row
+  mocap_quat: np.ndarray   # MjData.mocap_quat
+  quaternions: np.ndarray  # (L, S, 4) capsule orientations
+  quat_start: int          # their first mocap_quat row
+
+
+class ShieldSetpoints(typing.NamedTuple):
+  """The shield's set-points from physics step `first` on
+  (ShieldedStepper's batch.step_many)."""
+  setpoints: np.ndarray    # (n, 3, dof) q, dq, ddq per physics step
+  intervened: np.ndarray   # (n,) bool, whether the shield intervened
+  first: int               # the physics step of row 0
+  expected: np.ndarray     # (n, dof) where each puts the joints after it
+
+
+class TrackingCheck(typing.NamedTuple):
+  """The after-step tracking check (Shield.tracking_bound, then
+  Shield.tracking_error over the tolerance)."""
+  q_measured: np.ndarray   # (dof,) view of the arm's qpos
+  levers: np.ndarray       # (dof,) m/rad
+  tolerance: float         # m
+  fixed: np.ndarray        # the robot's kinematic chain
+  points: np.ndarray       # (robot_reach.RobotReach's kernel model)
+  frame_index: np.ndarray
+
+
+class ContactLayout(typing.NamedTuple):
+  """Where MjData keeps ncon and its contacts (`ContactMemory`)."""
+  ncon: np.ndarray           # (1,) int32 view of d->ncon
+  contact_slot: np.ndarray   # (1,) uint64 view of d->contact
+  arena: np.uint64           # the arena's address
+  arena_ints: np.ndarray     # the arena as int32
+  stride: int                # mjContact's size in int32 entries
+  geom: int                  # offset of geom in int32 entries
+  stride_bytes: int          # mjContact's size in bytes
+  pos_bytes: int             # offset of pos in bytes
+
+
+class StepRecord(typing.NamedTuple):
+  """What the physics steps write for the task: the commanded joint
+  velocities, the contact types present per step and over the RL step,
+  and the stretch's results."""
+  command_dq: np.ndarray              # (dof,) the last step's command
+  flags: np.ndarray                   # (types,) bool, one step's
+  step_flags: np.ndarray              # (types,) bool, the RL step's
+  contact_steps: np.ndarray           # (types,) steps with each type
+  largest_tracking_bound: np.ndarray  # (1,) m, updated
+  intervened: np.ndarray              # (1,) bool, set if the shield did
+  largest_contact_speed: np.ndarray   # (1,) m/s, robot-human, updated
+
+
+class StepWrites(typing.NamedTuple):
+  """A task's writes before each physics step: target[index] = rows[k]
+  (HrcTask._physics_step_writes)."""
+  target: np.ndarray   # (n,) float64
+  index: np.ndarray    # (m,) int64
+  rows: np.ndarray     # (L, m) float64
+
+
 @_jit
-def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
-        quaternions, quat_start, setpoints, setpoint_flags, setpoints_from,
-        expected_rows, q, dq, bias, passive, ctrl, acceleration,
-        arm_acceleration, product, arm_product, kp, kd, half_step,
-        damping_step, torque_limit, torque, command_dq, warnings, before,
-        q_measured, levers, tolerance, ncon, contact_slot, arena,
-        arena_ints, stride, geom, stride_bytes, pos_bytes, pair_types,
-        categories, geom_body, dofs, jacobian, critical_speed, flags,
-        step_flags, contact_steps, out, fixed, points, frame_index,
-        target0, index0, rows0, target1, index1, rows1, hold_params,
-        hold_indices, hold_aim, hold_aim_source, hold_history, hold_omega,
-        hold_fresh, hold_mocap_pos, hold_mocap_quat, hold_eq_data,
-        hold_qpos, hold_qvel, hold_xfrc):
+def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
+        tables, record, writes0, writes1, hold):
   """Physics steps k0..k1-1 (module doc); returns (k, status): the step
-  it stopped at and why (DONE: k = k1). out[0]: the largest tracking
-  bound, out[2]: the largest robot-human contact speed (both updated);
-  out[1]: set to 1 if a set-point run had the shield intervene. target,
-  index, rows (two groups): the task's writes before each physics step,
-  target[index] = rows[k] (HrcTask._physics_step_writes). hold_*: a
-  compliant hold's force on its tool after them (tool_hold_kernels.apply;
-  a hold that is off does nothing)."""
+  it stopped at and why (DONE: k = k1). Every group is the plain tuple of
+  its named tuple's fields (kernels.as_fields), named again here.
+
+  Args:
+    k0, k1: the stretch of physics steps of the RL step.
+    mujoco_: `Mujoco`.
+    person: `PersonMocap`.
+    shield: `ShieldSetpoints` (covering the stretch).
+    memory, gains: the controller's (controller_kernels.ControllerMemory,
+      TrackingGains).
+    tracking: `TrackingCheck`.
+    layout: `ContactLayout`.
+    tables: contact_kernels.ContactTables.
+    record: `StepRecord`, updated.
+    writes0, writes1: `StepWrites` (HrcTask._physics_step_writes; index
+      (0,): none).
+    hold: tool_hold_kernels.Hold, a compliant hold's force on its tool
+      after the writes (tool_hold_kernels.apply; a hold that is off does
+      nothing).
+
+  Returns:
+    (k, status): DONE, PYTHON_AFTER or PHYSICS_WARNING at step k.
+  """
+  mujoco_, person, shield = (Mujoco(*mujoco_), PersonMocap(*person),
+                             ShieldSetpoints(*shield))
+  memory = controller_kernels.ControllerMemory(*memory)
+  gains = controller_kernels.TrackingGains(*gains)
+  tracking, layout = TrackingCheck(*tracking), ContactLayout(*layout)
+  tables = contact_kernels.ContactTables(*tables)
+  record = StepRecord(*record)
+  writes0, writes1 = StepWrites(*writes0), StepWrites(*writes1)
+  hold = tool_hold_kernels.named_hold(hold)
+  model, data = mujoco_.model, mujoco_.data
+  warnings, before = mujoco_.warnings, mujoco_.warnings_before
+  mocap_pos, mocap_rows = person.mocap_pos, person.rows
+  mocap_quat, quaternions = person.mocap_quat, person.quaternions
+  pos_start, quat_start = person.pos_start, person.quat_start
+  setpoints, expected_rows = shield.setpoints, shield.expected
+  ncon, contact_slot, arena_ints = (layout.ncon, layout.contact_slot,
+                                    layout.arena_ints)
+  stride, geom = layout.stride, layout.geom
+  pair_types, jacobian = tables.pair_types, tables.jacobian
+  command_dq, flags = record.command_dq, record.flags
+  out_bound, out_speed = (record.largest_tracking_bound,
+                          record.largest_contact_speed)
   rows, segments = mocap_rows.shape[1], quaternions.shape[1]
-  dof = q.shape[0]
+  dof = memory.q.shape[0]
   for k in range(k0, k1):
     for r in range(rows):
       for c in range(3):
@@ -241,26 +353,26 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
     for r in range(segments):
       for c in range(4):
         mocap_quat[quat_start + r, c] = quaternions[k, r, c]
-    i = k - setpoints_from
-    if setpoint_flags[i]:
-      out[1] = 1.0
+    i = k - shield.first
+    if shield.intervened[i]:
+      record.intervened[0] = True
     for d in range(dof):
       command_dq[d] = setpoints[i, 1, d]
-    controller_lib._acceleration(setpoints[i, 0], setpoints[i, 1],
-                                 setpoints[i, 2], q, dq, kp, kd, half_step,
-                                 arm_acceleration)
-    _MUL_M(model, data, np.uint64(product.ctypes.data),
-           np.uint64(acceleration.ctypes.data))
-    controller_lib._torque(damping_step, arm_acceleration, arm_product,
-                           bias, passive, torque_limit, torque, ctrl)
-    for j in range(index0.shape[0]):
-      target0[index0[j]] = rows0[k, j]
-    for j in range(index1.shape[0]):
-      target1[index1[j]] = rows1[k, j]
-    tool_hold_kernels.apply(hold_params, hold_indices, hold_aim,
-                            hold_aim_source, hold_history, hold_omega,
-                            hold_fresh, hold_mocap_pos, hold_mocap_quat,
-                            hold_eq_data, hold_qpos, hold_qvel, hold_xfrc)
+    controller_kernels.acceleration(
+        setpoints[i, 0], setpoints[i, 1], setpoints[i, 2], memory.q,
+        memory.dq, gains.kp, gains.kd, gains.half_step,
+        memory.arm_acceleration)
+    _MUL_M(model, data, np.uint64(memory.product.ctypes.data),
+           np.uint64(memory.acceleration.ctypes.data))
+    controller_kernels.torque(
+        gains.damping_step, memory.arm_acceleration, memory.arm_product,
+        memory.bias, memory.passive, gains.torque_limit, memory.torque,
+        memory.ctrl)
+    for j in range(writes0.index.shape[0]):
+      writes0.target[writes0.index[j]] = writes0.rows[k, j]
+    for j in range(writes1.index.shape[0]):
+      writes1.target[writes1.index[j]] = writes1.rows[k, j]
+    tool_hold_kernels.apply(hold)
     for w in range(warnings.shape[0]):
       before[w] = warnings[w]
     _STEP2(model, data)
@@ -268,17 +380,19 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
     for w in range(warnings.shape[0]):
       if warnings[w] > before[w]:
         return k, PHYSICS_WARNING
-    distance = tracking_bound(q_measured, expected_rows[i], levers)
-    if distance > tolerance:   # The exact distance decides (after_substep).
-      distance = kernels.tracking_error(q_measured, expected_rows[i], fixed,
-                                        points, frame_index)
-      if distance > tolerance:
+    distance = tracking_bound(tracking.q_measured, expected_rows[i],
+                              tracking.levers)
+    if distance > tracking.tolerance:   # The exact distance decides.
+      distance = kernels.tracking_error(
+          tracking.q_measured, expected_rows[i], tracking.fixed,
+          tracking.points, tracking.frame_index)
+      if distance > tracking.tolerance:
         return k, PYTHON_AFTER
     flags[:] = False
     count = ncon[0]
     if count:
       human = False
-      start = np.int64(contact_slot[0] - arena) // 4
+      start = np.int64(contact_slot[0] - layout.arena) // 4
       for c in range(count):
         row = start + c * stride + geom
         kind = pair_types[arena_ints[row], arena_ints[row + 1]]
@@ -292,19 +406,23 @@ def run(k0, k1, model, data, mocap_pos, mocap_rows, pos_start, mocap_quat,
           first, second = arena_ints[row], arena_ints[row + 1]
           if pair_types[first, second] != _ALLOWED:
             continue
-          robot = first if categories[first] == contacts.ROBOT else second
-          point = contact_slot[0] + np.uint64(c * stride_bytes + pos_bytes)
+          robot = (first if tables.categories[first] == contacts.ROBOT
+                   else second)
+          point = contact_slot[0] + np.uint64(c * layout.stride_bytes
+                                              + layout.pos_bytes)
           _JAC(model, data, np.uint64(jacobian.ctypes.data), np.uint64(0),
-               point, np.int32(geom_body[robot]))
-          speed = contacts.commanded_speed(jacobian, dofs, command_dq)
-          out[2] = max(out[2], speed)
-          flags[_CRITICAL if speed > critical_speed else _ALLOWED] = True
-    if distance > out[0]:
-      out[0] = distance
+               point, np.int32(tables.geom_body[robot]))
+          speed = contact_kernels.commanded_speed(jacobian, tables.dofs,
+                                                  command_dq)
+          out_speed[0] = max(out_speed[0], speed)
+          flags[_CRITICAL if speed > tables.critical_speed
+                else _ALLOWED] = True
+    if distance > out_bound[0]:
+      out_bound[0] = distance
     for t in range(flags.shape[0]):
       if flags[t]:
-        step_flags[t] = True
-        contact_steps[t] += 1
+        record.step_flags[t] = True
+        record.contact_steps[t] += 1
   return k1, DONE
 
 
@@ -333,29 +451,32 @@ class CompiledSteps:
       raise ValueError("the person's mocap rows are not consecutive")
     self._data = data
     self._arena_limit = ARENA_HEADROOM * model.narena
-    self._flags = np.zeros_like(step_flags)
-    self._before = np.zeros(physics.data.warning.number.shape, np.int32)
-    self.out = np.zeros(3)
-    self._no_writes = (np.zeros(0), np.zeros(0, dtype=np.int64),
-                       np.zeros((max(len(playback.times), 1), 0)))
+    self._mujoco = Mujoco(
+        model._address, data._address, physics.data.warning.number,
+        np.zeros(physics.data.warning.number.shape, np.int32))
+    fixed, points = robot_reach._kernel_model
+    self.record = StepRecord(
+        command_dq, np.zeros_like(step_flags), step_flags, contact_steps,
+        np.zeros(1), np.zeros(1, dtype=bool), np.zeros(1))
+    # `run`'s groups before and after the shield's set-points, as fields.
+    self._before_shield = kernels.as_fields((self._mujoco,
+                                             PersonMocap(*mocap)))
+    self._after_shield = kernels.as_fields((
+        controller.memory, controller.gains,
+        TrackingCheck(q_measured,
+                      np.ascontiguousarray(tracking_levers, dtype=float),
+                      float(tracking_tolerance), fixed, points,
+                      robot_reach._kernel_frames),
+        memory.layout(), monitor.tables, self.record))
+    self._no_writes = kernels.as_fields(StepWrites(
+        np.zeros(0), np.zeros(0, dtype=np.int64),
+        np.zeros((max(len(playback.times), 1), 0))))
     physics_data = physics.data
-    self._no_hold = (   # tool_hold_kernels.apply's arguments, hold off
-        np.zeros(tool_hold_kernels.NUM_PARAMS),
-        np.zeros(tool_hold_kernels.NUM_INDICES, dtype=np.int64),
-        np.zeros(3), np.zeros(0), np.zeros((2, 7)), np.zeros(3),
-        np.zeros(1, dtype=np.int64), physics_data.mocap_pos,
-        physics_data.mocap_quat, physics.model.eq_data, physics_data.qpos,
-        physics_data.qvel, physics_data.xfrc_applied)
-    self._head = (model._address, data._address) + mocap
-    self._tail = controller.kernel_arguments() + (
-        command_dq, physics.data.warning.number, self._before, q_measured,
-        np.ascontiguousarray(tracking_levers, dtype=float),
-        float(tracking_tolerance), memory.ncon, memory.contact_slot,
-        np.uint64(memory.arena), memory.arena_ints, memory.stride,
-        memory.geom, memory.stride_bytes, memory.pos_bytes,
-        *monitor.kernel_arguments(), self._flags, step_flags,
-        contact_steps, self.out, *robot_reach._kernel_model,
-        robot_reach._kernel_frames)
+    self._no_hold = kernels.as_fields(tool_hold_kernels.idle_hold(
+        tool_hold_kernels.HoldData(
+            physics_data.mocap_pos, physics_data.mocap_quat,
+            physics.model.eq_data, physics_data.qpos, physics_data.qvel,
+            physics_data.xfrc_applied)))
 
   def has_headroom(self):
     """Whether MuJoCo's arena is far enough from full (module doc)."""
@@ -364,16 +485,20 @@ class CompiledSteps:
   @property
   def warnings_before(self):
     """The warning counters before the step that raised one."""
-    return self._before
+    return self._mujoco.warnings_before
 
   def run(self, k0, k1, setpoints, setpoint_flags, setpoints_from,
           expected_rows, writes=(), hold=None):
     """Physics steps k0..k1-1 (see `run`): (k, status). writes: up to two
     (target, index, rows) groups (HrcTask._physics_step_writes); hold:
-    tool_hold.CompliantHold.kernel_arguments, or None."""
+    tool_hold.CompliantHold.kernel_arguments, or None. The stretch's
+    results are in `record` (StepRecord)."""
     if len(writes) > 2:
       raise ValueError(f'at most two groups of writes, got {len(writes)}')
-    groups = list(writes) + [self._no_writes] * (2 - len(writes))
-    return run(k0, k1, *self._head, setpoints, setpoint_flags,
-               setpoints_from, expected_rows, *self._tail,
-               *groups[0], *groups[1], *(hold or self._no_hold))
+    groups = [tuple(StepWrites(*group)) for group in writes]
+    groups += [self._no_writes] * (2 - len(groups))
+    shield = ShieldSetpoints(setpoints, setpoint_flags, setpoints_from,
+                             expected_rows)
+    return run(k0, k1, *self._before_shield, tuple(shield),
+               *self._after_shield, *groups,
+               self._no_hold if hold is None else kernels.as_fields(hold))

@@ -316,18 +316,19 @@ class ShieldedStepper:
     """Physics steps k..end-1 in the compiled call, then what it left to
     Python (physics_loop.run's status)."""
     self._plan_setpoints(k)
-    out = compiled.out
-    out[0] = self._max_tracking_error
-    out[1] = 0.0
-    out[2] = self._monitor.max_human_contact_speed
+    record = compiled.record
+    record.largest_tracking_bound[0] = self._max_tracking_error
+    record.intervened[0] = False
+    record.largest_contact_speed[0] = self._monitor.max_human_contact_speed
     stopped, status = compiled.run(k, end, self._setpoints,
                                    self._setpoint_flags,
                                    self._setpoints_from, self._expected_rows,
                                    writes, hold)
     self._completed_substeps += stopped - k
-    self._max_tracking_error = float(out[0])
-    self._intervened |= bool(out[1])
-    self._monitor.max_human_contact_speed = float(out[2])
+    self._max_tracking_error = float(record.largest_tracking_bound[0])
+    self._intervened |= bool(record.intervened[0])
+    self._monitor.max_human_contact_speed = float(
+        record.largest_contact_speed[0])
     last = stopped - 1 if status == physics_loop.DONE else stopped
     self._substep = last + 1
     self._time = self._playback.times[last]

@@ -70,6 +70,11 @@ MAX_REACH = 0.03             # m
 _NO_AIM_SOURCE = np.zeros(0)
 
 
+def _floats(value):
+  """A float64 copy of a vector (HoldParameters' arrays)."""
+  return np.array(value, dtype=np.float64)
+
+
 class CompliantHold:
   """Holds one free body at a weld's relative pose to a mocap hand."""
 
@@ -109,31 +114,31 @@ class CompliantHold:
     # Per principal axis: stiffness (capped, MAX_FREQUENCY) and damping.
     k_rot = np.minimum(float(rotational_stiffness),
                        inertia * MAX_FREQUENCY ** 2)
-    self._params = np.zeros(kernels.NUM_PARAMS)   # tool_hold_kernels' slots
-    for slot, value in (
-        (kernels.MASS, mass), (kernels.DT, model.opt.timestep),
-        (kernels.K, stiffness),
-        (kernels.B, 2.0 * damping_ratio * np.sqrt(stiffness * mass)),
-        (kernels.K_ROT, k_rot),
-        (kernels.B_ROT, 2.0 * damping_ratio * np.sqrt(k_rot * inertia)),
-        (kernels.INERTIA, inertia), (kernels.COM_LOCAL, com_local),
-        (kernels.INERTIA_QUAT,
-         rotations.quat_mul(offset_quat, model.body_iquat[self._body])),
-        (kernels.OFFSET_POS, offset_pos), (kernels.OFFSET_QUAT, offset_quat),
-        (kernels.GRAVITY, model.opt.gravity), (kernels.MAX_AIM, MAX_AIM),
-        (kernels.MAX_REACH, MAX_REACH), (kernels.MAX_FORCE, MAX_FORCE),
-        (kernels.MAX_TORQUE, MAX_TORQUE)):
-      value = np.atleast_1d(value)
-      self._params[slot:slot + value.size] = value
-    self._indices = np.zeros(kernels.NUM_INDICES, dtype=np.int64)
-    self._indices[[kernels.BODY, kernels.QPOS, kernels.QVEL]] = (
-        self._body, model.jnt_qposadr[joint], model.jnt_dofadr[joint])
-    self._aim = np.zeros(3)    # world point the tool's origin heads for
-    # Target history: centre-of-mass positions and orientations at the last
-    # two physics steps, and the last target angular velocity.
-    self._history = np.zeros((2, 7))
-    self._omega = np.zeros(3)
-    self._fresh = np.zeros(1, dtype=np.int64)   # steps since `start`
+    self._params = kernels.HoldParameters(
+        mass=mass, dt=float(model.opt.timestep), k=float(stiffness),
+        b=float(2.0 * damping_ratio * np.sqrt(stiffness * mass)),
+        k_rot=_floats(k_rot),
+        b_rot=_floats(2.0 * damping_ratio * np.sqrt(k_rot * inertia)),
+        inertia=_floats(inertia), com_local=_floats(com_local),
+        inertia_quat=_floats(rotations.quat_mul(
+            offset_quat, model.body_iquat[self._body])),
+        offset_pos=_floats(offset_pos), offset_quat=_floats(offset_quat),
+        gravity=_floats(model.opt.gravity), max_aim=float(MAX_AIM),
+        max_reach=float(MAX_REACH), max_force=float(MAX_FORCE),
+        max_torque=float(MAX_TORQUE))
+    self._addresses = kernels.HoldAddresses(
+        body=self._body, qpos=int(model.jnt_qposadr[joint]),
+        qvel=int(model.jnt_dofadr[joint]))
+    # The hand and weld held by, whether holding and aiming, the aim (the
+    # world point the tool's origin heads for), the targets' history
+    # (centre of mass and orientation at the last two physics steps), the
+    # last target angular velocity and the steps since `start`.
+    self._state = kernels.HoldState(
+        mocap=np.zeros(1, dtype=np.int64), eq=np.zeros(1, dtype=np.int64),
+        holding=np.zeros(1, dtype=np.int64),
+        aiming=np.zeros(1, dtype=np.int64), aim=np.zeros(3),
+        history=np.zeros((2, 7)), omega=np.zeros(3),
+        fresh=np.zeros(1, dtype=np.int64))
 
   # -------------------------------------------------------------- holding
 
@@ -148,21 +153,22 @@ class CompliantHold:
     if mocap < 0:
       raise ValueError(f'weld {weld.name!r} does not start at a mocap body')
     physics.data.eq_active[eq_id] = 0
-    self._indices[[kernels.MOCAP, kernels.EQ, kernels.HOLDING,
-                   kernels.AIMING]] = (mocap, eq_id, 1, 0)
+    state = self._state
+    state.mocap[0], state.eq[0] = mocap, eq_id
+    state.holding[0], state.aiming[0] = 1, 0
     # A new hold aims nowhere until told, and starts as a fresh one would.
-    self._fresh[0] = 0
-    self._history[:] = 0.0
-    self._omega[:] = 0.0
+    state.fresh[0] = 0
+    state.history[:] = 0.0
+    state.omega[:] = 0.0
     physics.data.xfrc_applied[self._body] = 0.0
 
   def stop(self, physics):
-    self._indices[kernels.HOLDING] = 0
+    self._state.holding[0] = 0
     physics.data.xfrc_applied[self._body] = 0.0
 
   @property
   def holding(self):
-    return bool(self._indices[kernels.HOLDING])
+    return bool(self._state.holding[0])
 
   def aim(self, point):
     """Turns the held pose about the vertical through the hand (within
@@ -171,14 +177,14 @@ class CompliantHold:
     MAX_REACH onto `point`'s horizontal distance from the hand, as a person
     aims a hammer at a nail; None holds at the plain relative pose."""
     if point is None:
-      self._indices[kernels.AIMING] = 0
+      self._state.aiming[0] = 0
       return
     point = np.asarray(point, dtype=float)
     if point.shape != (3,) or not np.isfinite(point).all():
       raise ValueError(f'aim point must be a finite (3,) position, got '
                        f'{point!r}')
-    self._aim[:] = point
-    self._indices[kernels.AIMING] = 1
+    self._state.aim[:] = point
+    self._state.aiming[0] = 1
 
   def target(self, physics):
     """(centre of mass (3,), orientation (4,) of the free joint's frame)
@@ -186,9 +192,8 @@ class CompliantHold:
     if not self.holding:
       raise ValueError('target: the hold is off (start it first)')
     com, quat = np.empty(3), np.empty(4)
-    data = physics.data
-    kernels.target(self._params, self._indices, self._aim, data.mocap_pos,
-                   data.mocap_quat, physics.model.eq_data, com, quat)
+    kernels.target(self._params, self._state, self._data(physics), com,
+                   quat)
     return com, quat
 
   def apply(self, physics):
@@ -198,45 +203,46 @@ class CompliantHold:
     onto the new target during this step (semi-implicit Euler), the
     spring and damper correct its deviation from the target of a step
     ago (tool_hold_kernels.apply)."""
-    data = physics.data
-    kernels.apply(*self.kernel_arguments(physics, None))
+    kernels.apply(self.kernel_arguments(physics, None))
 
   def kernel_arguments(self, physics, aim_source):
-    """`tool_hold_kernels.apply`'s arguments for this physics (the hold's
-    own arrays): as `apply` does, or with aim_source (a (3,) array, e.g. a
-    site's xpos row) aimed at before every step as `aim` would."""
-    data = physics.data
+    """`tool_hold_kernels.apply`'s argument (a `tool_hold_kernels.Hold`)
+    for this physics: as `apply` does, or with aim_source (a (3,) array,
+    e.g. a site's xpos row) aimed at before every step as `aim` would."""
     if aim_source is None:
       aim_source = _NO_AIM_SOURCE
     else:
-      self._indices[kernels.AIMING] = 1
-    return (self._params, self._indices, self._aim, aim_source,
-            self._history, self._omega, self._fresh, data.mocap_pos,
-            data.mocap_quat, physics.model.eq_data, data.qpos, data.qvel,
-            data.xfrc_applied)
+      self._state.aiming[0] = 1
+    return kernels.Hold(self._params, self._addresses, self._state,
+                        aim_source, self._data(physics))
+
+  @staticmethod
+  def _data(physics):
+    """The MuJoCo arrays of a hold in this physics."""
+    data = physics.data
+    return kernels.HoldData(data.mocap_pos, data.mocap_quat,
+                            physics.model.eq_data, data.qpos, data.qvel,
+                            data.xfrc_applied)
 
   # ------------------------------------------------------------ snapshots
 
   def state(self):
-    holding = self.holding
-    return {'holding': ([int(self._indices[kernels.MOCAP]),
-                         int(self._indices[kernels.EQ])] if holding
-                        else None),
-            'aim': (self._aim.copy() if self._indices[kernels.AIMING]
-                    else None),
-            'history': self._history.copy(), 'omega': self._omega.copy(),
-            'fresh': int(self._fresh[0])}
+    state = self._state
+    return {'holding': ([int(state.mocap[0]), int(state.eq[0])]
+                        if self.holding else None),
+            'aim': state.aim.copy() if state.aiming[0] else None,
+            'history': state.history.copy(), 'omega': state.omega.copy(),
+            'fresh': int(state.fresh[0])}
 
   def set_state(self, state):
-    hand = state['holding']
-    self._indices[kernels.HOLDING] = hand is not None
+    hand, own = state['holding'], self._state
+    own.holding[0] = hand is not None
     if hand is not None:
-      self._indices[[kernels.MOCAP, kernels.EQ]] = (int(hand[0]),
-                                                    int(hand[1]))
+      own.mocap[0], own.eq[0] = int(hand[0]), int(hand[1])
     aim = state['aim']
-    self._indices[kernels.AIMING] = aim is not None
+    own.aiming[0] = aim is not None
     if aim is not None:
-      self._aim[:] = aim
-    self._history[:] = state['history']
-    self._omega[:] = state['omega']
-    self._fresh[0] = int(state['fresh'])
+      own.aim[:] = aim
+    own.history[:] = state['history']
+    own.omega[:] = state['omega']
+    own.fresh[0] = int(state['fresh'])

@@ -8,30 +8,80 @@ z); arithmetic in scalars, in a fixed order: `_mul`, `_matrix` and
 `_rotation_vector` compute rotations.quat_mul, quat_to_mat and
 quat_to_rotvec (tests/test_rotations.py checks they agree).
 
-`params` (NUM_PARAMS,): the named slots below. `indices` (NUM_INDICES,):
-body, its free joint's qpos and qvel addresses, the hand's mocap id, the
-weld's id, and whether the hold is on and whether it aims. `history` (2, 7)
-(the targets of the last two physics steps: centre of mass, orientation),
-`omega` (3,) (the last target angular velocity), `fresh` (1,) (steps of
-history since the hold started, at most 2).
+A hold is a `Hold`: its fixed `HoldParameters` and `HoldAddresses`, its
+`HoldState` (what changes while it holds) and the MuJoCo arrays it reads
+and writes (`HoldData`), numba-typed named tuples (float64, int64 and
+their arrays, so one compiled signature serves every hold).
 """
 
 import math
+import typing
 
 import numba
 import numpy as np
 
 _jit = numba.njit(cache=True, fastmath=False)
 
-# params slots.
-MASS, DT, K, B = 0, 1, 2, 3
-K_ROT, B_ROT, INERTIA, COM_LOCAL = 4, 7, 10, 13
-INERTIA_QUAT, OFFSET_POS, OFFSET_QUAT, GRAVITY = 16, 20, 23, 27
-MAX_AIM, MAX_REACH, MAX_FORCE, MAX_TORQUE = 30, 31, 32, 33
-NUM_PARAMS = 34
-# indices slots.
-BODY, QPOS, QVEL, MOCAP, EQ, HOLDING, AIMING = range(7)
-NUM_INDICES = 7
+
+class HoldParameters(typing.NamedTuple):
+  """A hold's fixed numbers (tool_hold.CompliantHold: their values and
+  sources). Vectors are float64 arrays, the rest floats."""
+  mass: float                # kg, the held body's
+  dt: float                  # s, the physics step
+  k: float                   # N/m, the hand's stiffness
+  b: float                   # N s/m, its damping
+  k_rot: np.ndarray          # (3,) N m/rad per principal axis
+  b_rot: np.ndarray          # (3,) N m s/rad per principal axis
+  inertia: np.ndarray        # (3,) kg m^2, principal moments
+  com_local: np.ndarray      # (3,) centre of mass in the free joint's frame
+  inertia_quat: np.ndarray   # (4,) principal axes in the free joint's frame
+  offset_pos: np.ndarray     # (3,) held body in the free joint's frame
+  offset_quat: np.ndarray    # (4,)
+  gravity: np.ndarray        # (3,) m/s^2
+  max_aim: float             # rad
+  max_reach: float           # m
+  max_force: float           # N
+  max_torque: float          # N m
+
+
+class HoldAddresses(typing.NamedTuple):
+  """Where a hold's body lives in MuJoCo's arrays (int64)."""
+  body: int   # the held body's id (its xfrc_applied row)
+  qpos: int   # its free joint's qpos address
+  qvel: int   # its free joint's qvel address
+
+
+class HoldState(typing.NamedTuple):
+  """What changes while a hold holds (int64 and float64 arrays, written
+  in place)."""
+  mocap: np.ndarray     # (1,) the hand's mocap id
+  eq: np.ndarray        # (1,) the weld's id (its relative pose)
+  holding: np.ndarray   # (1,) 1 while the hold is on
+  aiming: np.ndarray    # (1,) 1 while it aims at `aim`
+  aim: np.ndarray       # (3,) world point the tool's origin heads for
+  history: np.ndarray   # (2, 7) targets (centre of mass, orientation) of
+                        # the last two physics steps
+  omega: np.ndarray     # (3,) the last target angular velocity
+  fresh: np.ndarray     # (1,) steps of history since the start, at most 2
+
+
+class HoldData(typing.NamedTuple):
+  """The MuJoCo arrays a hold reads and writes (model and data views)."""
+  mocap_pos: np.ndarray
+  mocap_quat: np.ndarray
+  eq_data: np.ndarray
+  qpos: np.ndarray
+  qvel: np.ndarray
+  xfrc_applied: np.ndarray
+
+
+class Hold(typing.NamedTuple):
+  """`apply`'s argument: one hold and the physics it acts in."""
+  parameters: HoldParameters
+  addresses: HoldAddresses
+  state: HoldState
+  aim_source: np.ndarray   # (3,) copied into state.aim first, or (0,)
+  data: HoldData
 
 
 @_jit
@@ -84,11 +134,37 @@ def _rotation_vector(t0, t1, t2, t3, f0, f1, f2, f3, out):
   out[0], out[1], out[2] = d1 * scale, d2 * scale, d3 * scale
 
 
+def idle_hold(data):
+  """A `Hold` that is off (`apply` does nothing), in the HoldData `data`:
+  the compiled physics loop's hold where a task has none."""
+  # HoldParameters' arrays in order: k_rot .. com_local (3,),
+  # inertia_quat (4,), offset_pos (3,), offset_quat (4,), gravity (3,).
+  vectors = [np.zeros(n) for n in (3, 3, 3, 3, 4, 3, 4, 3)]
+  flags = [np.zeros(1, dtype=np.int64) for _ in range(5)]
+  return Hold(
+      HoldParameters(0.0, 0.0, 0.0, 0.0, *vectors, 0.0, 0.0, 0.0, 0.0),
+      HoldAddresses(0, 0, 0),
+      HoldState(*flags[:4], np.zeros(3), np.zeros((2, 7)), np.zeros(3),
+                flags[4]),
+      np.zeros(0), data)
+
+
 @_jit
-def target(params, indices, aim, mocap_pos, mocap_quat, eq_data, com, quat):
+def named_hold(fields):
+  """The `Hold` of its fields (kernels.as_fields(hold): plain tuples)."""
+  return Hold(HoldParameters(*fields[0]), HoldAddresses(*fields[1]),
+              HoldState(*fields[2]), fields[3], HoldData(*fields[4]))
+
+
+@_jit
+def target(params, state, data, com, quat):
   """The centre of mass (com, 3) and free-joint frame orientation (quat,
-  4) the hand wants the body at (CompliantHold.target)."""
-  mocap, eq = indices[MOCAP], indices[EQ]
+  4) the hand wants the body at (CompliantHold.target); params:
+  HoldParameters, state: HoldState, data: HoldData."""
+  mocap, eq = state.mocap[0], state.eq[0]
+  mocap_pos, mocap_quat, eq_data = (data.mocap_pos, data.mocap_quat,
+                                    data.eq_data)
+  aim = state.aim
   h0, h1, h2, h3 = (mocap_quat[mocap, 0], mocap_quat[mocap, 1],
                     mocap_quat[mocap, 2], mocap_quat[mocap, 3])
   r0, r1, r2, r3 = eq_data[eq, 6], eq_data[eq, 7], eq_data[eq, 8], eq_data[
@@ -101,11 +177,11 @@ def target(params, indices, aim, mocap_pos, mocap_quat, eq_data, com, quat):
   hand = mocap_pos[mocap]
   for i in range(3):
     origin[i] += hand[i]
-  if indices[AIMING]:
+  if state.aiming[0]:
     arm0, arm1 = origin[0] - hand[0], origin[1] - hand[1]
     want0, want1 = aim[0] - hand[0], aim[1] - hand[1]
     turn = math.atan2(arm0 * want1 - arm1 * want0, arm0 * want0 + arm1 * want1)
-    turn = min(max(turn, -params[MAX_AIM]), params[MAX_AIM])
+    turn = min(max(turn, -params.max_aim), params.max_aim)
     c, s = math.cos(turn), math.sin(turn)
     origin[0] = hand[0] + (c * arm0 - s * arm1)
     origin[1] = hand[1] + (s * arm0 + c * arm1)
@@ -114,42 +190,43 @@ def target(params, indices, aim, mocap_pos, mocap_quat, eq_data, com, quat):
     distance = math.sqrt(want0 * want0 + want1 * want1)
     error = distance - math.sqrt(arm0 * arm0 + arm1 * arm1)
     size = abs(error)
-    reach = params[MAX_REACH]
+    reach = params.max_reach
     if size > reach:
       error = math.copysign(max(0.0, 2.0 * reach - size), error)
     if distance > 0.0:
       origin[0] += error * want0 / distance
       origin[1] += error * want1 / distance
-  o = OFFSET_QUAT
-  f0, f1, f2, f3 = _mul(q0, q1, q2, q3, params[o], -params[o + 1],
-                        -params[o + 2], -params[o + 3])
+  o = params.offset_quat
+  f0, f1, f2, f3 = _mul(q0, q1, q2, q3, o[0], -o[1], -o[2], -o[3])
   _matrix(f0, f1, f2, f3, rotation)
   offset = np.empty(3)
-  _times(rotation, params[OFFSET_POS], params[OFFSET_POS + 1],
-         params[OFFSET_POS + 2], offset)
+  p = params.offset_pos
+  _times(rotation, p[0], p[1], p[2], offset)
   lever = np.empty(3)
-  _times(rotation, params[COM_LOCAL], params[COM_LOCAL + 1],
-         params[COM_LOCAL + 2], lever)
+  c = params.com_local
+  _times(rotation, c[0], c[1], c[2], lever)
   for i in range(3):
     com[i] = (origin[i] - offset[i]) + lever[i]
   quat[0], quat[1], quat[2], quat[3] = f0, f1, f2, f3
 
 
 @_jit
-def apply(params, indices, aim, aim_source, history, omega, fresh, mocap_pos,
-          mocap_quat, eq_data, qpos, qvel, xfrc_applied):
+def apply(hold):
   """Sets the body's applied force and torque for the next physics step
-  (CompliantHold.apply); nothing while the hold is off. aim_source: (3,)
-  copied into aim first (CompliantHold.aim at every step, e.g. a site's
-  xpos row), or (0,)."""
-  if not indices[HOLDING]:
+  (CompliantHold.apply); nothing while the hold is off. hold: a `Hold`,
+  whose aim_source (3,) is copied into its aim first (CompliantHold.aim
+  at every step, e.g. a site's xpos row), unless it is (0,)."""
+  params, state, data = hold.parameters, hold.state, hold.data
+  if not state.holding[0]:
     return
+  aim_source = hold.aim_source
   if aim_source.shape[0] == 3:
-    aim[:] = aim_source
+    state.aim[:] = aim_source
+  history, omega, fresh = state.history, state.omega, state.fresh
+  qpos, qvel = data.qpos, data.qvel
   com_target, quat_target = np.empty(3), np.empty(4)
-  target(params, indices, aim, mocap_pos, mocap_quat, eq_data, com_target,
-         quat_target)
-  dt = params[DT]
+  target(params, state, data, com_target, quat_target)
+  dt = params.dt
   if fresh[0] == 0:
     for i in range(3):
       history[0, i] = history[1, i] = com_target[i]
@@ -179,12 +256,12 @@ def apply(params, indices, aim, aim_source, history, omega, fresh, mocap_pos,
   history[0, 3:] = quat_target
   fresh[0] = min(fresh[0] + 1, 2)
 
-  a, v = indices[QPOS], indices[QVEL]
+  a, v = hold.addresses.qpos, hold.addresses.qvel
   rotation = np.empty((3, 3))
   _matrix(qpos[a + 3], qpos[a + 4], qpos[a + 5], qpos[a + 6], rotation)
   lever, body_omega = np.empty(3), np.empty(3)
-  _times(rotation, params[COM_LOCAL], params[COM_LOCAL + 1],
-         params[COM_LOCAL + 2], lever)
+  c = params.com_local
+  _times(rotation, c[0], c[1], c[2], lever)
   _times(rotation, qvel[v + 3], qvel[v + 4], qvel[v + 5], body_omega)
   force = np.empty(3)
   for i in range(3):
@@ -192,12 +269,12 @@ def apply(params, indices, aim, aim_source, history, omega, fresh, mocap_pos,
     com = qpos[a + i] + lever[i]
     com_velocity = qvel[v + i] + (body_omega[n] * lever[p]
                                   - body_omega[p] * lever[n])
-    force[i] = (params[MASS] * (acceleration[i] - params[GRAVITY + i])
-                + params[K] * (previous[i] - com)
-                + params[B] * (previous_velocity[i] - com_velocity))
+    force[i] = (params.mass * (acceleration[i] - params.gravity[i])
+                + params.k * (previous[i] - com)
+                + params.b * (previous_velocity[i] - com_velocity))
   axes = np.empty((3, 3))
-  o = INERTIA_QUAT
-  _matrix(params[o], params[o + 1], params[o + 2], params[o + 3], axes)
+  o = params.inertia_quat
+  _matrix(o[0], o[1], o[2], o[3], axes)
   principal = np.empty((3, 3))
   for i in range(3):
     _times_transposed(axes, rotation[i, 0], rotation[i, 1], rotation[i, 2],
@@ -215,14 +292,15 @@ def apply(params, indices, aim, aim_source, history, omega, fresh, mocap_pos,
   local, spring = np.empty(3), np.empty(3)
   _times_transposed(principal, alpha[0], alpha[1], alpha[2], local)
   for i in range(3):
-    spring[i] = (params[INERTIA + i] * local[i]
-                 + (params[K_ROT + i] * error[i]
-                    + params[B_ROT + i] * omega_error[i]))
+    spring[i] = (params.inertia[i] * local[i]
+                 + (params.k_rot[i] * error[i]
+                    + params.b_rot[i] * omega_error[i]))
   torque = np.empty(3)
   _times(principal, spring[0], spring[1], spring[2], torque)
-  _limit(force, params[MAX_FORCE])
-  _limit(torque, params[MAX_TORQUE])
-  body = indices[BODY]
+  _limit(force, params.max_force)
+  _limit(torque, params.max_torque)
+  body = hold.addresses.body
+  xfrc_applied = data.xfrc_applied
   for i in range(3):
     xfrc_applied[body, i] = force[i]
     xfrc_applied[body, 3 + i] = torque[i]

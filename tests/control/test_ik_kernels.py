@@ -158,13 +158,11 @@ def _two_runs(solver, target, q_init, yaw):
   composed in Python (what solve_gripper_down does in one call)."""
   model = solver.model
   q = np.minimum(np.maximum(q_init, model.q_min), model.q_max)
-  args = (solver._placements, solver._tcp, model.q_min, model.q_max,   # pylint: disable=protected-access
-          solver._weights, solver._base_damping, solver._max_step,   # pylint: disable=protected-access
-          solver.max_iterations, solver.position_tolerance,
-          solver.orientation_tolerance, ik.STALL_ITERATIONS,
-          ik.STALL_PROGRESS)
+  # The solver's own groups (InverseKinematics builds them once).
+  chain = solver._chain   # pylint: disable=protected-access
+  settings = solver._settings   # pylint: disable=protected-access
   run = lambda y: ik_kernels.solve(q, target, ik.gripper_down_rotation(y),
-                                   *args) + (y,)
+                                   chain, settings) + (y,)
   seed = ik_kernels.tcp_pose(q, solver._placements, solver._tcp)   # pylint: disable=protected-access
   nearer = float(yaw)
   if abs(rotations.wrap_angle(np.arctan2(seed[1, 0], seed[0, 0]) - yaw)) > (

@@ -12,6 +12,7 @@ from hrc_suite.entities import collision_groups
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
+import entity_references   # tests/entities/entity_references.py
 
 
 def _base(description):
@@ -229,7 +230,7 @@ def test_grip_force_outside_the_2f85_range_is_rejected():
 @pytest.mark.parametrize('domain, task', [('stacking', 'default'),
                                           ('handover', 'robot_to_human')])
 def test_compiled_grasp_test_decides_as_the_numpy_reference(domain, task):
-  """gripper_kernels.grasped against ParallelGripper.grasping_reference on
+  """gripper_kernels.grasped against its NumPy reference on
   an expert's episode (cubes picked, a hammer held): free objects (their
   subtrees) and bodies inside the robot's tree (themselves only)."""
   from hrc_suite import experts   # pylint: disable=g-import-not-at-top
@@ -248,7 +249,7 @@ def test_compiled_grasp_test_decides_as_the_numpy_reference(domain, task):
     for bodies in groups:
       got = gripper.grasping(env.physics, bodies)
       np.testing.assert_array_equal(
-          got, gripper.grasping_reference(env.physics, bodies))
+          got, entity_references.grasping(gripper, env.physics, bodies))
       grasps += int(got.any())
     if timestep.last():
       break

@@ -353,3 +353,29 @@ def test_advance_many_needs_room_for_every_step():
   player.reset(np.random.RandomState(0))
   with pytest.raises(ValueError, match='times and clips need 4'):
     player.advance_many(DT, np.zeros((4, K, 3)), np.zeros(3), [None] * 4)
+
+
+def test_uncompiled_player_plays_the_same_without_kernels(monkeypatch):
+  """compiled=False runs advance_many's Python path (the kernels'
+  reference): no kernel call, the same bits as the compiled player."""
+  clips = [ramp_clip('a', seconds=0.5, phases=(phase(0, 'go'),),
+                     keyframes=(5, 15)), ramp_clip('b', seconds=0.3)]
+  players = [player_lib.Player(clips, station=(1.0, 0.0, 3.0),
+                               compiled=compiled)
+             for compiled in (True, False)]
+  for player in players:
+    player.reset(np.random.RandomState(5))
+  n = 25
+  rows = [(np.zeros((n, K, 3)), np.zeros(n), [None] * n) for _ in players]
+  compiled_rows, reference_rows = rows
+  for block in range(30):
+    players[0].advance_many(DT, *compiled_rows)
+    with monkeypatch.context() as patch:
+      for name in ('play_within_clip', 'play_waiting'):
+        patch.setattr(player_lib.player_kernels, name, None)
+      players[1].advance_many(DT, *reference_rows)
+    np.testing.assert_array_equal(reference_rows[0], compiled_rows[0])
+    np.testing.assert_array_equal(reference_rows[1], compiled_rows[1])
+    assert players[0].get_state() == players[1].get_state()
+    if block % 4 == 0 and players[0].waiting_for:
+      assert all(player.trigger('go') for player in players)

@@ -461,8 +461,11 @@ def test_compiled_planned_check_refines_as_the_reference(monkeypatch):
   for case, fast in zip(cases, decided):
     assert np.array_equal(fast, reference.planned_paths_free(*case))
   assert set(np.concatenate(decided).tolist()) == {True, False}
+  # The sweep's settings are the module's constants when it is made.
   monkeypatch.setattr(collision_prevention, 'REFINE_LEVELS', 0)
-  unrefined = [prevention.planned_paths_free(*case) for case in cases]
+  unrefining = collision_prevention.CollisionPrevention(description,
+                                                        **kwargs)
+  unrefined = [unrefining.planned_paths_free(*case) for case in cases]
   assert not np.array_equal(np.concatenate(unrefined),
                             np.concatenate(decided))
 

@@ -157,11 +157,8 @@ def test_every_hit_is_left_unproven(name):
   fixed, points = prevention.reach._kernel_model
   proven = unproven_runs = hits = 0
   for plan in _plans(prevention, rng, 24):
-    cycle = plan.cycle_time
     _, _, q, reach = cp_kernels.sweep_samples(
-        plan._all(), plan.start_time, plan._inverse_cycle, cycle,
-        cycle ** 2, cycle ** 3, plan.num_samples - 1, prevention.levers,
-        prevention.max_step)
+        cp_lib._polynomial(plan), prevention.levers, prevention.max_step)
     capsule_margin = cp_lib._lever_sum(reach, prevention.levers)
     pair_margin = cp_lib._lever_sum(reach, prevention._pair_levers)
     box_hits, pair_hits = _element_hits(prevention, q, capsule_margin,

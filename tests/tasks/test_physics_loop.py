@@ -8,6 +8,8 @@ import pytest
 
 from hrc_suite import experts
 from hrc_suite import suite
+from hrc_suite.tasks import contact_kernels
+from hrc_suite.tasks import contacts
 from hrc_suite.tasks import physics_loop
 
 
@@ -201,3 +203,19 @@ def test_a_full_arena_keeps_the_python_loop():
   q_python, none = episode(False)
   assert statuses and not none
   assert np.array_equal(q_compiled, q_python)
+
+
+def test_contact_kernels_flag_robot_human_pairs_as_the_monitor_does():
+  """contact_kernels' robot-human type is the monitor's human_allowed."""
+  assert (contact_kernels.HUMAN_ALLOWED
+          == int(contacts.ContactType.human_allowed))
+  pair_types = np.full((3, 3), -1, dtype=np.int8)
+  pair_types[0, 1] = pair_types[1, 0] = contacts.ContactType.human_allowed
+  pair_types[0, 2] = pair_types[2, 0] = contacts.ContactType.static
+  flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
+  geom = np.array([[2, 0]], dtype=np.int32)
+  assert not contact_kernels.classify(geom, pair_types, flags)
+  assert flags.tolist() == [True] + [False] * (len(flags) - 1)
+  assert contact_kernels.classify(np.array([[1, 0]], dtype=np.int32),
+                                  pair_types, flags)
+  assert flags[contacts.ContactType.human_allowed]
