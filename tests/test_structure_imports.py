@@ -13,11 +13,8 @@ import pathlib
 REPO = pathlib.Path(__file__).resolve().parents[1]
 PACKAGES = ('hrc_suite', 'agents')
 
-# Cycles that remain, each a set of the component's modules: only
-# human.synthesis <-> human.task_motions is left (to be removed).
-ALLOWED_CYCLES = (
-    frozenset({'hrc_suite.human.synthesis', 'hrc_suite.human.task_motions'}),
-)
+# Cycles that may remain, each a set of the component's modules (none).
+ALLOWED_CYCLES = ()
 
 
 def _modules():

@@ -8,16 +8,14 @@ the pelvis heading frame, so hands travel with the body, and are met exactly
 at the end of a reach by the arm's two-link solution (`body.py`). Steps are
 planned under the pelvis during walks. On top come breathing, postural sway
 and small idle drifts of the hands and head. `render` turns the script into a
-`Clip`; `python -m hrc_suite.human.synthesis --out=DIR` writes the shipped
-library (`task_motions.py` holds the per-task scripts). Every clip is checked
+`Clip`. The per-task scripts are `task_motions.py`; `synthetic_library.py`
+runs them into clips and writes the shipped library. Every clip is checked
 against the shield's 2 m/s human speed, also while an idle phase warps it
 (`idle_speed_bound`, `fit_idle_phases`).
 """
 
-import argparse
 import dataclasses
 import math
-import pathlib
 
 import numpy as np
 
@@ -603,68 +601,3 @@ def _merge_spans(spans):
     else:
       merged.append((start, end))
   return merged
-
-
-def synthesise(task, index, seed=LIBRARY_SEED, fps=DEFAULT_FPS, attempts=6):
-  """Clip `index` of `task`: deterministic in (task, index, seed).
-
-  If a keypoint would exceed clip.MAX_KEYPOINT_SPEED outside the documented
-  fast phases, the same motion is re-timed with a slower tempo. Idle phases
-  are then slowed where their worst case would exceed IDLE_SPEED_LIMIT
-  (`fit_idle_phases`).
-  """
-  from hrc_suite.human import task_motions  # Scripts import this module.
-  if task not in task_motions.TASK_SCRIPTS:
-    raise ValueError(f'Unknown motion task {task!r}: expected one of '
-                     f'{", ".join(task_motions.TASK_SCRIPTS)}')
-  task_number = clip_lib.MOTION_TASKS.index(task)
-  slow_down = 1.0
-  for _ in range(attempts):
-    random_state = np.random.RandomState([seed, task_number, index])
-    body = body_lib.sample_body(random_state)
-    tempo = random_state.uniform(0.85, 1.2) * slow_down
-    script = Script(body, random_state, f'{task}_{index:02d}', task, tempo)
-    script.metadata['seed'] = [int(seed), task_number, int(index)]
-    task_motions.TASK_SCRIPTS[task](script, random_state)
-    clip = script.render(fps)
-    if not len(clip_lib.speed_violations(clip)):
-      return fit_idle_phases(clip)
-    slow_down *= 1.2
-  speeds = clip_lib.keypoint_speeds(clip).max()
-  raise RuntimeError(f'{task} clip {index}: keypoint speed {speeds:.2f} m/s '
-                     f'above {clip_lib.MAX_KEYPOINT_SPEED} m/s outside fast '
-                     f'phases after {attempts} re-timings')
-
-
-def generate_library(out, seed=LIBRARY_SEED, fps=DEFAULT_FPS, tasks=None):
-  """Writes every task's clips into out/<task>/; returns {task: count}."""
-  from hrc_suite.human import task_motions
-  out = pathlib.Path(out)
-  counts = {}
-  for task in tasks or clip_lib.MOTION_TASKS:
-    folder = out / task
-    if folder.is_dir():
-      for old in list(folder.glob('*.json')) + list(folder.glob('*.npz')):
-        old.unlink()
-    for index in range(task_motions.CLIP_COUNTS[task]):
-      clip_lib.save_clip(synthesise(task, index, seed, fps), folder)
-    counts[task] = task_motions.CLIP_COUNTS[task]
-  return counts
-
-
-def main(argv=None):
-  parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-  parser.add_argument('--out', required=True,
-                      help='folder for <task>/<clip>.{npz,json}')
-  parser.add_argument('--seed', type=int, default=LIBRARY_SEED)
-  parser.add_argument('--fps', type=float, default=DEFAULT_FPS)
-  parser.add_argument('--tasks', nargs='*', default=None,
-                      choices=clip_lib.MOTION_TASKS)
-  args = parser.parse_args(argv)
-  counts = generate_library(args.out, args.seed, args.fps, args.tasks)
-  for task, count in counts.items():
-    print(f'{task}: {count} clips')
-
-
-if __name__ == '__main__':
-  main()

@@ -11,6 +11,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.human import synthesis
+from hrc_suite.human import synthetic_library
 from hrc_suite.human import task_motions
 from hrc_suite.human import task_targets
 from hrc_suite.tasks import hammering_robot
@@ -143,7 +144,7 @@ def test_synthetic_clips_stay_within_the_shield_human_model():
 def test_shipped_plank_clips_equal_a_fresh_synthesis():
   shipped = clip_lib.shipped_library('hammering_board')
   assert len(shipped) == task_motions.CLIP_COUNTS['hammering_board']
-  fresh = synthesis.synthesise('hammering_board', 3)
+  fresh = synthetic_library.synthesise('hammering_board', 3)
   assert shipped[3].name == fresh.name
   np.testing.assert_array_equal(shipped[3].positions, fresh.positions)
 
