@@ -24,7 +24,6 @@ KERNEL_PARAMETER_CHECK_SKIPS = (
     'hrc_suite/control/ik_kernels.py',
     'hrc_suite/human/player_kernels.py',
     'hrc_suite/safety/cp_kernels.py',
-    'hrc_suite/safety/energy_check_kernels.py',
     'hrc_suite/tasks/physics_loop.py',
 )
 # Decorator names that compile a function with numba.
