@@ -539,10 +539,15 @@ def warm_up():
   state = CycleState(floats(5, dof), floats(dof), floats(pk.PATH_SIZE),
                      floats(pk.PATH_SIZE), floats(count_n, 3),
                      floats(count_n, 3), np.zeros(1, dtype=SCALARS))
+  energy = mode_kernels.EnergyParameters(
+      floats(count_b), floats(count_b), floats(count_b), 0.0, floats(1, 3),
+      floats(1, 3), np.zeros((count_l, count_l), dtype=np.bool_),
+      ints(count_l))
   for mode, tables in (
       (mode_kernels.SsmParameters(), mode_kernels.NoTables()),
       (mode_kernels.SpeedLimitParameters(0.0, 0.0),
-       mode_kernels.SpeedTables(floats(1), floats(1)))):
+       mode_kernels.SpeedTables(floats(1), floats(1))),
+      (energy, mode_kernels.EnergyTables(floats(1, dof), floats(1)))):
     plan = Plan(floats(1, 4, dof), 0.0, 1, tables)
     run_cycles(constants, mode, state, plan, plan, floats(0, count_n, 3),
                floats(0), floats(0, 3, dof), np.zeros(0, dtype=np.bool_))
