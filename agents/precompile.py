@@ -37,6 +37,8 @@ from hrc_suite.entities import human_kernels
 from hrc_suite.human import player_kernels
 from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import cycle_kernels
+from hrc_suite.safety import energy_check_kernels
+from hrc_suite.safety import energy_kernels
 from hrc_suite.safety import kernels
 from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import speed_kernels
@@ -50,7 +52,8 @@ def compile_second_half(robot: str) -> None:
   them), and those every environment warms up when it is built: the
   person's playback (`player_kernels`, `human_kernels`), the plans'
   sampling (`plan_kernels`) and the gripper's grasp check
-  (`gripper_kernels`).
+  (`gripper_kernels`); energy PFL's (`energy_kernels`,
+  `energy_check_kernels`).
 
   Args:
     robot: the robot whose IK model is used.
@@ -60,6 +63,9 @@ def compile_second_half(robot: str) -> None:
   plan_kernels.warm_up()
   gripper_kernels.warm_up()
   cp_kernels.warm_up()
+  # Energy PFL's plan tables and readable check (shield mode pfl_energy).
+  energy_kernels.warm_up()
+  energy_check_kernels.warm_up()
   description = robot_description.load(robot)
   model = kinematics.KinematicModel(
       description, layout.robot_mount(description.name).base_pose())

@@ -17,12 +17,6 @@ import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / 'hrc_suite'
 MAX_KERNEL_PARAMETERS = 15
-# Modules whose kernels still take more than MAX_KERNEL_PARAMETERS
-# parameters, relative to the repository root; the kernel check skips
-# them until their kernels take named groups.
-KERNEL_PARAMETER_CHECK_SKIPS = (
-    'hrc_suite/safety/energy_check_kernels.py',
-)
 # Decorator names that compile a function with numba.
 _JIT_NAMES = frozenset(('jit', 'njit', 'generated_jit'))
 
@@ -143,16 +137,9 @@ def test_no_module_writes_another_objects_private_state():
 def test_kernels_take_named_groups_not_long_parameter_lists():
   bad = [f'{_relative(path)}:{line}: {name} takes {count} parameters'
          for path in _modules()
-         if _relative(path) not in KERNEL_PARAMETER_CHECK_SKIPS
          for line, name, count in wide_kernels(path.read_text())]
   assert not bad, (f'Kernels with more than {MAX_KERNEL_PARAMETERS} '
                    'parameters (pass named groups):\n' + '\n'.join(bad))
-
-
-def test_skipped_modules_exist():
-  missing = [name for name in KERNEL_PARAMETER_CHECK_SKIPS
-             if not (PACKAGE.parent / name).is_file()]
-  assert not missing, missing
 
 
 @pytest.mark.parametrize('source, expected', [

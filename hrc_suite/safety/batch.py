@@ -30,7 +30,6 @@ import numpy as np
 
 from hrc_suite.safety import cycle_kernels as ck
 from hrc_suite.safety import human_reach as human_reach_lib
-from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import shield_state
 
 # Plan samples computed ahead of a compiled call, beyond the cycles' own
@@ -77,19 +76,19 @@ def _cycle_state(state):
   them in place)."""
   human = state.human
   key = state.candidate_key or (0.0, 0.0)
-  scalars = np.array([(
+  scalars = np.empty(1, dtype=ck.SCALARS)
+  scalars[0] = (   # In SCALARS' order.
       state.intended is not None, state.goal_pending,
       state.candidate is not None, -1, key[0], key[1],
       human.last_measurement_time, human.last_period,
-      human.num_measurements)], dtype=ck.SCALARS)   # In SCALARS' order.
-  return ck.CycleState(
-      command=np.array(state.command),
-      previous_q=np.array(state.previous_q, dtype=float),
-      verified=shield_state.path_array(state.verified),
-      intended=shield_state.path_array(state.intended or path_lib.Path()),
-      positions=np.array(human.positions, dtype=float),
-      velocities=np.array(human.velocities, dtype=float),
-      scalars=scalars)
+      human.num_measurements)
+  return ck.CycleState(   # command, previous_q, verified, intended, ...
+      state.command.copy(), np.array(state.previous_q, dtype=float),
+      shield_state.path_array(state.verified),
+      (np.zeros(shield_state.PATH_SIZE) if state.intended is None
+       else shield_state.path_array(state.intended)),
+      np.array(human.positions, dtype=float),
+      np.array(human.velocities, dtype=float), scalars)
 
 
 def _run_compiled(shield, frames, times, setpoints, intervened):
@@ -157,38 +156,41 @@ def _next_state(state, arrays, plan, candidate, key, check, frames, times,
                 total, intervened):
   """The `ShieldState` after `total` compiled cycles from `state`."""
   status, first, distance, s_edges, t_edges, q_edges = check
-  flags = dict(zip(ck.SCALARS.names, arrays.scalars[0].item()))
+  (has_intended, goal_pending, has_candidate, _, _, _, last_t, last_period,
+   count) = arrays.scalars[0].item()   # SCALARS' fields.
   human = state.human
-  count = flags['count']
   length_positions = human.length_positions
   if count != human.num_measurements:
     # HumanReach.measure keeps the positions of the last velocity update
     # for the POS model's lengths.
     last = total - 1   # The last cycle that measured (usually the last).
-    while last > 0 and times[last] != flags['last_t']:
+    while last > 0 and times[last] != last_t:
       last -= 1
     length_positions = (arrays.positions if last == total - 1
                         else np.array(frames[last], dtype=float))
-  has_candidate = bool(flags['has_candidate'])
-  return shield_state.ShieldState(
+  record = shield_state.record
+  return record(
+      shield_state.ShieldState,
       command=arrays.command, previous_q=arrays.previous_q,
       verified=shield_state.path_from_array(arrays.verified),
       intended=(shield_state.path_from_array(arrays.intended)
-                if flags['has_intended'] else None),
-      plan=plan, goal=state.goal, goal_pending=bool(flags['goal_pending']),
+                if has_intended else None),
+      plan=plan, goal=state.goal, goal_pending=bool(goal_pending),
       candidate=candidate if has_candidate else None,
       candidate_key=key if has_candidate else None,
       time=float(times[total - 1]),
       intervened=bool(intervened[total - 1]),
-      verification=shield_state.Verification(
-          is_safe=status == 1, first_unsafe_interval=int(first),
+      verification=record(
+          shield_state.Verification, is_safe=status == 1,
+          first_unsafe_interval=int(first),
           reach_distance=None if math.isnan(distance) else float(distance),
           edges=None if status == 2 else shield_state.ReachEdges(
-              plan, s_edges.tolist(), t_edges.tolist(), q_edges)),
-      human=human_reach_lib.HumanState(
-          positions=arrays.positions, velocities=arrays.velocities,
-          last_measurement_time=float(flags['last_t']),
-          last_period=float(flags['last_period']), num_measurements=count,
+              plan, s_edges.tolist(), t_edges.tolist(), q_edges),
+          pending=None),
+      human=record(
+          human_reach_lib.HumanState, positions=arrays.positions,
+          velocities=arrays.velocities, last_measurement_time=last_t,
+          last_period=last_period, num_measurements=count,
           covariance=human.covariance,
           extremity_lengths=human.extremity_lengths,
           length_positions=length_positions))

@@ -38,6 +38,7 @@ from hrc_suite.safety import mode_kernels
 from hrc_suite.safety import path_kernels as pk
 
 _jit = kernels._jit
+_inline = kernels._inline
 
 Plan = mode_kernels.Plan
 
@@ -157,7 +158,7 @@ def plan_state(plan, start, inverse, cycle, s, s_dot, s_ddot, jerk, out):
   return out
 
 
-@_jit
+@_inline
 def _plan_state(plan, inverse, cycle, path, out):
   """plan_state of `Plan` plan at the path array's state; False if the
   sample at its s is not computed yet."""
@@ -172,7 +173,7 @@ def _plan_state(plan, inverse, cycle, path, out):
   return True
 
 
-@_jit
+@_inline
 def _path_limits(v_nominal, joints):
   """Shield._path_limits."""
   dof = v_nominal.shape[0]
@@ -188,7 +189,7 @@ def _path_limits(v_nominal, joints):
   return acc, (jerk if jerk > 0.0 else 0.0)
 
 
-@_jit
+@_inline
 def _verify(constants, mode, plan, current, previous_q, failsafe, now,
             measured):
   """Shield._verify (a measured human with a velocity; the mode's exact
@@ -278,19 +279,50 @@ def _stop(c, check, missing):
 def run_cycles(constants, mode, state, plan, candidate, frames, times,
                setpoints, intervened):
   """`ssm_cycles` on named groups: `Constants` constants, the mode's
-  parameter group, `CycleState` state, `Plan` plan and candidate. They
-  cross into compiled code as plain tuples (numba takes a plain tuple
-  several times faster than a NamedTuple: tens of microseconds a call),
-  and ssm_cycles names them again; the mode's group and its tables keep
-  their class (it selects the mode's kernels)."""
-  return ssm_cycles(tuple(tuple(group) for group in constants), mode,
-                    tuple(state), tuple(plan), tuple(candidate), frames,
-                    times, setpoints, intervened)
+  parameter group, `CycleState` state, `Plan` plan and candidate (the
+  same tables' class). They cross into compiled code as plain tuples
+  (numba types a plain tuple of arrays from a fingerprint, a NamedTuple
+  in Python: microseconds a field) through the mode's entry
+  (`_entry`), which names them again."""
+  kind = (type(mode), type(plan.tables))
+  entry = _ENTRIES.get(kind)
+  if entry is None:
+    entry = _ENTRIES[kind] = _entry(*kind)
+  return entry(tuple(tuple(group) for group in constants), tuple(mode),
+               tuple(state), (plan[0], plan[1], plan[2], tuple(plan[3])),
+               (candidate[0], candidate[1], candidate[2],
+                tuple(candidate[3])), frames, times, setpoints, intervened)
+
+
+# (parameter group class, tables class) -> the compiled entry (`_entry`).
+_ENTRIES = {}
+
+
+def _entry(parameters_class, tables_class):
+  """The compiled entry of `ssm_cycles` for one mode: takes the groups'
+  fields as plain tuples and names them (the classes are constants of
+  the compiled code, so each mode compiles its own)."""
+
+  @_jit
+  def cycles(constant_fields, mode_fields, state_fields, plan_fields,
+             candidate_fields, frames, times, setpoints, intervened):
+    constants = Constants(CycleConstants(*constant_fields[0]),
+                          JointTerms(*constant_fields[1]),
+                          RobotModel(*constant_fields[2]),
+                          HumanModel(*constant_fields[3]))
+    plan = Plan(plan_fields[0], plan_fields[1], plan_fields[2],
+                tables_class(*plan_fields[3]))
+    candidate = Plan(candidate_fields[0], candidate_fields[1],
+                     candidate_fields[2], tables_class(*candidate_fields[3]))
+    return ssm_cycles(constants, parameters_class(*mode_fields),
+                      CycleState(*state_fields), plan, candidate, frames,
+                      times, setpoints, intervened)
+  return cycles
 
 
 @_jit
-def ssm_cycles(constant_fields, mode, state_fields, plan_fields,
-               candidate_fields, frames, times, setpoints, intervened):
+def ssm_cycles(constants, mode, state, plan, candidate, frames, times,
+               setpoints, intervened):
   """Runs shield cycles for keypoints frames (n, N_kp, 3) at times (n,)
   on `CycleState` state, changed in place; `Constants` constants; the
   mode's parameter group `mode` (mode_kernels). plan and candidate
@@ -302,7 +334,7 @@ def ssm_cycles(constant_fields, mode, state_fields, plan_fields,
   and whether it intervened to intervened (>= n,), from row 0; the cycle
   that adopts the candidate to state.scalars' adopted_at.
 
-  The groups arrive as plain tuples of their fields (`run_cycles`).
+  Called through `run_cycles` (the mode's entry).
 
   Returns (cycles done, the last cycle's check: status (1 verified, 0
   not, 2 no monitored path), first unsafe slice, reach distance (nan: not
@@ -310,13 +342,6 @@ def ssm_cycles(constant_fields, mode, state_fields, plan_fields,
   sample not computed yet). Stops before a cycle it cannot run (see the
   module).
   """
-  constants = Constants(CycleConstants(*constant_fields[0]),
-                        JointTerms(*constant_fields[1]),
-                        RobotModel(*constant_fields[2]),
-                        HumanModel(*constant_fields[3]))
-  state = CycleState(*state_fields)
-  plan = Plan(*plan_fields)
-  candidate = Plan(*candidate_fields)
   cycle, joints = constants.cycle, constants.joints
   command, previous_q = state.command, state.previous_q
   verified, intended = state.verified, state.intended
@@ -514,10 +539,15 @@ def warm_up():
   state = CycleState(floats(5, dof), floats(dof), floats(pk.PATH_SIZE),
                      floats(pk.PATH_SIZE), floats(count_n, 3),
                      floats(count_n, 3), np.zeros(1, dtype=SCALARS))
+  energy = mode_kernels.EnergyParameters(
+      floats(count_b), floats(count_b), floats(count_b), 0.0, floats(1, 3),
+      floats(1, 3), np.zeros((count_l, count_l), dtype=np.bool_),
+      ints(count_l))
   for mode, tables in (
       (mode_kernels.SsmParameters(), mode_kernels.NoTables()),
       (mode_kernels.SpeedLimitParameters(0.0, 0.0),
-       mode_kernels.SpeedTables(floats(1), floats(1)))):
+       mode_kernels.SpeedTables(floats(1), floats(1))),
+      (energy, mode_kernels.EnergyTables(floats(1, dof), floats(1)))):
     plan = Plan(floats(1, 4, dof), 0.0, 1, tables)
     run_cycles(constants, mode, state, plan, plan, floats(0, count_n, 3),
                floats(0), floats(0, 3, dof), np.zeros(0, dtype=np.bool_))

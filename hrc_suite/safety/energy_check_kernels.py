@@ -12,6 +12,7 @@ model's largest ratio. Same compilation settings as the shield's kernels.
 """
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -52,17 +53,52 @@ def _box_gap(hc1, hc2, m, k, b, box_min, box_max, x):
   return math.sqrt(total)
 
 
+class Capsules(NamedTuple):
+  """Reach capsules: robot (K, L, 3), (K, L, 3), (K, L) or human
+  (M, K, B, 3), (M, K, B, 3), (M, K, B)."""
+  c1: np.ndarray
+  c2: np.ndarray
+  r: np.ndarray
+
+
+class BodyLimits(NamedTuple):
+  """Per human body (B,): allowed transient and clamped energies (J) and
+  thickness (m) (energy_verification.EnergyLimits)."""
+  transient: np.ndarray
+  clamped: np.ndarray
+  thickness: np.ndarray
+
+
+class ClampBoxes(NamedTuple):
+  """What a body can be clamped against (clamping.ClampGeometry): static
+  boxes (X, 3) twice and clampable robot capsule pairs (L, L)."""
+  box_min: np.ndarray
+  box_max: np.ndarray
+  clampable: np.ndarray
+
+
+class Balls(NamedTuple):
+  """The capsules' bounding balls (kernels._bounding_balls): robot
+  centres (K L, 3) and radii (K L,), human (M K B, 3) and (M K B,)."""
+  robot_mid: np.ndarray
+  robot_reach: np.ndarray
+  human_mid: np.ndarray
+  human_reach: np.ndarray
+
+
 @_inline
-def _clamped(rc1, rc2, rr, hc1, hc2, hr, thickness, box_min, box_max,
-             clampable, m, k, l, b):
+def _clamped(robot, human, limits, clamp, m, k, l, b):
   """Whether the contact of robot capsule l and body b (model m, slice k)
   may be clamped (clamping.contacts_and_clamps)."""
-  grown = hr[m, k, b] + thickness[b]
+  rc1, rc2, rr = robot
+  hc1, hc2, hr = human
+  box_min, box_max = clamp.box_min, clamp.box_max
+  grown = hr[m, k, b] + limits.thickness[b]
   for x in range(box_min.shape[0]):
     if _box_gap(hc1, hc2, m, k, b, box_min, box_max, x) - grown < 0.0:
       return True
   for other in range(rr.shape[1]):
-    if clampable[l, other]:
+    if clamp.clampable[l, other]:
       if (_distance(rc1, rc2, k, other, hc1, hc2, m, b) - rr[k, other]
           - grown < 0.0):
         return True
@@ -70,11 +106,14 @@ def _clamped(rc1, rc2, rr, hc1, hc2, hr, thickness, box_min, box_max,
 
 
 @_inline
-def _model_ratio(rc1, rc2, rr, hc1, hc2, hr, energies, transient, clamped,
-                 thickness, box_min, box_max, clampable, r_mid, r_reach,
-                 h_mid, h_reach, m, k, stop):
+def _model_ratio(robot, human, energies, limits, clamp, balls, m, k, stop):
   """Model m's largest ratio in slice k; returns as soon as it exceeds
   `stop` (np.inf: never)."""
+  rc1, rc2, rr = robot
+  hc1, hc2, hr = human
+  r_mid, r_reach = balls.robot_mid, balls.robot_reach
+  h_mid, h_reach = balls.human_mid, balls.human_reach
+  transient, clamped = limits.transient, limits.clamped
   count_l = rr.shape[1]
   count_k, count_b = hr.shape[1], hr.shape[2]
   best = 0.0
@@ -95,12 +134,19 @@ def _model_ratio(rc1, rc2, rr, hc1, hc2, hr, energies, transient, clamped,
       if ratio > best:
         best = ratio
       if energies[k, l] / clamped[b] > best and _clamped(
-          rc1, rc2, rr, hc1, hc2, hr, thickness, box_min, box_max,
-          clampable, m, k, l, b):
+          robot, human, limits, clamp, m, k, l, b):
         best = energies[k, l] / clamped[b]
       if best > stop:
         return best
   return best
+
+
+@_inline
+def _balls(robot, human):
+  """The `Balls` of robot and human `Capsules`."""
+  r_mid, r_reach = kernels._bounding_balls(robot.c1, robot.c2, robot.r)
+  h_mid, h_reach = kernels._bounding_balls(human.c1, human.c2, human.r)
+  return Balls(r_mid, r_reach, h_mid, h_reach)
 
 
 @_jit
@@ -110,40 +156,49 @@ def energy_ratios(rc1, rc2, rr, hc1, hc2, hr, energies, transient, clamped,
   rc2 (K, L, 3), rr (K, L); body capsules hc1, hc2 (M, K, B, 3), hr (M, K,
   B); energies (K, L), J; allowed transient and clamped energies (B,), J;
   body thickness (B,), m; static boxes (X, 3) twice; clampable (L, L)."""
+  robot, human = Capsules(rc1, rc2, rr), Capsules(hc1, hc2, hr)
+  limits = BodyLimits(transient, clamped, thickness)
+  clamp = ClampBoxes(box_min, box_max, clampable)
+  balls = _balls(robot, human)
   count_m, count_k = hr.shape[0], hr.shape[1]
-  r_mid, r_reach = kernels._bounding_balls(rc1, rc2, rr)
-  h_mid, h_reach = kernels._bounding_balls(hc1, hc2, hr)
   out = np.empty((count_m, count_k))
   for m in range(count_m):
     for k in range(count_k):
-      out[m, k] = _model_ratio(rc1, rc2, rr, hc1, hc2, hr, energies,
-                               transient, clamped, thickness, box_min,
-                               box_max, clampable, r_mid, r_reach, h_mid,
-                               h_reach, m, k, np.inf)
+      out[m, k] = _model_ratio(robot, human, energies, limits, clamp, balls,
+                               m, k, np.inf)
   return out
 
 
 @_jit
-def energy_first_unsafe(rc1, rc2, rr, hc1, hc2, hr, energies, transient,
-                        clamped, thickness, box_min, box_max, clampable):
-  """energy_verification.first_unsafe(energy_ratios(...)): the first slice
-  in which every model's ratio exceeds 1 + the tolerance, or -1."""
-  count_m, count_k = hr.shape[0], hr.shape[1]
-  r_mid, r_reach = kernels._bounding_balls(rc1, rc2, rr)
-  h_mid, h_reach = kernels._bounding_balls(hc1, hc2, hr)
+def first_unsafe(robot, human, energies, limits, clamp, start):
+  """energy_verification.first_unsafe(energy_ratios(...)) from slice
+  `start` on: the first slice k >= start in which every model's ratio
+  exceeds 1 + the tolerance, or -1 (robot and human `Capsules`, energies
+  (K, L), `BodyLimits`, `ClampBoxes`; rows of energies before start are
+  not read)."""
+  balls = _balls(robot, human)
+  count_m, count_k = human.r.shape[0], human.r.shape[1]
   limit = 1.0 + _RATIO_TOLERANCE
-  for k in range(count_k):
+  for k in range(start, count_k):
     passed = False
     for m in range(count_m):
-      if _model_ratio(rc1, rc2, rr, hc1, hc2, hr, energies, transient,
-                      clamped, thickness, box_min, box_max, clampable,
-                      r_mid, r_reach, h_mid, h_reach, m, k,
+      if _model_ratio(robot, human, energies, limits, clamp, balls, m, k,
                       limit) <= limit:
         passed = True
         break
     if not passed:
       return k
   return -1
+
+
+@_jit
+def energy_first_unsafe(rc1, rc2, rr, hc1, hc2, hr, energies, transient,
+                        clamped, thickness, box_min, box_max, clampable,
+                        start):
+  """`first_unsafe` on the arrays of energy_ratios' arguments."""
+  return first_unsafe(Capsules(rc1, rc2, rr), Capsules(hc1, hc2, hr),
+                      energies, BodyLimits(transient, clamped, thickness),
+                      ClampBoxes(box_min, box_max, clampable), start)
 
 
 _warm = False
@@ -164,5 +219,5 @@ def warm_up():
           np.ones(count_b), np.zeros((1, 3)), np.zeros((1, 3)),
           np.zeros((count_l, count_l), dtype=np.bool_))
   energy_ratios(*robot, *human, *rest)
-  energy_first_unsafe(*robot, *human, *rest)
+  energy_first_unsafe(*robot, *human, *rest, 0)
   _warm = True

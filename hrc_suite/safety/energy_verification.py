@@ -204,22 +204,31 @@ def coasting_safe(s_dot: float, remaining: float,
 
 def first_unsafe_slice(robot, human, energies, limits: EnergyLimits,
                        geometry: clamping.ClampGeometry,
-                       compiled: bool = True) -> int:
-  """first_unsafe(energy_ratios(...)); compiled: the kernel that stops at
-  the first unsafe slice (energy_check_kernels.energy_first_unsafe)."""
+                       compiled: bool = True, start: int = 0) -> int:
+  """first_unsafe(energy_ratios(...)) from slice `start` on (the first
+  unsafe slice k >= start, or -1; rows of energies before start are not
+  read); compiled: the kernel that stops at the first unsafe slice
+  (energy_check_kernels.energy_first_unsafe)."""
   arguments = _arguments(robot, human, energies, limits, geometry)
+  count_k = arguments[2].shape[0]
+  if isinstance(start, bool) or not isinstance(start, (int, np.integer)) \
+      or not 0 <= start <= count_k:
+    raise ValueError(f'start={start!r}: expected a slice index in [0, '
+                     f'{count_k}]')
   if compiled:
-    return int(energy_check_kernels.energy_first_unsafe(*arguments))
-  return first_unsafe(energy_ratios(robot, human, energies, limits,
-                                    geometry))
+    return int(energy_check_kernels.energy_first_unsafe(*arguments,
+                                                        int(start)))
+  ratios = energy_ratios(robot, human, energies, limits, geometry)
+  first = first_unsafe(ratios[:, start:])
+  return first if first < 0 else first + int(start)
 
 
 def verify(robot, human, energies, limits: EnergyLimits,
            geometry: clamping.ClampGeometry, final_s_dot: float,
-           remaining: float, compiled: bool = True) -> int:
-  """The verdict of a monitored path: the first unsafe slice, K (the
-  number of slices) if only the coasting after the failsafe is unsafe, or
-  -1 (safe).
+           remaining: float, compiled: bool = True, start: int = 0) -> int:
+  """The verdict of a monitored path: the first unsafe slice (from slice
+  `start` on), K (the number of slices) if only the coasting after the
+  failsafe is unsafe, or -1 (safe).
 
   Args:
     robot, human, energies, limits, geometry: as `energy_ratios`.
@@ -227,9 +236,11 @@ def verify(robot, human, energies, limits: EnergyLimits,
     remaining: J, the plan's largest energy from the failsafe's end on
       (the suffix table).
     compiled: as first_unsafe_slice.
+    start: the first slice checked (the shield: the first where contact
+      is possible); rows of energies before it are not read.
   """
   first = first_unsafe_slice(robot, human, energies, limits, geometry,
-                             compiled)
+                             compiled, start)
   if first >= 0:
     return first
   if not coasting_safe(final_s_dot, remaining, limits):

@@ -19,9 +19,9 @@ mode is typed):
 Each is the compiled twin of the mode's readable method of the same name
 (`modes.ShieldMode.failsafe_target`, `verdict`), in its operations and
 order, so the compiled cycles give the readable shield's bits
-(tests/safety/test_step_many.py). SSM (`SsmParameters`) and the speed
-limit of PFL and its variants (`SpeedLimitParameters`) are registered
-here; docs/extending.md, "A compiled verification", adds one.
+(tests/safety/test_step_many.py). SSM (`SsmParameters`), the speed
+limit of PFL and its variants (`SpeedLimitParameters`) and energy PFL
+(`EnergyParameters`) are registered here; docs/extending.md, "A compiled verification", adds one.
 """
 
 import math
@@ -31,6 +31,7 @@ import numba
 import numpy as np
 from numba import extending
 
+from hrc_suite.safety import energy_check_kernels as eck
 from hrc_suite.safety import kernels
 from hrc_suite.safety import path_kernels as pk
 
@@ -77,6 +78,21 @@ class SpeedLimitParameters(NamedTuple):
   s_dot_tolerance: float   # Relative (modes.S_DOT_TOLERANCE).
 
 
+class EnergyParameters(NamedTuple):
+  """Energy PFL (docs/shield_maths.md, 9.4; energy_verification): per
+  human body the allowed energies and thickness, the energy allowed
+  after the failsafe, what a body can be clamped against, and each robot
+  capsule's link."""
+  transient: np.ndarray     # (B,) J, margin x E_T.
+  clamped: np.ndarray       # (B,) J, margin x E_QS.
+  thickness: np.ndarray     # (B,) m.
+  coasting: float           # J (EnergyLimits.coasting).
+  box_min: np.ndarray       # (X, 3) m, static boxes ...
+  box_max: np.ndarray       # (X, 3)
+  clampable: np.ndarray     # (L, L) bool, capsule pairs that can clamp.
+  frame_index: np.ndarray   # (L,) int64, each robot capsule's link.
+
+
 class NoTables(NamedTuple):
   """No tables of a plan (SSM)."""
 
@@ -85,6 +101,15 @@ class SpeedTables(NamedTuple):
   """PFL tables of a plan (Shield.plan_speeds): the largest capsule
   surface speed at nominal path speed over the next samples, and from
   each sample to the end (both (N,), m/s)."""
+  window: np.ndarray
+  suffix: np.ndarray
+
+
+class EnergyTables(NamedTuple):
+  """Energy PFL tables of a plan (Shield.plan_energies): per link the
+  largest contact energy bound at nominal path speed over the next
+  samples (N, dof), and of any link from each sample to the end (N,),
+  J."""
   window: np.ndarray
   suffix: np.ndarray
 
@@ -235,3 +260,67 @@ def _speed_limit_verdict(parameters, slices):
 
 register(SpeedLimitParameters, _speed_limit_failsafe_target,
          _speed_limit_verdict)
+
+
+# ------------------------------------------------------------ energy PFL
+
+
+@_jit
+def _energy_failsafe_target(parameters, plan, inverse, s):
+  """modes.PflEnergy.failsafe_target: the largest path velocity (1 at
+  most) at which the rest of the plan stays within the coasting energy
+  (energy_verification.coasting_speed)."""
+  remaining = plan.tables.suffix[sample_index(
+      s, plan.start, inverse, plan.samples.shape[0] - 1)]
+  if remaining <= parameters.coasting:
+    return 1.0
+  return math.sqrt(parameters.coasting / remaining)
+
+
+@_jit
+def _energy_verdict(parameters, slices):
+  """modes.PflEnergy.verdict: SSM-safe, or from the first slice where
+  contact is possible on every possible contact within its body's
+  energy limit (energy_check_kernels) and the coasting after the
+  failsafe within the coasting energy."""
+  first = ssm_first_unsafe(slices)
+  if first < 0:
+    return True, first
+  plan = slices.plan
+  start, inverse = plan.start, slices.inverse
+  last = plan.samples.shape[0] - 1
+  window, suffix = plan.tables.window, plan.tables.suffix
+  failsafe, pieces, num = slices.failsafe, slices.pieces, slices.num_pieces
+  s_edges = slices.s_edges
+  count = s_edges.shape[0] - 2
+  interval = slices.interval
+  end = failsafe[6]
+  links = parameters.frame_index
+  energies = np.zeros((count + 1, links.shape[0]))
+  for i in range(first, count + 1):
+    if i == 0:
+      s_dot = max(slices.current[1], failsafe[1])
+    else:
+      before = i * interval if i < count else end
+      s_dot = pk.max_s_dot(pieces, num, (i - 1) * interval, before)
+    row = sample_index(s_edges[i], start, inverse, last)
+    squared = s_dot * s_dot
+    for l in range(links.shape[0]):
+      energies[i, l] = squared * window[row, links[l]]
+  unsafe = eck.first_unsafe(
+      eck.Capsules(slices.robot_c1, slices.robot_c2, slices.robot_r),
+      eck.Capsules(slices.human_c1, slices.human_c2, slices.human_r),
+      energies,
+      eck.BodyLimits(parameters.transient, parameters.clamped,
+                     parameters.thickness),
+      eck.ClampBoxes(parameters.box_min, parameters.box_max,
+                     parameters.clampable), first)
+  if unsafe >= 0:
+    return False, first
+  final = pk.final_s_dot(failsafe)
+  remaining = suffix[sample_index(s_edges[count + 1], start, inverse, last)]
+  return (final * final * remaining
+          <= parameters.coasting * (1.0 + eck._RATIO_TOLERANCE)), first
+
+
+register(EnergyParameters, _energy_failsafe_target, _energy_verdict)

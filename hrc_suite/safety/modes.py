@@ -40,6 +40,8 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 
 from hrc_suite import extensions
+from hrc_suite.safety import energy_check_kernels
+from hrc_suite.safety import energy_verification
 from hrc_suite.safety import kernels
 from hrc_suite.safety import mode_kernels
 
@@ -172,7 +174,8 @@ def unregister(name):
 
 
 def names():
-  """Names of the registered modes (shipped first: ssm, pfl, off)."""
+  """Names of the registered modes (shipped first: ssm, pfl, off,
+  pfl_energy)."""
   extensions.load()
   return tuple(_MODES)
 
@@ -210,3 +213,77 @@ class Off(ShieldMode):
   read-outs (minimal distance, overlays)."""
   name = 'off'
   gates = False
+
+
+@register
+class PflEnergy(ShieldMode):
+  """Energy-based power and force limiting: where contact is possible
+  every possible contact stays within its body region's energy limit,
+  clamped or transient, and the robot coasts after the failsafe within
+  the smallest clamped limit (docs/shield_maths.md, 9.4; docs/safety.md,
+  "Energy limits of body regions"). The shield's energy model, limits
+  and clamp geometry: `Shield.energy_model`, `energy_limits`,
+  `clamp_geometry`; its plan tables: `Shield.plan_energies`."""
+  name = 'pfl_energy'
+
+  @property
+  def allows_contact(self):
+    return True
+
+  def failsafe_target(self, shield, plan, s):
+    """The largest path velocity (1 at most) at which the rest of the plan
+    stays within the coasting energy (energy_verification.coasting_
+    speed)."""
+    remaining = shield.plan_energies(plan)[1][plan.sample_index(s)]
+    return energy_verification.coasting_speed(remaining,
+                                              shield.energy_limits)
+
+  def verdict(self, shield, slices):
+    """SSM-safe, or from the first slice where contact is possible on
+    within the energy limits (`_energy_enough`)."""
+    first = kernels.ssm_first_unsafe(
+        *slices.robot, *(np.ascontiguousarray(x) for x in slices.human))
+    if first < 0:
+      return True, first
+    return _energy_enough(shield, slices, first), first
+
+  def kernel_parameters(self, shield):
+    limits, clamp = shield.energy_limits, shield.clamp_geometry
+    energy_check_kernels.warm_up()   # The readable verdict's kernel.
+    return mode_kernels.EnergyParameters(
+        transient=np.ascontiguousarray(limits.transient, dtype=float),
+        clamped=np.ascontiguousarray(limits.clamped, dtype=float),
+        thickness=np.ascontiguousarray(limits.thickness, dtype=float),
+        coasting=float(limits.coasting),
+        box_min=np.ascontiguousarray(clamp.box_min, dtype=float),
+        box_max=np.ascontiguousarray(clamp.box_max, dtype=float),
+        clampable=np.ascontiguousarray(clamp.clampable, dtype=np.bool_),
+        frame_index=np.ascontiguousarray(shield.robot.frame_index,
+                                         dtype=np.int64))
+
+  def plan_tables(self, shield, plan):
+    return mode_kernels.EnergyTables(*shield.plan_energies(plan))
+
+
+def _energy_enough(shield, slices, first):
+  """Energy PFL: from slice `first` on every possible contact within its
+  body's limit, each capsule's energy the slice's largest path velocity
+  squared times the plan's window table at its link, and coasting after
+  the failsafe within the coasting energy (energy_verification.verify)."""
+  plan, failsafe, times = slices.plan, slices.failsafe, slices.times
+  s_edges, pieces = slices.s_edges, slices.pieces
+  window, suffix = shield.plan_energies(plan)
+  s_dot = np.zeros(len(times))
+  rows = np.zeros(len(times), dtype=int)
+  for i in range(first, len(times)):
+    if i == 0:
+      s_dot[i] = max(slices.current.s_dot, failsafe.s_dot)
+    else:
+      s_dot[i] = failsafe.max_s_dot(times[i - 1], times[i], pieces)
+    rows[i] = plan.sample_index(s_edges[i])
+  energies = energy_verification.slice_energies(
+      s_dot, window[rows], shield.robot.frame_index)
+  return energy_verification.verify(
+      slices.robot, slices.human, energies, shield.energy_limits,
+      shield.clamp_geometry, failsafe.final()[1],
+      suffix[plan.sample_index(s_edges[-1])], start=first) < 0

@@ -31,14 +31,17 @@ gripper's fingers at rest.
 """
 
 import dataclasses
+import functools
 from typing import Iterable, Optional
 
+from dm_control import mjcf
 import mujoco
 import numpy as np
 import pinocchio as pin
 
 from hrc_suite import robot_description
 from hrc_suite.control import kinematics
+from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.entities import robot as robot_lib
 
 
@@ -152,6 +155,19 @@ def payload_from_physics(physics, robot, extra_bodies: Iterable = ()
     total = total + pin.Inertia(mass, centre, inertia)
   return Payload(mass=float(total.mass), center_of_mass=np.array(total.lever),
                  inertia=np.array(total.inertia))
+
+
+@functools.lru_cache(maxsize=None)
+def gripper_payload(name: str) -> Payload:
+  """The Payload of the tasks' gripper (entities.gripper.ParallelGripper,
+  fingers as built) on the named robot's last link: payload_from_physics
+  of the robot with its gripper alone (computed once per robot; the
+  shield's default payload)."""
+  robot = robot_lib.make_robot(name)
+  robot.attach_gripper(gripper_lib.ParallelGripper())
+  physics = mjcf.Physics.from_mjcf_model(robot.mjcf_model)
+  physics.forward()
+  return payload_from_physics(physics, robot)
 
 
 def _in_subtree(model, body, root):

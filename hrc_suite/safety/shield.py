@@ -53,9 +53,14 @@ import math
 
 import numpy as np
 
+from hrc_suite import layout
 from hrc_suite import robot_description as robot_description_lib
 from hrc_suite.human import keypoints
+from hrc_suite.safety import arm_energy
+from hrc_suite.safety import clamping
+from hrc_suite.safety import collision_prevention
 from hrc_suite.safety import cycle_kernels
+from hrc_suite.safety import energy_verification
 from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import kernels
@@ -63,6 +68,7 @@ from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import modes as modes_lib
 from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import plan_kernels
+from hrc_suite.safety import robot_energy
 from hrc_suite.safety import robot_reach as robot_reach_lib
 from hrc_suite.safety import shield_state
 from hrc_suite.safety import speed_kernels
@@ -94,13 +100,15 @@ def _joint_list(values):
 
 class Shield:
   """SaRA-style reachability shield for one robot in a registered mode
-  (`modes`: 'ssm', 'pfl', 'off' or one registered elsewhere)."""
+  (`modes`: 'ssm', 'pfl', 'off', 'pfl_energy' or one registered
+  elsewhere)."""
 
   def __init__(self, robot_description, mode='ssm',
                cycle_time=DEFAULT_CYCLE_TIME, human_model=None,
                base_pose=None, tool_capsule=None, v_safe=None,
                use_kalman_filter=False, use_combined_model=None,
-               secure_radius=None, alpha=None, q_init=None):
+               secure_radius=None, alpha=None, q_init=None, payload=None,
+               static_boxes=None):
     if isinstance(robot_description, str):
       robot_description = robot_description_lib.load(robot_description)
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
@@ -117,6 +125,14 @@ class Shield:
     if not self.v_safe > 0:
       raise ValueError(f'v_safe: expected > 0 m/s, got {v_safe}')
     self.mode = mode   # After v_safe: the mode's speed limit depends on it.
+    # Energy PFL's inputs (docs/shield_maths.md, 9.4), its models made
+    # when a mode first needs them: what the last link carries
+    # (robot_energy.Payload; None: the gripper, robot_energy.gripper_
+    # payload) and the static boxes a body can be clamped against
+    # (clamping.clamp_geometry's; None: the workcell's).
+    self._payload = payload
+    self._static_boxes = static_boxes
+    self._energy = {}
     self.interval = params.reachability_interval_cycles * self.cycle_time
     self.max_s_stop = params.max_s_stop
     self.robot = robot_reach_lib.RobotReach(
@@ -194,7 +210,7 @@ class Shield:
     self._mode = modes_lib.get(name)
     self._gates = self._mode.gates
     self.speed_limit = self._mode.speed_limit(self.v_safe)
-    self._kernel_parameters = self._mode.kernel_parameters(self)
+    self._kernel_parameters = None   # kernel_parameters, made when asked.
 
   @property
   def gates(self):
@@ -265,6 +281,8 @@ class Shield:
   def kernel_parameters(self):
     """The mode's parameter group for the compiled cycles
     (`ShieldMode.kernel_parameters`, mode_kernels)."""
+    if self._kernel_parameters is None:
+      self._kernel_parameters = self._mode.kernel_parameters(self)
     return self._kernel_parameters
 
   def kernel_tables(self, plan):
@@ -830,6 +848,64 @@ class Shield:
                             plan.samples(), *robot._kernel_model,
                             robot._kernel_frames, robot._kernel_radii,
                             PFL_WINDOW))
+
+  # ------------------------------------------------------- energy PFL
+
+  @property
+  def energy_model(self):
+    """The arm's energy model with its payload
+    (`arm_energy.ArmEnergyModel`; made when first asked)."""
+    if 'model' not in self._energy:
+      payload = self._payload
+      if payload is None:
+        payload = robot_energy.gripper_payload(self.description.name)
+      self._energy['model'] = arm_energy.ArmEnergyModel(self.description,
+                                                        payload)
+    return self._energy['model']
+
+  def set_payload(self, payload):
+    """What the last link carries from now on (`robot_energy.Payload`: the
+    gripper and an object grasped, or the gripper alone after a release;
+    None: the gripper): energy PFL's plan tables follow it."""
+    if payload is not None and not isinstance(payload, robot_energy.Payload):
+      raise TypeError(f'payload: expected a robot_energy.Payload or None, '
+                      f'got {type(payload).__name__}')
+    self._payload = payload
+    self._energy.pop('model', None)
+
+  @property
+  def energy_limits(self):
+    """The allowed energies per body of the human model
+    (`energy_verification.EnergyLimits`)."""
+    if 'limits' not in self._energy:
+      self._energy['limits'] = energy_verification.energy_limits(
+          self.human.config)
+    return self._energy['limits']
+
+  @property
+  def clamp_geometry(self):
+    """What a body can be clamped against (`clamping.ClampGeometry` of the
+    robot's capsules and the static boxes)."""
+    if 'clamp' not in self._energy:
+      boxes = self._static_boxes
+      if boxes is None:
+        boxes = collision_prevention.workcell_boxes(
+            mount=layout.robot_mount(self.description.name))
+      self._energy['clamp'] = clamping.clamp_geometry(
+          self.description, self.robot.frame_index, boxes)
+    return self._energy['clamp']
+
+  def plan_energies(self, plan):
+    """Energy PFL tables of a plan (docs/shield_maths.md, 9.4): per link
+    the largest contact energy bound at nominal path speed over the next
+    PFL_WINDOW samples (N, dof), and of any link from each sample to the
+    end (N,), J. Kept on the plan for this shield's energy model (a new
+    payload makes new ones), as `plan_speeds`."""
+    model = self.energy_model
+    return plan.derived('pfl_energy_tables', model,
+                        lambda: model.plan_tables(plan.samples(),
+                                                  self.cycle_time,
+                                                  PFL_WINDOW))
 
   def _verify(self, plan, current, failsafe, previous_q, now):
     """Checks the slice current -> intended step, then the failsafe, at

@@ -76,15 +76,42 @@ class ShieldState:
   human: human_reach_lib.HumanState
 
   def replace(self, **changes: Any) -> 'ShieldState':
-    """A copy with `changes` (field name -> value)."""
-    return dataclasses.replace(self, **changes)
+    """A copy with `changes` (field name -> value): dataclasses.replace
+    without __init__ (`record`).
+
+    Raises:
+      TypeError: a change names no field.
+    """
+    unknown = changes.keys() - self.__dataclass_fields__.keys()
+    if unknown:
+      raise TypeError(f'ShieldState.replace: no fields {sorted(unknown)}')
+    return record(ShieldState, **{**self.__dict__, **changes})
+
+
+def record(cls, **values: Any):
+  """`cls(**values)` for a frozen dataclass `cls` (`ShieldState`,
+  `Verification`, human_reach.HumanState) given every field, without its
+  __init__'s one object.__setattr__ per field: the compiled cycles pack a
+  record per call (safety/batch.py).
+
+  Raises:
+    TypeError: values do not name exactly the fields of cls.
+  """
+  fields = cls.__dataclass_fields__
+  if len(values) != len(fields) or not values.keys() <= fields.keys():
+    raise TypeError(f'{cls.__name__}: expected the fields '
+                    f'{sorted(fields)}, got {sorted(values)}')
+  made = object.__new__(cls)
+  made.__dict__.update(values)
+  return made
 
 
 def path_array(path: path_lib.Path) -> np.ndarray:
   """A `path.Path` as PATH_SIZE floats: s, s_dot, s_ddot, jerk, phase ends
   and phase jerks."""
-  return np.array([path.s, path.s_dot, path.s_ddot, path.jerk]
-                  + list(path.phase_ends) + list(path.phase_jerks))
+  ends, jerks = path.phase_ends, path.phase_jerks
+  return np.array((path.s, path.s_dot, path.s_ddot, path.jerk, ends[0],
+                   ends[1], ends[2], jerks[0], jerks[1], jerks[2]))
 
 
 def path_from_array(values) -> path_lib.Path:
@@ -93,7 +120,9 @@ def path_from_array(values) -> path_lib.Path:
   Raises:
     ValueError: values are not PATH_SIZE numbers.
   """
-  values = np.asarray(values, dtype=float).ravel().tolist()
+  values = (values.tolist() if type(values) is np.ndarray
+            and values.dtype == np.float64 and values.ndim == 1
+            else np.asarray(values, dtype=float).ravel().tolist())
   if len(values) != PATH_SIZE:
     raise ValueError(f'path state: expected {PATH_SIZE} numbers, got '
                      f'{len(values)}')

@@ -134,10 +134,6 @@ def build(defaults, options, motions=None, outside_human_model='refuse'):
                            description.flange_translation)
   tool_capsule = (translation + rotation @ p1, translation + rotation @ p2,
                   radius)
-  shield = shield_lib.Shield(
-      description, mode=options.shield,
-      cycle_time=options.physics_timestep, base_pose=base_pose,
-      tool_capsule=tool_capsule, v_safe=options.v_safe)
   tool_table_allowance = 0.0
   if defaults.fingertip_table_clearance is not None:
     # The capsule's lowest point is `radius` below the fingertips (its
@@ -147,6 +143,16 @@ def build(defaults, options, motions=None, outside_human_model='refuse'):
       description, base_pose=base_pose, tool_capsule=tool_capsule,
       tool_table_allowance=tool_table_allowance, compiled=fast_path,
       table=defaults.table)
+  # The shield's static boxes (energy PFL's clamping) are those collision
+  # prevention keeps the robot out of; its payload the gripper's
+  # (Shield.set_payload changes it).
+  shield = shield_lib.Shield(
+      description, mode=options.shield,
+      cycle_time=options.physics_timestep, base_pose=base_pose,
+      tool_capsule=tool_capsule, v_safe=options.v_safe,
+      static_boxes=dict(zip(collision_checker.box_names,
+                            zip(collision_checker.box_min,
+                                collision_checker.box_max))))
   self_colliding = self_collision_lib.SelfCollision(
       collision_checker, compiled=fast_path)
   action_space = actions.make_action_space(

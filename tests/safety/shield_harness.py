@@ -54,15 +54,17 @@ def ramped_distance(t, start, speed, accel):
   return 0.5 * accel * ramp * ramp + speed * (t - ramp)
 
 
-def hand_attack(target, start=0.3, speed=2.0, accel=40.0, station=None):
+def hand_attack(target, start=0.3, speed=2.0, accel=40.0, station=None,
+                overshoot=0.5):
   """The right forearm and hand thrust straight at `target` at `speed`
   (m/s, reached at accel m/s^2 within the arm joints' a_max of 50), from a
-  person standing across the table, and on through it for 0.5 m."""
+  person standing across the table, and on through it for `overshoot` m
+  (0: the hand stays at the target)."""
   x, y, yaw = station or (1.3, 0.0, math.pi)
   body = place(STANDING, x, y, yaw)
   hand = body[keypoint_set.KEYPOINT_INDEX['right_hand']]
   direction = np.asarray(target, dtype=float) - hand
-  reach = np.linalg.norm(direction) + 0.5
+  reach = np.linalg.norm(direction) + overshoot
   direction /= np.linalg.norm(direction)
 
   def keypoints(t):

@@ -162,6 +162,15 @@ def test_compiled_check_equals_the_reference_bit_for_bit(limits):
                                  geometry) == first
     assert ev.first_unsafe_slice(robot, human, energies, limits, geometry,
                                  compiled=False) == first
+    # From a start slice on: the rows before it are not read.
+    start = rng.randint(0, energies.shape[0] + 1)
+    later = energies.copy()
+    later[:start] = np.nan
+    tail = ev.first_unsafe(expected[:, start:])
+    tail = tail if tail < 0 else tail + start
+    for compiled in (True, False):
+      assert ev.first_unsafe_slice(robot, human, later, limits, geometry,
+                                   compiled=compiled, start=start) == tail
     verdicts.add(first < 0)
     clamps += int(clamping.contacts_and_clamps(robot, human,
                                                limits.thickness,
@@ -179,3 +188,6 @@ def test_bad_arguments_are_named(limits):
                      + (human[2],), np.ones((1, 1)), limits, geometry)
   with pytest.raises(ValueError, match='s_dot_max'):
     ev.slice_energies([0.5, 0.5], np.ones((1, 7)), [4])
+  with pytest.raises(ValueError, match=r'start=2: expected a slice index'):
+    ev.first_unsafe_slice(robot, human, np.ones((1, 1)), limits, geometry,
+                          start=2)

@@ -89,7 +89,9 @@ def _run(make, goals, frames, times, compiled):
 @pytest.mark.parametrize('name,human,mode', [
     ('schunk', 'attack', 'ssm'), ('panda', 'walk', 'ssm'),
     ('ur5e', 'far', 'ssm'), ('panda', 'attack', 'pfl'),
-    ('schunk', 'walk', 'pfl'), ('iiwa', 'attack', 'off')])
+    ('schunk', 'walk', 'pfl'), ('iiwa', 'attack', 'off'),
+    ('schunk', 'attack', 'pfl_energy'), ('panda', 'walk', 'pfl_energy'),
+    ('iiwa', 'attack', 'pfl_energy')])
 def test_compiled_cycles_match_the_reference(name, human, mode):
   motion = {'attack': harness.hand_attack((0.5, 0.1, 0.9)),
             'walk': harness.walk_in_and_leave(),
@@ -163,6 +165,16 @@ def test_mode_parameter_groups_and_their_registration():
   pfl = shield_lib.Shield('panda', mode='pfl')
   assert pfl.kernel_parameters() == mode_kernels.SpeedLimitParameters(
       pfl.speed_limit, modes.S_DOT_TOLERANCE)
+  energy = shield_lib.Shield('panda', mode='pfl_energy')
+  parameters = energy.kernel_parameters()
+  assert isinstance(parameters, mode_kernels.EnergyParameters)
+  np.testing.assert_array_equal(parameters.transient,
+                                energy.energy_limits.transient)
+  assert parameters.coasting == energy.energy_limits.coasting
+  assert parameters.frame_index.tolist() == (
+      energy.robot.frame_index.tolist())
+  assert isinstance(energy.kernel_tables(energy.plan),
+                    mode_kernels.EnergyTables)
   with pytest.raises(TypeError, match='NamedTuple class'):
     mode_kernels.register(dict, mode_kernels._ssm_failsafe_target,
                           mode_kernels._ssm_verdict)

@@ -22,9 +22,11 @@ STEPS = 100
 ROBOTS = ('schunk', 'panda')
 
 
-def _episode(domain, task, robot, fast_path):
-  env = suite.load(domain, task, task_kwargs=dict(
-      robot=robot, seed=3, fast_path=fast_path))
+def _episode(domain, task, robot, fast_path, shield=None):
+  kwargs = dict(robot=robot, seed=3, fast_path=fast_path)
+  if shield is not None:
+    kwargs['shield'] = shield
+  env = suite.load(domain, task, task_kwargs=kwargs)
   spec = env.action_spec()
   rng = np.random.RandomState(7)
   env.reset()
@@ -48,6 +50,16 @@ def _episode(domain, task, robot, fast_path):
 def test_fast_path_agrees_with_the_reference(domain, task, robot):
   fast_q, fast = _episode(domain, task, robot, True)
   slow_q, slow = _episode(domain, task, robot, False)
+  assert np.array_equal(fast_q, slow_q)
+  assert fast == slow
+
+
+@pytest.mark.parametrize('robot', ROBOTS)
+@pytest.mark.parametrize('domain,task', [('reach', 'dense'),
+                                         ('handover', 'robot_to_human')])
+def test_fast_path_agrees_in_energy_pfl(domain, task, robot):
+  fast_q, fast = _episode(domain, task, robot, True, 'pfl_energy')
+  slow_q, slow = _episode(domain, task, robot, False, 'pfl_energy')
   assert np.array_equal(fast_q, slow_q)
   assert fast == slow
 
