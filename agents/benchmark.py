@@ -23,6 +23,7 @@ throughput", holds the measurements and the target: at most 3 s per 1000
 training RL steps with the paper's (64, 64, 64) networks.
 """
 
+import os
 import time
 
 from absl import app
@@ -45,10 +46,14 @@ REFERENCE_SECONDS_PER_1000_STEPS = 17.61
 TARGET_SECONDS_PER_1000_STEPS = 3.0
 
 
-def make_environment(robot='schunk', seed=0):
-  """reach/dense, Cartesian, default shield (SSM) and human motions."""
-  return suite.load('reach', 'dense',
-                    task_kwargs={'robot': robot, 'action_space': 'cartesian'},
+def make_environment(robot='schunk', seed=0, motions=None):
+  """reach/dense, Cartesian, default shield (SSM) and human motions (a
+  folder of people, played with outside_human_model='allow'; None: the
+  shipped library)."""
+  task_kwargs = {'robot': robot, 'action_space': 'cartesian'}
+  if motions is not None:
+    task_kwargs.update(motions=motions, outside_human_model='allow')
+  return suite.load('reach', 'dense', task_kwargs=task_kwargs,
                     environment_kwargs={'random_state': seed})
 
 
@@ -62,14 +67,16 @@ def _timed(function):
 
 
 def measure(steps=1000, warmup=300, batch_size=256, hidden_sizes=(256, 256),
-            fused_steps=config_lib.FUSED_STEPS, robot='schunk', seed=0):
-  """{section: (steps, wall s, cpu s, main-thread cpu s)}."""
+            fused_steps=config_lib.FUSED_STEPS, robot='schunk', seed=0,
+            motions=None):
+  """{section: (steps, wall s, cpu s, main-thread cpu s)}; motions: a
+  folder of people (`make_environment`)."""
   if warmup < batch_size + 2 * fused_steps:
     raise ValueError(f'warmup ({warmup}) must exceed batch_size '
                      f'({batch_size}) + 2 fused_steps ({fused_steps}) so '
                      'that updates (and their compilation) happen during '
                      'the warm-up')
-  env = make_environment(robot, seed)
+  env = make_environment(robot, seed, motions)
   config = config_lib.default_config(
       batch_size=batch_size, hidden_sizes=tuple(hidden_sizes),
       min_replay_size=batch_size, updates_per_step=1.0,
@@ -145,14 +152,21 @@ def define_flags(flag_values=flags.FLAGS):
                        flag_values=fv)
   flags.DEFINE_string('robot', 'schunk', 'Robot.', flag_values=fv)
   flags.DEFINE_integer('seed', 0, 'Seed.', flag_values=fv)
+  flags.DEFINE_string('motions', None, "A folder of people for reach/dense "
+                      "(task_kwargs['motions']; docs/motion_library.md), "
+                      "played with outside_human_model='allow' (default: the "
+                      'shipped synthetic library).', flag_values=fv)
 
 
 def main(argv, flag_values=flags.FLAGS):
   del argv
   f = flag_values
+  if f.motions is not None and not os.path.isdir(f.motions):
+    raise app.UsageError(f'--motions={f.motions}: not a folder')
   results = measure(steps=f.steps, warmup=f.warmup, batch_size=f.batch_size,
                     hidden_sizes=[int(h) for h in f.hidden_sizes],
-                    fused_steps=f.fused_steps, robot=f.robot, seed=f.seed)
+                    fused_steps=f.fused_steps, robot=f.robot, seed=f.seed,
+                    motions=f.motions)
   print('reach/dense, {}, Cartesian, SSM shield, person moving; one SAC '
         'gradient step (batch {}, MLP {}) per RL step, {} per learner '
         'call'.format(f.robot, f.batch_size, 'x'.join(f.hidden_sizes),
