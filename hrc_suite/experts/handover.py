@@ -19,7 +19,10 @@ Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
 table, still; held low, still for a second) come down on the handle inside
 a cone (the reference's pick-and-place approach), slide the open pads
-along it to the grip point and close; once the person lets go, carry it
+along it to the grip point and close (a hand that sways in and out of the
+gripper-down reach is approached, the arm waiting at the edge of its
+reach; one held beyond it by more than SWAY_MARGIN is waited for at the
+ready point); once the person lets go, carry it
 over the table target, lower it to RELEASE_HEIGHT and open: it drops the
 last centimetres. Then go home. A hammer lying on the table (before the
 person's pick, placed, or dropped) is left alone.
@@ -65,6 +68,13 @@ CONE_SLOPE = 3.0
 # REACH_TOLERANCE, but not lower than this (m): the fingertips, 0.01 m
 # below the TCP, stay clear of the 0.022 m deep handle.
 MIN_HOVER_HEIGHT = 0.025                 # m
+# A presentation counts as within reach when the grip point moved this
+# far towards the base is: people waiting with the hammer held high sway
+# it 0.05 m along the handle (recording advanced_0 of
+# HumanRobotHandover: the grip point 0.62-0.67 m from the Panda's base,
+# gripper-down IK reaching it at 0.64 m); the arm approaches and closes
+# when the sway brings the grip point between its pads.
+SWAY_MARGIN = 0.05                       # m
 # Close when the grip point is between the pads: TCP offset from it along
 # the handle (towards its end; the head is 0.034 m the other way, the pads
 # 0.01 m wide), across it (the pads open 0.085 m around the 0.022 m deep
@@ -419,8 +429,15 @@ class HumanToRobotExpert(_HammerExpert):
                     and self._still_steps >= PRESENTED_DWELL)))
 
   def _graspable(self, grip, q):
-    """Gripper-down IK reaches MIN_HOVER_HEIGHT above the grip point."""
-    return self._reachable(np.clip(grip + (0.0, 0.0, MIN_HOVER_HEIGHT),
+    """Gripper-down IK reaches MIN_HOVER_HEIGHT above the grip point
+    moved SWAY_MARGIN towards the base: a hand that sways in and out of
+    the reach is approached (the arm waits at the edge of its reach), one
+    held beyond it is not."""
+    inward = self._kinematics.base_pose[:3, 3] - grip
+    inward[2] = 0.0
+    inward *= SWAY_MARGIN / max(np.linalg.norm(inward), 1e-9)
+    return self._reachable(np.clip(grip + inward + (0.0, 0.0,
+                                                    MIN_HOVER_HEIGHT),
                                    self._box[0], self._box[1]), q)
 
   def _ready_point(self, grip):
@@ -468,9 +485,9 @@ class HumanToRobotExpert(_HammerExpert):
     if self._in_hand(obs) and not held:
       return self._carry(obs)
     if self._presented(obs):
-      # Out of reach (held too high or too far): wait for a presentation
-      # the arm reaches, where the last one was, instead of pushing the
-      # arm against its reach.
+      # Beyond the reach by more than a sway (held too high or too far):
+      # wait for a presentation the arm reaches, where the last one was,
+      # instead of pushing the arm against its reach.
       q = obs['joint_positions']
       if speed < PRESENTED_SPEED and self._graspable(grip, q):
         self._last_presented = grip.copy()
