@@ -23,8 +23,9 @@ throughput", holds the measurements and the target: at most 3 s per 1000
 training RL steps with the paper's (64, 64, 64) networks.
 """
 
+import os
 import time
-from typing import Dict, Mapping, Sequence, Tuple
+from typing import Dict, Mapping, Optional, Sequence, Tuple
 
 from absl import app
 from absl import flags
@@ -48,19 +49,23 @@ TARGET_SECONDS_PER_1000_STEPS = 3.0
 Timing = Tuple[int, float, float, float]
 
 
-def make_environment(robot: str = 'schunk',
-                     seed: int = 0) -> suite.Environment:
+def make_environment(robot: str = 'schunk', seed: int = 0,
+                     motions: Optional[str] = None) -> suite.Environment:
   """reach/dense, Cartesian, default shield (SSM) and human motions.
 
   Args:
     robot: the robot.
     seed: the environment's seed.
+    motions: a folder of people, played with outside_human_model='allow'
+      (None: the shipped library).
 
   Returns:
     The environment.
   """
-  return suite.load('reach', 'dense',
-                    task_kwargs={'robot': robot, 'action_space': 'cartesian'},
+  task_kwargs = {'robot': robot, 'action_space': 'cartesian'}
+  if motions is not None:
+    task_kwargs.update(motions=motions, outside_human_model='allow')
+  return suite.load('reach', 'dense', task_kwargs=task_kwargs,
                     environment_kwargs={'random_state': seed})
 
 
@@ -76,7 +81,8 @@ def _timed(function):
 def measure(steps: int = 1000, warmup: int = 300, batch_size: int = 256,
             hidden_sizes: Sequence[int] = (256, 256),
             fused_steps: int = config_lib.FUSED_STEPS, robot: str = 'schunk',
-            seed: int = 0) -> Dict[str, Timing]:
+            seed: int = 0, motions: Optional[str] = None
+            ) -> Dict[str, Timing]:
   """Times the sections (module doc).
 
   Args:
@@ -87,6 +93,7 @@ def measure(steps: int = 1000, warmup: int = 300, batch_size: int = 256,
     fused_steps: gradient steps per learner call.
     robot: the robot.
     seed: the seed.
+    motions: a folder of people (`make_environment`), or None.
 
   Returns:
     {section: (steps, wall s, cpu s, main-thread cpu s)}.
@@ -99,7 +106,7 @@ def measure(steps: int = 1000, warmup: int = 300, batch_size: int = 256,
                      f'({batch_size}) + 2 fused_steps ({fused_steps}) so '
                      'that updates (and their compilation) happen during '
                      'the warm-up')
-  env = make_environment(robot, seed)
+  env = make_environment(robot, seed, motions)
   config = config_lib.default_config(
       batch_size=batch_size, hidden_sizes=tuple(hidden_sizes),
       min_replay_size=batch_size, updates_per_step=1.0,
@@ -186,6 +193,10 @@ def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
                        flag_values=fv)
   flags.DEFINE_string('robot', 'schunk', 'Robot.', flag_values=fv)
   flags.DEFINE_integer('seed', 0, 'Seed.', flag_values=fv)
+  flags.DEFINE_string('motions', None, "A folder of people for reach/dense "
+                      "(task_kwargs['motions']; docs/motion_library.md), "
+                      "played with outside_human_model='allow' (default: the "
+                      'shipped synthetic library).', flag_values=fv)
 
 
 def main(argv: Sequence[str],
@@ -198,9 +209,12 @@ def main(argv: Sequence[str],
   """
   del argv
   f = flag_values
+  if f.motions is not None and not os.path.isdir(f.motions):
+    raise app.UsageError(f'--motions={f.motions}: not a folder')
   results = measure(steps=f.steps, warmup=f.warmup, batch_size=f.batch_size,
                     hidden_sizes=[int(h) for h in f.hidden_sizes],
-                    fused_steps=f.fused_steps, robot=f.robot, seed=f.seed)
+                    fused_steps=f.fused_steps, robot=f.robot, seed=f.seed,
+                    motions=f.motions)
   print('reach/dense, {}, Cartesian, SSM shield, person moving; one SAC '
         'gradient step (batch {}, MLP {}) per RL step, {} per learner '
         'call'.format(f.robot, f.batch_size, 'x'.join(f.hidden_sizes),

@@ -8,7 +8,10 @@ run's task and robot, seeded from --seed (by default the run seed, through a
 stream distinct from training and the training run's evaluations). Prints
 the success rate with a 95 % bootstrap confidence interval over episodes,
 the return, the episode length, shield interventions and contacts; --output
-writes the per-episode metrics and the summary as JSON.
+writes the per-episode metrics and the summary as JSON. --motions=DIR
+evaluates on other people than the run's (task_kwargs['motions']: clips,
+BVH recordings or one sub-folder per task, docs/motion_library.md), played
+with outside_human_model='allow' as experts.evaluate plays them.
 """
 
 import math
@@ -103,7 +106,8 @@ def format_table(result: Mapping[str, Mapping[str, float]],
   return '\n'.join(lines)
 
 
-def run(checkpoint: str, episodes: int, seed: Optional[int] = None
+def run(checkpoint: str, episodes: int, seed: Optional[int] = None,
+        motions: Optional[str] = None
         ) -> Tuple[List[Dict[str, float]], Dict[str, Dict[str, float]]]:
   """Evaluates a checkpoint with deterministic episodes.
 
@@ -112,6 +116,8 @@ def run(checkpoint: str, episodes: int, seed: Optional[int] = None
       checkpoint directory.
     episodes: episodes to run.
     seed: the environment's seed (None: derived from the run seed).
+    motions: None (the run's people) or a folder of motions for the task
+      (task_kwargs['motions'], played with outside_human_model='allow').
 
   Returns:
     (per-episode metrics, summary).
@@ -122,6 +128,12 @@ def run(checkpoint: str, episodes: int, seed: Optional[int] = None
   directory = checkpoints.resolve(checkpoint)
   loop_state, _ = checkpoints.load_loop_state(directory)
   run_config = loop_state['run_config']
+  if motions is not None:
+    if not os.path.isdir(motions):
+      raise ValueError(f'motions={motions!r}: expected a folder of motions')
+    run_config = dict(run_config, task_kwargs=dict(
+        run_config['task_kwargs'], motions=motions,
+        outside_human_model='allow'))
   if seed is None:
     seed = train_lib.derived_seed(run_config['seed'], _EVALUATE_ENV)
   env = train_lib.make_environment(run_config, seed)
@@ -146,6 +158,10 @@ def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
                        'from the run seed).', flag_values=fv)
   flags.DEFINE_string('output', None, 'JSON file for the results.',
                       flag_values=fv)
+  flags.DEFINE_string('motions', None, "A folder of people for the task "
+                      "(task_kwargs['motions']: clips, BVH recordings or one "
+                      "sub-folder per task), played with outside_human_model="
+                      "'allow' (default: the run's).", flag_values=fv)
 
 
 def main(argv: Sequence[str],
@@ -158,8 +174,12 @@ def main(argv: Sequence[str],
   """
   del argv
   f = flag_values
-  results, table = run(f.checkpoint, f.episodes, f.seed)
+  if f.motions is not None and not os.path.isdir(f.motions):
+    raise app.UsageError(f'--motions={f.motions}: not a folder')
+  results, table = run(f.checkpoint, f.episodes, f.seed, f.motions)
   print(f'checkpoint: {checkpoints.resolve(f.checkpoint)}')
+  if f.motions:
+    print(f'motions: {f.motions}')
   print(format_table(table, len(results)))
   if f.output:
     checkpoints.write_json(f.output, finite({'summary': table,

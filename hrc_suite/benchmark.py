@@ -8,9 +8,13 @@ RL-step throughput of every task (random actions, shield on, human moving,
 L = 25) in CPU time (time.process_time: other processes on the machine do
 not inflate it) next to the same number of bare physics steps, on the fast
 path and (--reference) on the readable reference path (fast_path=False)
-in the same run. Numbers are recorded in docs/benchmarks.md.
+in the same run. --motions=DIR plays the people of a folder
+(task_kwargs['motions'], with outside_human_model='allow') in the tasks and
+profile sections instead of the shipped library. Numbers are recorded in
+docs/benchmarks.md.
 """
 
+import os
 import platform
 import time
 
@@ -41,6 +45,11 @@ _TASKS = flags.DEFINE_list('tasks', [], 'domain/task names of the '
 _ACTION_SPACE = flags.DEFINE_string(
     'action_space', None, "Action space of the throughput section ('joint' "
     "or 'cartesian'; default: each task's own).")
+_MOTIONS = flags.DEFINE_string(
+    'motions', None, "A folder of people for the tasks and profile sections "
+    "(task_kwargs['motions']: clips, BVH recordings or one sub-folder per "
+    "task; docs/motion_library.md), played with outside_human_model='allow' "
+    '(default: the shipped synthetic library).')
 # The throughput is the best of this many equal windows of the RL steps
 # (the least disturbed by other processes sharing the cores).
 _WINDOWS = 3
@@ -132,8 +141,15 @@ def run_shield(robots):
   shield_benchmark.main(['--robots', *robots])
 
 
+def motions_kwargs(motions):
+  """Task kwargs playing the people of folder `motions` (None: none)."""
+  if motions is None:
+    return {}
+  return {'motions': motions, 'outside_human_model': 'allow'}
+
+
 def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
-                       action_space=None):
+                       action_space=None, motions=None):
   """(RL steps/s, s per RL step, s per same number of bare mj_steps,
   median ratio of the two in alternating chunks), CPU time.
 
@@ -148,7 +164,8 @@ def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
   episode ends) are excluded from the time.
   """
   from hrc_suite import suite
-  kwargs = dict(robot=robot, seed=seed, fast_path=fast_path)
+  kwargs = dict(robot=robot, seed=seed, fast_path=fast_path,
+                **motions_kwargs(motions))
   if action_space:
     kwargs['action_space'] = action_space
   env = suite.load(domain, task, task_kwargs=kwargs)
@@ -188,8 +205,9 @@ def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
 
 
 def run_tasks(robots, rl_steps, tasks=(), reference=False,
-              action_space=None):
-  """The throughput table; tasks: 'domain/task' names (default: all)."""
+              action_space=None, motions=None):
+  """The throughput table; tasks: 'domain/task' names (default: all);
+  motions: a folder of people (None: the shipped library)."""
   from hrc_suite import suite
   names = [f'{d}/{t}' for d, t in suite.ALL_TASKS]
   for name in tasks:
@@ -197,7 +215,8 @@ def run_tasks(robots, rl_steps, tasks=(), reference=False,
       raise app.UsageError(f'Unknown task {name!r}: expected some of '
                            f'{", ".join(names)}')
   print('\n## RL step throughput (CPU time; random actions, shield on, human '
-        f'moving, L = 25; actions: {action_space or "task default"})\n')
+        f'moving, L = 25; actions: {action_space or "task default"}; '
+        f'people: {motions or "shipped library"})\n')
   head = ('| task | robot | RL steps/s | ms per RL step | ms of 25 bare '
           'mj_step | ratio | ratio, alternating (median) |')
   rule = '|---|---|---|---|---|---|---|'
@@ -210,13 +229,14 @@ def run_tasks(robots, rl_steps, tasks=(), reference=False,
     domain, task = name.split('/')
     for robot in robots:
       rate, per_step, bare, ratio = rl_step_throughput(
-          domain, task, robot, rl_steps, action_space=action_space)
+          domain, task, robot, rl_steps, action_space=action_space,
+          motions=motions)
       row = (f'| {name} | {robot} | {rate:.0f} | {1e3 * per_step:.2f} '
              f'| {1e3 * bare:.2f} | {per_step / bare:.1f} | {ratio:.1f} |')
       if reference:
         rate, per_step, bare, _ = rl_step_throughput(
             domain, task, robot, rl_steps, fast_path=False,
-            action_space=action_space)
+            action_space=action_space, motions=motions)
         row += f' {rate:.0f} | {1e3 * per_step:.2f} | {per_step / bare:.1f} |'
       print(row, flush=True)
 
@@ -227,10 +247,11 @@ PROFILED = (('reach', 'dense', 'schunk', 'cartesian'),
             ('stacking', 'default', 'panda', None))   # The slowest task.
 
 
-def run_profile(rl_steps):
+def run_profile(rl_steps, motions=None):
   from hrc_suite import benchmark_profile
   print('\n## Where the time of an RL step goes (CPU time, µs per RL step)\n')
-  tables = [benchmark_profile.profile(d, t, r, rl_steps, action_space=a)
+  tables = [benchmark_profile.profile(d, t, r, rl_steps, action_space=a,
+                                      motions=motions)
             for d, t, r, a in PROFILED]
   names = [f'{d}/{t} {r} {a or "default"}' for d, t, r, a in PROFILED]
   print('| part | ' + ' | '.join(names) + ' |')
@@ -247,6 +268,8 @@ def main(argv):
   print(f'# hrc_suite benchmark, {time.strftime("%Y-%m-%d")}')
   print(f'machine: {machine_summary()}')
   sections = set(_SECTIONS.value)
+  if _MOTIONS.value is not None and not os.path.isdir(_MOTIONS.value):
+    raise app.UsageError(f'--motions={_MOTIONS.value}: not a folder')
   unknown = sections - set(SECTIONS)
   if unknown:
     raise app.UsageError(f'Unknown sections {sorted(unknown)}: expected '
@@ -256,10 +279,10 @@ def main(argv):
   if 'shield' in sections:
     run_shield(_ROBOTS.value)
   if 'profile' in sections:
-    run_profile(_RL_STEPS.value)
+    run_profile(_RL_STEPS.value, _MOTIONS.value)
   if 'tasks' in sections:
     run_tasks(_TASK_ROBOTS.value, _RL_STEPS.value, _TASKS.value,
-              _REFERENCE.value, _ACTION_SPACE.value)
+              _REFERENCE.value, _ACTION_SPACE.value, _MOTIONS.value)
 
 
 if __name__ == '__main__':

@@ -93,11 +93,14 @@ def _timed(totals):
       setattr(owner, attribute, original)
 
 
-def profile(domain, task, robot, rl_steps, action_space=None, seed=0):
+def profile(domain, task, robot, rl_steps, action_space=None, seed=0,
+            motions=None):
   """{label: µs per RL step} of PARTS, 'composer and the rest' and
-  'total' for random actions (resets excluded)."""
+  'total' for random actions (resets excluded); motions: a folder of
+  people (benchmark.motions_kwargs; None: the shipped library)."""
+  from hrc_suite import benchmark
   from hrc_suite import suite
-  kwargs = dict(robot=robot, seed=seed)
+  kwargs = dict(robot=robot, seed=seed, **benchmark.motions_kwargs(motions))
   if action_space:
     kwargs['action_space'] = action_space
   env = suite.load(domain, task, task_kwargs=kwargs)

@@ -1,7 +1,7 @@
 """Gripper-down reachability of every task's regions, per robot.
 
     python scripts/reachability.py [--robots=a,b] [--tasks=d/t,...]
-        [--out=FILE.md]
+        [--motions=DIR] [--out=FILE.md]
 
 For each robot (on its layout.robot_mount) and task name it collects the
 task's regions as world points (`task_points`) and counts those the
@@ -32,14 +32,18 @@ uniform random joint vectors (fixed seed). Points:
   (plank along the person's facing; the face-to-TCP offset as gripped at
   reset).
 
-A point is a TCP position; in hammering/default the nail's offset from
-the TCP (~0.1 m, the board in the gripper) is not added. Prints a Markdown
-table: reached / points per robot and task, and the unreached points'
-names.
+--motions=DIR takes the clips' points from a folder of people
+(task_kwargs['motions']: clips, BVH recordings or one sub-folder per task,
+docs/motion_library.md; played with outside_human_model='allow') instead
+of the shipped library. A point is a TCP position; in hammering/default
+the nail's offset from the TCP (~0.1 m, the board in the gripper) is not
+added. Prints a Markdown table: reached / points per robot and task, and
+the unreached points' names.
 """
 
 import argparse
 import collections
+import os
 import textwrap
 
 import numpy as np
@@ -196,7 +200,15 @@ def main():
       robot_description.ROBOT_NAMES))
   parser.add_argument('--tasks', default=','.join(TASKS))
   parser.add_argument('--out', default=None)
+  parser.add_argument('--motions', default=None, help='A folder of people '
+                      "(task_kwargs['motions']; default: the shipped "
+                      'library).')
   args = parser.parse_args()
+  kwargs = {}
+  if args.motions is not None:
+    if not os.path.isdir(args.motions):
+      parser.error(f'--motions={args.motions}: not a folder')
+    kwargs = {'motions': args.motions, 'outside_human_model': 'allow'}
   robots, tasks = args.robots.split(','), args.tasks.split(',')
   lines = ['| task | ' + ' | '.join(robots) + ' |',
            '|---|' + '---|' * len(robots)]
@@ -205,7 +217,8 @@ def main():
     domain, task_name = name.split('/')
     cells = []
     for robot in robots:
-      env = suite.load(domain, task_name, task_kwargs={'robot': robot},
+      env = suite.load(domain, task_name,
+                       task_kwargs={'robot': robot, **kwargs},
                        environment_kwargs={'random_state': SEED})
       env.reset()
       points = task_points(env, domain, task_name)

@@ -217,6 +217,16 @@ def _environment(domain, task, robot, action_space, policy, time_limit,
   return _ENV_CACHE[key]
 
 
+class _ClipObserver(metrics_lib.EpisodeMetricsObserver):
+  """Episode metrics and the name of the clip the episode starts with."""
+
+  clip = None
+
+  def observe_first(self, env, timestep):
+    super().observe_first(env, timestep)
+    self.clip = env.task.player.clip.name
+
+
 def _json_number(value):
   value = float(value)
   return value if np.isfinite(value) else None
@@ -240,7 +250,8 @@ def run_job(job):
   """One episode: job = (domain, task, robot, action_space, policy,
   time_limit, seed, motions, shield); motions: None (the shipped library)
   or (label, folder); shield: None (the task's default) or a mode.
-  Returns its result dict (JSON-able). An exception in the policy or the
+  Returns its result dict (JSON-able; 'clip' names the person's first
+  clip). An exception in the policy or the
   task does not stop the run: the episode's result then carries 'error'
   (the exception) and 'traceback' (its innermost frames) and counts as a
   failure."""
@@ -262,7 +273,9 @@ def run_job(job):
     if hasattr(policy, 'set_episode'):
       policy.set_episode(seed)
     start = time.perf_counter()
-    episode = metrics_lib.run_episode(env, policy)
+    observer = _ClipObserver()
+    episode = metrics_lib.run_episode(env, policy, observer)
+    result['clip'] = observer.clip
     result['metrics'] = {name: _json_number(value)
                          for name, value in episode.items()}
   except Exception as e:   # pylint: disable=broad-except

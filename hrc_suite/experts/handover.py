@@ -19,7 +19,10 @@ Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
 table, still; held low, still for a second) come down on the handle inside
 a cone (the reference's pick-and-place approach), slide the open pads
-along it to the grip point and close; once the person lets go, carry it
+along it to the grip point and close (a hand that sways in and out of the
+gripper-down reach is approached, the arm waiting at the edge of its
+reach; one held beyond it by more than SWAY_MARGIN is waited for at the
+ready point); once the person lets go, carry it
 over the table target, lower it to RELEASE_HEIGHT and open: it drops the
 last centimetres. Then go home. A hammer lying on the table (before the
 person's pick, placed, or dropped) is left alone.
@@ -59,6 +62,19 @@ IN_HAND_APERTURE = 0.4                   # normalised
 # point, and at most HOVER_HEIGHT.
 HOVER_HEIGHT = 0.08                      # m
 CONE_SLOPE = 3.0
+# A hammer presented high (shoulder height, recordings' advanced people)
+# can lie where gripper-down IK reaches the grip point but not HOVER_HEIGHT
+# above it: the approach then hovers as high as IK reaches, found to
+# REACH_TOLERANCE, but not lower than this (m): the fingertips, 0.01 m
+# below the TCP, stay clear of the 0.022 m deep handle.
+MIN_HOVER_HEIGHT = 0.025                 # m
+# A presentation counts as within reach when the grip point moved this
+# far towards the base is: people waiting with the hammer held high sway
+# it 0.05 m along the handle (recording advanced_0 of
+# HumanRobotHandover: the grip point 0.62-0.67 m from the Panda's base,
+# gripper-down IK reaching it at 0.64 m); the arm approaches and closes
+# when the sway brings the grip point between its pads.
+SWAY_MARGIN = 0.05                       # m
 # Close when the grip point is between the pads: TCP offset from it along
 # the handle (towards its end; the head is 0.034 m the other way, the pads
 # 0.01 m wide), across it (the pads open 0.085 m around the 0.022 m deep
@@ -216,6 +232,31 @@ class _HammerExpert(base.Expert):
         return self._steer.joint_goal_action(result.q, q, tcp, gripper)
     return self._hold_still(obs, gripper)
 
+  def _reachable(self, target, q):
+    """Gripper-down IK reaches `target` from q at the current yaw."""
+    result = self._steer.ik.solve(target, q, self._steer.yaw)
+    rotation = self._kinematics.tcp_pose(q)[:3, :3]
+    yaw_now = rotations.mat_yaw(rotation)
+    turn = rotations.wrap_angle(result.yaw - yaw_now)
+    return bool(result.success and abs(turn) < np.pi / 2)
+
+  def _hover_height(self, grip, q):
+    """HOVER_HEIGHT, or the highest point above `grip` gripper-down IK
+    reaches (to REACH_TOLERANCE), at least MIN_HOVER_HEIGHT."""
+    up = np.array([0.0, 0.0, 1.0])
+    if self._reachable(np.clip(grip + HOVER_HEIGHT * up, self._box[0],
+                               self._box[1]), q):
+      return HOVER_HEIGHT
+    low, high = MIN_HOVER_HEIGHT, HOVER_HEIGHT   # reachable?, not
+    while high - low > REACH_TOLERANCE:
+      middle = 0.5 * (low + high)
+      if self._reachable(np.clip(grip + middle * up, self._box[0],
+                                 self._box[1]), q):
+        low = middle
+      else:
+        high = middle
+    return low
+
   def _grasp(self, obs):
     """Cone approach to the grip point and close when it is between the
     pads (within the handle-frame tolerances)."""
@@ -231,7 +272,8 @@ class _HammerExpert(base.Expert):
     def excess(bounds):
       return np.hypot(max(along - bounds[1], bounds[0] - along, 0.0),
                       max(abs(across) - GRASP_ACROSS, 0.0))
-    height = min(HOVER_HEIGHT, CONE_SLOPE * excess(DESCEND_ALONG))
+    height = min(self._hover_height(grip, obs['joint_positions']),
+                 CONE_SLOPE * excess(DESCEND_ALONG))
     close = excess(GRASP_ALONG) == 0.0 and abs(offset[2]) < GRASP_Z
     # Closing: the aperture dropped after a close command (the last one,
     # where known: open pads pushed in by the person's hand are not).
@@ -320,14 +362,6 @@ class RobotToHumanExpert(_HammerExpert):
       return self._steer.action(aim, tcp, obs['joint_positions'], 1.0)
     return self._step(obs, aim - tcp, 1.0, slide=False)
 
-  def _reachable(self, target, q):
-    """Gripper-down IK reaches `target` from q at the current yaw."""
-    result = self._steer.ik.solve(target, q, self._steer.yaw)
-    rotation = self._kinematics.tcp_pose(q)[:3, :3]
-    yaw_now = rotations.mat_yaw(rotation)
-    turn = rotations.wrap_angle(result.yaw - yaw_now)
-    return bool(result.success and abs(turn) < np.pi / 2)
-
   def _within_reach(self, aim, towards_end, q):
     """`aim` if reachable, else the nearest reachable point on the line
     back from it along the handle (the handle then still reaches along
@@ -394,6 +428,18 @@ class HumanToRobotExpert(_HammerExpert):
                     height > LOW_PRESENTED_HEIGHT and presented_low
                     and self._still_steps >= PRESENTED_DWELL)))
 
+  def _graspable(self, grip, q):
+    """Gripper-down IK reaches MIN_HOVER_HEIGHT above the grip point
+    moved SWAY_MARGIN towards the base: a hand that sways in and out of
+    the reach is approached (the arm waits at the edge of its reach), one
+    held beyond it is not."""
+    inward = self._kinematics.base_pose[:3, 3] - grip
+    inward[2] = 0.0
+    inward *= SWAY_MARGIN / max(np.linalg.norm(inward), 1e-9)
+    return self._reachable(np.clip(grip + inward + (0.0, 0.0,
+                                                    MIN_HOVER_HEIGHT),
+                                   self._box[0], self._box[1]), q)
+
   def _ready_point(self, grip):
     """Where to wait for the presentation."""
     if self._last_presented is not None:
@@ -439,10 +485,18 @@ class HumanToRobotExpert(_HammerExpert):
     if self._in_hand(obs) and not held:
       return self._carry(obs)
     if self._presented(obs):
-      if speed < PRESENTED_SPEED:
+      # Beyond the reach by more than a sway (held too high or too far):
+      # wait for a presentation the arm reaches, where the last one was,
+      # instead of pushing the arm against its reach.
+      q = obs['joint_positions']
+      if speed < PRESENTED_SPEED and self._graspable(grip, q):
         self._last_presented = grip.copy()
         return self._grasp(obs)
-      return self._hover(obs, grip + (0.0, 0.0, HOVER_HEIGHT))
+      hover = grip + (0.0, 0.0, HOVER_HEIGHT)
+      if speed < PRESENTED_SPEED or not self._reachable(
+          np.clip(hover, self._box[0], self._box[1]), q):
+        return self._hover(obs, self._ready_point(grip))
+      return self._hover(obs, hover)
     if held:   # Being lifted or swayed back: wait nearby.
       return self._hover(obs, self._ready_point(grip))
     # Lying on the table (before the person's pick, placed, or dropped:

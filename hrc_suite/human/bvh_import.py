@@ -190,11 +190,35 @@ PHASE_RULES = {
 
 # Tasks whose person holds the holding hand out to the robot at the first
 # wait (the handovers): placed with that hand at least HANDOVER_REACH ahead
-# of the station (placement.place_at_station's `reach`), the median of the
-# shipped synthetic clips' handover points (0.50-0.67 m ahead, median 0.57
-# robot-to-human and 0.61 human-to-robot).
+# of the station (placement.TaskPoint), the median of the shipped synthetic
+# clips' handover points (0.50-0.67 m ahead, median 0.57 robot-to-human
+# and 0.61 human-to-robot).
 REACH_TASKS = ('handover_robot_to_human', 'handover_human_to_robot')
 HANDOVER_REACH = 0.58   # m
+# hammering/robot_hammers: the hand on the plank's handle at the set-down
+# (the first keyframe) lands this far ahead of the station (m): the
+# reference's recordings, placed by the pelvis at the wait, set the plank
+# down 0.556-0.75 m ahead; the nail then lies 0.235 m further, 0.455-0.665
+# m from the robot's base, inside the Schunk's and the Panda's gripper-
+# down reach (tasks/hammering_robot.py, PLANK_*). A person who sets it
+# down closer to the body, or reaches farther, is placed so that the
+# set-down lies in this band.
+BOARD_REACH = (0.55, 0.76)
+
+
+def task_point(task, fields):
+  """The `placement.TaskPoint` of a recording of `task` with its clip
+  `fields` (keyframes, idle_phases, holding_hand), or None."""
+  hand = fields.get('holding_hand')
+  keys, phases = fields['keyframes'], fields['idle_phases']
+  hands = ((hand,) if hand in clip_lib.HANDS else clip_lib.HANDS)
+  indices = tuple(keypoints.KEYPOINT_INDEX[f'{h}_hand'] for h in hands)
+  if task in REACH_TASKS and phases and hand in clip_lib.HANDS:
+    return placement.TaskPoint(indices, (HANDOVER_REACH, math.inf))
+  if task == 'hammering_board' and keys:
+    return placement.TaskPoint(indices, BOARD_REACH, frame=keys[0],
+                               on_line=False)
+  return None
 
 
 def _points(spec, fk_pos, skeleton):
@@ -450,22 +474,10 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
       raise clip_lib.ClipError(f'{info_path}: not valid JSON: {e}') from e
   fields = idle_phases_from_info(info, motion.fps, motion.num_frames, task,
                                  str(info_path))
-  # Placement and task facts (placement.py, task_targets.py): recordings of
-  # the reference share its lab's axes (they carry orientation_quat).
+  # Recordings of the reference share its lab's axes (they carry
+  # orientation_quat).
   turn = (placement.snapped_turn(facts['facing_yaw_deg'])
           if 'orientation_quat' in info else 0.0)
-  phases = fields['idle_phases']
-  anchor = fields['keyframes'][phases[0].keyframe] if phases else None
-  reach = None
-  hand = fields.get('holding_hand')
-  if task in REACH_TASKS and anchor is not None and hand in clip_lib.HANDS:
-    reach = (keypoints.KEYPOINT_INDEX[f'{hand}_hand'], HANDOVER_REACH)
-  positions, facts['placement'] = placement.place_at_station(
-      positions, turn, anchor, reach, placement.lean_allowance(task))
-  fields['idle_phases'] = tuple(_calm_idle_phase(p)
-                                for p in fields['idle_phases'])
-  fields, targets = task_targets.derive(task, positions, motion.fps, fields,
-                                        str(bvh_path))
   name = name or re.sub(r'[^A-Za-z0-9_.\-]', '_',
                         f'{folder}_{bvh_path.stem}')
   metadata = {
@@ -474,12 +486,50 @@ def import_clip(bvh_path, task=None, name=None, info_path=None,
       'import': facts, 'anthropometrics': dataclasses.asdict(body),
       'reference_info': info,
   }
+  return clip_from_motion(positions, motion.fps, fields, task, name, turn,
+                          metadata, str(bvh_path))
+
+
+def clip_from_motion(positions, fps, fields, task, name, turn=0.0,
+                     metadata=None, source='<recording>'):
+  """A validated Clip of a person's motion for `task`: placed at the
+  station (placement.py, with the task's point `task_point`), idle phases
+  calmed, targets and keyframes derived (task_targets.py), idle phases
+  fitted to the shield's human model where they can be.
+
+  Args:
+    positions: (F, NUM_KEYPOINTS, 3) keypoints in a clip frame facing +x,
+      floor at z = 0, anywhere on the floor (`import_motion`).
+    fps: frames per second.
+    fields: dict(keyframes, idle_phases, holding_hand, placing_hand), as
+      `idle_phases_from_info` gives them.
+    task: a clip task (clip.CLIP_TASKS).
+    name: the clip's name.
+    turn: rad, the facing correction (`placement.snapped_turn`).
+    metadata: the clip's metadata; its 'import' dict (added if missing)
+      receives the placement's facts.
+    source: names the recording in errors.
+
+  Returns:
+    The Clip. Raises clip.ClipError where a target cannot be derived.
+  """
+  fields = dict(fields)
+  metadata = dict(metadata or {})
+  metadata['import'] = dict(metadata.get('import', {}))
+  phases = fields['idle_phases']
+  anchor = fields['keyframes'][phases[0].keyframe] if phases else None
+  positions, metadata['import']['placement'] = placement.place_at_station(
+      positions, turn, anchor, task_point(task, fields),
+      placement.lean_allowance(task))
+  fields['idle_phases'] = tuple(_calm_idle_phase(p)
+                                for p in fields['idle_phases'])
+  fields, targets = task_targets.derive(task, positions, fps, fields, source)
   result = clip_lib.Clip(
-      name=name, task=task, fps=motion.fps,
+      name=name, task=task, fps=fps,
       positions=positions.astype(np.float32),
-      targets=targets, fast_phases=fast_phases(positions, motion.fps),
+      targets=targets, fast_phases=fast_phases(positions, fps),
       metadata=metadata, **fields)
-  result = clip_lib.validate(result, source=str(bvh_path))
+  result = clip_lib.validate(result, source=source)
   try:
     # Idle phases slowed where their worst case passes the shield's model,
     # as for the synthetic library.

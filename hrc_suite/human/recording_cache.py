@@ -26,7 +26,7 @@ from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
 
 # Bump when the importer's output changes (placement, targets, phases).
-CONVERTER_VERSION = 6
+CONVERTER_VERSION = 7
 CACHE_ENV = 'HRC_SUITE_CACHE'
 # Reference folders a task also looks in besides its own
 # (bvh_import.REFERENCE_FOLDER_TASKS): hammering/default converts the

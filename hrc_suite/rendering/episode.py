@@ -411,6 +411,11 @@ def define_flags(flag_values=flags.FLAGS):
                       flag_values=fv)
   flags.DEFINE_string('shield', None, 'Shield mode (default: the task\'s).',
                       flag_values=fv)
+  flags.DEFINE_string('motions', None, 'A folder of people for the task '
+                      "(task_kwargs['motions']: clips, BVH recordings or one "
+                      'sub-folder per task; docs/motion_library.md), played '
+                      "with outside_human_model='allow' (default: the "
+                      'shipped synthetic library).', flag_values=fv)
   flags.DEFINE_string('out', 'episode.mp4', 'Video (.mp4 or .gif).',
                       flag_values=fv)
   flags.DEFINE_string('camera', 'side',
@@ -446,10 +451,15 @@ def define_flags(flag_values=flags.FLAGS):
 def main(argv, flag_values=flags.FLAGS):
   del argv
   f = flag_values
-  task_kwargs = {'shield': f.shield} if f.shield else None
+  task_kwargs = {}
+  if f.shield:
+    task_kwargs['shield'] = f.shield
+  if f.motions:
+    task_kwargs.update(motions=f.motions, outside_human_model='allow')
   path, metrics = run(f.domain, f.task, f.robot, f.policy, f.out, f.camera,
                       f.seed, f.max_steps, f.width, f.height, f.overlay,
-                      f.fps, f.substeps_per_frame, f.gif_scale, task_kwargs)
+                      f.fps, f.substeps_per_frame, f.gif_scale,
+                      task_kwargs or None)
   print('episode metrics:')
   for key, value in metrics.items():
     print(f'  {key}: {value:g}')

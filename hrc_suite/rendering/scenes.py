@@ -1,6 +1,8 @@
 """Renders one picture per registered task for docs/tasks.md.
 
   python -m hrc_suite.rendering.scenes --out=docs/images/tasks
+  python -m hrc_suite.rendering.scenes --tasks=handover/human_to_robot \
+      --motions=../shared/motions/human-robot-animations --out=/tmp/real
 
 Each task is loaded with a fixed seed (Panda, the task's defaults) and
 stepped with a still arm until the human is in a characteristic pose:
@@ -76,6 +78,11 @@ _OUT = flags.DEFINE_string('out', 'docs/images/tasks',
                            'Folder the PNGs are written to.')
 _TASKS = flags.DEFINE_list('tasks', None, 'domain/task names to render '
                            '(default: every registered task).')
+_MOTIONS = flags.DEFINE_string(
+    'motions', None, "A folder of people for the tasks (task_kwargs["
+    "'motions']: clips, BVH recordings or one sub-folder per task; "
+    "docs/motion_library.md), played with outside_human_model='allow' "
+    '(default: the shipped synthetic library).')
 
 
 def file_name(domain, task):
@@ -83,7 +90,10 @@ def file_name(domain, task):
 
 
 def _load(domain, task, scene):
-  env = suite.load(domain, task, task_kwargs={'robot': ROBOT, 'seed': SEED})
+  kwargs = {'robot': ROBOT, 'seed': SEED}
+  if _MOTIONS.value is not None:
+    kwargs.update(motions=_MOTIONS.value, outside_human_model='allow')
+  env = suite.load(domain, task, task_kwargs=kwargs)
   env.reset()
   action = np.zeros(env.action_spec().shape)
   if env.task.HAS_GRIPPER_ACTION:

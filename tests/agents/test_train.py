@@ -4,6 +4,7 @@ exact resumption from a checkpoint."""
 import glob
 import json
 import os
+import pathlib
 import shutil
 
 from absl import flags
@@ -16,6 +17,7 @@ from agents import evaluate
 from agents import logging as logging_lib
 from agents import plot
 from agents import train
+from hrc_suite.human import clip as clip_lib
 from hrc_suite.rendering import episode as render
 from hrc_suite.experts import dataset as dataset_lib
 
@@ -149,6 +151,28 @@ def test_evaluate_checkpoint(two_runs):
   assert 0.0 <= written['summary']['success']['mean'] <= 1.0
   with pytest.raises(ValueError, match='No checkpoint'):
     evaluate.run(os.path.dirname(two_runs[0]), episodes=1)
+
+
+def test_evaluate_on_other_motions(two_runs, tmp_path, monkeypatch):
+  """--motions replaces the run's people (task_kwargs['motions'])."""
+  library = pathlib.Path(clip_lib.__file__).parent.parent / 'assets' / (
+      'motions/reach')
+  stem = sorted(library.glob('*.json'))[0].stem
+  for suffix in ('.json', '.npz'):
+    shutil.copy(library / (stem + suffix), tmp_path / (stem + suffix))
+  built = []
+  make = train.make_environment
+  def recording(run_config, seed):
+    env = make(run_config, seed)
+    built.append(env)
+    return env
+  monkeypatch.setattr(train, 'make_environment', recording)
+  results, _ = evaluate.run(two_runs[0], episodes=1, seed=7,
+                            motions=str(tmp_path))
+  assert len(results) == 1
+  assert [c.name for c in built[0].task.player.clips] == [stem]
+  with pytest.raises(ValueError, match='expected a folder of motions'):
+    evaluate.run(two_runs[0], episodes=1, motions=str(tmp_path / 'none'))
 
 
 def test_plot_two_runs(two_runs, tmp_path):

@@ -171,6 +171,11 @@ def recordings(tmp_path_factory, recordings_dir):
     ('human_to_robot', 'HumanRobotHandover_3', 'schunk', 0),
     # The arm drifts along the handle's line while waiting.
     ('human_to_robot', 'HumanRobotHandover_6', 'panda', 0),
+    # Held 1.35 m high; the hand sways the grip point in and out of the
+    # gripper-down reach (0.62-0.67 m from the base, reached at 0.64 m).
+    ('human_to_robot', 'HumanRobotHandover_advanced_0', 'panda', 0),
+    # Swung between 0.6 and 1.1 m out, within reach about 2 s at a time.
+    ('human_to_robot', 'HumanRobotHandover_4', 'panda', 0),
 ])
 def test_expert_hands_over_with_recorded_people(recordings, task, clip,
                                                robot, seed):
@@ -179,6 +184,24 @@ def test_expert_hands_over_with_recorded_people(recordings, task, clip,
   timestep = _run(env, experts.make(env))
   metrics = env.task.episode_metrics
   assert metrics['success'] == 1.0 and timestep.reward == 1.0
+  assert metrics['contacts_human_critical'] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.recordings
+def test_human_to_robot_waits_for_a_presentation_beyond_its_reach(
+    recordings):
+  # advanced_1 holds the hammer 1.42 m high, its grip point 0.06-0.09 m
+  # beyond the Panda's gripper-down reach: the arm waits at its ready
+  # point instead of pushing against its reach (no failed IK step, no
+  # action collision prevention replaces).
+  env = _env('human_to_robot', 'panda', seed=0,
+             motions=[recordings['HumanRobotHandover_advanced_1']],
+             outside_human_model='allow')
+  _run(env, experts.make(env), max_steps=400)
+  metrics = env.task.episode_metrics
+  assert metrics['ik_failures'] == 0
+  assert metrics['action_replacements'] == 0
   assert metrics['contacts_human_critical'] == 0
 
 

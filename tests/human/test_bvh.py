@@ -464,17 +464,21 @@ def test_real_recordings_import(recording_file):
     assert abs(p[anchor, I[f'{clip.holding_hand}_hand'], 1]) < 1e-5
   else:
     assert abs(pelvis[anchor, 1]) < 1e-5
-  if clip.task in bvh_import.REACH_TASKS:
-    # Or stepped up until the holding hand reaches HANDOVER_REACH.
-    hand = p[anchor, I[f'{clip.holding_hand}_hand'], 0]
-    assert (pelvis[anchor, 0] < 1e-5
-            or abs(hand - bvh_import.HANDOVER_REACH) < 1e-5
-            or pelvis[:, 0].max() > lean - 1e-5)
+  facts = clip.metadata['import']['placement']
+  if 'task_frame' in facts:
+    # Or moved until the task's point (bvh_import.task_point) lies in its
+    # band, as far as the lean allows.
+    low, high = (bvh_import.BOARD_REACH if clip.task == 'hammering_board'
+                 else (bvh_import.HANDOVER_REACH, np.inf))
+    x = p[facts['task_frame'], facts['task_keypoint'], 0]
+    assert (abs(pelvis[anchor, 0]) < 1e-5 or abs(x - low) < 1e-5
+            or abs(x - high) < 1e-5 or pelvis[:, 0].max() > lean - 1e-5)
+    assert low - 1e-5 <= x <= high + 1e-5 or pelvis[:, 0].max() > lean - 1e-5
   else:
     assert pelvis[anchor, 0] < 1e-5
   assert pelvis[:, 0].max() <= lean + 1e-5
   assert (pelvis[anchor, 0] > -1e-5
-          or pelvis[:, 0].max() > lean - 1e-5)
+          or pelvis[:, 0].max() > lean - 1e-5 or 'task_frame' in facts)
   window = slice(0, 50)
   lateral = (p[window, I['left_shoulder']] - p[window, I['right_shoulder']]
              ).mean(0)
