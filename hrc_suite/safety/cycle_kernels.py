@@ -135,7 +135,8 @@ class Measurement(NamedTuple):
 def plan_state(plan, start, inverse, cycle, s, s_dot, s_ddot, jerk, out):
   """LongTermPlan.state into out (5, dof) (plan (N, 4, dof) samples, all
   needed ones computed): the Taylor step's 5 x 4 matrix of
-  LongTermPlan.state_reference applied in a fixed order (shared by the
+  the chain rule (docs/shield_maths.md, 2; its NumPy reference:
+  tests/safety/safety_references.py, `plan_state`) applied in a fixed order (shared by the
   Python and the compiled cycle, so both give the same bits)."""
   last = plan.shape[0] - 1
   k = int(math.floor((s - start) * inverse))

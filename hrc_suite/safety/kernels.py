@@ -14,10 +14,11 @@ reference, tested against it on random inputs to 1e-12):
   human_reach.HumanReach.reach_capsules;
 * `horizon_balls`, `balls_capsules_distance`: the shield's broad
   phases (shield.Shield._human_horizon_balls,
-  shield.balls_capsules_distance_reference); `swept_balls_gap`, a lower
+  tests/safety/safety_references.py); `swept_balls_gap`, a lower
   bound of the second from one forward kinematics (its own reference is
   the bound it must stay below, tested);
-* `plan_positions`: long_term_plan.LongTermPlan.positions_reference;
+* `plan_positions`: LongTermPlan.positions (its reference:
+  tests/safety/safety_references.py);
 * `speed_tables`: shield.pfl_speed_tables(compiled=False) (the same
   from a plan's samples in one pass: speed_kernels.plan_speed_tables).
 

@@ -279,28 +279,11 @@ class LongTermPlan:
                              first)
     return out[first:first + s.shape[0]]
 
-  def positions_reference(self, s):
-    """NumPy reference of `positions` (index arithmetic in Python floats)."""
-    start, inverse, cycle, last = (self.start_time, self._inverse_cycle,
-                                   self.cycle_time, self._last)
-    indices, weights = [], []
-    for x in np.asarray(s, dtype=float).tolist():
-      k = int((x - start) * inverse // 1.0)
-      k = 0 if k < 0 else (last if k > last else k)
-      t = x - start - k * cycle
-      t2 = 0.5 * t * t
-      indices.append(k)
-      weights.append((1.0, t, t2, t2 * t / 3.0))
-    top = max(indices)
-    if top >= self._filled:
-      self._fill(top)
-    return np.einsum('kc,kcd->kd', np.array(weights),
-                     self._coefficients[indices])
-
   def state(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
     """One path state (scalars) -> (5, dof): q, dq, ddq, dddq, v_nominal
-    (`state_reference`, computed by a compiled kernel that the compiled
-    shield cycles share: cycle_kernels.plan_state)."""
+    (computed by a compiled kernel that the compiled shield cycles share:
+    cycle_kernels.plan_state; its NumPy reference is in
+    tests/safety/safety_references.py)."""
     k = int((s - self.start_time) * self._inverse_cycle // 1.0)
     k = 0 if k < 0 else (self._last if k > self._last else k)
     if k >= self._filled:
@@ -309,31 +292,6 @@ class LongTermPlan:
         self._coefficients, self.start_time, self._inverse_cycle,
         self.cycle_time, float(s), float(s_dot), float(s_ddot), float(jerk),
         np.empty((5, self._coefficients.shape[2])))
-
-  def state_reference(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
-    """NumPy reference of `state`.
-
-    Chain rule of docs/shield_maths.md, 2 with the Taylor expansion folded
-    into one 5x4 matrix: dq = v s_dot, ddq = v s_ddot + a s_dot^2,
-    dddq = j s_dot^3 + 3 a s_ddot s_dot + v jerk; v_nominal = v.
-    """
-    k = int((s - self.start_time) * self._inverse_cycle // 1.0)
-    k = 0 if k < 0 else (self._last if k > self._last else k)
-    t = s - self.start_time - k * self.cycle_time
-    t2 = 0.5 * t * t
-    t3 = t2 * t / 3.0
-    v2 = s_dot * s_dot
-    sa = 3.0 * s_ddot * s_dot
-    # Rows: [q, v, a, j] of the Taylor expansion, combined by the chain rule.
-    matrix = np.array((
-        (1.0, t, t2, t3),
-        (0.0, s_dot, s_dot * t, s_dot * t2),
-        (0.0, s_ddot, s_ddot * t + v2, s_ddot * t2 + v2 * t),
-        (0.0, jerk, jerk * t + sa, jerk * t2 + sa * t + v2 * s_dot),
-        (0.0, 1.0, t, t2)))
-    if k >= self._filled:
-      self._fill(k)
-    return matrix @ self._coefficients[k]
 
   def evaluate(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
     """Joint (q, dq, ddq, dddq) on the path state (s, s_dot, s_ddot, jerk).
@@ -609,24 +567,3 @@ def _ruckig_plan(q0, dq0, ddq0, goal, limits, cycle_time, start_time):
   return LongTermPlan._lazy(
       num, dof, sampler, cycle_time, start_time,
       made_by=(pieces, goal, np.array((q0, dq0, ddq0, goal)), limits))
-
-
-def sample_pieces_reference(table, starts, joint_shift, goal, cycle_time,
-                            duration, first, stop):
-  """NumPy reference of plan_kernels.sample_pieces (same arguments)."""
-  times = np.arange(first, stop) * cycle_time
-  index = np.searchsorted(starts, times[:, None] + joint_shift,
-                          side='right') - 1
-  rows = table[index]                                      # (n, dof, 5)
-  d = times[:, None] - rows[..., 0]
-  p, v, a, j = rows[..., 1], rows[..., 2], rows[..., 3], rows[..., 4]
-  samples = np.empty((len(times), 4, len(joint_shift)))
-  samples[:, 0] = p + d * (v + d * (0.5 * a + d * j / 6.0))
-  samples[:, 1] = v + d * (a + 0.5 * d * j)
-  samples[:, 2] = a + d * j
-  samples[:, 3] = j
-  # The goal at rest from the end of the motion on (held afterwards).
-  end = times >= duration
-  samples[end, 0] = goal
-  samples[end, 1:] = 0.0
-  return samples

@@ -1,7 +1,7 @@
 """Compiled (numba) sampling of a Ruckig plan's constant-jerk pieces.
 
-`sample_pieces` computes what long_term_plan's NumPy reference
-(`long_term_plan.sample_pieces_reference`) computes, the same operations
+`sample_pieces` computes what its NumPy reference
+(tests/safety/safety_references.py, `sample_pieces`) computes, the same operations
 in the same order (bit for bit, tests/safety/test_long_term_plan.py): the
 plan's samples one cycle apart from the table of each joint's pieces,
 which `piece_table` builds from Ruckig's profiles. `start_state_ok` and

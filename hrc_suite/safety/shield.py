@@ -61,7 +61,6 @@ from hrc_suite.safety import clamping
 from hrc_suite.safety import collision_prevention
 from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import energy_verification
-from hrc_suite.safety import geometry
 from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
@@ -393,19 +392,12 @@ class Shield:
     they are at `reference` (None: the command): the largest displacement
     of a capsule axis end. Capsules move rigidly, so no point of a
     capsule moves farther than its farther end. (kernels.tracking_error,
-    which tasks/physics_loop.py calls too; tracking_error_reference is
-    the NumPy version, equal to round-off.)"""
+    which tasks/physics_loop.py calls too; its NumPy reference is in
+    tests/safety/safety_references.py, equal to round-off.)"""
     q, reference = self._joint_pair(q, reference)
     robot = self.robot
     return float(kernels.tracking_error(q, reference, *robot._kernel_model,
                                         robot._kernel_frames))
-
-  def tracking_error_reference(self, q, reference=None):
-    """tracking_error by NumPy (robot capsules by RobotReach.capsules)."""
-    q, reference = self._joint_pair(q, reference)
-    p1, p2, _ = self.robot.capsules(np.stack([q, reference]))
-    moved = np.concatenate([p1[0] - p1[1], p2[0] - p2[1]])
-    return float(np.sqrt(np.einsum('ni,ni->n', moved, moved).max()))
 
   def _joint_pair(self, q, reference):
     reference = self._state.command[0] if reference is None else reference
@@ -550,7 +542,7 @@ class Shield:
     if 'distance' not in self._lazy:
       if self.human.positions is None:
         self._lazy['distance'] = np.inf
-      else:   # The NumPy reference: min_distance_reference.
+      else:   # NumPy reference: tests/safety/safety_references.py.
         human = self.human
         self._lazy['distance'] = float(kernels.capsules_min_distance(
             self._state.command[0], *self.robot._kernel_model,
@@ -558,17 +550,6 @@ class Shield:
             np.ascontiguousarray(human.positions, dtype=float),
             human._kernel_ends, human._half_thickness))
     return self._lazy['distance']
-
-  def min_distance_reference(self):
-    """min_distance by NumPy (geometry.capsule_distance over all pairs);
-    the kernel agrees to round-off (tests/safety/test_shield.py)."""
-    if self.human.positions is None:
-      return np.inf
-    r1, r2, rr = self.robot.capsules(self._state.command[0])
-    h1, h2, hr = self.human.body_capsules(self.human.positions)
-    return float(geometry.capsule_distance(
-        r1[:, None], r2[:, None], rr[:, None], h1[None], h2[None],
-        hr[None]).min())
 
   # -------------------------------------------------------------- snapshots
 
@@ -1005,22 +986,3 @@ def pfl_speed_tables(speeds, compiled=True):
       padded, PFL_WINDOW + 1).max(axis=1)[:len(speeds)]
   suffix = np.maximum.accumulate(speeds[::-1])[::-1]
   return window, suffix
-
-
-def balls_capsules_distance_reference(centre, radius, capsules):
-  """Lower bound of the distance between balls (B,) and capsules (K, L):
-  each capsule is bounded by the ball around its midpoint. NumPy reference
-  of the second broad phase (the shield runs
-  kernels.balls_capsules_distance): centre distances from one matrix
-  product (|a|^2 + |b|^2 - 2 a.b); the round-off of either form is far
-  below _BROAD_PHASE_SLACK, which is subtracted."""
-  c1, c2, r = capsules
-  middle = (0.5 * (c1 + c2)).reshape(-1, 3)
-  half = (c2 - c1).reshape(-1, 3)
-  reach = 0.5 * np.sqrt(np.einsum('ni,ni->n', half, half)) + r.reshape(-1)
-  squared = (np.einsum('ni,ni->n', middle, middle)[:, None]
-             + np.einsum('bi,bi->b', centre, centre)
-             - 2.0 * (middle @ centre.T))
-  np.maximum(squared, 0.0, out=squared)
-  return float((np.sqrt(squared) - reach[:, None] - radius).min()
-               - _BROAD_PHASE_SLACK)

@@ -13,6 +13,8 @@ from hrc_suite.safety import shield as shield_lib
 from hrc_suite.safety import speed_kernels
 from hrc_suite.safety import verification
 
+import safety_references
+
 TOOL = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.12), 0.06)
 
 
@@ -172,7 +174,7 @@ def test_shield_broad_phases_match_reference():
     assert kernels.balls_capsules_distance(
         centre, radius, *capsules) - shield_lib._BROAD_PHASE_SLACK == (
             pytest.approx(
-            shield_lib.balls_capsules_distance_reference(
+            safety_references.balls_capsules_distance(
                 centre, radius, capsules), abs=1e-12))
 
 
@@ -289,13 +291,15 @@ def test_plan_positions_match_reference():
   # Before the start, inside, and past the end (clamped to the samples).
   s = np.concatenate([[0.0, 0.37, plan.end_time, plan.end_time + 1.0],
                       rng.uniform(0.3, plan.end_time + 0.1, 50)])
-  np.testing.assert_allclose(plan.positions(s), plan.positions_reference(s),
+  np.testing.assert_allclose(plan.positions(s),
+                             safety_references.plan_positions(plan, s),
                              rtol=0, atol=1e-12)
   out = np.full((len(s) + 1, 7), np.nan)
   plan.positions(s, out=out, first=1)
   assert np.all(np.isnan(out[0]))
-  np.testing.assert_allclose(out[1:], plan.positions_reference(s), rtol=0,
-                             atol=1e-12)
+  np.testing.assert_allclose(out[1:],
+                             safety_references.plan_positions(plan, s),
+                             rtol=0, atol=1e-12)
 
 
 def test_shield_reach_distance_is_the_reference_clearance():

@@ -13,6 +13,8 @@ import ruckig
 from hrc_suite import robot_description
 from hrc_suite.safety import long_term_plan as ltp
 
+import safety_references
+
 CYCLE = 0.004
 
 
@@ -214,7 +216,7 @@ def test_compiled_sampling_is_the_numpy_reference_bit_for_bit(panda, seed):
   for first, stop in ((0, count), (3, min(count, 70)), (count - 1, count + 5)):
     out = np.full((stop + 2, 4, plan.dof), np.nan)
     ltp.plan_kernels.sample_pieces(*plan._pieces, first, stop, out)
-    reference = ltp.sample_pieces_reference(*plan._pieces, first, stop)
+    reference = safety_references.sample_pieces(*plan._pieces, first, stop)
     assert np.array_equal(out[first:stop], reference)
     # Only those rows are written.
     assert np.isnan(out[:first]).all() and np.isnan(out[stop:]).all()

@@ -16,6 +16,7 @@ from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.safety import verification
 
+import safety_references
 import shield_harness as harness
 
 CYCLE = shield_lib.DEFAULT_CYCLE_TIME
@@ -147,7 +148,7 @@ def test_min_distance_kernel_agrees_with_numpy(robot):
     offset = p2[-1] + rng.uniform(-1.2, 1.2, 3)
     human = body + offset - body[keypoints.KEYPOINT_INDEX['torso']]
     shield.step(human, 0.0)
-    expected = shield.min_distance_reference()
+    expected = safety_references.min_distance(shield)
     assert shield.min_distance == pytest.approx(expected, abs=1e-12)
     overlapping += expected < 0
   assert 0 < overlapping < 50
@@ -411,7 +412,8 @@ def test_tracking_error_and_its_bound(name):
     assert exact == pytest.approx(moved, rel=1e-12, abs=1e-15)
     # The kernel (both paths of the task use it) and the NumPy version.
     assert exact == pytest.approx(
-        shield.tracking_error_reference(q + error, q), rel=1e-12, abs=1e-15)
+        safety_references.tracking_error(shield, q + error, q), rel=1e-12,
+        abs=1e-15)
     assert exact <= shield.tracking_bound(q + error, q) + 1e-12
   # Every joint but the last (the tool turns about its own axis).
   best = np.zeros(description.dof - 1)
