@@ -25,6 +25,7 @@ import numpy as np
 
 from hrc_suite import registry_flags
 from hrc_suite import robot_description
+from hrc_suite.tasks import motions as task_motions
 
 SECTIONS = ('physics', 'shield', 'tasks', 'profile')
 _SECTIONS = flags.DEFINE_list(
@@ -141,13 +142,6 @@ def run_shield(robots):
   shield_benchmark.main(['--robots', *robots])
 
 
-def motions_kwargs(motions):
-  """Task kwargs playing the people of folder `motions` (None: none)."""
-  if motions is None:
-    return {}
-  return {'motions': motions, 'outside_human_model': 'allow'}
-
-
 def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
                        action_space=None, motions=None):
   """(RL steps/s, s per RL step, s per same number of bare mj_steps,
@@ -165,7 +159,7 @@ def rl_step_throughput(domain, task, robot, rl_steps, seed=0, fast_path=True,
   """
   from hrc_suite import suite
   kwargs = dict(robot=robot, seed=seed, fast_path=fast_path,
-                **motions_kwargs(motions))
+                **task_motions.recorded_people_kwargs(motions))
   if action_space:
     kwargs['action_space'] = action_space
   env = suite.load(domain, task, task_kwargs=kwargs)

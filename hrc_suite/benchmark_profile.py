@@ -22,6 +22,8 @@ import time
 
 import numpy as np
 
+from hrc_suite.tasks import motions as task_motions
+
 # (label, module, class or None, attribute, top level): top-level parts are
 # disjoint and add up to the measured step with "composer and the rest".
 PARTS = (
@@ -97,10 +99,10 @@ def profile(domain, task, robot, rl_steps, action_space=None, seed=0,
             motions=None):
   """{label: µs per RL step} of PARTS, 'composer and the rest' and
   'total' for random actions (resets excluded); motions: a folder of
-  people (benchmark.motions_kwargs; None: the shipped library)."""
-  from hrc_suite import benchmark
+  people (motions.recorded_people_kwargs; None: the shipped library)."""
   from hrc_suite import suite
-  kwargs = dict(robot=robot, seed=seed, **benchmark.motions_kwargs(motions))
+  kwargs = dict(robot=robot, seed=seed,
+                **task_motions.recorded_people_kwargs(motions))
   if action_space:
     kwargs['action_space'] = action_space
   env = suite.load(domain, task, task_kwargs=kwargs)

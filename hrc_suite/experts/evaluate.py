@@ -81,6 +81,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite import registry_flags
 from hrc_suite.safety import modes as modes_lib
 from hrc_suite.tasks import metrics as metrics_lib
+from hrc_suite.tasks import motions as task_motions
 
 EXPERT_POLICIES = ('expert', 'noisy_expert')
 TEST_POLICIES = ('random', 'chase')   # Safety checks, no success bar.
@@ -131,11 +132,10 @@ def available_tasks(tasks=None):
   return tuple(ok), missing
 
 
-def _motions_kwargs(motions):
+def _people_kwargs(motions):
   """task_kwargs of people `motions` ((label, folder) or None)."""
-  if motions is None:
-    return {}
-  return {'motions': motions[1], 'outside_human_model': 'allow'}
+  return task_motions.recorded_people_kwargs(
+      None if motions is None else motions[1])
 
 
 def tasks_with_motions(tasks, motions, robot):
@@ -146,7 +146,7 @@ def tasks_with_motions(tasks, motions, robot):
   ok, missing = [], {}
   for domain, task in tasks:
     try:
-      suite.build_task(domain, task, dict(_motions_kwargs(motions),
+      suite.build_task(domain, task, dict(_people_kwargs(motions),
                                           robot=robot))
     except clip_lib.ClipError as e:
       missing[(domain, task)] = f'skipped: {type(e).__name__}: {e}'
@@ -194,7 +194,7 @@ def _environment(domain, task, robot, action_space, policy, time_limit,
          shield)
   if key not in _ENV_CACHE:
     _ENV_CACHE.clear()
-    task_kwargs = dict(_motions_kwargs(motions), robot=robot)
+    task_kwargs = dict(_people_kwargs(motions), robot=robot)
     if action_space is not None:
       task_kwargs['action_space'] = action_space
     if time_limit is not None:

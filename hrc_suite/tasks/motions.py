@@ -92,6 +92,23 @@ class MotionSplit:
     return train_side if self.split == 'train' else test_side
 
 
+def recorded_people_kwargs(motions: Any) -> dict:
+  """Task kwargs that play the people of `motions` (a folder, a clip list
+  or a sub-folder per task: `load_motions`), allowed to move beyond the
+  shield's human model as recordings may (docs/motion_library.md); {} for
+  None (the shipped synthetic library).
+
+  Args:
+    motions: the people, or None.
+
+  Returns:
+    {'motions': motions, 'outside_human_model': 'allow'}, or {}.
+  """
+  if motions is None:
+    return {}
+  return {'motions': motions, 'outside_human_model': 'allow'}
+
+
 def load_motions(motions, task):
   """Clips from None (the task's shipped library `task`), a folder, a
   non-empty list of Clips, or a MotionSplit / split dict of any of those.
