@@ -11,7 +11,10 @@ categories, vectorised over `physics.data.contact`:
   the shield's dq command): critical above `critical_speed` (PFL: the
   shield's v_safe; SSM: SSM_STOPPED_SPEED, the robot is not stopped);
   pushed (`human_pushed`) instead of allowed when the person has pushed the
-  robot off its command (below);
+  robot off its command (below); with `energies`
+  (tasks/contact_energies.py) each such contact's energy is measured too,
+  and under `critical_by_energy` (shield mode 'pfl_energy') the contact is
+  critical when its energy exceeds its body's limit instead;
 * robot-object, human-object, object-object, object-static: normal.
 
 Why the commanded and not the measured velocity: the human is kinematic
