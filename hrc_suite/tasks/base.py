@@ -573,6 +573,8 @@ class HrcTask(composer.Task, options_lib.OptionNames,
     if self._cost is not None:
       step.update(self._cost.step_metrics(step, self._shield.reach_distance))
     self._metrics.record(step)
+    self._metrics.record_episode_maxima(
+        self._stepper.contact_energy_maxima())
 
   def get_reward(self, physics: mjcf.Physics) -> float:
     """The reward of the RL step just done.

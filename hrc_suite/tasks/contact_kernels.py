@@ -30,6 +30,7 @@ class ContactTables(typing.NamedTuple):
   dofs: np.ndarray             # (dof,) int64 the robot's dof addresses
   jacobian: np.ndarray         # (3, nv) float64 buffer for mj_jac
   critical_speed: float        # m/s
+  human_in_python: bool        # robot-human contacts judged by the monitor
 
 
 @_jit

@@ -11,7 +11,10 @@ categories, vectorised over `physics.data.contact`:
   the shield's dq command): critical above `critical_speed` (PFL: the
   shield's v_safe; SSM: SSM_STOPPED_SPEED, the robot is not stopped);
   pushed (`human_pushed`) instead of allowed when the person has pushed the
-  robot off its command (below);
+  robot off its command (below); with `energies`
+  (tasks/contact_energies.py) each such contact's energy is measured too,
+  and under `critical_by_energy` (shield mode 'pfl_energy') the contact is
+  critical when its energy exceeds its body's limit instead;
 * robot-object, human-object, object-object, object-static: normal.
 
 Why the commanded and not the measured velocity: the human is kinematic
@@ -93,11 +96,22 @@ class ContactMonitor:
 
   def __init__(self, physics, static_geoms, robot_geoms, object_geoms=(),
                human_geoms=(), critical_speed=SSM_STOPPED_SPEED,
-               robot_dofs=None, robot_qpos=None, compiled=True):
+               robot_dofs=None, robot_qpos=None, compiled=True,
+               energies=None, critical_by_energy=False):
     """robot_dofs, robot_qpos: the robot's joints' dof and qpos addresses
     (the order of dq and q commands); robot_dofs None: every dof. Judging
     at a commanded configuration needs robot_qpos. compiled: classify
-    with the numba kernel (module doc)."""
+    with the numba kernel (module doc). energies: a
+    contact_energies.ContactEnergies measuring every robot-human contact
+    (needs robot_qpos), or None; critical_by_energy: robot-human contacts
+    are critical above their energy limit instead of critical_speed
+    (shield mode 'pfl_energy'; needs energies)."""
+    if critical_by_energy and energies is None:
+      raise ValueError('critical_by_energy needs energies '
+                       '(contact_energies.ContactEnergies)')
+    if energies is not None and robot_qpos is None:
+      raise ValueError("measuring contact energies needs the robot's qpos "
+                       'addresses (robot_qpos)')
     if not critical_speed >= 0:
       raise ValueError(f'critical_speed must be >= 0 m/s, got '
                        f'{critical_speed!r}')
@@ -131,14 +145,20 @@ class ContactMonitor:
     self._commanded = None   # MjData posed at a commanded configuration.
     self._flags = np.zeros(len(CONTACT_TYPES), dtype=bool)
     self.max_human_contact_speed = 0.0
-    # What tasks/physics_loop.run judges contacts with.
+    self.energies = energies
+    self.critical_by_energy = bool(critical_by_energy)
+    # What tasks/physics_loop.run judges contacts with; robot-human
+    # contacts measured by energy are judged here (human_in_python).
     self.tables = contact_kernels.ContactTables(
         self._pair_types, self._categories, self._geom_body, self._dofs,
-        self._jacobian, self.critical_speed)
+        self._jacobian, self.critical_speed, energies is not None)
 
   def reset(self):
-    """Starts a new interval for `max_human_contact_speed`."""
+    """Starts a new interval for `max_human_contact_speed` and the
+    energies' maxima."""
     self.max_human_contact_speed = 0.0
+    if self.energies is not None:
+      self.energies.reset()
 
   def commanded_speed(self, body, point, dq_command, q_command=None):
     """Speed (m/s) of the point (world) rigidly attached to `body` when the
@@ -230,11 +250,24 @@ class ContactMonitor:
       slow, posed = _ALLOWED, None
       if q_command is not None:
         slow, posed = _PUSHED, self._posed(q_command)
+      energies = self.energies
+      if energies is not None:
+        clamped = energies.clamped(geom1, geom2)
+        q = (self._data.qpos[self._qpos] if q_command is None
+             else np.asarray(q_command, dtype=np.float64))
+        dq = np.asarray(dq_command, dtype=np.float64)
       for i in human:
-        robot_geom = geom1[i] if cat1[i] == ROBOT else geom2[i]
-        speed = self._speed(int(self._geom_body[robot_geom]), contact.pos[i],
+        robot, person = ((geom1[i], geom2[i]) if cat1[i] == ROBOT
+                         else (geom2[i], geom1[i]))
+        speed = self._speed(int(self._geom_body[robot]), contact.pos[i],
                             dq_command, posed)
         self.max_human_contact_speed = max(self.max_human_contact_speed,
                                            speed)
-        flags[_CRITICAL if speed > self.critical_speed else slow] = True
+        critical = speed > self.critical_speed
+        if energies is not None:
+          ratio = energies.measure(q, dq, int(robot), int(person),
+                                   int(person) in clamped).ratio
+          if self.critical_by_energy:
+            critical = ratio > 1.0
+        flags[_CRITICAL if critical else slow] = True
     return flags

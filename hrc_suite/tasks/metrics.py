@@ -9,6 +9,7 @@ with a policy and returns the episode's metrics.
 
 import numpy as np
 
+from hrc_suite.tasks import contact_energies
 from hrc_suite.tasks import contacts
 
 # Counters every task reports; tasks add their own (e.g. handovers).
@@ -42,6 +43,41 @@ COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
             + ('shield_resyncs', 'physics_errors'))
 # Episode maxima of step maxima.
 MAXIMA = ('max_human_contact_speed', 'max_tracking_error')
+# Episode maxima of robot-human contact energies, in every shield mode
+# (tasks/contact_energies.py: min(E_j, E_n) of the touching link at the
+# commanded joint velocities, against the touched body's limit, clamped or
+# transient): max_contact_energy (J) and max_contact_energy_ratio over
+# every body, contact_energy/<body> and contact_energy_ratio/<body> per
+# human body (0 where untouched). In the episode metrics only (not the
+# step metrics).
+CONTACT_ENERGY_MAXIMA = (
+    ('max_contact_energy', 'max_contact_energy_ratio')
+    + tuple(f'contact_energy/{body}' for body in contact_energies.BODIES)
+    + tuple(f'contact_energy_ratio/{body}'
+            for body in contact_energies.BODIES))
+
+
+def contact_energy_maxima(energies, ratios):
+  """The CONTACT_ENERGY_MAXIMA of per-body maxima.
+
+  Args:
+    energies: (bodies,) J, the largest contact energy per body
+      (contact_energies.BODIES' order).
+    ratios: (bodies,) the largest ratio to the limit per body.
+
+  Returns:
+    {name: value} of CONTACT_ENERGY_MAXIMA.
+  """
+  energies = [float(x) for x in energies]
+  ratios = [float(x) for x in ratios]
+  if len(energies) != len(contact_energies.BODIES) or len(ratios) != len(
+      energies):
+    raise ValueError(f'expected {len(contact_energies.BODIES)} energies '
+                     f'and ratios, got {len(energies)} and {len(ratios)}')
+  values = dict(zip(CONTACT_ENERGY_MAXIMA[2:], energies + ratios))
+  values['max_contact_energy'] = max(energies)
+  values['max_contact_energy_ratio'] = max(ratios)
+  return values
 
 
 class EpisodeMetrics:
@@ -58,6 +94,7 @@ class EpisodeMetrics:
     self.episode.update({'success': 0.0, 'return': 0.0, 'steps': 0,
                          'min_human_distance': float('inf')})
     self.episode.update({name: 0.0 for name in MAXIMA})
+    self.episode.update({name: 0.0 for name in CONTACT_ENERGY_MAXIMA})
     self.step = {}
 
   def record(self, step):
@@ -78,6 +115,13 @@ class EpisodeMetrics:
       value = step.get(name)
       if value is not None:
         episode[name] = max(episode[name], float(value))
+
+  def record_episode_maxima(self, values):
+    """Raises episode maxima to `values` ({name: number}, e.g.
+    contact_energy_maxima's), without adding them to the step metrics."""
+    episode = self.episode
+    for name, value in values.items():
+      episode[name] = max(episode.get(name, 0.0), float(value))
 
   def state(self):
     return {'episode': dict(self.episode), 'step': dict(self.step)}

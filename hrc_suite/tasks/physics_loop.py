@@ -27,7 +27,10 @@ before, at a step that needs it:
   where the shield put them (a push: rewind and resync, and contacts
   judged at the commanded pose, are Python's);
 * a physics step that raised a MuJoCo warning (the task raises
-  dm_control's PhysicsError, as the Python loop does).
+  dm_control's PhysicsError, as the Python loop does);
+* a robot-human contact where the contact monitor measures contact
+  energies (`ContactTables.human_in_python`; tasks/contact_energies.py:
+  the energy model and the clamping are Python's).
 
 A task that works before every physics step (`_before_physics_step`)
 may hand the call what it writes there, computed for the RL step's
@@ -399,6 +402,8 @@ def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
         if kind >= 0:
           flags[kind] = True
           human |= kind == _ALLOWED
+      if human and tables.human_in_python:   # Measured by energy.
+        return k, PYTHON_AFTER
       if human:   # contacts.ContactMonitor.update, the robot tracking
         flags[_ALLOWED] = False
         for c in range(count):

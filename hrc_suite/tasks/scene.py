@@ -25,8 +25,12 @@ from hrc_suite.entities import robot as robot_lib
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import collision_prevention as cp_lib
+from hrc_suite.safety import contact_energy
+from hrc_suite.safety import modes
+from hrc_suite.safety import robot_energy
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.tasks import actions
+from hrc_suite.tasks import contact_energies
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import motions as motions_lib
 from hrc_suite.tasks import self_collision as self_collision_lib
@@ -61,7 +65,10 @@ class Scene:
 
   def bind(self, physics, object_geoms, critical_speed, compiled):
     """The contact monitor and the robot's joint addresses of a compiled
-    physics.
+    physics. The monitor measures every robot-human contact's energy
+    (tasks/contact_energies.py; the gripper as the payload, the shield's
+    clamp geometry and static boxes) and, in the shield mode 'pfl_energy', judges the
+    contact by it.
 
     Args:
       physics: the compiled physics.
@@ -76,10 +83,24 @@ class Scene:
     joints = physics.bind(self.robot.joints)
     static = list(self.arena.static_geoms)
     robot_geoms = list(self.robot.link_geoms) + list(self.gripper.geoms)
+    shield = self.shield
+    clamp = shield.clamp_geometry
+    energies = contact_energies.ContactEnergies(
+        contact_energy.ContactEnergyMeter(
+            self.robot.description,
+            robot_energy.gripper_payload(self.robot.description.name)),
+        physics.model.ngeom,
+        physics.bind(list(self.robot.link_geoms)).element_id,
+        physics.bind(list(self.gripper.geoms)).element_id,
+        physics.bind(list(self.human.geoms)).element_id,
+        physics.bind(static).element_id,
+        clamp.clampable, shield.robot.frame_index, physics.data.ptr,
+        physics.model.geom_size, clamp.box_min, clamp.box_max)
     monitor = contacts.ContactMonitor(
         physics, static, robot_geoms, object_geoms, self.human.geoms,
         critical_speed=critical_speed, robot_dofs=joints.dofadr,
-        robot_qpos=joints.qposadr, compiled=compiled)
+        robot_qpos=joints.qposadr, compiled=compiled, energies=energies,
+        critical_by_energy=shield.mode == modes.PflEnergy.name)
     fingers = physics.bind(self.gripper.finger_joints)
     return monitor, JointIndices(
         qpos=np.array(joints.qposadr), qvel=np.array(joints.dofadr),

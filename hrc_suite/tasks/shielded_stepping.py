@@ -50,7 +50,9 @@ import numpy as np
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.entities import human_kernels
 from hrc_suite.safety import batch
+from hrc_suite.tasks import contact_energies
 from hrc_suite.tasks import contacts
+from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import physics_loop
 from hrc_suite.tasks import substeps as substeps_lib
 
@@ -403,6 +405,17 @@ class ShieldedStepper:
     for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
       step[f'contacts_{name}'] = int(count)
     self._contact_steps[:] = 0
+
+  def contact_energy_maxima(self):
+    """The RL step's largest robot-human contact energies and ratios
+    (metrics.contact_energy_maxima; zeros where the monitor measures
+    none)."""
+    energies = self._monitor.energies
+    if energies is None:
+      zeros = np.zeros(len(contact_energies.BODIES))
+      return metrics_lib.contact_energy_maxima(zeros, zeros)
+    return metrics_lib.contact_energy_maxima(energies.max_energy,
+                                             energies.max_ratio)
 
   # ------------------------------------------------------ shield set-points
 

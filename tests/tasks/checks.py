@@ -1,7 +1,13 @@
 """Checks every task's tests share: random rollouts, rewards in range,
-same seed same episode, snapshot/restore bit-exactness."""
+same seed same episode, snapshot/restore bit-exactness, a person in the
+robot's path."""
 
 import numpy as np
+
+from hrc_suite import suite
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
+from hrc_suite.tasks import reach
 
 
 def random_actions(env, count, seed=1, scale=1.0, gripper=None):
@@ -108,3 +114,46 @@ def torso_in_base_sweep(task):
   radius = np.linalg.norm(tcp[:2])
   angle = np.arctan2(tcp[1], tcp[0]) + np.pi / 2
   return np.array([radius * np.cos(angle), radius * np.sin(angle), tcp[2]])
+
+
+def clip_with_keypoint_at(task, point, keypoint):
+  """A still human whose `keypoint` sits at `point` (world)."""
+  shipped = clip_lib.shipped_library('reach')[0]
+  frame = shipped.positions[:1].astype(np.float64)
+  x, y, yaw = task.HUMAN_STATION
+  c, s = np.cos(yaw), np.sin(yaw)
+  rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+  world = frame[0] @ rot_t + np.array([x, y, 0.0])
+  offset = np.asarray(point) - world[keypoints.KEYPOINT_INDEX[keypoint]]
+  shift = offset @ rot_t.T
+  positions = np.repeat(frame + shift, 50, axis=0)
+  return shipped.replace(name='person_in_robot_path', positions=positions,
+                         keyframes=(), idle_phases=(), fast_phases=(),
+                         targets={})
+
+
+def human_in_robot_env(shield, seed=0, fast_path=True, keypoint='torso',
+                       robot='panda'):
+  """Reach with `robot` and a still person whose `keypoint` lies where the
+  arm sweeps when its base turns (`push_towards_human`), collision
+  prevention off."""
+  probe = reach.Reach(robot=robot)
+  point = torso_in_base_sweep(probe)   # the robot sweeps into it
+  clip = clip_with_keypoint_at(probe, point, keypoint)
+  return suite.load('reach', 'dense', task_kwargs={
+      'robot': robot, 'shield': shield, 'motions': [clip],
+      'collision_prevention': 'off', 'done_at_success': False,
+      'time_limit': 3.0, 'fast_path': fast_path},
+                    environment_kwargs={'random_state': seed})
+
+
+def push_towards_human(env, steps=30):
+  """Turns the base joint of `human_in_robot_env`'s robot into the person
+  for `steps` RL steps; returns the episode metrics."""
+  env.reset()
+  assert env.physics.data.ncon == 0   # Not touching at the start.
+  action = np.zeros(env.action_spec().shape)
+  action[0] = 1.0     # Base joint turns the arm towards +y (the hand).
+  for _ in range(steps):
+    env.step(action)
+  return env.task.episode_metrics

@@ -7,7 +7,6 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.human import keypoints
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
 from hrc_suite.tasks import contacts
@@ -362,44 +361,8 @@ def test_metrics_and_observer():
 # -------------------------------------------------------- contact monitor
 
 
-def _clip_with_keypoint_at(task, point, keypoint):
-  """A still human whose `keypoint` sits at `point` (world)."""
-  shipped = clip_lib.shipped_library('reach')[0]
-  frame = shipped.positions[:1].astype(np.float64)
-  x, y, yaw = task.HUMAN_STATION
-  c, s = np.cos(yaw), np.sin(yaw)
-  rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-  world = frame[0] @ rot_t + np.array([x, y, 0.0])
-  offset = np.asarray(point) - world[keypoints.KEYPOINT_INDEX[keypoint]]
-  shift = offset @ rot_t.T
-  positions = np.repeat(frame + shift, 50, axis=0)
-  return shipped.replace(name='person_in_robot_path', positions=positions,
-                         keyframes=(), idle_phases=(), fast_phases=(),
-                         targets={})
-
-
-def _human_in_robot_env(shield, seed=0):
-  probe = reach.Reach(robot='panda')
-  torso = checks.torso_in_base_sweep(probe)   # the robot sweeps into it
-  clip = _clip_with_keypoint_at(probe, torso, 'torso')
-  return suite.load('reach', 'dense', task_kwargs={
-      'robot': 'panda', 'shield': shield, 'motions': [clip],
-      'collision_prevention': 'off', 'done_at_success': False,
-      'time_limit': 3.0}, environment_kwargs={'random_state': seed})
-
-
-def _push_towards_human(env, steps=30):
-  env.reset()
-  assert env.physics.data.ncon == 0   # Not touching at the start.
-  action = np.zeros(7)
-  action[0] = 1.0     # Base joint turns the arm towards +y (the hand).
-  for _ in range(steps):
-    env.step(action)
-  return env.task.episode_metrics
-
-
 def test_monitor_sees_human_contacts_without_shield():
-  result = _push_towards_human(_human_in_robot_env('off'))
+  result = checks.push_towards_human(checks.human_in_robot_env('off'))
   assert result['contacts_human_critical'] > 0
   assert result['max_human_contact_speed'] > contacts.SSM_STOPPED_SPEED
 
@@ -407,7 +370,7 @@ def test_monitor_sees_human_contacts_without_shield():
 def test_compiled_contact_classification_agrees_with_numpy():
   """Both monitors of the same physics see the same flags at every
   physics step of an unshielded push into the person."""
-  env = _human_in_robot_env('off')
+  env = checks.human_in_robot_env('off')
   env.reset()
   task, physics = env.task, env.physics
   joints = physics.bind(task.robot.joints)
@@ -440,7 +403,7 @@ def test_compiled_contact_classification_agrees_with_numpy():
 
 
 def test_shield_prevents_critical_contacts_with_the_same_human():
-  result = _push_towards_human(_human_in_robot_env('ssm'))
+  result = checks.push_towards_human(checks.human_in_robot_env('ssm'))
   assert result['contacts_human_critical'] == 0
   assert result['shield_interventions'] > 0
 
