@@ -2,7 +2,7 @@
 
   python -m hrc_suite.rendering.scenes --out=docs/images/tasks
   python -m hrc_suite.rendering.scenes --tasks=handover/human_to_robot \
-      --motions=../shared/motions/human-robot-animations --out=/tmp/real
+      --motions=path/to/recordings --out=/tmp/real
 
 Each task is loaded with a fixed seed (Panda, the task's defaults) and
 stepped with a still arm until the human is in a characteristic pose:
