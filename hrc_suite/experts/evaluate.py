@@ -21,8 +21,8 @@ given) and writes docs/results/experts.md (one row per task, robot,
 policy, people and shield: success rate with a 95 % bootstrap confidence
 interval, return, episode length, shield interventions, contacts by type,
 steps outside the shield's human model, shield resyncs and physics errors
-per episode, wall time) and the raw per-episode results as
-docs/results/experts.json.
+per episode, wall time) and the per-episode results, row by row
+(hrc_suite/experts/results_file.py), as docs/results/experts.json.
 
 People: the shipped synthetic library, or with --motions=DIR the task's
 motions from DIR (task_kwargs['motions']; the reference's layout, one
@@ -77,6 +77,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import adversary
 from hrc_suite.experts import noise as noise_lib
+from hrc_suite.experts import results_file
 from hrc_suite.human import clip as clip_lib
 from hrc_suite import registry_flags
 from hrc_suite.safety import modes as modes_lib
@@ -615,7 +616,7 @@ def load_results(path):
     return [], [], {}, None
   try:
     payload = json.loads(path.read_text())
-    episodes = payload['episodes']
+    episodes = results_file.episodes(payload)
     runs = payload.get('runs')
     if runs is None:
       rows = list(dict.fromkeys(row_key(e) for e in episodes))
@@ -767,20 +768,23 @@ def markdown(rows, runs, not_evaluated=(), results=(), notes=None):
 
 def write(results, out, json_out, runs, not_evaluated=(), notes=None):
   """Writes the Markdown table and the JSON results; returns the rows.
-  not_evaluated: {task key (`task_key`): reason}."""
+  not_evaluated: {task key (`task_key`): reason}. The table is that of
+  the episodes as stored (rounded: results_file), so that writing it
+  again from the JSON gives the same table."""
+  results = results_file.unpack(results_file.pack(results))
   rows = summarise(results)
   not_evaluated = dict(sorted(dict(not_evaluated).items()))
   out, json_out = pathlib.Path(out), pathlib.Path(json_out)
   for path in (out, json_out):
     path.parent.mkdir(parents=True, exist_ok=True)
   out.write_text(markdown(rows, runs, not_evaluated, results, notes))
-  finite = [{k: _json_number(v) if isinstance(v, float) else v
-             for k, v in row.items()} for row in rows]
-  payload = {'runs': runs, 'rows': finite, 'episodes': results,
+  payload = {'runs': runs, 'rows': [results_file.round_row(row)
+                                    for row in rows],
+             'episode_groups': results_file.pack(results),
              'not_evaluated': not_evaluated}
   if notes:
     payload['notes'] = notes
-  json_out.write_text(json.dumps(payload, indent=1, allow_nan=False) + '\n')
+  json_out.write_text(results_file.dumps(payload) + '\n')
   return rows
 
 

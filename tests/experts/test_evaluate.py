@@ -104,9 +104,10 @@ def test_tiny_run_writes_a_well_formed_table(tmp_path):
            if line.startswith('* BELOW THE BAR: reach/dense schunk')]
   assert len(below) == 2 and 'success 0.00 < 0.80' in below[0]
   payload = json.loads(json_out.read_text())
-  assert [e['seed'] for e in payload['episodes']] == [0, 0]
-  assert payload['episodes'][0]['metrics']['steps'] == 5.0
-  assert len(payload['rows']) == 2
+  episodes = evaluate.load_results(json_out)[0]
+  assert [e['seed'] for e in episodes] == [0, 0]
+  assert episodes[0]['metrics']['steps'] == 5.0
+  assert len(payload['episode_groups']) == len(payload['rows']) == 2
   run, = payload['runs']
   assert np.isfinite(run['wall_time'])
   assert run['rows'] == ['reach/dense schunk expert default',
@@ -372,7 +373,7 @@ def test_rewrite_only_writes_the_table_without_running(tmp_path,
   assert '* Command: `old command`' in text
   assert '## Notes\n\nHand-written note.\n' in text
   payload = json.loads(json_out.read_text())
-  assert payload['episodes'] == [episode] and payload['notes']
+  assert evaluate.load_results(json_out)[0] == [episode] and payload['notes']
   # Again without --notes: the notes stay, the table is the same.
   evaluate.main(['evaluate'], _flags(rewrite_only=True, out=str(out),
                                      json_out=str(json_out)))
@@ -416,14 +417,15 @@ def test_random_policy_on_real_recordings_with_and_without_shield(
   assert ("* reach/dense (real people): skipped: ClipError: "
           in text) and "no sub-folder for task 'reach'" in text
   payload = json.loads(json_out.read_text())
-  assert payload['episodes'][0] == old
+  episodes = evaluate.load_results(json_out)[0]
+  assert episodes[0] == old
   assert [r['people'] for r in payload['rows']] == [
       'synthetic', 'real', 'real']
   assert list(payload['not_evaluated']) == ['reach/dense people=real']
   assert payload['runs'][-1]['rows'] == [
       'pick_place/close panda random default people=real',
       'pick_place/close panda random default people=real shield=off']
-  metrics = payload['episodes'][1]['metrics']
+  metrics = episodes[1]['metrics']
   for name in ('steps_outside_human_model', 'contacts_human_pushed',
                'shield_resyncs', 'physics_errors'):
     assert metrics[name] is not None
