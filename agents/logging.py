@@ -1,9 +1,11 @@
 """Loggers of scalar rows: CSV files and TensorBoard (tensorboardX).
 
 Every logger has `write(row, step)` and `close()`. A row is a flat dict of
-numbers (and strings for the CSV). `CSVLogger` fixes its columns at the
-first row (or from an existing file's header) and can truncate a file to the
-rows up to a step, which a resumed training run does so that the rows it
+numbers (and strings for the CSV). `CSVLogger` takes its columns from the
+first row (or from an existing file's header), widens the file when a later
+row brings new columns (a run resumed by a version that logs more metrics:
+the earlier rows keep those cells empty), and can truncate a file to the rows
+up to a step, which a resumed training run does so that the rows it
 re-creates are not logged twice. `TensorBoardLogger` purges events after the
 resume step the same way (TensorBoard's purge_step).
 """
@@ -50,6 +52,18 @@ class CSVLogger:
     """The columns, or None before the first row of a new file."""
     return None if self._columns is None else list(self._columns)
 
+  def _rewrite(self, columns: List[str], rows: List[Dict[str, str]]) -> None:
+    """Replaces the file by `rows` under `columns` (missing cells empty)."""
+    self.close()
+    temporary = self.path + '.tmp'
+    with open(temporary, 'w', newline='') as f:
+      writer = csv.DictWriter(f, fieldnames=columns)
+      writer.writeheader()
+      for row in rows:
+        writer.writerow({k: _format(row.get(k, '')) for k in columns})
+    os.replace(temporary, self.path)
+    self._columns = list(columns)
+
   def truncate(self, max_step: float) -> None:
     """Drops the rows whose step is larger than max_step (a resumed run
     logs them again).
@@ -67,25 +81,16 @@ class CSVLogger:
                        f'truncate by; columns: {self._columns}')
     rows = read_csv(self.path)
     kept = [row for row in rows if float(row[self._step_key]) <= max_step]
-    self.close()
-    temporary = self.path + '.tmp'
-    with open(temporary, 'w', newline='') as f:
-      writer = csv.DictWriter(f, fieldnames=self._columns)
-      writer.writeheader()
-      for row in kept:
-        writer.writerow({k: _format(row[k]) for k in self._columns})
-    os.replace(temporary, self.path)
+    self._rewrite(self._columns, kept)
 
   def write(self, row: Mapping[str, Any],
             step: Optional[int] = None) -> None:
-    """Appends a row (the first row fixes the columns of a new file).
+    """Appends a row (the first row sets the columns of a new file; a row
+    with columns the file lacks widens it, earlier rows empty there).
 
     Args:
       row: {column: number or string}; missing columns stay empty.
       step: None, or the row's step column.
-
-    Raises:
-      ValueError: columns the file does not have.
     """
     row = dict(row)
     if step is not None:
@@ -97,8 +102,9 @@ class CSVLogger:
         self._columns.insert(0, self._step_key)
     unknown = sorted(set(row) - set(self._columns))
     if unknown:
-      raise ValueError(f'Row has columns {unknown} that {self.path} does not '
-                       f'have (its columns: {self._columns})')
+      earlier = (read_csv(self.path) if os.path.exists(self.path)
+                 and os.path.getsize(self.path) > 0 else [])
+      self._rewrite(self._columns + unknown, earlier)
     if self._file is None:
       new = not os.path.exists(self.path) or os.path.getsize(self.path) == 0
       directory = os.path.dirname(self.path)
