@@ -18,7 +18,7 @@ from typing import Any, Optional, Sequence
 from hrc_suite import robot_description
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import modes as modes_lib
+from hrc_suite.safety.shield import modes as modes_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import defaults as defaults_lib

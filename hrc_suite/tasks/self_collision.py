@@ -14,8 +14,8 @@ counter on every task).
 
 import numpy as np
 
-from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import geometry
+from hrc_suite.safety.collision_prevention import kernels as cp_kernels
 
 
 class SelfCollision:

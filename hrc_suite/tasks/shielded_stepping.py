@@ -49,7 +49,7 @@ import numpy as np
 
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.entities import human_kernels
-from hrc_suite.safety import batch
+from hrc_suite.safety.shield import batch
 from hrc_suite.tasks import contact_energies
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import metrics as metrics_lib
