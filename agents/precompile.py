@@ -2,10 +2,11 @@
 
 A fresh checkout has no numba cache, so the first environment of a process
 compiles its kernels, one function at a time: on reach/dense (Schunk) the
-shield's (`safety.kernels`, `safety.cycle_kernels`) about 25 s of a core,
-collision prevention's (`safety.cp_kernels`) 15 s and inverse kinematics'
-(`control.ik_kernels`) 6 s; the person's playback, the plans' sampling
-and the gripper's grasp check 14 s on a slower day of the same machine
+shield's (`safety.kernels`, `safety.shield.cycle_kernels`) about 25 s of a
+core, collision prevention's (`safety.collision_prevention.kernels`) 15 s
+and inverse kinematics' (`control.ik_kernels`) 6 s; the person's
+playback, the plans' sampling and the gripper's grasp check 14 s on a
+slower day of the same machine
 (docs/benchmarks.md, "Kernel compilation on a fresh checkout"). `warm_up`
 compiles all but the shield's in a second Python process while this one
 compiles the shield, then waits for it. Both write numba's on-disk cache
@@ -35,19 +36,19 @@ from hrc_suite.control import kinematics
 from hrc_suite.entities import gripper_kernels
 from hrc_suite.entities import human_kernels
 from hrc_suite.human import player_kernels
-from hrc_suite.safety import cp_kernels
-from hrc_suite.safety import cycle_kernels
-from hrc_suite.safety import energy_check_kernels
 from hrc_suite.safety import energy_kernels
 from hrc_suite.safety import kernels
 from hrc_suite.safety import plan_kernels
-from hrc_suite.safety import speed_kernels
+from hrc_suite.safety.collision_prevention import kernels as collision_kernels
+from hrc_suite.safety.shield import cycle_kernels
+from hrc_suite.safety.shield import energy_check_kernels
+from hrc_suite.safety.shield import speed_kernels
 
 
 def compile_second_half(robot: str) -> None:
   """Compiles (or loads) the kernels of the second process's half for the
   argument types the tasks pass: collision prevention's
-  (`cp_kernels.warm_up`), IK's (the TCP position and one IK solve through
+  (`collision_kernels.warm_up`), IK's (the TCP position and one IK solve through
   `control.ik`, as the tasks' Cartesian actions and goal sampling call
   them), and those every environment warms up when it is built: the
   person's playback (`player_kernels`, `human_kernels`), the plans'
@@ -62,7 +63,7 @@ def compile_second_half(robot: str) -> None:
   human_kernels.warm_up()
   plan_kernels.warm_up()
   gripper_kernels.warm_up()
-  cp_kernels.warm_up()
+  collision_kernels.warm_up()
   # Energy PFL's plan tables and readable check (shield mode pfl_energy).
   energy_kernels.warm_up()
   energy_check_kernels.warm_up()

@@ -137,7 +137,7 @@ def run_physics(robots, steps):
 
 
 def run_shield(robots):
-  from hrc_suite.safety import benchmark as shield_benchmark
+  from hrc_suite.safety.shield import benchmark as shield_benchmark
   print('\n## Shield cycle\n')
   shield_benchmark.main(['--robots', *robots])
 

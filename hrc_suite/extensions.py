@@ -8,7 +8,7 @@ defines) or 'module:function' (imported, then function() is called), e.g.
   HRC_SUITE_EXTENSIONS=my_tasks,my_lab.shields:register \\
     python -m hrc_suite.rendering.episode --domain=toy --task=default
 
-The registries (`suite`, `experts`, `robot_description`, `safety.modes`)
+The registries (`suite`, `experts`, `robot_description`, `safety.shield.modes`)
 load them the first time they are asked for names, so every binary and
 each of its worker processes sees them (docs/extending.md).
 """

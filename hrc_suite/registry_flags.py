@@ -8,7 +8,7 @@ import os
 from absl import flags
 
 from hrc_suite import robot_description
-from hrc_suite.safety import modes
+from hrc_suite.safety.shield import modes
 
 
 def _values(value):

@@ -26,12 +26,12 @@ import numpy as np
 from hrc_suite import extensions
 from hrc_suite import observation_updater
 from hrc_suite import tasks as tasks_package
-from hrc_suite.safety import modes
+from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import base
 from hrc_suite.tasks import substeps
 
 # Tags of what a task is about and of its reward; each shield mode's name
-# (safety/modes.py) is a tag too (`tags()`).
+# (safety/shield/modes.py) is a tag too (`tags()`).
 TASK_TAGS = ('coexistence', 'object_handling', 'handover', 'manufacturing',
              'assembly', 'dense', 'sparse', 'delayed')
 

@@ -19,7 +19,7 @@ whether the two ended in the same state (same episodes: a change meant to
 keep them bit for bit must print True).
 
 With --shield=ssm or pfl it compares the shield's cycles of an RL step
-instead (`python -m hrc_suite.safety.benchmark --rl_step`'s scenes): in
+instead (`python -m hrc_suite.safety.shield.benchmark --rl_step`'s scenes): in
 both packages a shield of each robot in the scene, a new random goal
 before each RL step (the same goals), the RL step's 25 cycles in
 `batch.step_many`, thread CPU time per RL step, in alternating windows;
@@ -137,11 +137,20 @@ def compare(domain, task, robot, action_space, windows, suites):
           np.median(ratio), np.percentile(ratio, [25, 75]), same)
 
 
+def _shield_module(package, name):
+  """`package`'s shield module `name`: in safety/shield/, or in safety/
+  in a base commit that has no shield subpackage."""
+  try:
+    return importlib.import_module(f'{package}.safety.shield.{name}')
+  except ModuleNotFoundError:
+    return importlib.import_module(f'{package}.safety.{name}')
+
+
 def _shield_stepper(package, name, scene, mode):
   """(shield, steps(count)) of the safety benchmark's RL-step timing
-  (hrc_suite/safety/benchmark.py, time_rl_steps) in `package`."""
-  benchmark = importlib.import_module(f'{package}.safety.benchmark')
-  batch = importlib.import_module(f'{package}.safety.batch')
+  (hrc_suite/safety/shield/benchmark.py, time_rl_steps) in `package`."""
+  benchmark = _shield_module(package, 'benchmark')
+  batch = _shield_module(package, 'batch')
   description, shield, human = benchmark._scene(name, mode, scene)   # pylint: disable=protected-access
   limits = description.limits
   rng = np.random.RandomState(0)

@@ -26,7 +26,7 @@ def test_profile_parts_add_up_to_the_step_and_restore_the_code():
   and 'composer and the rest' add up to the total, nested parts are
   within their parent, and the timing wrappers are removed afterwards."""
   from hrc_suite import benchmark_profile
-  from hrc_suite.safety import batch
+  from hrc_suite.safety.shield import batch
   step_many = batch.step_many
   out = benchmark_profile.profile('reach', 'dense', 'schunk', rl_steps=6,
                                   action_space='cartesian')
@@ -37,7 +37,7 @@ def test_profile_parts_add_up_to_the_step_and_restore_the_code():
   assert sum(out[label] for label in top) + out['composer and the rest'] == (
       pytest.approx(out['total']))
   assert out['total'] > 0.0
-  shield = '  shield: 25 cycles (safety.batch.step_many)'
+  shield = '  shield: 25 cycles (safety.shield.batch.step_many)'
   physics = 'task run_physics_steps: the RL step\'s physics steps'
   # Reach steps the shield every RL step inside its physics steps.
   assert 0.0 < out[shield] <= out[physics]

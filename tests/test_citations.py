@@ -53,7 +53,7 @@ def _line(text, index):
 
 def test_python_files_are_found():
   names = [name for name, _ in _python_files()]
-  assert 'hrc_suite/safety/shield.py' in names
+  assert 'hrc_suite/safety/shield/shield.py' in names
   assert 'tests/test_citations.py' in names
 
 

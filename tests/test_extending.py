@@ -30,9 +30,9 @@ from hrc_suite.experts import base as expert_base
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import synthesis
-from hrc_suite.safety import batch
-from hrc_suite.safety import modes
 from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety.shield import batch
+from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
 from hrc_suite.tasks import reach

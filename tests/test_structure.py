@@ -7,7 +7,7 @@
   methods and properties.
 * A numba-compiled function takes at most MAX_KERNEL_PARAMETERS
   parameters: more travel as named groups (typing.NamedTuple, structured
-  arrays), e.g. safety/cycle_kernels.py.
+  arrays), e.g. safety/shield/cycle_kernels.py.
 """
 
 import ast

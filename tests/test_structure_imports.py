@@ -1,4 +1,6 @@
-"""No import cycles among the modules of hrc_suite/ and agents/.
+"""No import cycles among the modules of hrc_suite/ and agents/, and
+imports between packages that run one way (docs/architecture.md,
+"Packages").
 
 The import graph comes from the source text: every `import` and
 `from ... import` statement anywhere in a module (at module level, inside
@@ -8,6 +10,7 @@ connected component of more than one module is a cycle.
 """
 
 import ast
+import importlib
 import pathlib
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
@@ -15,6 +18,23 @@ PACKAGES = ('hrc_suite', 'agents')
 
 # Cycles that may remain, each a set of the component's modules (none).
 ALLOWED_CYCLES = ()
+# (package, packages that none of its modules reaches through a chain of
+# imports; the modules of those packages themselves are exempt).
+ONE_WAY = (
+    ('hrc_suite.safety',
+     ('hrc_suite.safety.shield', 'hrc_suite.safety.collision_prevention')),
+    ('hrc_suite.safety.collision_prevention', ('hrc_suite.safety.shield',)),
+    ('hrc_suite.human', ('hrc_suite.tasks', 'hrc_suite.motion_tools')),
+)
+# Names that users import from a package (the package re-exports them).
+REEXPORTS = {
+    'hrc_suite.safety.shield': ('hrc_suite.safety.shield.shield',
+                                ('Shield',)),
+    'hrc_suite.safety.collision_prevention': (
+        'hrc_suite.safety.collision_prevention.prevention',
+        ('CollisionPrevention', 'FilteredAction', 'POLICIES',
+         'workcell_boxes')),
+}
 
 
 def _modules():
@@ -148,3 +168,60 @@ def test_allowed_cycles_still_exist():
   found = set(cycles(import_graph()))
   gone = [sorted(c) for c in ALLOWED_CYCLES if c not in found]
   assert not gone, f'No longer cycles, remove from ALLOWED_CYCLES: {gone}'
+
+
+def _inside(name, package):
+  return name == package or name.startswith(package + '.')
+
+
+def reachable(graph, start):
+  """The modules that `start` imports, directly or through others."""
+  seen, todo = set(), list(graph[start])
+  while todo:
+    name = todo.pop()
+    if name not in seen:
+      seen.add(name)
+      todo.extend(graph.get(name, ()))
+  return seen
+
+
+def one_way_violations(graph, rules=ONE_WAY):
+  """(importer, reached module) of each module of a rule's package that
+  reaches a module of one of the rule's forbidden packages."""
+  found = []
+  for package, forbidden in rules:
+    for name in sorted(graph):
+      if not _inside(name, package) or any(_inside(name, f)
+                                           for f in forbidden):
+        continue
+      for target in sorted(reachable(graph, name)):
+        if any(_inside(target, f) for f in forbidden):
+          found.append((name, target))
+  return found
+
+
+def test_one_way_violations_are_found():
+  graph = {'p': set(), 'p.a': {'q.b'}, 'p.sub': set(), 'p.sub.c': {'p.a'},
+           'q': set(), 'q.b': {'p.sub.c'}}
+  assert one_way_violations(graph, (('p', ('p.sub',)),)) == [
+      ('p.a', 'p.sub.c')]
+  assert one_way_violations(graph, (('p.sub', ('q',)),)) == [
+      ('p.sub.c', 'q.b')]
+  assert one_way_violations(graph, (('q', ('x',)),)) == []
+
+
+def test_packages_import_one_way():
+  found = one_way_violations(import_graph())
+  assert not found, (
+      'Imports against docs/architecture.md\'s "Packages" (importer, '
+      f'module it reaches): {found}')
+
+
+def test_packages_re_export_their_public_names():
+  for package, (module, names) in REEXPORTS.items():
+    package_module = importlib.import_module(package)
+    defining = importlib.import_module(module)
+    for name in names:
+      assert getattr(package_module, name) is getattr(defining, name), (
+          package, name)
+    assert sorted(package_module.__all__) == sorted(names), package

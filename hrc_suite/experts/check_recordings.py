@@ -50,9 +50,9 @@ from hrc_suite.experts import evaluate
 from hrc_suite.human import bvh
 from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.human import compare
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
+from hrc_suite.motion_tools import compare
 from hrc_suite.tasks import motions as motions_lib
 
 # The people label of the episodes' rows (evaluate.people).

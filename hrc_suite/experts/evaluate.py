@@ -80,7 +80,7 @@ from hrc_suite.experts import noise as noise_lib
 from hrc_suite.experts import results_file
 from hrc_suite.human import clip as clip_lib
 from hrc_suite import registry_flags
-from hrc_suite.safety import modes as modes_lib
+from hrc_suite.safety.shield import modes as modes_lib
 from hrc_suite.tasks import metrics as metrics_lib
 from hrc_suite.tasks import motions as task_motions
 
@@ -88,7 +88,7 @@ EXPERT_POLICIES = ('expert', 'noisy_expert')
 TEST_POLICIES = ('random', 'chase')   # Safety checks, no success bar.
 POLICIES = EXPERT_POLICIES + TEST_POLICIES
 # --shield values: the task's default (DEFAULT_SHIELD) or a registered
-# shield mode (hrc_suite/safety/modes.py).
+# shield mode (hrc_suite/safety/shield/modes.py).
 DEFAULT_SHIELD = 'default'
 # The people of rows run without --motions: the shipped library.
 SYNTHETIC = 'synthetic'

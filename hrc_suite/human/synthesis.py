@@ -8,8 +8,9 @@ the pelvis heading frame, so hands travel with the body, and are met exactly
 at the end of a reach by the arm's two-link solution (`body.py`). Steps are
 planned under the pelvis during walks. On top come breathing, postural sway
 and small idle drifts of the hands and head. `render` turns the script into a
-`Clip`. The per-task scripts are `task_motions.py`; `synthetic_library.py`
-runs them into clips and writes the shipped library. Every clip is checked
+`Clip`. The per-task scripts are `task_motions.py`;
+hrc_suite/motion_tools/synthetic_library.py runs them into clips and writes
+the shipped library. Every clip is checked
 against the shield's 2 m/s human speed, also while an idle phase warps it
 (`idle_speed_bound`, `fit_idle_phases`).
 """

@@ -1,9 +1,13 @@
 """Safety: the reachability shield and collision prevention (NumPy, numba).
 
-Modules: `geometry` (segment/capsule/ball/box distances), `robot_reach` (robot
-capsules and reachable sets), `human_reach` (human reachable sets),
-`verification` (SSM verdict, joint limits), `collision_prevention` (static
-and self-collision checks of goals), and the shield core (`path`,
-`long_term_plan`, `shield`); `kernels` compiles the per-cycle geometry.
-Nothing here imports MuJoCo or composer.
+Subpackages (docs/architecture.md, "Packages"): `shield` (the reachability
+shield, its state, modes and their compiled verification, paths, the
+human's reachable set, the energies it verifies, the compiled cycles) and
+`collision_prevention` (static and self-collision checks of goals). What
+both use is here: `geometry` (segment/capsule/ball/box distances),
+`kernels` (the compiled per-cycle geometry), `robot_reach` (robot capsules
+and reachable sets), `long_term_plan` and `plan_kernels` (a goal's
+jerk-limited plan), and the energy models of robots and body regions
+(`robot_energy`, `arm_energy`, `energy_kernels`, `contact_energy`,
+`body_regions`, `clamping`). Nothing here imports the subpackages.
 """

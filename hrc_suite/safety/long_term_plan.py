@@ -21,7 +21,6 @@ import math
 import numpy as np
 import ruckig
 
-from hrc_suite.safety import cycle_kernels
 from hrc_suite.safety import kernels
 from hrc_suite.safety import plan_kernels
 
@@ -282,13 +281,13 @@ class LongTermPlan:
   def state(self, s, s_dot=1.0, s_ddot=0.0, jerk=0.0):
     """One path state (scalars) -> (5, dof): q, dq, ddq, dddq, v_nominal
     (computed by a compiled kernel that the compiled shield cycles share:
-    cycle_kernels.plan_state; its NumPy reference is in
+    plan_kernels.plan_state; its NumPy reference is in
     tests/safety/safety_references.py)."""
     k = int((s - self.start_time) * self._inverse_cycle // 1.0)
     k = 0 if k < 0 else (self._last if k > self._last else k)
     if k >= self._filled:
       self._fill(k)
-    return cycle_kernels.plan_state(
+    return plan_kernels.plan_state(
         self._coefficients, self.start_time, self._inverse_cycle,
         self.cycle_time, float(s), float(s_dot), float(s_ddot), float(jerk),
         np.empty((5, self._coefficients.shape[2])))

@@ -5,7 +5,9 @@
 in the same order (bit for bit, tests/safety/test_long_term_plan.py): the
 plan's samples one cycle apart from the table of each joint's pieces,
 which `piece_table` builds from Ruckig's profiles. `start_state_ok` and
-`plan_inputs_ok` are the fast paths of long_term_plan's input checks.
+`plan_inputs_ok` are the fast paths of long_term_plan's input checks;
+`plan_state` is a plan's state at a path state (LongTermPlan.state, and
+the shield's compiled cycles).
 Same compilation settings as the shield's kernels (cache, IEEE
 arithmetic).
 """
@@ -178,6 +180,35 @@ def piece_table(profiles, brakes, duration):
   return table, starts, joint_shift
 
 
+@_jit
+def plan_state(plan, start, inverse, cycle, s, s_dot, s_ddot, jerk, out):
+  """LongTermPlan.state into out (5, dof) (plan (N, 4, dof) samples, all
+  needed ones computed): the Taylor step's 5 x 4 matrix of
+  the chain rule (docs/shield_maths.md, 2; its NumPy reference:
+  tests/safety/safety_references.py, `plan_state`) applied in a fixed
+  order (shared by the Python and the compiled cycle, so both give the
+  same bits)."""
+  last = plan.shape[0] - 1
+  k = int(math.floor((s - start) * inverse))
+  k = 0 if k < 0 else (last if k > last else k)
+  t = s - start - k * cycle
+  t2 = 0.5 * t * t
+  t3 = t2 * t / 3.0
+  v2 = s_dot * s_dot
+  sa = 3.0 * s_ddot * s_dot
+  m = ((1.0, t, t2, t3),
+       (0.0, s_dot, s_dot * t, s_dot * t2),
+       (0.0, s_ddot, s_ddot * t + v2, s_ddot * t2 + v2 * t),
+       (0.0, jerk, jerk * t + sa, jerk * t2 + sa * t + v2 * s_dot),
+       (0.0, 1.0, t, t2))
+  for row in range(5):
+    r = m[row]
+    for d in range(plan.shape[2]):
+      out[row, d] = (r[0] * plan[k, 0, d] + r[1] * plan[k, 1, d]
+                     + r[2] * plan[k, 2, d] + r[3] * plan[k, 3, d])
+  return out
+
+
 _warm = False
 
 
@@ -202,3 +233,4 @@ def warm_up():
   sample_pieces(table, starts, joint_shift, state, 1.0, 1.0, 0, 1,
                 np.empty((1, 4, dof)))
   _warm = True
+

@@ -234,7 +234,7 @@ class HrcTask(composer.Task, options_lib.OptionNames,
   gripper = _read('_gripper', 'The parallel gripper (entities/gripper.py).')
   human = _read('_human', 'The person (entities/human.py).')
   player = _read('_player', "The person's clip player (human/player.py).")
-  shield = _read('_shield', 'The shield (safety/shield.py).')
+  shield = _read('_shield', 'The shield (safety/shield/shield.py).')
   kinematics = _read('_kinematics', "The robot's kinematic model for IK.")
   tool_capsule = _read('_scene.tool_capsule',
                        '(p1, p2, radius) in the last link frame.')

@@ -15,7 +15,7 @@ from typing import Mapping, Optional, Tuple
 
 from hrc_suite import layout
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.safety import modes
+from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import actions
 
 # The class constant of each field, in field order.

@@ -18,7 +18,7 @@ from typing import Any, Optional, Sequence
 from hrc_suite import robot_description
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import modes as modes_lib
+from hrc_suite.safety.shield import modes as modes_lib
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import defaults as defaults_lib
@@ -122,7 +122,7 @@ class TaskOptions:
   robot: str
   # 'joint' or 'cartesian' (tasks/actions.py).
   action_space: str
-  # A shield mode of safety/modes.py ('ssm', 'pfl', 'off' or one
+  # A shield mode of safety/shield/modes.py ('ssm', 'pfl', 'off' or one
   # registered elsewhere).
   shield: str
   # L: physics steps (= shield cycles) per RL step.
@@ -153,16 +153,16 @@ class TaskOptions:
   # <= 0, added at RL steps with a static, self or critical human contact.
   collision_reward: float
   # Run an RL step's shield cycles at its start in one call
-  # (`safety.batch.step_many`, compiled where it can) and hand the
+  # (`safety.shield.batch.step_many`, compiled where it can) and hand the
   # controller the verified set-points, check new goals with compiled
-  # capsule tests (`safety.cp_kernels`), compute the controller's torques,
-  # the contact classification, the person's capsule frames and the
-  # self-collision check in compiled kernels (the same bit for bit) and,
-  # in environments of `suite.load`, run the RL step's physics steps in
-  # one composer substep (`substeps`); False runs `Shield.step` every
-  # physics step, NumPy collision checks, controller, contact
-  # classification and capsule frames and composer's substeps (the
-  # readable reference; the two agree, tests/tasks/test_fast_path.py).
+  # capsule tests (`safety.collision_prevention.kernels`), compute the
+  # controller's torques, the contact classification, the person's capsule
+  # frames and the self-collision check in compiled kernels (the same bit
+  # for bit) and, in environments of `suite.load`, run the RL step's
+  # physics steps in one composer substep (`substeps`); False runs
+  # `Shield.step` every physics step, NumPy collision checks, controller,
+  # contact classification and capsule frames and composer's substeps
+  # (the readable reference; the two agree, tests/tasks/test_fast_path.py).
   fast_path: bool
 
   @classmethod
@@ -275,7 +275,8 @@ class OptionNames:
   horizon = _option('horizon', 'RL steps of time_limit.')
   collision_reward = _option('collision_reward', '<= 0, of illegal contacts.')
   fast_path = _option('fast_path', 'Whether the fast path runs.')
-  shield_mode = _option('shield', 'The shield mode (safety/modes.py).')
+  shield_mode = _option('shield',
+                        'The shield mode (safety/shield/modes.py).')
   shield_substeps = _option('shield_substeps', 'Physics steps per RL step.')
   critical_speed = _option('critical_speed',
                            'm/s, human contacts faster are critical.')

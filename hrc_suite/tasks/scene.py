@@ -26,9 +26,9 @@ from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.human import player as player_lib
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety import contact_energy
-from hrc_suite.safety import modes
 from hrc_suite.safety import robot_energy
 from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import contact_energies
 from hrc_suite.tasks import contacts

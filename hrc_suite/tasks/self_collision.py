@@ -4,8 +4,8 @@ A configuration self-collides when two capsules of collision prevention's
 checked pairs overlap (`CollisionPrevention.pairs`, the robot capsule
 model; metrics.COUNTERS, self_collisions). compiled=True (the task's fast
 path) runs collision prevention's compiled capsule test
-(`cp_kernels.colliding`, pairs only, no boxes, no margins), else the NumPy
-reference below. The kernel's forward kinematics and segment distances
+(`collision_kernels.colliding`, pairs only, no boxes, no margins), else the
+NumPy reference below. The kernel's forward kinematics and segment distances
 agree with the reference to round-off, so the two decide alike except
 for capsules within ~1e-15 m of touching (tests/tasks/
 test_self_collision.py; tests/tasks/test_fast_path.py compares the
@@ -14,8 +14,8 @@ counter on every task).
 
 import numpy as np
 
-from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import geometry
+from hrc_suite.safety.collision_prevention import kernels as collision_kernels
 
 
 class SelfCollision:
@@ -25,8 +25,8 @@ class SelfCollision:
     self._checker = checker
     self._compiled = bool(compiled)
     num_capsules = checker.num_capsules
-    # cp_kernels.colliding's arguments for "pairs only": no boxes, zero
-    # margins, no masks.
+    # collision_kernels.colliding's arguments for "pairs only": no boxes,
+    # zero margins, no masks.
     self._margins = (np.zeros((1, num_capsules)),
                      np.zeros((1, len(checker.pairs))))
     self._no_boxes = (np.zeros((0, 3)), np.zeros((0, 3)),
@@ -45,7 +45,7 @@ class SelfCollision:
       return self.reference(q)
     self._q[0] = q
     reach = checker.reach
-    return bool(cp_kernels.colliding(
+    return bool(collision_kernels.colliding(
         self._q, *reach._kernel_model, reach._kernel_frames,
         checker._kernel_radii, *self._margins, *self._no_boxes,
         checker._kernel_pairs, *self._no_masks)[0])

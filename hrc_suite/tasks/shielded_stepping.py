@@ -14,9 +14,9 @@ owns a ShieldedStepper and calls it from its composer hooks:
   the shield's command -> the controller -> the task's own work
   (`HrcTask._before_physics_step`). On the fast path (fast_path=True, the
   default) the shield's cycles of the rest of the RL step run at once
-  (`safety.batch.step_many`: the playback's frames are known in advance)
-  and each physics step hands the controller its precomputed, verified
-  set-point; the same commands as `Shield.step` every physics step
+  (`safety.shield.batch.step_many`: the playback's frames are known in
+  advance) and each physics step hands the controller its precomputed,
+  verified set-point; the same commands as `Shield.step` every physics step
   (fast_path=False, the reference).
 * One composer substep per RL step (fast path, environments of
   `suite.load`; tasks/substeps.py): composer sees one substep,
@@ -49,7 +49,7 @@ import numpy as np
 
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.entities import human_kernels
-from hrc_suite.safety import batch
+from hrc_suite.safety.shield import batch
 from hrc_suite.tasks import contact_energies
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import metrics as metrics_lib

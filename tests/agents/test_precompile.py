@@ -10,11 +10,11 @@ from hrc_suite.control import ik_kernels
 from hrc_suite.entities import gripper_kernels
 from hrc_suite.entities import human_kernels
 from hrc_suite.human import player_kernels
-from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import plan_kernels
+from hrc_suite.safety.collision_prevention import kernels as collision_kernels
 
 # The second process's half (precompile.compile_second_half).
-SECOND_HALF = (cp_kernels, ik_kernels, player_kernels, human_kernels,
+SECOND_HALF = (collision_kernels, ik_kernels, player_kernels, human_kernels,
                plan_kernels, gripper_kernels)
 
 
@@ -31,7 +31,7 @@ def _signatures(*modules):
 def test_second_half_covers_what_reach_calls():
   precompile.compile_second_half('schunk')
   before = _signatures(*SECOND_HALF)
-  for name in ('safety.cp_kernels.planned_path_collides',
+  for name in ('safety.collision_prevention.kernels.planned_path_collides',
                'control.ik_kernels.solve_gripper_down',
                'control.ik_kernels.tcp_pose',
                'human.player_kernels.play_within_clip',

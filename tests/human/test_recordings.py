@@ -17,7 +17,7 @@ from hrc_suite.human import keypoints
 from hrc_suite.human import placement
 from hrc_suite.human import recording_cache
 from hrc_suite.human import task_targets
-from hrc_suite.safety import human_reach
+from hrc_suite.safety.shield import human_reach
 from hrc_suite.tasks import motions as motions_lib
 
 I = keypoints.KEYPOINT_INDEX

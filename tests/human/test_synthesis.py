@@ -6,7 +6,7 @@ import pytest
 from hrc_suite.human import body
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import synthesis
-from hrc_suite.human import synthetic_library
+from hrc_suite.motion_tools import synthetic_library
 
 
 def test_minimum_jerk_profile():

@@ -5,7 +5,7 @@ the tests compare the kernels with these."""
 import numpy as np
 
 from hrc_suite.safety import geometry
-from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety.shield import shield as shield_lib
 
 
 def tracking_error(shield, q, reference=None):

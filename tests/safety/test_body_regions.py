@@ -6,7 +6,7 @@ import json
 import pytest
 
 from hrc_suite.safety import body_regions
-from hrc_suite.safety import human_reach
+from hrc_suite.safety.shield import human_reach
 
 # E_T = (2 F_QS)^2 / (2 k), J, by hand from the table's F_QS and k.
 HAND_TRANSIENT = {

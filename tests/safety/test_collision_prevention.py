@@ -1,4 +1,5 @@
-"""Tests for hrc_suite.safety.collision_prevention (all seven robots)."""
+"""Tests for hrc_suite.safety.collision_prevention.prevention (all seven
+robots)."""
 
 import dataclasses
 
@@ -7,8 +8,8 @@ import pytest
 
 from hrc_suite import layout
 from hrc_suite import robot_description
-from hrc_suite.safety import collision_prevention
 from hrc_suite.safety import geometry
+from hrc_suite.safety.collision_prevention import prevention as prevention_lib
 
 
 def _tool(description):
@@ -20,7 +21,7 @@ def _tool(description):
 
 def _prevention(name, **kwargs):
   description = robot_description.load(name)
-  return description, collision_prevention.CollisionPrevention(
+  return description, prevention_lib.CollisionPrevention(
       description, tool_capsule=_tool(description), **kwargs)
 
 
@@ -37,7 +38,7 @@ def _dense_free(prevention, description, q_start, q_goal, count=1500):
 def _static_and_self(prevention, q):
   """Independent exact check of single configurations (N, dof)."""
   p1, p2, r = prevention.reach.capsules(q)
-  boxes = collision_prevention.workcell_boxes(
+  boxes = prevention_lib.workcell_boxes(
       mount=layout.robot_mount(prevention.description.name))
   hit = np.zeros(len(q), dtype=bool)
   for name, (lo, hi) in boxes.items():
@@ -244,7 +245,7 @@ def test_path_sampling_bounds_the_motion_between_samples():
     # Largest end-point motion within one step (20 sub-samples).
     moved = np.maximum(np.linalg.norm(p1[20:] - p1[:-20], axis=-1),
                        np.linalg.norm(p2[20:] - p2[:-20], axis=-1))
-    assert moved.max() <= collision_prevention.DEFAULT_MAX_STEP + 1e-9
+    assert moved.max() <= prevention_lib.DEFAULT_MAX_STEP + 1e-9
   assert layout.TABLE_TOP_Z == prevention.box_max[0, 2]
 
 
@@ -327,13 +328,13 @@ def test_moving_robot_overshoot_into_the_table_is_rejected():
   moving = _moving(q, 0.5 * _LOWER, description)   # Shoulder going down.
   # The straight path up is free, the plan up first overshoots downwards.
   assert prevention.paths_free(q, home[None])[0]
-  plan = collision_prevention.ltp.plan_to_goal(
+  plan = prevention_lib.ltp.plan_to_goal(
       q, moving.dq, moving.ddq, home, description.limits, 0.004)
   dense = plan.nominal(np.linspace(0.0, plan.end_time, 3000))[0]
   assert prevention.in_collision(dense).any()
   assert not prevention.planned_paths_free(home[None], moving)[0]
   # At rest the same goal's plan is the straight path: accepted.
-  plan_from_rest = collision_prevention.ltp.plan_to_goal(
+  plan_from_rest = prevention_lib.ltp.plan_to_goal(
       q, np.zeros_like(q), np.zeros_like(q), home, description.limits, 0.004,
       recent=False)
   assert prevention.planned_paths_free(home[None],
@@ -348,7 +349,7 @@ def test_moving_robot_overshoot_into_the_table_is_rejected():
   resting = _moving(q, 0.0 * _LOWER, description)
   kept = prevention.filter_action(np.ones(1), q, to_goal, plan_from=resting)
   assert not kept.replaced and kept.plan is not None
-  goal = collision_prevention.ltp.clamp_goal(home, description.limits)
+  goal = prevention_lib.ltp.clamp_goal(home, description.limits)
   assert kept.plan.made_from(np.array([q, resting.dq, resting.ddq]), goal,
                              description.limits, 0.004, 0.0)
   np.testing.assert_array_equal(kept.plan._all(), plan_from_rest._all())
@@ -376,7 +377,7 @@ def test_planned_check_agrees_with_dense_plan_samples(name):
       if not ok:
         continue
       accepted += 1
-      plan = collision_prevention.ltp.plan_to_goal(
+      plan = prevention_lib.ltp.plan_to_goal(
           q, moving.dq, moving.ddq, goal, limits, 0.004)
       s = np.linspace(0.0, plan.end_time, 10 * plan.num_samples)
       assert not prevention.in_collision(plan.nominal(s)[0]).any()
@@ -399,7 +400,7 @@ def test_compiled_checks_match_the_numpy_reference(name):
     fast = prevention._colliding(q, *args)
     assert np.array_equal(fast, prevention._colliding_reference(q, *args))
     assert 0 < fast.sum() < count   # Both outcomes are exercised.
-  reference = collision_prevention.CollisionPrevention(
+  reference = prevention_lib.CollisionPrevention(
       description, tool_capsule=_tool(description),
       tool_table_allowance=0.02, compiled=False)
   goals = rs.uniform(description.limits.q_min, description.limits.q_max,
@@ -410,12 +411,12 @@ def test_compiled_checks_match_the_numpy_reference(name):
 
 @pytest.mark.parametrize('name', ['panda', 'schunk', 'ur5e', 'kinova3'])
 def test_compiled_planned_check_decides_as_the_numpy_reference(name):
-  """The compiled sweep of planned paths (cp_kernels.planned_path_collides)
+  """The compiled sweep of planned paths (collision_prevention/kernels.py)
   rejects exactly the goals the reference rejects: random moving starts
   (free ones, and a few in collision: the escape rule's route) and goals
   around them; both outcomes occur."""
   description, prevention = _prevention(name)
-  reference = collision_prevention.CollisionPrevention(
+  reference = prevention_lib.CollisionPrevention(
       description, tool_capsule=_tool(description), compiled=False)
   limits = description.limits
   rs = np.random.RandomState(5)
@@ -443,9 +444,8 @@ def test_compiled_planned_check_refines_as_the_reference(monkeypatch):
   change), and the compiled sweep decides as the reference."""
   description, _, q = _panda_near_table(-0.01)
   kwargs = dict(tool_capsule=_tool(description), max_step=0.05)
-  prevention = collision_prevention.CollisionPrevention(description,
-                                                        **kwargs)
-  reference = collision_prevention.CollisionPrevention(
+  prevention = prevention_lib.CollisionPrevention(description, **kwargs)
+  reference = prevention_lib.CollisionPrevention(
       description, compiled=False, **kwargs)
   limits = description.limits
   rs = np.random.RandomState(0)
@@ -462,9 +462,8 @@ def test_compiled_planned_check_refines_as_the_reference(monkeypatch):
     assert np.array_equal(fast, reference.planned_paths_free(*case))
   assert set(np.concatenate(decided).tolist()) == {True, False}
   # The sweep's settings are the module's constants when it is made.
-  monkeypatch.setattr(collision_prevention, 'REFINE_LEVELS', 0)
-  unrefining = collision_prevention.CollisionPrevention(description,
-                                                        **kwargs)
+  monkeypatch.setattr(prevention_lib, 'REFINE_LEVELS', 0)
+  unrefining = prevention_lib.CollisionPrevention(description, **kwargs)
   unrefined = [unrefining.planned_paths_free(*case) for case in cases]
   assert not np.array_equal(np.concatenate(unrefined),
                             np.concatenate(decided))
@@ -477,7 +476,7 @@ def test_sawyer_wrist_pair_exemption():
   description, prevention = _prevention('sawyer')
   assert (4, 6) in description.self_collision_exempt
   assert (4, 6) in prevention.excluded_pairs
-  bare = collision_prevention.CollisionPrevention(
+  bare = prevention_lib.CollisionPrevention(
       dataclasses.replace(description, self_collision_exempt=()),
       tool_capsule=_tool(description))
   assert (4, 6) not in bare.excluded_pairs

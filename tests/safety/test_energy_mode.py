@@ -1,4 +1,4 @@
-"""The shield mode 'pfl_energy' (safety/modes.py, PflEnergy): its inputs
+"""The shield mode 'pfl_energy' (safety/shield/modes.py, PflEnergy): its inputs
 (payload, static boxes), tables and failsafe target. Its guarantee:
 test_energy_guarantee.py; compiled against readable cycles:
 test_step_many.py."""
@@ -8,11 +8,11 @@ import pytest
 
 from hrc_suite import layout
 from hrc_suite.safety import collision_prevention
-from hrc_suite.safety import energy_verification
 from hrc_suite.safety import long_term_plan as ltp
-from hrc_suite.safety import modes
 from hrc_suite.safety import robot_energy
 from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety.shield import energy_verification
+from hrc_suite.safety.shield import modes
 
 
 def _plan(shield):

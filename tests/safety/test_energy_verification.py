@@ -1,4 +1,5 @@
-"""Energy-based PFL verification (hrc_suite/safety/energy_verification.py)
+"""Energy-based PFL verification
+(hrc_suite/safety/shield/energy_verification.py)
 by hand and its compiled twin (energy_check_kernels.py) bit for bit."""
 
 import numpy as np
@@ -9,8 +10,8 @@ from hrc_suite import robot_description
 from hrc_suite.safety import body_regions
 from hrc_suite.safety import clamping
 from hrc_suite.safety import collision_prevention
-from hrc_suite.safety import energy_verification as ev
-from hrc_suite.safety import human_reach
+from hrc_suite.safety.shield import energy_verification as ev
+from hrc_suite.safety.shield import human_reach
 
 TOP = layout.TABLE_TOP_Z
 HAND = 4 * 140 ** 2 / (2 * 75e3)      # E_T of hand/fingers, J (0.523).

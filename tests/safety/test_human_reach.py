@@ -1,4 +1,5 @@
-"""Tests for hrc_suite.safety.human_reach (docs/shield_maths.md, 8, 10)."""
+"""Tests for hrc_suite.safety.shield.human_reach (docs/shield_maths.md, 8,
+10)."""
 
 import dataclasses
 import json
@@ -8,7 +9,7 @@ import pytest
 
 from hrc_suite.human import keypoints as keypoint_set
 from hrc_suite.safety import geometry
-from hrc_suite.safety import human_reach
+from hrc_suite.safety.shield import human_reach
 
 N = keypoint_set.NUM_KEYPOINTS
 

@@ -5,13 +5,13 @@ import pytest
 
 from hrc_suite import robot_description
 from hrc_suite.safety import geometry
-from hrc_suite.safety import human_reach
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
-from hrc_suite.safety import shield as shield_lib
-from hrc_suite.safety import speed_kernels
-from hrc_suite.safety import verification
+from hrc_suite.safety.shield import human_reach
+from hrc_suite.safety.shield import shield as shield_lib
+from hrc_suite.safety.shield import speed_kernels
+from hrc_suite.safety.shield import verification
 
 import safety_references
 

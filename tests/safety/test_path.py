@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hrc_suite.safety import path as path_lib
+from hrc_suite.safety.shield import path as path_lib
 
 CYCLE = 0.004
 

@@ -9,12 +9,12 @@ import pytest
 
 from hrc_suite import robot_description
 from hrc_suite.human import keypoints
-from hrc_suite.safety import benchmark as shield_benchmark
 from hrc_suite.safety import geometry
-from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import long_term_plan as ltp
-from hrc_suite.safety import shield as shield_lib
-from hrc_suite.safety import verification
+from hrc_suite.safety.shield import benchmark as shield_benchmark
+from hrc_suite.safety.shield import human_reach as human_reach_lib
+from hrc_suite.safety.shield import shield as shield_lib
+from hrc_suite.safety.shield import verification
 
 import safety_references
 import shield_harness as harness

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import robot_description
-from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety.shield import shield as shield_lib
 
 import shield_harness as harness
 

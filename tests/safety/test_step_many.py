@@ -1,4 +1,4 @@
-"""The compiled shield cycles (safety.batch, cycle_kernels, path_kernels)
+"""The compiled shield cycles (safety.shield.batch, cycle_kernels, path_kernels)
 against the readable reference (Shield.step, path.Path)."""
 
 import dataclasses
@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from hrc_suite import robot_description
-from hrc_suite.safety import batch
 from hrc_suite.safety import long_term_plan as ltp
-from hrc_suite.safety import mode_kernels
-from hrc_suite.safety import modes
-from hrc_suite.safety import path as path_lib
-from hrc_suite.safety import path_kernels
 from hrc_suite.safety import shield as shield_lib
-from hrc_suite.safety import shield_state
+from hrc_suite.safety.shield import batch
+from hrc_suite.safety.shield import mode_kernels
+from hrc_suite.safety.shield import modes
+from hrc_suite.safety.shield import path as path_lib
+from hrc_suite.safety.shield import path_kernels
+from hrc_suite.safety.shield import shield_state
 
 import safety_references
 import shield_harness as harness
@@ -152,7 +152,7 @@ def test_plan_state_kernel_matches_the_matrix_reference():
 
 
 def test_rl_step_benchmark_runs_both_paths():
-  from hrc_suite.safety import benchmark as shield_benchmark
+  from hrc_suite.safety.shield import benchmark as shield_benchmark
   rows = shield_benchmark.main(['--rl_step', '--robots', 'panda',
                                 '--rl_steps', '8'])
   assert [row[1] for row in rows] == list(shield_benchmark.SCENES)

@@ -1,11 +1,11 @@
-"""Tests for hrc_suite.safety.verification (docs/shield_maths.md, 9)."""
+"""Tests for hrc_suite.safety.shield.verification (docs/shield_maths.md, 9)."""
 
 import numpy as np
 import pytest
 
 from hrc_suite import robot_description
 from hrc_suite.safety import geometry
-from hrc_suite.safety import verification
+from hrc_suite.safety.shield import verification
 
 
 def _robot(capsules):

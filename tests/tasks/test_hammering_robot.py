@@ -11,9 +11,9 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.human import synthesis
-from hrc_suite.human import synthetic_library
 from hrc_suite.human import task_motions
 from hrc_suite.human import task_targets
+from hrc_suite.motion_tools import synthetic_library
 from hrc_suite.tasks import hammering_robot
 from hrc_suite.tasks import motions
 

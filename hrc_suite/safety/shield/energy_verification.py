@@ -33,7 +33,7 @@ import numpy as np
 
 from hrc_suite.safety import body_regions
 from hrc_suite.safety import clamping
-from hrc_suite.safety import energy_check_kernels
+from hrc_suite.safety.shield import energy_check_kernels
 
 # Energies are compared with this fraction of the regions' limits: PFL's
 # speed margin (modes.PFL_SPEED_MARGIN, 0.9) squared, a design margin of

@@ -10,16 +10,17 @@ import sys
 import pytest
 
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.human import convert
 from hrc_suite.human import recording_cache
+from hrc_suite.motion_tools import convert
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
 def _stick_figure(per_metre, frames):
-  """The T-pose stick figure BVH of test_bvh.py (loaded from its file)."""
+  """The T-pose stick figure BVH of tests/human/test_bvh.py (loaded from
+  its file)."""
   spec = importlib.util.spec_from_file_location(
-      'hrc_test_bvh', pathlib.Path(__file__).with_name('test_bvh.py'))
+      'hrc_test_bvh', REPO / 'tests' / 'human' / 'test_bvh.py')
   module = importlib.util.module_from_spec(spec)
   spec.loader.exec_module(module)
   return module.stick_figure(per_metre, frames)
@@ -105,13 +106,13 @@ def test_flat_folder_with_task_flag_loads_as_the_task_loads_it(recordings, tmp_p
 
 def test_command_line(recordings, tmp_path):
   ok = subprocess.run(
-      [sys.executable, '-m', 'hrc_suite.human.convert', str(recordings),
+      [sys.executable, '-m', 'hrc_suite.motion_tools.convert', str(recordings),
        str(tmp_path / 'dst')], capture_output=True, text=True, cwd=REPO,
       check=False)
   assert ok.returncode == 0, ok.stderr
   assert ok.stdout.count('\n') == 3
   missing = subprocess.run(
-      [sys.executable, '-m', 'hrc_suite.human.convert',
+      [sys.executable, '-m', 'hrc_suite.motion_tools.convert',
        str(tmp_path / 'nowhere'), str(tmp_path / 'dst')],
       capture_output=True, text=True, cwd=REPO, check=False)
   assert missing.returncode == 2 and 'not a folder' in missing.stderr

@@ -41,10 +41,11 @@ derivatives. Escape rule (both kinds): a start already in collision does
 not reject every path; an element in collision at the start may not
 penetrate deeper until it is free (see `paths_free`).
 
-Compiled (compiled=True): the capsule tests run in `cp_kernels`, and a
-plan from a free start is swept in one call
-(`cp_kernels.planned_path_collides`, with a conservative broad phase that
-skips only capsule tests proven not to hit: `cp_bounds`); compiled=False
+Compiled (compiled=True): the capsule tests run in `collision_kernels`
+(collision_prevention/kernels.py), and a plan from a free start is swept
+in one call (`collision_kernels.planned_path_collides`, with a
+conservative broad phase that skips only capsule tests proven not to hit:
+collision_prevention/bounds.py); compiled=False
 runs the NumPy reference (`_colliding_reference`, `_planned_sweep`). Both
 make the same decisions (the same operations in the same order where a
 test is done; tests on random goals, near the table and near
@@ -56,11 +57,11 @@ import typing
 import numpy as np
 
 from hrc_suite import layout
-from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import geometry
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
+from hrc_suite.safety.collision_prevention import kernels as collision_kernels
 
 POLICIES = ('zero', 'resample', 'closest')
 
@@ -73,7 +74,7 @@ DEFAULT_MAX_STEP = 0.01
 # sample and levels (inflation 5 mm -> 1.25 -> 0.31 -> 0.08 mm).
 REFINE = 4
 REFINE_LEVELS = 3
-# Samples per run of the compiled plan sweep's broad phase (cp_bounds):
+# Samples per run of the compiled plan sweep's broad phase (bounds.py):
 # one forward kinematics at a run's centre proves most capsule tests free
 # for all of its samples (16: the fastest of 4 to 64 on reach's plans,
 # docs/benchmarks.md, "Collision prevention's check of a new goal").
@@ -116,7 +117,7 @@ def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT,
 
 def _lever_sum(x, levers):
   """x (N, dof) @ levers (dof, M), summed joint by joint in order (the
-  compiled sweep's order, cp_kernels._lever_sum; a BLAS product may sum
+  compiled sweep's order, collision_kernels._lever_sum; a BLAS product may sum
   in another, and a margin one ulp off can flip a decision)."""
   total = x[:, :1] * levers[0]
   for k in range(1, levers.shape[0]):
@@ -127,7 +128,7 @@ def _lever_sum(x, levers):
 def _polynomial(plan):
   """The compiled sweep's PlanPolynomial of a LongTermPlan."""
   cycle = plan.cycle_time
-  return cp_kernels.PlanPolynomial(
+  return collision_kernels.PlanPolynomial(
       plan._all(), plan.start_time, plan._inverse_cycle, cycle, cycle ** 2,
       cycle ** 3, plan.num_samples - 1)
 
@@ -140,12 +141,12 @@ class CollisionPrevention:
                max_step=DEFAULT_MAX_STEP, exclusion_samples=2000, seed=0,
                compiled=True, table=layout.DEFAULT_TABLE):
     self.description = description
-    # Compiled collision tests (`cp_kernels`); False runs the NumPy
+    # Compiled collision tests (`collision_kernels`); False runs the NumPy
     # reference (`_colliding_reference`), which the kernel is tested
     # against.
     self.compiled = bool(compiled)
     if self.compiled:
-      cp_kernels.warm_up()   # Once per process, not mid-run.
+      collision_kernels.warm_up()   # Once per process, not mid-run.
     self.reach = robot_reach.RobotReach(description, base_pose=base_pose,
                                         tool_capsule=tool_capsule,
                                         secure_radius=0.0)
@@ -158,18 +159,18 @@ class CollisionPrevention:
                       table)
     self._setup_levers()
     self._setup_pairs(int(exclusion_samples), seed)
-    # The compiled plan sweep's fixed groups (cp_kernels), as it takes
+    # The compiled plan sweep's fixed groups (collision_kernels), as it takes
     # them (kernels.as_fields).
     fixed, points = self.reach._kernel_model
     self._sweep_groups = kernels.as_fields((
-        cp_kernels.SweepSettings(self.levers, self._kernel_pair_levers,
-                                 self.max_step, _REFINE_OFFSETS,
-                                 REFINE_LEVELS, SWEEP_RUN),
-        cp_kernels.RobotCapsules(fixed, points, self.reach._kernel_frames,
-                                 self._kernel_radii),
-        cp_kernels.CollisionTests(self.box_min, self.box_max,
-                                  self._box_checked, self._box_allowance,
-                                  self._kernel_pairs)))
+        collision_kernels.SweepSettings(
+            self.levers, self._kernel_pair_levers, self.max_step,
+            _REFINE_OFFSETS, REFINE_LEVELS, SWEEP_RUN),
+        collision_kernels.RobotCapsules(
+            fixed, points, self.reach._kernel_frames, self._kernel_radii),
+        collision_kernels.CollisionTests(
+            self.box_min, self.box_max, self._box_checked,
+            self._box_allowance, self._kernel_pairs)))
     self.num_checks = 0
     self.num_replacements = 0
 
@@ -239,7 +240,8 @@ class CollisionPrevention:
     frames = self.reach.frame_index
     after = (np.arange(self.dof)[:, None] > frames[self.pairs[:, 0]][None])
     self._pair_levers = self.levers[:, self.pairs[:, 1]] * after   # (dof, P)
-    # Contiguous arguments of the compiled check (`cp_kernels.colliding`).
+    # Contiguous arguments of the compiled check
+    # (`collision_kernels.colliding`).
     self._kernel_pairs = np.ascontiguousarray(self.pairs, dtype=np.int64)
     self._kernel_radii = np.ascontiguousarray(self.reach.radii, dtype=float)
     self._kernel_pair_levers = np.ascontiguousarray(self._pair_levers)
@@ -268,7 +270,7 @@ class CollisionPrevention:
     def mask(x, empty):
       # An empty mask stands for "none" (the kernel's convention).
       return empty if x is None else np.require(x, bool, ('C', 'W'))
-    return cp_kernels.colliding(
+    return collision_kernels.colliding(
         np.ascontiguousarray(q, dtype=float), *self.reach._kernel_model,
         self.reach._kernel_frames, self._kernel_radii,
         margin(capsule_margin, (count, self.num_capsules)),
@@ -360,8 +362,8 @@ class CollisionPrevention:
   def _within(self, q_goals):
     limits = self.description.limits
     if self.compiled:
-      return cp_kernels.within_limits(np.ascontiguousarray(q_goals),
-                                      limits.q_min, limits.q_max)
+      return collision_kernels.within_limits(
+          np.ascontiguousarray(q_goals), limits.q_min, limits.q_max)
     return np.all((q_goals >= limits.q_min) & (q_goals <= limits.q_max),
                   axis=-1)
 
@@ -545,8 +547,8 @@ class CollisionPrevention:
   def _plan_collides(self, plan, start):
     """1 if a plan from start (1, dof) collides, 0 if not, -1 if the start
     collides (then `_planned_sweep` decides): the compiled sweep of
-    `_planned_sweep` (cp_kernels.planned_path_collides)."""
-    return cp_kernels.planned_path_collides(
+    `_planned_sweep` (collision_kernels.planned_path_collides)."""
+    return collision_kernels.planned_path_collides(
         start, tuple(_polynomial(plan)), *self._sweep_groups)
 
   def _planned_sweep(self, q0, plans, cycle):

@@ -28,9 +28,9 @@ import math
 
 import numpy as np
 
-from hrc_suite.safety import cycle_kernels as ck
-from hrc_suite.safety import human_reach as human_reach_lib
-from hrc_suite.safety import shield_state
+from hrc_suite.safety.shield import cycle_kernels as ck
+from hrc_suite.safety.shield import human_reach as human_reach_lib
+from hrc_suite.safety.shield import shield_state
 
 # Plan samples computed ahead of a compiled call, beyond the cycles' own
 # reach and the longest failsafe (robot_description: max_s_stop); if one

@@ -1,6 +1,6 @@
 """Conservative broad phase of collision prevention's plan sweep.
 
-`cp_kernels.planned_path_collides` checks each sample n of a plan: a
+`kernels.planned_path_collides` checks each sample n of a plan: a
 capsule l hits a box b if its bounding box, grown by its radius rho_l and
 margin cm_nl, overlaps the box and its computed axis distance d_nl to the
 box has d_nl - rho_l - cm_nl < -alpha_bl (alpha: allowed penetration); a
@@ -42,9 +42,9 @@ samples' decisions are those of the full tests.
 
 import math
 
-from hrc_suite.safety import kernels
+from hrc_suite.safety import kernels as safety_kernels
 
-_jit = kernels._jit
+_jit = safety_kernels._jit
 
 # Round-off allowance of the bounds (m): a million times the float64
 # round-off of distances between points of a few metres (2.2e-16 per

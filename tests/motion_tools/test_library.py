@@ -12,8 +12,8 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import player as player_lib
 from hrc_suite.human import synthesis
-from hrc_suite.human import synthetic_library
 from hrc_suite.human import task_motions
+from hrc_suite.motion_tools import synthetic_library
 
 # The reference benchmark's clip counts (docs/reference_benchmark.md, Tasks).
 PAPER_COUNTS = {'reach': 12, 'pick_place': 12, 'inspection': 8, 'lifting': 9,

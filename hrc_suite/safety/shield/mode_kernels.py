@@ -1,7 +1,7 @@
 """Compiled verification of each shield mode: what a mode adds to the
 compiled cycles (`cycle_kernels`).
 
-A mode (safety/modes.py) hands the compiled cycles one named group of
+A mode (safety/shield/modes.py) hands the compiled cycles one named group of
 parameters (`ShieldMode.kernel_parameters`, a `typing.NamedTuple`) and,
 per plan, one named group of tables (`ShieldMode.plan_tables`). The
 group's class is the mode's id in the kernels: `register` binds it to
@@ -31,9 +31,9 @@ import numba
 import numpy as np
 from numba import extending
 
-from hrc_suite.safety import energy_check_kernels as eck
 from hrc_suite.safety import kernels
-from hrc_suite.safety import path_kernels as pk
+from hrc_suite.safety.shield import energy_check_kernels as eck
+from hrc_suite.safety.shield import path_kernels as pk
 
 _jit = kernels._jit
 

@@ -40,10 +40,10 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 
 from hrc_suite import extensions
-from hrc_suite.safety import energy_check_kernels
-from hrc_suite.safety import energy_verification
 from hrc_suite.safety import kernels
-from hrc_suite.safety import mode_kernels
+from hrc_suite.safety.shield import energy_check_kernels
+from hrc_suite.safety.shield import energy_verification
+from hrc_suite.safety.shield import mode_kernels
 
 # PFL: speeds are compared with this fraction of v_safe. Surface speeds are
 # taken at the plan's samples; between samples (2 ms either side) they change

@@ -1,6 +1,6 @@
 """Time of one shield cycle per robot, with the human close and far.
 
-`python -m hrc_suite.safety.benchmark` prints the median and 95th
+`python -m hrc_suite.safety.shield.benchmark` prints the median and 95th
 percentile (microseconds) of `Shield.step` for every robot in two scenes,
 with a new random goal every 12 cycles (the reference's 20 Hz policy at a
 4 ms cycle; replanning is included), in SSM, PFL or off mode (--mode):
@@ -26,9 +26,9 @@ import numpy as np
 from hrc_suite import robot_description
 from hrc_suite import rotations
 from hrc_suite.human import keypoints
-from hrc_suite.safety import batch
-from hrc_suite.safety import modes as modes_lib
-from hrc_suite.safety import shield as shield_lib
+from hrc_suite.safety.shield import batch
+from hrc_suite.safety.shield import modes as modes_lib
+from hrc_suite.safety.shield import shield as shield_lib
 
 # Policy period in shield cycles: 20 Hz at 4 ms (docs/shield_maths.md, 4).
 GOAL_EVERY = 12

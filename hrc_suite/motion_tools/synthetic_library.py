@@ -2,7 +2,7 @@
 
 `synthesise(task, index)` runs clip `index` of a task's script
 (`task_motions.py`, written with `synthesis.Script`) into a checked
-`Clip`; `python -m hrc_suite.human.synthetic_library --out=DIR` writes
+`Clip`; `python -m hrc_suite.motion_tools.synthetic_library --out=DIR` writes
 the library the package ships (docs/motion_library.md).
 """
 

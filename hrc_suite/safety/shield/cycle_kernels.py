@@ -34,8 +34,9 @@ from typing import NamedTuple
 import numpy as np
 
 from hrc_suite.safety import kernels
-from hrc_suite.safety import mode_kernels
-from hrc_suite.safety import path_kernels as pk
+from hrc_suite.safety import plan_kernels
+from hrc_suite.safety.shield import mode_kernels
+from hrc_suite.safety.shield import path_kernels as pk
 
 _jit = kernels._jit
 _inline = kernels._inline
@@ -131,34 +132,6 @@ class Measurement(NamedTuple):
   last_period: float
 
 
-@_jit
-def plan_state(plan, start, inverse, cycle, s, s_dot, s_ddot, jerk, out):
-  """LongTermPlan.state into out (5, dof) (plan (N, 4, dof) samples, all
-  needed ones computed): the Taylor step's 5 x 4 matrix of
-  the chain rule (docs/shield_maths.md, 2; its NumPy reference:
-  tests/safety/safety_references.py, `plan_state`) applied in a fixed order (shared by the
-  Python and the compiled cycle, so both give the same bits)."""
-  last = plan.shape[0] - 1
-  k = int(math.floor((s - start) * inverse))
-  k = 0 if k < 0 else (last if k > last else k)
-  t = s - start - k * cycle
-  t2 = 0.5 * t * t
-  t3 = t2 * t / 3.0
-  v2 = s_dot * s_dot
-  sa = 3.0 * s_ddot * s_dot
-  m = ((1.0, t, t2, t3),
-       (0.0, s_dot, s_dot * t, s_dot * t2),
-       (0.0, s_ddot, s_ddot * t + v2, s_ddot * t2 + v2 * t),
-       (0.0, jerk, jerk * t + sa, jerk * t2 + sa * t + v2 * s_dot),
-       (0.0, 1.0, t, t2))
-  for row in range(5):
-    r = m[row]
-    for d in range(plan.shape[2]):
-      out[row, d] = (r[0] * plan[k, 0, d] + r[1] * plan[k, 1, d]
-                     + r[2] * plan[k, 2, d] + r[3] * plan[k, 3, d])
-  return out
-
-
 @_inline
 def _plan_state(plan, inverse, cycle, path, out):
   """plan_state of `Plan` plan at the path array's state; False if the
@@ -169,8 +142,8 @@ def _plan_state(plan, inverse, cycle, path, out):
   k = 0 if k < 0 else (last if k > last else k)
   if k >= plan.filled:
     return False
-  plan_state(plan.samples, plan.start, inverse, cycle, s, path[1], path[2],
-             path[3], out)
+  plan_kernels.plan_state(plan.samples, plan.start, inverse, cycle, s,
+                          path[1], path[2], path[3], out)
   return True
 
 
@@ -528,7 +501,8 @@ def warm_up():
   for writeable in (True, False):
     samples = floats(1, 4, dof)
     samples.flags.writeable = writeable
-    plan_state(samples, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, floats(5, dof))
+    plan_kernels.plan_state(samples, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0,
+                            floats(5, dof))
   constants = Constants(
       CycleConstants(1.0, *[0.0] * (len(CycleConstants._fields) - 1)),
       JointTerms(*[floats(dof)] * 7, floats(3, dof)),

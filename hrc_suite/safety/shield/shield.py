@@ -59,24 +59,25 @@ from hrc_suite.human import keypoints
 from hrc_suite.safety import arm_energy
 from hrc_suite.safety import clamping
 from hrc_suite.safety import collision_prevention
-from hrc_suite.safety import cycle_kernels
-from hrc_suite.safety import energy_verification
-from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
-from hrc_suite.safety import modes as modes_lib
-from hrc_suite.safety import path as path_lib
 from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import robot_energy
 from hrc_suite.safety import robot_reach as robot_reach_lib
-from hrc_suite.safety import shield_state
-from hrc_suite.safety import speed_kernels
-from hrc_suite.safety import verification
+from hrc_suite.safety.shield import cycle_kernels
+from hrc_suite.safety.shield import energy_verification
+from hrc_suite.safety.shield import human_reach as human_reach_lib
+from hrc_suite.safety.shield import modes as modes_lib
+from hrc_suite.safety.shield import path as path_lib
+from hrc_suite.safety.shield import shield_state
+from hrc_suite.safety.shield import speed_kernels
+from hrc_suite.safety.shield import verification
 
 # Default shield cycle (s): human-robot-gym's control_sample_time
 # (docs/shield_maths.md, 4).
 DEFAULT_CYCLE_TIME = 0.004
-# PFL: speeds are compared with this fraction of v_safe (safety/modes.py).
+# PFL: speeds are compared with this fraction of v_safe
+# (safety/shield/modes.py).
 PFL_SPEED_MARGIN = modes_lib.PFL_SPEED_MARGIN
 # PFL: samples over which a reachable-set slice can extend (one slice is
 # reachability_interval_cycles = 5 cycles of plan time at s_dot <= 1; one
@@ -222,7 +223,7 @@ class Shield:
   def state(self):
     """Everything a cycle reads and changes (`shield_state.ShieldState`,
     frozen): a checkpoint; settable (a restore, or the compiled cycles'
-    result, safety/batch.py). Its `human` is `self.human.state`."""
+    result, safety/shield/batch.py). Its `human` is `self.human.state`."""
     human = self.human.state
     if self._state.human is not human:   # Measured through self.human.
       self._state = self._state.replace(human=human)

@@ -1,18 +1,19 @@
-"""The broad phase of collision prevention's plan sweep (cp_bounds): its
-distance bounds never exceed the distances, and on plans near the table
-and near self-collision every capsule test that hits at a sample of a run
-is one the broad phase left unproven (so the sweep decides as before)."""
+"""The broad phase of collision prevention's plan sweep
+(collision_prevention/bounds.py): its distance bounds never exceed the
+distances, and on plans near the table and near self-collision every
+capsule test that hits at a sample of a run is one the broad phase left
+unproven (so the sweep decides as before)."""
 
 import numpy as np
 import pytest
 
 from hrc_suite import robot_description
-from hrc_suite.safety import collision_prevention as cp_lib
-from hrc_suite.safety import cp_bounds
-from hrc_suite.safety import cp_kernels
 from hrc_suite.safety import geometry
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety.collision_prevention import bounds
+from hrc_suite.safety.collision_prevention import kernels as collision_kernels
+from hrc_suite.safety.collision_prevention import prevention as prevention_lib
 
 
 def _segments(rng, count):
@@ -53,7 +54,7 @@ def test_segment_bound_never_exceeds_the_distance_and_is_tight():
   rng = np.random.RandomState(0)
   gaps = []
   for a0, a1, b0, b1 in _segments(rng, 600):
-    bound = cp_bounds.segment_lower_bound(a0, a1, b0, b1)
+    bound = bounds.segment_lower_bound(a0, a1, b0, b1)
     distance = float(geometry.segment_distance(a0, a1, b0, b1))
     assert bound <= _brute_distance(a0, a1, b0, b1) + 1e-12
     assert bound <= distance + 1e-12
@@ -69,7 +70,7 @@ def test_box_bound_never_exceeds_the_distance():
   equal = 0
   for a0, a1, _, _ in _segments(rng, 600):
     a0, a1 = a0 + (0.5, 0.0, 0.1), a1 + (0.5, 0.0, 0.1)
-    bound = cp_bounds.box_lower_bound(a0, a1, lo, hi)
+    bound = bounds.box_lower_bound(a0, a1, lo, hi)
     distance = float(geometry.segment_box_distance(a0, a1, lo, hi))
     assert bound <= distance + 1e-12
     equal += abs(bound - distance) < 1e-12
@@ -145,36 +146,36 @@ def _element_hits(prevention, q, capsule_margin, pair_margin):
 def test_every_hit_is_left_unproven(name):
   """Runs of SWEEP_RUN samples of plans near the table and near
   self-collision: a test that hits (with its margin) at any sample of a
-  run is among those `cp_bounds.unproven` leaves for the exact check;
+  run is among those `bounds.unproven` leaves for the exact check;
   both proven and unproven runs, and hits, occur."""
   description = robot_description.load(name)
-  prevention = cp_lib.CollisionPrevention(description,
-                                          tool_capsule=_tool(description),
-                                          tool_table_allowance=0.01)
+  prevention = prevention_lib.CollisionPrevention(
+      description, tool_capsule=_tool(description), tool_table_allowance=0.01)
   rng = np.random.RandomState(2)
-  run = cp_lib.SWEEP_RUN
+  run = prevention_lib.SWEEP_RUN
   count_l, count_b = prevention.num_capsules, len(prevention.box_names)
   fixed, points = prevention.reach._kernel_model
   proven = unproven_runs = hits = 0
   for plan in _plans(prevention, rng, 24):
-    _, _, q, reach = cp_kernels.sweep_samples(
-        cp_lib._polynomial(plan), prevention.levers, prevention.max_step)
-    capsule_margin = cp_lib._lever_sum(reach, prevention.levers)
-    pair_margin = cp_lib._lever_sum(reach, prevention._pair_levers)
+    _, _, q, reach = collision_kernels.sweep_samples(
+        prevention_lib._polynomial(plan), prevention.levers,
+        prevention.max_step)
+    capsule_margin = prevention_lib._lever_sum(reach, prevention.levers)
+    pair_margin = prevention_lib._lever_sum(reach, prevention._pair_levers)
     box_hits, pair_hits = _element_hits(prevention, q, capsule_margin,
                                         pair_margin)
     motion = np.empty((1, description.dof))
     for first in range(0, len(q), run):
       stop = min(first + run, len(q))
       centre = (first + stop) // 2
-      cp_kernels.run_motion(q, reach, first, stop, centre, motion)
+      collision_kernels.run_motion(q, reach, first, stop, centre, motion)
       ends = kernels._endpoints(kernels._frames(q[centre:centre + 1], fixed),
                                 points, prevention.reach._kernel_frames)
       box_todo = np.empty(count_b * count_l, dtype=np.int64)
       pair_todo = np.empty(len(prevention.pairs), dtype=np.int64)
-      boxes, count = cp_bounds.unproven(
-          ends[0], cp_lib._lever_sum(motion, prevention.levers)[0],
-          cp_lib._lever_sum(motion, prevention._pair_levers)[0],
+      boxes, count = bounds.unproven(
+          ends[0], prevention_lib._lever_sum(motion, prevention.levers)[0],
+          prevention_lib._lever_sum(motion, prevention._pair_levers)[0],
           prevention._kernel_radii, prevention.box_min, prevention.box_max,
           prevention._box_checked, prevention._box_allowance,
           prevention._kernel_pairs, box_todo, pair_todo)
@@ -203,9 +204,9 @@ def test_sweep_decides_as_the_reference_near_contact(name):
   import types
   description = robot_description.load(name)
   kwargs = dict(tool_capsule=_tool(description), tool_table_allowance=0.01)
-  prevention = cp_lib.CollisionPrevention(description, **kwargs)
-  reference = cp_lib.CollisionPrevention(description, compiled=False,
-                                         **kwargs)
+  prevention = prevention_lib.CollisionPrevention(description, **kwargs)
+  reference = prevention_lib.CollisionPrevention(description,
+                                                 compiled=False, **kwargs)
   limits = description.limits
   rng = np.random.RandomState(3)
   decided = []

@@ -1,6 +1,6 @@
 """Realism check: the shipped synthetic library against real recordings.
 
-  python -m hrc_suite.human.compare --recordings=DIR
+  python -m hrc_suite.motion_tools.compare --recordings=DIR
       [--out=docs/motion_library.md]
 
 DIR holds the reference's recordings, one folder per task of BVH files
@@ -34,7 +34,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.human import synthesis
-from hrc_suite.safety import human_reach
+from hrc_suite.safety.shield import human_reach
 
 # Every clip is resampled to the synthetic library's rate (synthesis.
 # DEFAULT_FPS, 25 fps; the recordings are at 100 fps): speeds are then
@@ -378,7 +378,7 @@ def main(argv, flag_values=flags.FLAGS):
   rows = compare(recordings, library)
   print(markdown_tables(rows))
   command = ' '.join(shlex.quote(a) for a in
-                     ['python', '-m', 'hrc_suite.human.compare']
+                     ['python', '-m', 'hrc_suite.motion_tools.compare']
                      + list(argv_flags(flag_values)))
   path = write_report(rows, flag_values.out, command, git_commit())
   print(f'written to {path}')

@@ -1,13 +1,14 @@
 """Compiled (numba) kernels of collision prevention's path checks.
 
-`colliding` computes what collision_prevention.CollisionPrevention's NumPy
+`colliding` computes what prevention.CollisionPrevention's NumPy
 reference (`_colliding_reference`) computes: the collision flags of
 configurations against the workcell's boxes and of the checked capsule
 pairs, with the same margins and escape masks. Forward kinematics are the
-shield's kernels (`kernels._frames`, `kernels._endpoints`); the capsule-box
-distance is geometry.segment_box_distance's candidate scheme, the same
-operations in the same order (`segment_box_distance`); capsule pairs use
-`kernels.segment_distance`. A configuration stops at its first hit.
+shield's kernels (`safety_kernels._frames`, `safety_kernels._endpoints`,
+hrc_suite/safety/kernels.py); the capsule-box distance is
+geometry.segment_box_distance's candidate scheme, the same operations in
+the same order (`segment_box_distance`); capsule pairs use
+`safety_kernels.segment_distance`. A configuration stops at its first hit.
 
 `planned_path_collides` is collision prevention's whole sweep of one
 long-term plan (`CollisionPrevention._planned_sweep`, the reference) in
@@ -17,9 +18,9 @@ per-cycle Taylor polynomial sampled from its samples
 (LongTermPlan.nominal), the margins of its motion bound, the checks and
 their refinement, the same operations in the same order, so that it
 rejects exactly the plans the reference rejects. A conservative broad
-phase (`cp_bounds`, docs/safety.md) skips, for runs of samples, only the
+phase (`bounds`, docs/safety.md) skips, for runs of samples, only the
 capsule tests it proves cannot hit at any of them. Same compilation
-settings as `kernels` (cache, IEEE arithmetic).
+settings as `safety_kernels` (cache, IEEE arithmetic).
 """
 
 import math
@@ -27,10 +28,10 @@ import typing
 
 import numpy as np
 
-from hrc_suite.safety import cp_bounds
-from hrc_suite.safety import kernels
+from hrc_suite.safety import kernels as safety_kernels
+from hrc_suite.safety.collision_prevention import bounds
 
-_jit = kernels._jit
+_jit = safety_kernels._jit
 
 
 class PlanPolynomial(typing.NamedTuple):
@@ -149,7 +150,7 @@ def _pair_hit(ends, n, p, radii, pairs, pair_margin):
   i, j = pairs[p, 0], pairs[p, 1]
   a0, a1 = ends[n, i, 0], ends[n, i, 1]
   b0, b1 = ends[n, j, 0], ends[n, j, 1]
-  distance = kernels.segment_distance(
+  distance = safety_kernels.segment_distance(
       a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
       a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2],
       b1[0] - b0[0], b1[1] - b0[1], b1[2] - b0[2]) - radii[i] - radii[j]
@@ -184,7 +185,7 @@ def _hit_some(ends, n, radii, capsule_margin, pair_margin, box_min,
               box_max, box_allowance, pairs, box_todo, boxes, pair_todo,
               count):
   """`_hit` restricted to the tests box_todo[:boxes] (flat b * L + l) and
-  pair_todo[:count] (the others proven not to hit: cp_bounds)."""
+  pair_todo[:count] (the others proven not to hit: bounds)."""
   count_l = radii.shape[0]
   for k in range(boxes):
     b, l = box_todo[k] // count_l, box_todo[k] % count_l
@@ -208,8 +209,8 @@ def colliding(q, fixed, points, frame_index, radii, capsule_margin,
   pairs (P, 2) need a clearance of pair_margin (N, P). ignore_boxes (N, Bx,
   L) and ignore_pairs (N, P) leave elements out; pass shape (0, ...) for
   none."""
-  ends = kernels._endpoints(kernels._frames(q, fixed), points,
-                            frame_index)
+  ends = safety_kernels._endpoints(safety_kernels._frames(q, fixed),
+                                   points, frame_index)
   hit = np.zeros(q.shape[0], dtype=np.bool_)
   for n in range(q.shape[0]):
     hit[n] = _hit(ends, n, radii, capsule_margin, pair_margin, box_min,
@@ -331,7 +332,7 @@ def sweep_samples(plan, levers, max_step):
 
 @_jit
 def run_motion(q, reach, first, stop, centre, motion):
-  """m = D + R of cp_bounds for the samples [first, stop) around sample
+  """m = D + R of bounds for the samples [first, stop) around sample
   `centre` into motion[0] (dof,): the largest joint displacement from
   the centre plus the largest reach."""
   for d in range(q.shape[1]):
@@ -388,8 +389,8 @@ def _refine_collides(plan, sweep, robot, tests, base_ends, base_s,
     else:
       _plan_point(plan, s, half, 0, one_q, one_reach)
       _margins(one_reach, 0, levers, pair_levers, one_capsule, one_pair, 0)
-      sample_ends = kernels._endpoints(kernels._frames(one_q, fixed),
-                                       points, frame_index)
+      sample_ends = safety_kernels._endpoints(
+          safety_kernels._frames(one_q, fixed), points, frame_index)
       if not _hit(sample_ends, 0, radii, one_capsule, one_pair, box_min,
                   box_max, box_checked, box_allowance, pairs, no_boxes,
                   no_pairs):
@@ -425,10 +426,10 @@ def planned_path_collides(start, plan, sweep, robot, tests):
   at the first hit without margins, and most colliding plans have one).
 
   Broad phase: runs of `run` samples are checked at their centre sample
-  first (cp_bounds.unproven); only the tests it cannot prove free are
+  first (bounds.unproven); only the tests it cannot prove free are
   done at each sample of the run, so the same samples hit.
 
-  The groups are the plain tuples of their fields (kernels.as_fields:
+  The groups are the plain tuples of their fields (safety_kernels.as_fields:
   called for every goal checked)."""
   plan, sweep = PlanPolynomial(*plan), SweepSettings(*sweep)
   robot, tests = RobotCapsules(*robot), CollisionTests(*tests)
@@ -446,8 +447,8 @@ def planned_path_collides(start, plan, sweep, robot, tests):
   no_pairs = np.zeros((0, 0), dtype=np.bool_)
   zero_l = np.zeros((run, count_l))
   zero_p = np.zeros((run, count_p))
-  ends = kernels._endpoints(kernels._frames(start, fixed), points,
-                            frame_index)
+  ends = safety_kernels._endpoints(safety_kernels._frames(start, fixed),
+                                   points, frame_index)
   if _hit(ends, 0, radii, zero_l, zero_p, box_min, box_max, box_checked,
           box_allowance, pairs, no_boxes, no_pairs):
     return -1
@@ -469,15 +470,16 @@ def planned_path_collides(start, plan, sweep, robot, tests):
     centre = (first + stop) // 2
     run_motion(q, reach, first, stop, centre, motion)
     _margins(motion, 0, levers, pair_levers, capsule_motion, pair_motion, 0)
-    ends = kernels._endpoints(kernels._frames(q[centre:centre + 1], fixed),
-                              points, frame_index)
-    boxes, count = cp_bounds.unproven(
+    ends = safety_kernels._endpoints(
+        safety_kernels._frames(q[centre:centre + 1], fixed), points,
+        frame_index)
+    boxes, count = bounds.unproven(
         ends[0], capsule_motion[0], pair_motion[0], radii, box_min, box_max,
         box_checked, box_allowance, pairs, box_todo, pair_todo)
     if boxes == 0 and count == 0:
       continue
-    ends = kernels._endpoints(kernels._frames(q[first:stop], fixed), points,
-                              frame_index)
+    ends = safety_kernels._endpoints(
+        safety_kernels._frames(q[first:stop], fixed), points, frame_index)
     for n in range(first, stop):
       _margins(reach, n, levers, pair_levers, capsule_margin, pair_margin,
                n - first)
@@ -493,8 +495,8 @@ def planned_path_collides(start, plan, sweep, robot, tests):
       num_pending += 1
   for k in range(num_pending):
     n = pending[k]
-    ends = kernels._endpoints(kernels._frames(q[n:n + 1], fixed), points,
-                              frame_index)
+    ends = safety_kernels._endpoints(
+        safety_kernels._frames(q[n:n + 1], fixed), points, frame_index)
     if _refine_collides(plan, sweep, robot, tests, ends, params[n],
                         halves[n]):
       return 1
@@ -538,7 +540,7 @@ def warm_up():
               np.ones((count_x, count_l), dtype=bool),
               floats((count_x, count_l)),
               np.zeros((count_p, 2), dtype=np.int64), boxes, pairs)
-  planned_path_collides(floats((1, dof)), *kernels.as_fields((
+  planned_path_collides(floats((1, dof)), *safety_kernels.as_fields((
       PlanPolynomial(floats((2, 4, dof)), 0.0, 1.0, 1.0, 1.0, 1.0, 1),
       SweepSettings(floats((dof, count_l)), floats((dof, count_p)), 1.0,
                     floats(2), 1, 1),

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from hrc_suite.safety import kernels
-from hrc_suite.safety import path as path_lib
+from hrc_suite.safety.shield import path as path_lib
 
 _jit = kernels._jit
 

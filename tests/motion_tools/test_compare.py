@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.human import compare
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.human import synthesis
+from hrc_suite.motion_tools import compare
 
 K = keypoints.KEYPOINT_INDEX
 STATION = (1.45, 0.0, math.pi)   # layout.HUMAN_STATION_ACROSS

@@ -19,9 +19,9 @@ from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
-from hrc_suite.safety import human_reach as human_reach_lib
 from hrc_suite.safety import long_term_plan as ltp
-from hrc_suite.safety import path as path_lib
+from hrc_suite.safety.shield import human_reach as human_reach_lib
+from hrc_suite.safety.shield import path as path_lib
 
 # Floats of a path as an array (path_kernels): s, s_dot, s_ddot, jerk,
 # three phase ends, three phase jerks.
@@ -92,7 +92,7 @@ def record(cls, **values: Any):
   """`cls(**values)` for a frozen dataclass `cls` (`ShieldState`,
   `Verification`, human_reach.HumanState) given every field, without its
   __init__'s one object.__setattr__ per field: the compiled cycles pack a
-  record per call (safety/batch.py).
+  record per call (safety/shield/batch.py).
 
   Raises:
     TypeError: values do not name exactly the fields of cls.

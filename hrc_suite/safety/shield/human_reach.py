@@ -33,7 +33,7 @@ from hrc_suite.human import keypoints as keypoint_set
 from hrc_suite.safety import geometry
 from hrc_suite.safety import kernels
 
-DEFAULT_MODEL_PATH = (pathlib.Path(__file__).resolve().parents[1] / 'assets' /
+DEFAULT_MODEL_PATH = (pathlib.Path(__file__).resolve().parents[2] / 'assets' /
                       'human' / 'shield_human_model.json')
 
 # Speeds below this (m/s) have no direction; the combined model then shifts
@@ -280,7 +280,7 @@ class HumanReach:
   @property
   def state(self):
     """The measurement record (`HumanState`); settable (the shield's
-    state carries it, safety/shield_state.py)."""
+    state carries it, safety/shield/shield_state.py)."""
     return self._state
 
   @state.setter

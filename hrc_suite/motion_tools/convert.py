@@ -1,6 +1,6 @@
 r"""Converts a folder of BVH recordings (+ `<n>_info.json`) into clips.
 
-  python -m hrc_suite.human.convert SRC_DIR DST_DIR [--task=TASK]
+  python -m hrc_suite.motion_tools.convert SRC_DIR DST_DIR [--task=TASK]
       [--units=mm|cm|m] [--up_axis=y|z]
 
 SRC_DIR holds .bvh files, or sub-folders that do (like the reference's
@@ -67,7 +67,7 @@ def convert(src, dst, task=None, units=None, up_axis='y', out=sys.stdout,
 
 def main(argv=None):
   parser = argparse.ArgumentParser(
-      prog='python -m hrc_suite.human.convert',
+      prog='python -m hrc_suite.motion_tools.convert',
       description='Convert BVH recordings into hrc_suite motion clips.')
   parser.add_argument('src_dir', help='folder of .bvh (+ _info.json) files, '
                       'or of such folders')

@@ -1,0 +1,15 @@
+"""The reachability shield (docs/safety.md).
+
+`shield.Shield` is the shield; `from hrc_suite.safety import shield` and
+`shield.Shield(...)` reach it here too. Modules: `shield` (the readable
+cycle), `shield_state` (its state), `modes` and `mode_kernels` (what a
+mode checks, readable and compiled), `verification`, `energy_verification`
+and `energy_check_kernels` (the SSM and energy verdicts), `human_reach`
+(the human's reachable set), `path` and `path_kernels` (the monitored
+path), `speed_kernels` (PFL speed tables), `cycle_kernels` and `batch`
+(the compiled cycles) and `benchmark` (their timing).
+"""
+
+from hrc_suite.safety.shield.shield import Shield
+
+__all__ = ('Shield',)
