@@ -36,6 +36,7 @@ from hrc_suite.safety.shield import energy_check_kernels as eck
 from hrc_suite.safety.shield import path_kernels as pk
 
 _jit = kernels._jit
+_inline = kernels._inline
 
 
 class Plan(NamedTuple):
@@ -184,6 +185,27 @@ def sample_index(s, start, inverse, last):
   return 0 if k < 0 else (last if k > last else k)
 
 
+@_inline
+def slice_s_dot(slices, i):
+  """The largest path velocity over slice i of a cycle: the current
+  step's for slice 0, the failsafe's piecewise path over its slice for
+  the others (the last ends where the failsafe does)."""
+  if i == 0:
+    return max(slices.current[1], slices.failsafe[1])
+  count = slices.s_edges.shape[0] - 2
+  before = i * slices.interval if i < count else slices.failsafe[6]
+  return pk.max_s_dot(slices.pieces, slices.num_pieces,
+                      (i - 1) * slices.interval, before)
+
+
+@_inline
+def edge_sample(slices, i):
+  """The plan's sample index of slice edge i (sample_index)."""
+  plan = slices.plan
+  return sample_index(slices.s_edges[i], plan.start, slices.inverse,
+                      plan.samples.shape[0] - 1)
+
+
 @_jit
 def ssm_first_unsafe(slices):
   """The first slice where every human model meets a robot capsule, or
@@ -235,27 +257,14 @@ def _speed_limit_verdict(parameters, slices):
   first = ssm_first_unsafe(slices)
   if first < 0:
     return True, first
-  plan = slices.plan
-  start, inverse = plan.start, slices.inverse
-  last = plan.samples.shape[0] - 1
-  window, suffix = plan.tables.window, plan.tables.suffix
-  failsafe, pieces, num = slices.failsafe, slices.pieces, slices.num_pieces
-  s_edges = slices.s_edges
-  count = s_edges.shape[0] - 2
-  interval = slices.interval
-  end = failsafe[6]
+  window, suffix = slices.plan.tables.window, slices.plan.tables.suffix
+  count = slices.s_edges.shape[0] - 2
   allowed = parameters.allowed * (1.0 + parameters.s_dot_tolerance)
   for i in range(first, count + 1):
-    if i == 0:
-      s_dot = max(slices.current[1], failsafe[1])
-    else:
-      before = i * interval if i < count else end
-      s_dot = pk.max_s_dot(pieces, num, (i - 1) * interval, before)
-    if window[sample_index(s_edges[i], start, inverse, last)] * s_dot > (
-        allowed):
+    if window[edge_sample(slices, i)] * slice_s_dot(slices, i) > allowed:
       return False, first
-  return (suffix[sample_index(s_edges[count + 1], start, inverse, last)]
-          * pk.final_s_dot(failsafe) <= allowed), first
+  return (suffix[edge_sample(slices, count + 1)]
+          * pk.final_s_dot(slices.failsafe) <= allowed), first
 
 
 register(SpeedLimitParameters, _speed_limit_failsafe_target,
@@ -286,24 +295,13 @@ def _energy_verdict(parameters, slices):
   first = ssm_first_unsafe(slices)
   if first < 0:
     return True, first
-  plan = slices.plan
-  start, inverse = plan.start, slices.inverse
-  last = plan.samples.shape[0] - 1
-  window, suffix = plan.tables.window, plan.tables.suffix
-  failsafe, pieces, num = slices.failsafe, slices.pieces, slices.num_pieces
-  s_edges = slices.s_edges
-  count = s_edges.shape[0] - 2
-  interval = slices.interval
-  end = failsafe[6]
+  window, suffix = slices.plan.tables.window, slices.plan.tables.suffix
+  count = slices.s_edges.shape[0] - 2
   links = parameters.frame_index
   energies = np.zeros((count + 1, links.shape[0]))
   for i in range(first, count + 1):
-    if i == 0:
-      s_dot = max(slices.current[1], failsafe[1])
-    else:
-      before = i * interval if i < count else end
-      s_dot = pk.max_s_dot(pieces, num, (i - 1) * interval, before)
-    row = sample_index(s_edges[i], start, inverse, last)
+    s_dot = slice_s_dot(slices, i)
+    row = edge_sample(slices, i)
     squared = s_dot * s_dot
     for l in range(links.shape[0]):
       energies[i, l] = squared * window[row, links[l]]
@@ -317,8 +315,8 @@ def _energy_verdict(parameters, slices):
                      parameters.clampable), first)
   if unsafe >= 0:
     return False, first
-  final = pk.final_s_dot(failsafe)
-  remaining = suffix[sample_index(s_edges[count + 1], start, inverse, last)]
+  final = pk.final_s_dot(slices.failsafe)
+  remaining = suffix[edge_sample(slices, count + 1)]
   return (final * final * remaining
           <= parameters.coasting * (1.0 + eck._RATIO_TOLERANCE)), first
 
