@@ -1,10 +1,10 @@
 """A task's facts and defaults, checked in one place.
 
 An `HrcTask` subclass states them as class constants (MOTIONS, HORIZON,
-REWARDS, ...), whose base values are `TaskConstants`'; `TaskDefaults.of(
-task_class)` (`TaskConstants.defaults()`) gathers them into one frozen
-dataclass whose construction checks every one, with an error naming the
-class, the constant and what was expected. `suite.register` and
+REWARDS, ...; their base values: `TaskConstants`);
+`TaskDefaults.of(task_class)` (the class's `defaults()`) gathers them into
+one frozen dataclass whose construction checks every one, with an error
+naming the class, the constant and what was expected. `suite.register` and
 `HrcTask.__init__` build it, so a task class with a bad constant fails
 where it is registered (at import), not in an episode (docs/extending.md).
 """

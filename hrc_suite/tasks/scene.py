@@ -8,8 +8,8 @@ space, and the person's clips with their player and playback. `build`
 makes them from a task's facts (`defaults.TaskDefaults`) and its checked
 options (`options.TaskOptions`); the task adds its own entities after.
 For a compiled physics the scene gives the robot's joint addresses and
-the contact monitor (`bind`) and starts an episode (`start_episode`). A task
-shows the scene's parts as read-only attributes (`SceneParts`).
+the contact monitor (`bind`) and starts an episode (`start_episode`). A
+task shows the scene's parts as read-only attributes (`SceneParts`).
 """
 
 import dataclasses
