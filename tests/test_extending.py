@@ -35,6 +35,7 @@ from hrc_suite.safety.shield import batch
 from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import actions
 from hrc_suite.tasks import base
+from hrc_suite.tasks import options
 from hrc_suite.tasks import reach
 
 # ------------------------------------------------ a shield mode (step 1)
@@ -271,7 +272,7 @@ def test_a_task_with_an_event_of_its_own():
   # Without the pose the person still sways about the wait's keyframe at
   # the end (the wait starts at the first physics step at or after it);
   # with it they went on with their clip.
-  sway = synthesis.idle_window(wait) + base.DEFAULT_PHYSICS_TIMESTEP
+  sway = synthesis.idle_window(wait) + options.DEFAULT_PHYSICS_TIMESTEP
   assert abs(clip_times['zero'] - wait_time) <= sway
   assert clip_times['expert'] > wait_time + sway
   # Clips that do not wait for the task's events are refused, named.

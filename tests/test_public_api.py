@@ -44,6 +44,17 @@ DOCUMENTED_MODULES = (
     'agents/sac',
     'agents/sac_lag',
 )
+# Classes of other modules whose public API a user composes: the bases of
+# HrcTask that show a part of a task ('path:Class').
+DOCUMENTED_CLASSES = (
+    'hrc_suite/tasks/scene.py:SceneParts',
+    'hrc_suite/tasks/shielded_stepping.py:SteppedTask',
+    'hrc_suite/tasks/snapshots.py:SnapshottedTask',
+    'hrc_suite/tasks/episode.py:ProgressOfTask',
+    'hrc_suite/tasks/defaults.py:TaskConstants',
+    'hrc_suite/tasks/options.py:OptionNames',
+    'hrc_suite/tasks/reward_bounds.py:RewardBounds',
+)
 # Methods documented as constructors: their arguments may be documented in
 # the class docstring, and they need no return type.
 CONSTRUCTORS = ('__init__', '_build')
@@ -135,15 +146,31 @@ def api_problems(source, module='<module>'):
     if isinstance(node, functions) and _public(node.name):
       problems += _function_problems(node, f'{module}.{node.name}')
     elif isinstance(node, ast.ClassDef) and node.name in documented:
-      class_doc = ast.get_docstring(node) or ''
-      if _public(node.name) and not class_doc:
-        problems.append(f'{module}.{node.name}: no docstring')
-      for item in node.body:
-        if isinstance(item, functions) and (
-            _public(item.name) or item.name in PUBLIC_SPECIAL):
-          problems += _function_problems(
-              item, f'{module}.{node.name}.{item.name}', class_doc)
+      problems += _class_problems(node, module)
   return problems
+
+
+def _class_problems(node, module):
+  """Problems of a class (its ast node) and its methods."""
+  class_doc = ast.get_docstring(node) or ''
+  problems = []
+  if _public(node.name) and not class_doc:
+    problems.append(f'{module}.{node.name}: no docstring')
+  for item in node.body:
+    if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)) and (
+        _public(item.name) or item.name in PUBLIC_SPECIAL):
+      problems += _function_problems(
+          item, f'{module}.{node.name}.{item.name}', class_doc)
+  return problems
+
+
+def class_api_problems(source, name, module='<module>'):
+  """Problems of the public API of the class `name` in a module's source
+  text (ValueError if there is no such class)."""
+  for node in ast.parse(source).body:
+    if isinstance(node, ast.ClassDef) and node.name == name:
+      return _class_problems(node, module)
+  raise ValueError(f'No class {name!r} in {module}')
 
 
 def test_the_documented_modules_exist():
@@ -156,6 +183,16 @@ def test_the_documented_modules_exist():
 def test_public_api_is_typed_and_documented(path):
   module = '.'.join(path.relative_to(REPO).with_suffix('').parts)
   problems = api_problems(path.read_text(), module)
+  assert not problems, 'Public API without docs or type hints:\n' + (
+      '\n'.join(problems))
+
+
+@pytest.mark.parametrize('entry', DOCUMENTED_CLASSES)
+def test_public_classes_of_other_modules_are_typed_and_documented(entry):
+  name, class_name = entry.split(':')
+  path = REPO / name
+  module = '.'.join(path.relative_to(REPO).with_suffix('').parts)
+  problems = class_api_problems(path.read_text(), class_name, module)
   assert not problems, 'Public API without docs or type hints:\n' + (
       '\n'.join(problems))
 

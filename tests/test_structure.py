@@ -8,6 +8,11 @@
 * A numba-compiled function takes at most MAX_KERNEL_PARAMETERS
   parameters: more travel as named groups (typing.NamedTuple, structured
   arrays), e.g. safety/shield/cycle_kernels.py.
+* HrcTask (tasks/base.py) is a composer-sized task: composer's hooks, the
+  hooks tasks override, the scene and the reward, in at most
+  MAX_TASK_LINES lines; what else a task shows lives in the runtime
+  module whose idea it is (tasks/scene.py, tasks/shielded_stepping.py,
+  tasks/snapshots.py, ...).
 """
 
 import ast
@@ -17,6 +22,7 @@ import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / 'hrc_suite'
 MAX_KERNEL_PARAMETERS = 15
+MAX_TASK_LINES = 400   # HrcTask's class, from `class` to its last line
 # Decorator names that compile a function with numba.
 _JIT_NAMES = frozenset(('jit', 'njit', 'generated_jit'))
 
@@ -127,6 +133,15 @@ def wide_kernels(source):
   return found
 
 
+def class_lines(source, name):
+  """Lines of the module-level class `name` in `source`, from its `class`
+  line to its last (ast: end_lineno - lineno + 1)."""
+  for node in ast.parse(source).body:
+    if isinstance(node, ast.ClassDef) and node.name == name:
+      return node.end_lineno - node.lineno + 1
+  raise ValueError(f'No class {name!r} in the source')
+
+
 def test_no_module_writes_another_objects_private_state():
   bad = [f'{_relative(path)}:{line}: {text}' for path in _modules()
          for line, text in foreign_private_writes(path.read_text())]
@@ -164,3 +179,19 @@ def test_the_kernel_check_finds_wide_kernels():
             f'def plain({params}):\n  pass\n')
   count = MAX_KERNEL_PARAMETERS + 1
   assert wide_kernels(source) == [(4, 'wide', count), (7, 'also', count)]
+
+
+def test_hrc_task_is_composer_sized():
+  lines = class_lines((PACKAGE / 'tasks' / 'base.py').read_text(), 'HrcTask')
+  assert lines <= MAX_TASK_LINES, (
+      f'HrcTask has {lines} lines, more than {MAX_TASK_LINES}: move what is '
+      'not a composer hook, a hook tasks override, the scene or the reward '
+      'to the runtime module whose idea it is')
+
+
+def test_the_class_size_check_counts_the_class_lines():
+  source = ('x = 1\n\n\nclass Big:\n  """Doc."""\n\n  def f(self):\n'
+            '    return 1\n\n\ny = 2\n')
+  assert class_lines(source, 'Big') == 5
+  with pytest.raises(ValueError, match='Small'):
+    class_lines(source, 'Small')

@@ -1,12 +1,12 @@
 """A task's facts and defaults, checked in one place.
 
 An `HrcTask` subclass states them as class constants (MOTIONS, HORIZON,
-REWARDS, ...; tasks/base.py); `TaskDefaults.of(task_class)` gathers them
-into one frozen dataclass whose construction checks every one, with an
-error naming the class, the constant and what was expected.
-`suite.register` and `HrcTask.__init__` build it, so a task class with a
-bad constant fails where it is registered (at import), not in an episode
-(docs/extending.md).
+REWARDS, ...; their base values: `TaskConstants`);
+`TaskDefaults.of(task_class)` (the class's `defaults()`) gathers them into
+one frozen dataclass whose construction checks every one, with an error
+naming the class, the constant and what was expected. `suite.register` and
+`HrcTask.__init__` build it, so a task class with a bad constant fails
+where it is registered (at import), not in an episode (docs/extending.md).
 """
 
 import dataclasses
@@ -14,6 +14,7 @@ import math
 from typing import Mapping, Optional, Tuple
 
 from hrc_suite import layout
+from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import actions
@@ -133,3 +134,39 @@ class TaskDefaults:
     return cls(owner=task_class.__name__, **{
         field: getattr(task_class, constant)
         for field, constant in CONSTANTS.items()})
+
+
+class TaskConstants:
+  """A task's facts and defaults as class constants (HrcTask has them;
+  subclasses override them). Each is documented at its field of
+  `TaskDefaults` (CONSTANTS names it), which `defaults()` checks; their
+  values come from docs/reference_benchmark.md, Tasks."""
+  MOTIONS = 'reach'                          # shipped library name
+  EVENTS = ()                                # ends of the idle phases
+  HUMAN_STATION = layout.HUMAN_STATION_ACROSS
+  TABLE = layout.DEFAULT_TABLE               # layout.Table
+  HUMAN_PLACEMENT_RANGE = (0.0, 0.0, 0.0)    # uniform +- (x, y, yaw)
+  DEFAULT_SHIELD = 'ssm'
+  DEFAULT_ACTION_SPACE = 'cartesian'
+  REWARDS = ('sparse',)                      # first is the default
+  DEFAULT_REWARD_DELAY = 0                   # RL steps
+  HORIZON = 1000                             # RL steps
+  HAS_GRIPPER_ACTION = True
+  OBSERVATION_PRESETS = {}                   # name -> observable names
+  EXTRA_COUNTERS = ()
+  FINGERTIP_TABLE_CLEARANCE = None           # m, or None
+  CARTESIAN_YAW = actions.GRIPPER_YAW        # rad, gripper yaw of IK goals
+  GRIP_FORCE = gripper_lib.GRIP_FORCE        # N, the gripper's squeeze
+  TASK_STATE = ()                            # attributes, for snapshots
+
+  @classmethod
+  def defaults(cls) -> TaskDefaults:
+    """The task's class constants, checked (`TaskDefaults`).
+
+    Returns:
+      The task's TaskDefaults.
+
+    Raises:
+      ValueError: a class constant of the wrong kind.
+    """
+    return TaskDefaults.of(cls)

@@ -5,12 +5,13 @@ shield, the stepping and the metrics): the joint goal of the last action,
 the RL steps taken, the reward and discount of the last one and the task
 rewards still owed (reward_delay), whether the episode ends, collision
 prevention's random state and the person's clip count. Snapshots save and
-restore it (tasks/snapshots.py).
+restore it (tasks/snapshots.py). `ProgressOfTask` shows it on the task.
 """
 
 import collections
 import dataclasses
 
+from dm_control import mjcf
 import numpy as np
 
 
@@ -89,3 +90,39 @@ class EpisodeProgress:
       reward = 0.0
     return reward
 
+
+class ProgressOfTask:
+  """An HrcTask's side of its EpisodeProgress (`self._episode`): the joint
+  goal, the person's clips, and an episode's robot started elsewhere than
+  home."""
+
+  @property
+  def q_goal(self) -> np.ndarray:
+    """The joint goal given to the shield by the last action."""
+    return self._episode.q_goal.copy()
+
+  @property
+  def clip_ended(self) -> bool:
+    """Whether a clip of the person ended in the RL step just done (the
+    player's sequence is endless): with `clips_completed`, "success once
+    the person's motion is over" (e.g. after the retreat)."""
+    return self._episode.clip_ended
+
+  @property
+  def clips_completed(self) -> int:
+    """The person's clips completed this episode."""
+    return self._episode.clip_index
+
+  def start_robot_at(self, physics: mjcf.Physics, q: np.ndarray) -> None:
+    """Starts the episode's robot at rest elsewhere than home (in
+    `_initialize_task`): the joints, the joint goal and the shield; forwards
+    the physics.
+
+    Args:
+      physics: the episode's physics.
+      q: (dof,) joint positions.
+    """
+    physics.data.qpos[self._qpos_index] = q
+    self._episode.q_goal = q.copy()
+    self._shield.reset(q, 0.0)
+    physics.forward()

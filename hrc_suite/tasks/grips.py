@@ -8,9 +8,12 @@ e.g. lifting's two-handed hold); restoring releases everything, re-holds
 at the saved poses and writes the rows back. Whether a weld is active is
 physics state (mjSTATE_EQ_ACTIVE), restored with it.
 
-`changed` records a grip change (or a task's own model change) since the
-last `clear`, so the step loop can recompute derived quantities then, as a
-restore does.
+A task owns one (`self._grips`): `add` makes an object holdable (in
+`_build_task`), `hold` / `release` grab and let go of it. `changed`
+records a grip change (or a task's own model change, e.g. weld data it
+writes: `mark_changed`) since the last `clear`, so the step loop calls
+physics.forward() then, as a restore does, and a restored snapshot starts
+from the same derived quantities.
 """
 
 import numpy as np
@@ -31,22 +34,27 @@ class HumanGrips:
     return welds
 
   def hold(self, physics, body, hand, relative_pose=None):
+    """The human's `hand` grabs `body` (`Human.hold`)."""
     self._human.hold(physics, body, hand, relative_pose)
     self.changed = True
 
   def release(self, physics, body):
+    """The human lets go of `body` (nothing if not held)."""
     if self._human.holding(body) is not None:
       self.changed = True
     self._human.release(physics, body)
 
   def release_all(self, physics):
+    """The human lets go of everything."""
     for body, _ in self._holdables:
       self.release(physics, body)
 
   def mark_changed(self):
+    """The task changed the model (e.g. weld data): forward after the step."""
     self.changed = True
 
   def clear(self):
+    """Forgets the changes so far (an RL step's start of the task logic)."""
     self.changed = False
 
   def state(self, physics):

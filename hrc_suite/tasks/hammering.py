@@ -208,7 +208,7 @@ class Hammering(NailOutcome, base.HrcTask):
     for prop in (self._board, self._hammer):
       self._arena.add_free_entity(prop)
       self._object_geoms.extend(prop.geoms)
-    self._hammer_welds = self._add_holdable(self._hammer.body)
+    self._hammer_welds = self._grips.add(self._hammer.body)
     # The hand capsule encloses the handle it holds (docs/props.md).
     for hand, index in _HAND_SEGMENTS.items():
       self._arena.mjcf_model.contact.add(
@@ -300,7 +300,7 @@ class Hammering(NailOutcome, base.HrcTask):
         [np.cos(heading), np.sin(heading), 0.0])
     self._hammer.set_pose(physics, origin, quat)
     physics.forward()
-    self._hold(physics, self._hammer.body, self._hand)
+    self._grips.hold(physics, self._hammer.body, self._hand)
     self._playback.show_current(physics)
     physics.forward()
     self._follow_weld(physics)

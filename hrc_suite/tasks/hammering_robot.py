@@ -340,7 +340,7 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
       self._phase = CARRIED
       self._plan_carry(physics)
       self._set_board_collisions(physics, False)
-      self._model_changed()
+      self._grips.mark_changed()
       return
     t = player.clip_time
     if self._phase == CARRIED and not player.in_transition and (
@@ -351,13 +351,13 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
                            rotations.mat_to_quat(rotation))
       self._board.set_velocity(physics, np.zeros(3), np.zeros(3))
       self._set_board_collisions(physics, True)
-      self._model_changed()
+      self._grips.mark_changed()
     elif (self._phase == PLACED and player.waiting_for is None
           and t >= clip.keyframes[-1] / clip.fps):
       self._phase = TAKEN
       self._take_back(physics)
       self._set_board_collisions(physics, False)
-      self._model_changed()
+      self._grips.mark_changed()
 
   def _update_task(self, physics):
     metrics = self._nail_outcome(physics, self._hammer.body)

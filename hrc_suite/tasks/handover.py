@@ -171,7 +171,7 @@ class _Handover(base.HrcTask):
   def _build_task(self):
     self._hammer = props.Hammer()
     self._arena.add_free_entity(self._hammer)
-    self._add_holdable(self._hammer.body)
+    self._grips.add(self._hammer.body)
     self._object_geoms.extend(self._hammer.geoms)
     # The human's capsules (by segment) and the handle: palm_touches_handle.
     self._touch_geoms = element_ids.ElementIds(
@@ -352,7 +352,7 @@ class RobotToHuman(_Handover):
     if (self._holder() is None and self._event_time is None
         and self._player.waiting_for == self.EVENT
         and self.palm_touches_handle(physics)):
-      self._hold(physics, self._hammer.body, self._hand())
+      self._grips.hold(physics, self._hammer.body, self._hand())
       self._event_time = self._player.episode_time
       handovers = 1
     self._success = self._holder() is not None and self._completed()
@@ -549,8 +549,8 @@ class HumanToRobot(_Handover):
     """A clip whose pick keyframe is its first frame (recordings: the
     person walks in carrying the object, human/task_targets.py) starts with
     the hammer in the presenting grip of the holding hand."""
-    self._hold(physics, self._hammer.body, self._holding_hand,
-               self.presenting_grip(physics))
+    self._grips.hold(physics, self._hammer.body, self._holding_hand,
+                     self.presenting_grip(physics))
     physics.forward()
     self._hammer.set_velocity(physics, np.zeros(3), np.zeros(3))
     self._picked, self._turn = True, 1.0
@@ -576,7 +576,7 @@ class HumanToRobot(_Handover):
         and not self._player.in_transition and clip_time >= t_pick):
       grip = physics.bind(self._hammer.human_grip_site).xpos
       if np.linalg.norm(grip - self._palm_position(physics)) < PICK_DISTANCE:
-        self._hold(physics, self._hammer.body, hand)
+        self._grips.hold(physics, self._hammer.body, hand)
         self._pick_grip = self._human.relative_pose(
             physics, self._hammer.body, hand)
         self._turn = 0.0
@@ -593,7 +593,7 @@ class HumanToRobot(_Handover):
       position = (1 - s) * self._pick_grip[0] + s * end_pos
       self._human.set_grip(physics, self._hammer.body, position,
                            rotations.slerp(self._pick_grip[1], end_quat, s))
-      self._model_changed()
+      self._grips.mark_changed()
       if s >= 1.0:
         self._pick_grip = None
     # The person lets go of a grasp, not of fingers that merely touch both
@@ -601,7 +601,7 @@ class HumanToRobot(_Handover):
     closing = float(physics.bind(self._gripper.actuator).ctrl) > 0.0
     if self._holder() is not None and self._gripped and closing and (
         self._player.waiting_for == clip_lib.Event.object_taken):
-      self._release(physics, self._hammer.body)
+      self._grips.release(physics, self._hammer.body)
       self._pick_grip = None
       handovers = 1
     self._at_target = self._object_at_target(physics)

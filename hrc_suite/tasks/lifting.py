@@ -137,7 +137,7 @@ class Lifting(base.HrcTask):
     self._board = props.Board(handle_inset=HANDLE_INSET)
     self._arena.add_free_entity(self._board)
     self._object_geoms.extend(self._board.geoms)
-    self._welds = self._add_holdable(self._board.body)
+    self._welds = self._grips.add(self._board.body)
     for weld in self._welds.values():
       weld.torquescale = HOLD_TORQUE_SCALE
       weld.solref = HOLD_SOLREF
@@ -253,11 +253,11 @@ class Lifting(base.HrcTask):
     holding = self.holding_hand is not None
     should_hold = not player.in_transition and grasp <= t < down
     if should_hold and not holding:
-      self._hold(physics, self._board.body, self._hand)
+      self._grips.hold(physics, self._board.body, self._hand)
       self._anchor_at_hands(physics)
       self._lifted = 1
     elif holding and not should_hold:
-      self._release(physics, self._board.body)
+      self._grips.release(physics, self._board.body)
 
   def _anchor_at_hands(self, physics):
     """Both hands hold the board at the points under them, rotation free.
@@ -280,7 +280,7 @@ class Lifting(base.HrcTask):
       data[0:3] = board_rot.T @ (point - board.xpos)
       data[3:6] = hand_rot.T @ (point - physics.data.xpos[hand_body])
       physics.data.eq_active[eq_id] = 1
-    self._model_changed()
+    self._grips.mark_changed()
 
   def _update_task(self, physics):
     self._gripped = props.is_gripped(physics, self._gripper, self._board)

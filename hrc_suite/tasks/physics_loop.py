@@ -34,11 +34,11 @@ before, at a step that needs it:
 
 A task that works before every physics step (`_before_physics_step`)
 may hand the call what it writes there, computed for the RL step's
-physics steps at its start (`HrcTask._physics_step_writes`: the carried
-plank's pose, the presenting grip); where it cannot, an entity or an
-extra substep hook is active, or the model is not stepped the legacy
-way, the Python loop runs (ShieldedStepper.run_physics_steps,
-tasks/shielded_stepping.py).
+physics steps at its start (`SteppedTask._physics_step_writes`,
+tasks/shielded_stepping.py: the carried plank's pose, the presenting
+grip); where it cannot, an entity or an extra substep hook is active, or
+the model is not stepped the legacy way, the Python loop runs
+(ShieldedStepper.run_physics_steps, tasks/shielded_stepping.py).
 MuJoCo errors (mju_error, e.g. an exhausted arena) cannot pass through
 compiled frames as exceptions, so the call also needs the arena's high
 water mark below `ARENA_HEADROOM` of its size; above it the Python loop,
@@ -292,7 +292,7 @@ class StepRecord(typing.NamedTuple):
 
 class StepWrites(typing.NamedTuple):
   """A task's writes before each physics step: target[index] = rows[k]
-  (HrcTask._physics_step_writes)."""
+  (SteppedTask._physics_step_writes)."""
   target: np.ndarray   # (n,) float64
   index: np.ndarray    # (m,) int64
   rows: np.ndarray     # (L, m) float64
@@ -316,8 +316,8 @@ def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
     layout: `ContactLayout`.
     tables: contact_kernels.ContactTables.
     record: `StepRecord`, updated.
-    writes0, writes1: `StepWrites` (HrcTask._physics_step_writes; index
-      (0,): none).
+    writes0, writes1: `StepWrites`
+      (SteppedTask._physics_step_writes; index (0,): none).
     hold: tool_hold_kernels.Hold, a compliant hold's force on its tool
       after the writes (tool_hold_kernels.apply; a hold that is off does
       nothing).
@@ -495,8 +495,8 @@ class CompiledSteps:
   def run(self, k0, k1, setpoints, setpoint_flags, setpoints_from,
           expected_rows, writes=(), hold=None):
     """Physics steps k0..k1-1 (see `run`): (k, status). writes: up to two
-    (target, index, rows) groups (HrcTask._physics_step_writes); hold:
-    tool_hold.CompliantHold.kernel_arguments, or None. The stretch's
+    (target, index, rows) groups (SteppedTask._physics_step_writes);
+    hold: tool_hold.CompliantHold.kernel_arguments, or None. The stretch's
     results are in `record` (StepRecord)."""
     if len(writes) > 2:
       raise ValueError(f'at most two groups of writes, got {len(writes)}')

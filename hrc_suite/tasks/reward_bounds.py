@@ -17,7 +17,7 @@ class RewardBounds:
   `horizon`); subclasses override the two hooks."""
 
   @property
-  def reward_range(self):
+  def reward_range(self) -> Tuple[float, float]:
     """(lowest, highest) reward of one RL step."""
     low, high = self._task_reward_range()
     return low + min(self.collision_reward, 0.0), high
@@ -27,7 +27,7 @@ class RewardBounds:
     return (0.0, 0.0)
 
   @property
-  def min_task_return(self):
+  def min_task_return(self) -> float:
     """The lowest possible episode return of the task's reward, the 0 of
     the paper's normalised return (`min_task_return`)."""
     return min_task_return(self._task_reward_range()[0],

@@ -8,10 +8,12 @@ space, and the person's clips with their player and playback. `build`
 makes them from a task's facts (`defaults.TaskDefaults`) and its checked
 options (`options.TaskOptions`); the task adds its own entities after.
 For a compiled physics the scene gives the robot's joint addresses and
-the contact monitor (`bind`) and puts the robot home (`home`).
+the contact monitor (`bind`) and starts an episode (`start_episode`). A
+task shows the scene's parts as read-only attributes (`SceneParts`).
 """
 
 import dataclasses
+import operator
 from typing import Any, NamedTuple, Tuple
 
 import numpy as np
@@ -106,19 +108,58 @@ class Scene:
         qpos=np.array(joints.qposadr), qvel=np.array(joints.dofadr),
         finger_qpos=np.array(fingers.qposadr))
 
-  def home(self, physics, indices):
+  def start_episode(self, physics, indices, random_state):
     """Puts the robot at rest at its home pose, the gripper half open and
-    commanded open.
+    commanded open, the shield at home, and the person at the start of
+    the episode's first clip.
 
     Args:
       physics: the episode's physics.
       indices: the physics' JointIndices (`bind`).
+      random_state: the episode's random numbers (the person's clips).
     """
     data = physics.data
-    data.qpos[indices.qpos] = self.robot.description.q_home
+    q_home = self.robot.description.q_home
+    data.qpos[indices.qpos] = q_home
     data.qvel[indices.qvel] = 0.0
     data.qpos[indices.finger_qpos] = gripper_lib.MAX_APERTURE / 2
     self.gripper.set_command(physics, -1.0)
+    self.player.reset(random_state)
+    self.playback.show_current(physics)
+    self.shield.reset(q_home, 0.0)
+
+
+def _part(name, doc):
+  """A read-only property: the part `name` of the task's scene."""
+  return property(operator.attrgetter(f'_scene.{name}'), doc=doc)
+
+
+class SceneParts:
+  """The parts of a task's scene (its `_scene`, a Scene) as its read-only
+  attributes (HrcTask has them), and the Cartesian actions' yaw."""
+  root_entity = arena = _part('arena', 'The workcell (entities/).')
+  robot = _part('robot', 'The robot arm (entities/robot.py).')
+  gripper = _part('gripper', 'The parallel gripper (entities/gripper.py).')
+  human = _part('human', 'The person (entities/human.py).')
+  player = _part('player', "The person's clip player (human/player.py).")
+  shield = _part('shield', 'The shield (safety/shield/shield.py).')
+  kinematics = _part('kinematics', "The robot's kinematic model for IK.")
+  tool_capsule = _part('tool_capsule',
+                       '(p1, p2, radius) in the last link frame.')
+  tool_table_allowance = _part('tool_table_allowance',
+                               'm the tool capsule may dip into the table.')
+  collision_checker = _part('collision_checker', 'Collision prevention.')
+  action_space_name = _part('action_space.name', "'joint' or 'cartesian'.")
+
+  def set_cartesian_yaw(self, yaw: float) -> None:
+    """Sets the gripper yaw of Cartesian actions' IK goals (nothing in
+    joint action spaces).
+
+    Args:
+      yaw: rad about world z.
+    """
+    if self._scene.action_space.name == 'cartesian':
+      self._scene.action_space.yaw = yaw
 
 
 def build(defaults, options, motions=None, outside_human_model='refuse'):

@@ -1,12 +1,13 @@
-"""Task snapshots: taken and restored (HrcTask.get_state / set_state,
-`EpisodeSnapshots`), stored as arrays plus a JSON spec.
+"""Task snapshots: taken and restored (`EpisodeSnapshots`, which a task's
+get_state / set_state call: `SnapshottedTask`), stored as arrays plus a
+JSON spec.
 
 A snapshot of a running episode is a dict: 'physics' (MuJoCo's
 integration state), 'player' (the person's), 'shield', 'task' (the
 episode's progress, tasks/episode.py, the stepping's time, contact flags
 and last command, tasks/shielded_stepping.py, the metrics and the task's
-own state, HrcTask._task_state) and 'grips' (the person's grips and welds,
-which change the model: tasks/grips.py).
+own state, `SnapshottedTask._task_state`) and 'grips' (the person's grips
+and welds, which change the model: tasks/grips.py).
 
 A snapshot is a nested value of dicts (string keys), lists, tuples,
 NumPy arrays, NumPy scalars, Python bool/int/float, None and strings.
@@ -36,7 +37,9 @@ np.savez (the spec as a JSON string array, allow_pickle=False suffices).
 import collections
 import copy
 import json
+from typing import Any, Mapping
 
+from dm_control import mjcf
 import mujoco
 import numpy as np
 
@@ -52,7 +55,8 @@ class EpisodeSnapshots:
   """Takes and restores snapshots of an HrcTask's running episode from the
   parts that hold it."""
 
-  def __init__(self, player, playback, shield, grips, stepper, metrics):
+  def __init__(self, player, playback, shield, grips, stepper, metrics,
+               task_state, set_task_state):
     """Snapshots of the episode these parts hold.
 
     Args:
@@ -62,6 +66,10 @@ class EpisodeSnapshots:
       grips: the person's `grips.HumanGrips`.
       stepper: the `shielded_stepping.ShieldedStepper`.
       metrics: the `metrics.EpisodeMetrics`.
+      task_state: task_state(physics) is the task's own episode state
+        (HrcTask._task_state; deep-copied here).
+      set_task_state: set_task_state(physics, state) restores it, given a
+        deep copy, after the rest (HrcTask._set_task_state).
     """
     self._player = player
     self._playback = playback
@@ -69,7 +77,10 @@ class EpisodeSnapshots:
     self._grips = grips
     self._stepper = stepper
     self._metrics = metrics
+    self._task_state = task_state
+    self._set_task_state = set_task_state
     self._episode_data = None   # MjData of the last initialised episode.
+    self._restored = False      # a running episode, since the last step
 
   def episode_started(self, physics):
     """Notes that an episode was initialised in `physics` (restore needs
@@ -80,13 +91,25 @@ class EpisodeSnapshots:
     """
     self._episode_data = physics.data.ptr
 
-  def take(self, physics, progress, own_state):
+  @property
+  def restored(self):
+    """Whether a running episode was restored since the last RL step
+    began (`step_started`)."""
+    return self._restored
+
+  def step_started(self):
+    """Notes that an RL step began (the restored episode goes on)."""
+    self._restored = False
+
+  def take(self, physics, progress):
     """A snapshot of the episode (module doc).
 
     Args:
       physics: the environment's physics.
       progress: the episode's `episode.EpisodeProgress`.
-      own_state: returns the task's own state (deep-copied here).
+
+    Returns:
+      The snapshot, for `restore`.
     """
     size = mujoco.mj_stateSize(physics.model.ptr, _STATE_SPEC)
     physics_state = np.empty(size)
@@ -108,7 +131,7 @@ class EpisodeSnapshots:
             'metrics': copy.deepcopy(self._metrics.state()),
             'clip_index': progress.clip_index,
             'clip_ended': progress.clip_ended,
-            'own': copy.deepcopy(own_state()),
+            'own': copy.deepcopy(self._task_state(physics)),
         },
         # Human.hold changes the model, which the physics state lacks.
         'grips': self._grips.state(physics),
@@ -116,13 +139,19 @@ class EpisodeSnapshots:
 
   def restore(self, physics, state, progress):
     """Restores a snapshot from `take` (same task configuration) into
-    `physics` and `progress`; returns a deep copy of the task's own state
-    for the task to restore (the physics is restored and forwarded).
+    `physics`, `progress` and the parts, the physics forwarded, then the
+    task's own state (a deep copy). A snapshot of a running episode
+    restored after a LAST step continues at the next step (environments
+    of suite.load: `restored`) instead of being discarded by a reset.
 
     Args:
       physics: the environment's physics, of an episode that has begun.
       state: the snapshot.
       progress: the episode's `episode.EpisodeProgress`.
+
+    Raises:
+      ValueError: an environment that has not been reset, or a physics
+        state of another model's size.
     """
     if physics.data.ptr is not self._episode_data:
       # composer.Environment resets at its first step, which would draw a
@@ -157,7 +186,60 @@ class EpisodeSnapshots:
     progress.clip_index = int(task['clip_index'])
     progress.clip_ended = bool(task['clip_ended'])
     mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
-    return copy.deepcopy(task['own'])
+    self._set_task_state(physics, copy.deepcopy(task['own']))
+    self._restored = not progress.terminate
+
+
+class SnapshottedTask:
+  """An HrcTask's side of its EpisodeSnapshots (`self._snapshots`, of the
+  episode `self._episode`): get_state, set_state, `restored`, and the
+  hooks of the task's own state, which tasks override where TASK_STATE
+  (the attributes that hold it) is not enough."""
+
+  @property
+  def restored(self) -> bool:
+    """Whether a running episode was restored since the last RL step
+    began (`EpisodeSnapshots.restored`)."""
+    return self._snapshots.restored
+
+  def get_state(self, physics: mjcf.Physics) -> dict[str, Any]:
+    """A snapshot of the episode: physics, person, shield, task, metrics
+    and grips (module doc; `EpisodeSnapshots.take`).
+
+    Args:
+      physics: the environment's physics.
+
+    Returns:
+      The snapshot, for `set_state`.
+    """
+    return self._snapshots.take(physics, self._episode)
+
+  def set_state(self, physics: mjcf.Physics,
+                state: Mapping[str, Any]) -> None:
+    """Restores a snapshot of `get_state` (same task configuration) into an
+    environment that has been reset (`EpisodeSnapshots.restore`).
+
+    Args:
+      physics: the environment's physics.
+      state: a snapshot of `get_state`.
+
+    Raises:
+      ValueError: an environment that has not been reset, or a physics
+        state of another model's size.
+    """
+    self._snapshots.restore(physics, state, self._episode)
+
+  def _task_state(self, physics):
+    """The task's own episode state: the TASK_STATE attributes
+    (deep-copied by get_state); grips and welds are saved by the base."""
+    del physics
+    return {name: getattr(self, name) for name in self.TASK_STATE}
+
+  def _set_task_state(self, physics, state):
+    """Restores `_task_state` (a deep copy); physics is already restored."""
+    del physics
+    for name in self.TASK_STATE:
+      setattr(self, name, state[name])
 
 
 class _Writer:

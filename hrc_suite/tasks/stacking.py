@@ -152,7 +152,7 @@ class Stacking(base.HrcTask):
       self._arena.add_free_entity(cube)
       self._object_geoms.extend(cube.geoms)
       if i in HUMAN_CUBES:
-        self._welds[i] = self._add_holdable(cube.body)
+        self._welds[i] = self._grips.add(cube.body)
         # The hand capsule encloses the top of a cube it holds, and the
         # kinematic forearms (which cannot give way) sweep over the cubes
         # the person handles: no contacts between those and these cubes.
@@ -282,7 +282,7 @@ class Stacking(base.HrcTask):
         if (_distance((x, y), place[:2]) < RELEASE_REACH
             and (drop < RELEASE_HEIGHT
                  or (rising and drop < RELEASE_DROP))):
-          self._release(physics, self._cubes[i].body)
+          self._grips.release(physics, self._cubes[i].body)
           self._set_down(physics, i, centre)
           self._human_state[i], self._holding_hand[i] = RELEASED, None
           changed = True
@@ -320,7 +320,7 @@ class Stacking(base.HrcTask):
         _SEGMENT_NAMES.index(f'{hand_name}_hand')])
     shift = (palm - _GRIP) - physics.bind(body).xpos
     position = position + hand_body.xmat.reshape(3, 3).T @ shift
-    self._hold(physics, body, hand_name, (position, quaternion))
+    self._grips.hold(physics, body, hand_name, (position, quaternion))
     self._human_state[i], self._holding_hand[i] = HELD, hand
 
   def _update_task(self, physics):

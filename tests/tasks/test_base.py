@@ -8,9 +8,9 @@ from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.tasks import actions
-from hrc_suite.tasks import base
 from hrc_suite.tasks import contacts
 from hrc_suite.tasks import metrics
+from hrc_suite.tasks import options
 from hrc_suite.tasks import reach
 
 import checks    # tests/tasks/checks.py
@@ -502,9 +502,9 @@ def test_defaults_follow_the_reference():
   task = reach.Reach()
   assert task.shield_mode == 'ssm'
   assert task.horizon == 100
-  assert task.physics_steps_per_control_step == base.DEFAULT_SHIELD_SUBSTEPS
+  assert task.physics_steps_per_control_step == options.DEFAULT_SHIELD_SUBSTEPS
   assert task.critical_speed == contacts.SSM_STOPPED_SPEED
-  assert reach.Reach(shield='pfl').critical_speed == base.DEFAULT_V_SAFE
+  assert reach.Reach(shield='pfl').critical_speed == options.DEFAULT_V_SAFE
 
 
 def test_batched_human_playback_matches_set_keypoints():

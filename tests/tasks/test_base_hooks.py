@@ -20,7 +20,7 @@ class _ReachWithCube(reach.Reach):
     self.cube = props.Cube()
     self._arena.add_free_entity(self.cube)
     self._object_geoms.extend(self.cube.geoms)
-    self.welds = self._add_holdable(self.cube.body)
+    self.welds = self._grips.add(self.cube.body)
 
   def _initialize_task(self, physics, random_state):
     super()._initialize_task(physics, random_state)
@@ -49,12 +49,12 @@ def test_snapshot_restores_the_humans_grip_and_weld_data():
   env.reset()
   physics = env.physics
   released_bits = _model_bits(physics, task)
-  task._hold(physics, task.cube.body, 'left')
+  task._grips.hold(physics, task.cube.body, 'left')
   eq_id = physics.bind(task.welds['left']).element_id
   physics.model.eq_data[eq_id, 0:3] = (0.01, -0.02, 0.03)   # an anchor
   held_bits = _model_bits(physics, task)
   state = task.get_state(physics)
-  task._release(physics, task.cube.body)
+  task._grips.release(physics, task.cube.body)
   np.testing.assert_array_equal(_model_bits(physics, task)[0],
                                 released_bits[0])
   task.set_state(physics, state)
@@ -63,9 +63,9 @@ def test_snapshot_restores_the_humans_grip_and_weld_data():
     np.testing.assert_array_equal(restored, saved)
   assert physics.data.eq_active[eq_id] == 1
   # A snapshot without the grip lets go again.
-  task._release(physics, task.cube.body)
+  task._grips.release(physics, task.cube.body)
   free = task.get_state(physics)
-  task._hold(physics, task.cube.body, 'right')
+  task._grips.hold(physics, task.cube.body, 'right')
   task.set_state(physics, free)
   assert task.human.holding(task.cube.body) is None
   np.testing.assert_array_equal(_model_bits(physics, task)[1],
@@ -76,7 +76,7 @@ def test_reset_lets_go_of_held_objects():
   task = _ReachWithCube(time_limit=5.0, reward='dense')
   env = _env(task)
   env.reset()
-  task._hold(env.physics, task.cube.body, 'right')
+  task._grips.hold(env.physics, task.cube.body, 'right')
   env.reset()
   assert task.human.holding(task.cube.body) is None
 
