@@ -10,7 +10,7 @@ learner's multiplier).
 
 The cost of a step is read from the next timestep's observation entry
 `cost_key` (the 'cost' observable of hrc_suite's 'safe_rl' preset: the
-step's safety cost, hrc_suite/tasks/cost.py); without one it is 0.
+step's safety cost, hrc_suite/tasks/runtime/cost.py); without one it is 0.
 """
 
 from typing import Any, Callable, Dict, Mapping, Optional
@@ -20,7 +20,7 @@ import numpy as np
 
 from agents import replay as replay_lib
 
-# Name of the cost observable (hrc_suite/tasks/observations.py,
+# Name of the cost observable (hrc_suite/tasks/runtime/observations.py,
 # COST_OBSERVABLES; the observation entries that are signals, not state).
 COST_KEY = 'cost'
 COST_OBSERVATIONS = ('cost', 'cost_components')

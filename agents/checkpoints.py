@@ -31,7 +31,7 @@ import numpy as np
 
 from agents import agent as agent_lib
 from agents import agent_checkpoint
-from hrc_suite.tasks import snapshots
+from hrc_suite.tasks.runtime import snapshots
 
 KEEP = 2                     # checkpoints kept per run
 _LATEST = 'latest'

@@ -111,7 +111,8 @@ class Grid:
     motions: None (the shipped synthetic people) or a folder of recordings
       (`task_kwargs['motions']`; the reference's folder layout is taken
       as it is).
-    splits: motion split seeds (hrc_suite.tasks.motions.MotionSplit): each
+    splits: motion split seeds (hrc_suite.tasks.runtime.motions.MotionSplit):
+    each
       run trains on the train side of its split and is evaluated on both
       sides; () trains on all of the task's motions.
     test_clips: clips on the test side of a split.

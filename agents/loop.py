@@ -7,8 +7,8 @@ An agent has `select_action(observation)`, `observe_first(timestep)`,
 `observe(action, next_timestep)` and `update()` (Acme's Actor protocol). An
 observer has `observe_first(env, timestep)`, `observe(env, timestep,
 action)` and `get_metrics()`; its metrics join each episode's result
-(`hrc_suite.tasks.metrics.EpisodeMetricsObserver` logs the task's safety and
-success metrics this way).
+(`hrc_suite.tasks.runtime.metrics.EpisodeMetricsObserver` logs the task's safety
+and success metrics this way).
 
 Unlike Acme's loop, `run(num_steps=n)` stops after exactly n environment
 steps, even inside an episode; the next `run` call continues that episode.
@@ -292,7 +292,7 @@ def evaluate(env: dm_env.Environment,
   if observers is None:
     observers = []
     if hasattr(getattr(env, 'task', None), 'episode_metrics'):
-      from hrc_suite.tasks import metrics   # pylint: disable=g-import-not-at-top
+      from hrc_suite.tasks.runtime import metrics   # pylint: disable=g-import-not-at-top
       observers.append(metrics.EpisodeMetricsObserver())
   observers = _check_observers(observers)
   episodes = []

@@ -7,8 +7,8 @@ raveled in C order. Image observations (uint8 arrays of rank 3, the tasks'
 by default they raise an error; `images='skip'` leaves them out and
 `images='include'` flattens them scaled to [0, 1]. Signals that are no
 state of the task, such as the safety cost observables of the 'safe_rl'
-preset (hrc_suite/tasks/observations.py, COST_OBSERVABLES), are left out by
-name (`exclude`).
+preset (hrc_suite/tasks/runtime/observations.py, COST_OBSERVABLES), are left out
+by name (`exclude`).
 """
 
 import collections

@@ -19,8 +19,8 @@ the raw return is plotted and the axis says so. --per_seed draws one curve
 per run instead of the mean, which shows how seeds differ. A curve of one
 seed is that run's evaluations, without a band, and the title says so.
 Where every run's task has a safety cost (eval.csv's cost_mean: the mean
-cost per evaluation episode, hrc_suite/tasks/cost.py), a third panel draws
-it, with each SAC-Lagrangian run's per-episode cost limit dashed.
+cost per evaluation episode, hrc_suite/tasks/runtime/cost.py), a third panel
+draws it, with each SAC-Lagrangian run's per-episode cost limit dashed.
 
 Experts files read: the output of `python -m hrc_suite.experts.evaluate`
 ({"rows": [{domain, task, robot, action_space, policy, return, ...}]}: the

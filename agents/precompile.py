@@ -13,7 +13,7 @@ compiles the shield, then waits for it. Both write numba's on-disk cache
 (the kernels are `cache=True`), from which this process's environment
 loads what the other process compiled. With a warm cache both halves only
 load (about a second). The RL step's compiled physics
-(`tasks.physics_loop`) compiles in the environment's first step (its
+(`tasks.runtime.physics_loop`) compiles in the environment's first step (its
 argument types come from a built environment).
 
   python -m agents.precompile --robot=schunk   # The second process's half.

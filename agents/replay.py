@@ -1,8 +1,8 @@
 """Uniform replay: a NumPy ring buffer of float32 transitions.
 
 A transition is (s, a, r, discount, s', cost): the cost is the task's safety
-cost of the step (hrc_suite/tasks/cost.py; 0 where the environment reports
-none), stored for the learners that constrain it.
+cost of the step (hrc_suite/tasks/runtime/cost.py; 0 where the environment
+reports none), stored for the learners that constrain it.
 """
 
 import collections

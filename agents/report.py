@@ -19,7 +19,7 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
 * evaluations.json: every evaluation, one row per (task, agent, seed,
   split, motions, step): success rate, return, normalised return, episode
   length, the evaluation's seconds, and safety: the safety cost per episode
-  (runs whose task has one, hrc_suite/tasks/cost.py), critical human
+  (runs whose task has one, hrc_suite/tasks/runtime/cost.py), critical human
   contacts per 10^3 RL steps and shield interventions per episode; where
   runs have a cost, cost.png draws it like the success.
 

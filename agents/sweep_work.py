@@ -195,7 +195,7 @@ def expert_returns(path: str, task: str, task_kwargs: Mapping[str, Any],
   import numpy as np   # pylint: disable=g-import-not-at-top
   from hrc_suite import experts   # pylint: disable=g-import-not-at-top
   from hrc_suite import suite   # pylint: disable=g-import-not-at-top
-  from hrc_suite.tasks import metrics   # pylint: disable=g-import-not-at-top
+  from hrc_suite.tasks.runtime import metrics   # pylint: disable=g-import-not-at-top
   record = layout.read_json(path)
   if record is not None and record['episodes'] >= episodes:
     return record

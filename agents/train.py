@@ -62,7 +62,7 @@ from hrc_suite import registry_flags
 from hrc_suite.rendering import episode as render
 from hrc_suite import suite
 from hrc_suite.experts import dataset as dataset_lib
-from hrc_suite.tasks import metrics as metrics_lib
+from hrc_suite.tasks.runtime import metrics as metrics_lib
 
 # The agents: SAC, its imitation variants (agents.imitation: SAC on a
 # wrapped task) and SAC-Lagrangian (agents/sac_lag/).

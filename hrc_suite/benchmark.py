@@ -25,7 +25,7 @@ import numpy as np
 
 from hrc_suite import registry_flags
 from hrc_suite import robot_description
-from hrc_suite.tasks import motions as task_motions
+from hrc_suite.tasks.runtime import motions as task_motions
 
 SECTIONS = ('physics', 'shield', 'tasks', 'profile')
 _SECTIONS = flags.DEFINE_list(

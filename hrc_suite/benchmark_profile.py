@@ -8,8 +8,8 @@ the IK it calls, the task's hooks hold the shield, the person, the
 controller and the contact monitor. Top-level parts count their own time
 without the top-level parts they call: on the fast path the task's
 run_physics_steps runs the RL step's L physics steps (composer's one
-substep, tasks/substeps.py), most in one compiled call
-(tasks/physics_loop.py, which holds their physics, mocap, controller,
+substep, tasks/runtime/substeps.py), most in one compiled call
+(tasks/runtime/physics_loop.py, which holds their physics, mocap, controller,
 tracking and contacts); steps it hands back to Python count as physics
 and after_substep. "composer
 and the rest" is the RL step's total minus the top-level parts
@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from hrc_suite.tasks import motions as task_motions
+from hrc_suite.tasks.runtime import motions as task_motions
 
 # (label, module, class or None, attribute, top level): top-level parts are
 # disjoint and add up to the measured step with "composer and the rest".
@@ -30,7 +30,7 @@ PARTS = (
     ('physics in Python (mj_step2, mj_step1, warnings, entity hooks)',
      'dm_control.mujoco.engine', 'Physics', 'step', True),
     ('physics in Python (mj_step2, mj_step1, warnings, entity hooks)',
-     'hrc_suite.tasks.substeps', 'PhysicsSteps', 'step', True),
+     'hrc_suite.tasks.runtime.substeps', 'PhysicsSteps', 'step', True),
     ('task before_step (action, goal, shield.new_goal, playback)',
      'hrc_suite.tasks.base', 'HrcTask', 'before_step', True),
     ('  collision prevention (plan and capsule checks of the goal)',
@@ -45,15 +45,15 @@ PARTS = (
     ('  shield: 25 cycles (safety.shield.batch.step_many)',
      'hrc_suite.safety.shield.batch', None, 'step_many', False),
     ('  compiled physics steps (physics_loop.run: mocap, controller, '
-     'mj_step2, mj_step1, tracking, contacts)', 'hrc_suite.tasks.physics_loop',
-     'CompiledSteps', 'run', False),
+     'mj_step2, mj_step1, tracking, contacts)',
+     'hrc_suite.tasks.runtime.physics_loop', 'CompiledSteps', 'run', False),
     ('  person: mocap of one pose, Python steps',
      'hrc_suite.entities.human_playback', 'HumanPlayback', 'apply', False),
     ('  controller, Python steps', 'hrc_suite.control.controller',
      'JointTrackingController', '__call__', False),
     ('task after_substep: tracking, contacts, Python steps',
      'hrc_suite.tasks.base', 'HrcTask', 'after_substep', True),
-    ('  contact monitor, Python steps', 'hrc_suite.tasks.contacts',
+    ('  contact monitor, Python steps', 'hrc_suite.tasks.runtime.contacts',
      'ContactMonitor', 'update', False),
     ('task after_step: self-collision, task logic, reward, metrics',
      'hrc_suite.tasks.base', 'HrcTask', 'after_step', True),

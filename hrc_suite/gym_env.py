@@ -8,7 +8,7 @@
   observation, info = env.reset(seed=0)
   observation, reward, terminated, truncated, info = env.step(
       env.action_space.sample())
-  info['cost'], info['cost_separation_deficit']   # tasks/cost.py
+  info['cost'], info['cost_separation_deficit']   # tasks/runtime/cost.py
 
 (`gymnasium.make('hrc_suite.gym_env:hrc_suite/reach-dense-v0')` imports
 the module itself.) A thin layer over the dm_env environment of
@@ -37,7 +37,7 @@ import numpy as np
 
 from hrc_suite import suite
 from hrc_suite.tasks import base
-from hrc_suite.tasks import cost as cost_lib
+from hrc_suite.tasks.runtime import cost as cost_lib
 
 NAMESPACE = 'hrc_suite'
 VERSION = 0

@@ -1,7 +1,7 @@
 """composer's observation Updater without its per-step schedule where
 every observation is one value per RL step.
 
-On the fast path an RL step is one composer substep (tasks/substeps.py)
+On the fast path an RL step is one composer substep (tasks/runtime/substeps.py)
 and no enabled observable has a delay, a buffer or an update interval
 (HrcTask.use_one_substep checks it). composer's Updater still plans each
 observable's schedule before every step (`prepare_for_next_control_step`:

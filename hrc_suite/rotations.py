@@ -6,8 +6,9 @@ outer frame (MuJoCo's xmat reshaped to (3, 3)); angles are in radians.
 Functions take one rotation or a batch (leading axes) where they say so.
 
 Compiled kernels that need scalar code of their own name the function here
-that they compute (entities/human_kernels.py, tasks/tool_hold_kernels.py,
-control/ik_kernels.py); tests/test_rotations.py checks that they agree.
+that they compute (entities/human_kernels.py,
+tasks/runtime/tool_hold_kernels.py, control/ik_kernels.py);
+tests/test_rotations.py checks that they agree.
 """
 
 import math

@@ -28,7 +28,7 @@ from hrc_suite import observation_updater
 from hrc_suite import tasks as tasks_package
 from hrc_suite.safety.shield import modes
 from hrc_suite.tasks import base
-from hrc_suite.tasks import substeps
+from hrc_suite.tasks.runtime import substeps
 
 # Tags of what a task is about and of its reward; each shield mode's name
 # (safety/shield/modes.py) is a tag too (`tags()`).
@@ -50,7 +50,7 @@ _MAX_SEED = 2**32 - 1
 
 class Environment(composer.Environment):
   """composer.Environment in which a fast-path task runs an RL step's
-  physics steps in one composer substep (tasks/substeps.py); extra
+  physics steps in one composer substep (tasks/runtime/substeps.py); extra
   substep hooks then go to the task, which runs them every physics step.
   """
 
@@ -104,8 +104,8 @@ class Environment(composer.Environment):
                      hook_callable: Callable[..., Any]) -> None:
     """Adds a hook that runs after the task's hook of the same name.
 
-    On the fast path the physics-step hooks (tasks/substeps.py's HOOKS) go
-    to the task, which runs them every physics step.
+    On the fast path the physics-step hooks (tasks/runtime/substeps.py's HOOKS)
+    go to the task, which runs them every physics step.
 
     Args:
       hook_name: composer's hook name (e.g. 'before_substep').
@@ -167,7 +167,8 @@ def register(domain: str, task: str, tags: Sequence[str] = (),
     if key in _REGISTRY:
       raise ValueError(f'Task {domain}/{task} is already registered')
     if isinstance(target, type):
-      target.defaults()   # Its class constants, checked (tasks/defaults.py).
+      # Its class constants, checked (tasks/runtime/defaults.py).
+      target.defaults()
       _CLASSES[key] = target
 
       def factory(**task_kwargs):
@@ -371,7 +372,7 @@ def load(domain: str, task: str,
     domain: a registered domain (`all_tasks()`).
     task: a registered task of the domain.
     task_kwargs: None or the task's keyword arguments
-      (`hrc_suite.tasks.base.HrcTask`, `hrc_suite.tasks.options`), plus
+      (`hrc_suite.tasks.base.HrcTask`, `hrc_suite.tasks.runtime.options`), plus
       'seed': None or an integer in [0, 2**32 - 1].
     environment_kwargs: None or composer.Environment's keyword arguments
       (not 'time_limit', which is a task kwarg).

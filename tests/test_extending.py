@@ -33,9 +33,9 @@ from hrc_suite.human import synthesis
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.safety.shield import batch
 from hrc_suite.safety.shield import modes
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import base
-from hrc_suite.tasks import options
+from hrc_suite.tasks.runtime import options
 from hrc_suite.tasks import reach
 
 # ------------------------------------------------ a shield mode (step 1)

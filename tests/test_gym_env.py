@@ -14,7 +14,7 @@ import pytest
 
 from hrc_suite import gym_env
 from hrc_suite import suite
-from hrc_suite.tasks import cost as cost_lib
+from hrc_suite.tasks.runtime import cost as cost_lib
 
 
 def test_every_task_is_registered():

@@ -22,7 +22,7 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 DOCUMENTED_MODULES = (
     'hrc_suite/suite.py',
     'hrc_suite/gym_env.py',
-    'hrc_suite/tasks/options.py',
+    'hrc_suite/tasks/runtime/options.py',
     'hrc_suite/tasks/base.py',
     'hrc_suite/tasks/reach.py',
     'hrc_suite/tasks/pick_place.py',
@@ -47,13 +47,13 @@ DOCUMENTED_MODULES = (
 # Classes of other modules whose public API a user composes: the bases of
 # HrcTask that show a part of a task ('path:Class').
 DOCUMENTED_CLASSES = (
-    'hrc_suite/tasks/scene.py:SceneParts',
-    'hrc_suite/tasks/shielded_stepping.py:SteppedTask',
-    'hrc_suite/tasks/snapshots.py:SnapshottedTask',
-    'hrc_suite/tasks/episode.py:ProgressOfTask',
-    'hrc_suite/tasks/defaults.py:TaskConstants',
-    'hrc_suite/tasks/options.py:OptionNames',
-    'hrc_suite/tasks/reward_bounds.py:RewardBounds',
+    'hrc_suite/tasks/runtime/scene.py:SceneParts',
+    'hrc_suite/tasks/runtime/shielded_stepping.py:SteppedTask',
+    'hrc_suite/tasks/runtime/snapshots.py:SnapshottedTask',
+    'hrc_suite/tasks/runtime/episode.py:ProgressOfTask',
+    'hrc_suite/tasks/runtime/defaults.py:TaskConstants',
+    'hrc_suite/tasks/runtime/options.py:OptionNames',
+    'hrc_suite/tasks/runtime/reward_bounds.py:RewardBounds',
 )
 # Methods documented as constructors: their arguments may be documented in
 # the class docstring, and they need no return type.

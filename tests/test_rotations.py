@@ -8,7 +8,7 @@ import pytest
 from hrc_suite import rotations
 from hrc_suite.control import ik_kernels
 from hrc_suite.entities import human_kernels
-from hrc_suite.tasks import tool_hold_kernels
+from hrc_suite.tasks.runtime import tool_hold_kernels
 
 HALF = np.sqrt(0.5)
 

@@ -11,8 +11,8 @@
 * HrcTask (tasks/base.py) is a composer-sized task: composer's hooks, the
   hooks tasks override, the scene and the reward, in at most
   MAX_TASK_LINES lines; what else a task shows lives in the runtime
-  module whose idea it is (tasks/scene.py, tasks/shielded_stepping.py,
-  tasks/snapshots.py, ...).
+  module whose idea it is (tasks/runtime/scene.py,
+  tasks/runtime/shielded_stepping.py, tasks/runtime/snapshots.py, ...).
 """
 
 import ast

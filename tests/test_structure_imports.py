@@ -138,10 +138,10 @@ def cycles(graph):
 
 def test_the_graph_sees_imports_inside_functions():
   graph = import_graph()
-  # tasks/scene.py imports human_playback at module level; suite.py
+  # tasks/runtime/scene.py imports human_playback at module level; suite.py
   # imports the task modules by name (importlib), which is no edge.
   assert 'hrc_suite.entities.human_playback' in graph[
-      'hrc_suite.tasks.scene']
+      'hrc_suite.tasks.runtime.scene']
   tree = ast.parse('def f():\n  from hrc_suite.entities import human\n')
   modules = {'hrc_suite.entities.human': None,
              'hrc_suite.entities': None}

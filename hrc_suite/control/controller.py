@@ -95,7 +95,7 @@ class JointTrackingController:
     self._scratch = np.zeros(self._dof)
     self._compiled = bool(compiled)
     # The controller's gains and memory as the compiled physics loop
-    # (tasks/physics_loop.py) runs it.
+    # (tasks/runtime/physics_loop.py) runs it.
     self.gains = controller_kernels.TrackingGains(
         float(self.kp), float(self.kd), float(self._half_step),
         self._damping_step, self._torque_limit)

@@ -5,7 +5,7 @@ controller.JointTrackingController's NumPy path (its `compiled=False`
 reference) computes: the same IEEE operations in the same order
 (fastmath=False), so the torques are the same bit for bit
 (tests/control/test_controller.py). The compiled physics loop
-(tasks/physics_loop.py) calls them inside its loop with the controller's
+(tasks/runtime/physics_loop.py) calls them inside its loop with the controller's
 `ControllerMemory` and `TrackingGains`.
 """
 

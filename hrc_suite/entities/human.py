@@ -377,7 +377,7 @@ class Human(composer.Entity):
   @property
   def substep_hooks_idle(self) -> bool:
     """Whether before_substep does nothing (no player to follow):
-    tasks/substeps.py may then skip it."""
+    tasks/runtime/substeps.py may then skip it."""
     return self._player is None
 
   def before_substep(self, physics: mjcf.Physics,

@@ -155,7 +155,7 @@ class HumanPlayback:
   def mocap_layout(self):
     """(mocap_pos, the mocap rows of every substep, their first row,
     mocap_quat, the capsules' quaternions, their first row) for
-    tasks/physics_loop.py, or None where the rows are not one block."""
+    tasks/runtime/physics_loop.py, or None where the rows are not one block."""
     if self._together is None or not isinstance(self._segment_mocap, slice):
       return None
     return (self._mocap_pos, self._mocap_rows, self._together.start,

@@ -20,7 +20,7 @@ placement, targets, idle phases) and printed:
 * speed: the fastest keypoint and the share of frames over the shield's
   human model (v_max, assets/human/shield_human_model.json), and the worst
   case the task's check finds (idle phases' fastest replay included;
-  `tasks/motions.speed_excess`);
+  `tasks/runtime/motions.speed_excess`);
 * expert: per robot and policy, episodes (seeds 0..N-1) with only this
   clip as the task's people (played with outside_human_model='allow'):
   successes, mean length, episodes with a critical human contact, and per
@@ -53,7 +53,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.motion_tools import compare
-from hrc_suite.tasks import motions as motions_lib
+from hrc_suite.tasks.runtime import motions as motions_lib
 
 # The people label of the episodes' rows (evaluate.people).
 LABEL = 'check'

@@ -29,7 +29,7 @@ import numpy as np
 from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib
-from hrc_suite.tasks import snapshots
+from hrc_suite.tasks.runtime import snapshots
 
 FORMAT = 'hrc_suite.expert_dataset'
 FORMAT_VERSION = 1

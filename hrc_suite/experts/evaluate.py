@@ -81,8 +81,8 @@ from hrc_suite.experts import results_file
 from hrc_suite.human import clip as clip_lib
 from hrc_suite import registry_flags
 from hrc_suite.safety.shield import modes as modes_lib
-from hrc_suite.tasks import metrics as metrics_lib
-from hrc_suite.tasks import motions as task_motions
+from hrc_suite.tasks.runtime import metrics as metrics_lib
+from hrc_suite.tasks.runtime import motions as task_motions
 
 EXPERT_POLICIES = ('expert', 'noisy_expert')
 TEST_POLICIES = ('random', 'chase')   # Safety checks, no success bar.
@@ -98,7 +98,7 @@ SUCCESS_BAR = 0.8
 # Seed of every row's bootstrap resampling (rows are reproducible alone).
 BOOTSTRAP_SEED = 0
 # Per-episode metrics reported as means per episode, in table order
-# (hrc_suite/tasks/metrics.py).
+# (hrc_suite/tasks/runtime/metrics.py).
 CONTACT_COLUMNS = (('static', 'contacts_static'), ('self', 'self_collisions'),
                    ('human safe', 'contacts_human_allowed'),
                    ('human critical', 'contacts_human_critical'),

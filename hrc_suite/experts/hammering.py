@@ -18,8 +18,8 @@ Joint space keeps the gripper's current yaw (the board's nail must stay
 pointed at the person); Cartesian actions keep the task's hold yaw.
 
 The task's person holds the hammer compliantly and aims at the nail head
-(tasks/tool_hold.py), so blows land on the nail as impulses and the board
-stays in the 40 N grip (before, a weld to the kinematic hand pressed the
+(tasks/runtime/tool_hold.py), so blows land on the nail as impulses and the
+board stays in the 40 N grip (before, a weld to the kinematic hand pressed the
 board with kilonewtons after each blow: after 10-40 blows some boards had
 turned ~45 deg and fell, and clip hammering_07's blows landed 1-3 cm beside
 the nail). Measured results are in docs/tasks.md (hammering).

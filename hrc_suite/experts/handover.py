@@ -43,7 +43,7 @@ from hrc_suite import rotations
 from hrc_suite.entities import props
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import handover
 
 # Distance along the handle (body -x) from the robot's grip point to where

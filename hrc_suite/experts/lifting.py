@@ -43,7 +43,7 @@ from hrc_suite import rotations
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import lifting
 
 # Seconds of the hands' velocity the aim leads by: about the lag of the

@@ -47,7 +47,7 @@ from hrc_suite import experts
 from hrc_suite import layout
 from hrc_suite.experts import base
 from hrc_suite.experts import steering
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 
 # Joint distance (rad, max norm) under which the expert aims at the goal
 # without checking the path (the last step is tiny).

@@ -45,7 +45,7 @@ from hrc_suite.experts import base
 from hrc_suite.experts import steering
 from hrc_suite.human import keypoints
 from hrc_suite.safety import geometry
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import stacking
 
 # TCP above a cube's centre when the fingers grasp it (the pads, 2 cm long

@@ -34,7 +34,7 @@ appended. Everything is deterministic.
 import numpy as np
 
 from hrc_suite.control import ik as ik_lib
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 
 # Joint goals at most this many control steps at v_max ahead: 2 lets the
 # shield's plan (which must end at rest at the goal) cruise at v_max.

@@ -536,7 +536,7 @@ def clip_from_motion(positions, fps, fields, task, name, turn=0.0,
     return synthesis.fit_idle_phases(result)
   except ValueError as e:
     # Left as recorded: loading then refuses the clip or plays it outside
-    # the guarantee (tasks/motions.check_motions).
+    # the guarantee (tasks/runtime/motions.check_motions).
     metadata = dict(result.metadata, idle_fit=str(e))
     return result.replace(metadata=metadata)
 

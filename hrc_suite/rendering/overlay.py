@@ -41,8 +41,8 @@ _CONTAINED_TOLERANCE = 5e-4
 _MIN_AXIS_LENGTH = 1e-9
 
 # Frame markers (RGB 0-255), by event; contact kinds as in
-# `tasks.contacts.CONTACT_TYPES` (robot_object and human_object are normal
-# task contacts and get no marker).
+# `tasks.runtime.contacts.CONTACT_TYPES` (robot_object and human_object are
+# normal task contacts and get no marker).
 MARKER_COLOURS = {
     'intervention': (255, 215, 0),       # yellow: the shield intervened
     'static': (150, 90, 255),            # violet: robot hit the workcell

@@ -68,7 +68,7 @@ class ContactEnergyMeter:
   def measure(self, q, dq, link: int, body: str,
               clamped: bool) -> ContactEnergy:
     """The ContactEnergy of a contact of `link` with `body` at joint state
-    (q, dq) (dof,) (the commanded state, as tasks/contacts.py judges
+    (q, dq) (dof,) (the commanded state, as tasks/runtime/contacts.py judges
     contacts, or the measured one)."""
     if isinstance(link, bool) or not 0 <= int(link) < self.model.dof:
       raise ValueError(f'link={link!r}: expected a link index in [0, '

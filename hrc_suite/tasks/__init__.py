@@ -1,2 +1,3 @@
-"""Benchmark tasks: the shared shielded step loop (`base.HrcTask`) and one
-module per task. Load them by name through `hrc_suite.suite.load`."""
+"""Benchmark tasks: `base.HrcTask` and one module per task, on the runtime
+every task shares (`tasks.runtime`). Load them by name through
+`hrc_suite.suite.load`."""

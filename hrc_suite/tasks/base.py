@@ -9,7 +9,7 @@ step is exactly L shield cycles (docs/tasks.md, "The step loop").
   clipped, filtered by collision prevention) goes to `shield.new_goal`;
   the last action entry drives the gripper where the task has one.
 * The RL step's physics steps: the task's ShieldedStepper
-  (tasks/shielded_stepping.py), from composer's substep hooks or as
+  (tasks/runtime/shielded_stepping.py), from composer's substep hooks or as
   composer's one substep (`run_physics_steps`).
 * after_step: self-collision check (`self_collision`), the task's own
   logic (`_update_task`, `_human_events`), reward (delay and collision
@@ -47,18 +47,18 @@ from dm_control.rl import control as rl_control
 from dm_env import specs
 import numpy as np
 
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import cost as cost_lib
-from hrc_suite.tasks import defaults as defaults_lib
-from hrc_suite.tasks import episode as episode_lib
-from hrc_suite.tasks import grips as grips_lib
-from hrc_suite.tasks import observations as observations_lib
-from hrc_suite.tasks import options as options_lib
-from hrc_suite.tasks import reward_bounds
-from hrc_suite.tasks import scene as scene_lib
-from hrc_suite.tasks import shielded_stepping
-from hrc_suite.tasks import snapshots
-from hrc_suite.tasks import step_recorder
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import cost as cost_lib
+from hrc_suite.tasks.runtime import defaults as defaults_lib
+from hrc_suite.tasks.runtime import episode as episode_lib
+from hrc_suite.tasks.runtime import grips as grips_lib
+from hrc_suite.tasks.runtime import observations as observations_lib
+from hrc_suite.tasks.runtime import options as options_lib
+from hrc_suite.tasks.runtime import reward_bounds
+from hrc_suite.tasks.runtime import scene as scene_lib
+from hrc_suite.tasks.runtime import shielded_stepping
+from hrc_suite.tasks.runtime import snapshots
+from hrc_suite.tasks.runtime import step_recorder
 
 _SEED_RANGE = 2**31 - 1
 

@@ -50,9 +50,9 @@ from hrc_suite.entities import nail_board as nail_board_lib
 from hrc_suite.entities import props
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import base
-from hrc_suite.tasks import tool_hold
+from hrc_suite.tasks.runtime import tool_hold
 
 SUCCESS_PROGRESS = 0.95        # nail driven in (reference)
 # Nail head above the clip's nail target: the clip's strike ends (speed 0)

@@ -42,7 +42,7 @@ from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import markers
 from hrc_suite.entities import props
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import base
 from hrc_suite.tasks import common
 

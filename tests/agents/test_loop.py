@@ -9,7 +9,7 @@ from agents import benchmark
 from agents import loop as loop_lib
 from hrc_suite import statistics
 from hrc_suite import suite
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 
 class CountdownEnv(dm_env.Environment):

@@ -9,7 +9,7 @@ import pytest
 from hrc_suite import suite
 from hrc_suite.experts import dataset
 from hrc_suite.experts import noise as noise_lib
-from hrc_suite.tasks import snapshots
+from hrc_suite.tasks.runtime import snapshots
 
 DOMAIN, TASK = 'reach', 'dense'
 KWARGS = {'robot': 'schunk', 'time_limit': 1.5}   # 15 RL steps

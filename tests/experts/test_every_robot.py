@@ -8,7 +8,7 @@ import pytest
 from hrc_suite import experts
 from hrc_suite import robot_description
 from hrc_suite import suite
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 SHORT_STEPS = 3     # RL steps of the fast check
 # Slow: full expert episodes per robot on these tasks (seeds 0..n-1);

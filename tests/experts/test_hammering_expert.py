@@ -7,7 +7,7 @@ import pytest
 from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import hammering as hammering_expert
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 
 def _env(robot='schunk', space='cartesian', seed=0, time_limit=100.0):

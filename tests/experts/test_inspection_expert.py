@@ -8,7 +8,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import inspection as inspection_expert
 from hrc_suite.tasks import inspection
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 
 def _env(robot='schunk', space='cartesian', seed=0, **kwargs):

@@ -8,7 +8,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import lifting as lifting_expert
 from hrc_suite.human import recording_cache
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 # Seeds whose clip the robots can follow: in lifting_01, _02 and _08 the
 # person carries the board up to 0.5 m further away, out of every robot's

@@ -8,7 +8,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.experts import pick_place as pick_place_expert
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 from hrc_suite.tasks import pick_place
 
 import expert_checks   # tests/experts/expert_checks.py

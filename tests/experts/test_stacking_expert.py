@@ -9,7 +9,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.experts import stacking as stacking_expert
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 from hrc_suite.tasks import stacking
 
 import expert_checks   # tests/experts/expert_checks.py

@@ -6,7 +6,7 @@ import pytest
 
 from hrc_suite import suite
 from hrc_suite.experts import steering
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 
 
 def _env(domain, task, robot, space, seed=0):

@@ -21,7 +21,7 @@ from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import placement
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 I = keypoints.KEYPOINT_INDEX
 TASKS = ('handover_robot_to_human', 'handover_human_to_robot',

@@ -44,7 +44,7 @@ def test_place_is_two_fused_multiply_adds_in_order():
 def test_warm_up_compiles_every_signature_the_player_uses():
   """A Player warms its kernels up when it is made: playing clips and an
   idle phase compiles nothing more (no RL step pays for a compilation)."""
-  from hrc_suite.tasks import motions   # pylint: disable=g-import-not-at-top
+  from hrc_suite.tasks.runtime import motions   # pylint: disable=g-import-not-at-top
   from hrc_suite.human import player as player_lib   # pylint: disable=g-import-not-at-top
   player = player_lib.Player(motions.load_motions(None, 'stacking'),
                              station=(1.0, 0.0, 0.0))

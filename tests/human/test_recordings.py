@@ -18,7 +18,7 @@ from hrc_suite.human import placement
 from hrc_suite.human import recording_cache
 from hrc_suite.human import task_targets
 from hrc_suite.safety.shield import human_reach
-from hrc_suite.tasks import motions as motions_lib
+from hrc_suite.tasks.runtime import motions as motions_lib
 
 I = keypoints.KEYPOINT_INDEX
 EDGE = placement.TABLE_EDGE_CLEARANCE   # table edge, clip frame x

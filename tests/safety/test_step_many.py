@@ -20,7 +20,7 @@ from hrc_suite.safety.shield import shield_state
 import safety_references
 import shield_harness as harness
 
-L = 25   # Cycles per RL step (tasks.options.DEFAULT_SHIELD_SUBSTEPS).
+L = 25   # Cycles per RL step (tasks.runtime.options.DEFAULT_SHIELD_SUBSTEPS).
 
 
 def _path_array(path):

@@ -3,7 +3,7 @@ waypoints in either action space (joint space through gripper-down IK)."""
 
 import numpy as np
 
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 
 
 class WaypointDriver:

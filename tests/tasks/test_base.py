@@ -7,10 +7,10 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import metrics
-from hrc_suite.tasks import options
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import metrics
+from hrc_suite.tasks.runtime import options
 from hrc_suite.tasks import reach
 
 import checks    # tests/tasks/checks.py

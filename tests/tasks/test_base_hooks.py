@@ -7,7 +7,7 @@ import numpy as np
 from hrc_suite import layout
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import props
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import pick_place
 from hrc_suite.tasks import reach
 

@@ -1,5 +1,5 @@
-"""Robot-human contacts judged by energy (tasks/contact_energies.py): the
-per-body maxima in the episode metrics in every mode, and the energy
+"""Robot-human contacts judged by energy (tasks/runtime/contact_energies.py):
+the per-body maxima in the episode metrics in every mode, and the energy
 judgement of the shield mode 'pfl_energy', with a person standing in the
 robot's sweep (checks.human_in_robot_env)."""
 
@@ -11,9 +11,9 @@ import pytest
 from hrc_suite.safety import body_regions
 from hrc_suite.safety import contact_energy
 from hrc_suite.safety import robot_energy
-from hrc_suite.tasks import contact_energies
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import contact_energies
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import metrics
 
 import checks    # tests/tasks/checks.py
 

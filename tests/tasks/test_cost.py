@@ -1,4 +1,4 @@
-"""The safety cost (tasks/cost.py): its spec, its components against the
+"""The safety cost (tasks/runtime/cost.py): its spec, its components against the
 contact and intervention metrics on every task, shield on and off, and
 that computing it changes no episode."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import suite
-from hrc_suite.tasks import cost as cost_lib
+from hrc_suite.tasks.runtime import cost as cost_lib
 
 STEPS = 40
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from hrc_suite import suite
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import hammering
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 import checks   # tests/tasks/checks.py
 
@@ -154,7 +154,7 @@ def _oracle(env):
 
 
 def test_a_blow_is_an_impulse_not_a_press():
-  # The person holds the hammer compliantly (tasks/tool_hold.py): a blow
+  # The person holds the hammer compliantly (tasks/runtime/tool_hold.py): a blow
   # peaks at hundreds of newtons or more for a few milliseconds, then the
   # face rests on the nail with a few newtons although the kinematic hand's
   # strike ends below the nail head (with the old weld: a press of

@@ -15,7 +15,7 @@ from hrc_suite.human import task_motions
 from hrc_suite.human import task_targets
 from hrc_suite.motion_tools import synthetic_library
 from hrc_suite.tasks import hammering_robot
-from hrc_suite.tasks import motions
+from hrc_suite.tasks.runtime import motions
 
 import checks   # tests/tasks/checks.py
 

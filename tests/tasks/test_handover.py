@@ -13,7 +13,7 @@ from hrc_suite.entities import human as human_lib
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import handover
 
 import checks   # tests/tasks/checks.py

@@ -9,9 +9,9 @@ import pytest
 
 from hrc_suite import layout
 from hrc_suite import suite
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import inspection
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 import checks    # tests/tasks/checks.py
 import oracles   # tests/tasks/oracles.py

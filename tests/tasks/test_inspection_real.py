@@ -10,7 +10,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.human import recording_cache
 from hrc_suite.tasks import inspection
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 pytestmark = pytest.mark.recordings
 

@@ -10,7 +10,7 @@ import pytest
 from hrc_suite import suite
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import lifting
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 import checks    # tests/tasks/checks.py
 import oracles   # tests/tasks/oracles.py

@@ -5,7 +5,7 @@ import pytest
 
 from hrc_suite import suite
 from hrc_suite.human import clip as clip_lib
-from hrc_suite.tasks import motions
+from hrc_suite.tasks.runtime import motions
 from hrc_suite.tasks import reach
 
 LIFTING = clip_lib.shipped_library('lifting')

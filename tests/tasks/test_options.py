@@ -1,9 +1,9 @@
-"""An environment's options, checked in one place (tasks/options.py)."""
+"""An environment's options, checked in one place (tasks/runtime/options.py)."""
 
 import pytest
 
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import options
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import options
 from hrc_suite.tasks import reach
 from hrc_suite.tasks import stacking
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import suite
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import metrics
 
 BAD_SUBSTEP = 60    # The 11th physics step of the third RL step.
 

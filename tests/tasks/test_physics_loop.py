@@ -1,4 +1,4 @@
-"""The compiled physics loop (tasks/physics_loop.py): where MjData keeps
+"""The compiled physics loop (tasks/runtime/physics_loop.py): where MjData keeps
 its contacts, the hand-backs to Python, and agreement with the reference
 path in the cases test_fast_path's random episodes may not reach."""
 
@@ -8,9 +8,9 @@ import pytest
 
 from hrc_suite import experts
 from hrc_suite import suite
-from hrc_suite.tasks import contact_kernels
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import physics_loop
+from hrc_suite.tasks.runtime import contact_kernels
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import physics_loop
 
 
 def test_contact_memory_reads_the_bindings_contacts():

@@ -11,8 +11,8 @@ from hrc_suite import layout
 from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.entities import robot as robot_lib
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import metrics
 from hrc_suite.tasks import pick_place
 
 import checks   # tests/tasks/checks.py

@@ -6,7 +6,7 @@ import pytest
 
 from hrc_suite import robot_description
 from hrc_suite.safety import collision_prevention
-from hrc_suite.tasks import self_collision
+from hrc_suite.tasks.runtime import self_collision
 
 SAMPLES = 2000
 FOLDING = ('schunk', 'panda')

@@ -8,9 +8,9 @@ import pytest
 
 from hrc_suite import suite
 from hrc_suite.human import keypoints
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import metrics
 
 # RL steps of random actions per task: default run and @slow run.
 STEPS = 300

@@ -5,7 +5,7 @@ import pytest
 
 from hrc_suite import suite
 from hrc_suite.tasks import pick_place
-from hrc_suite.tasks import snapshots
+from hrc_suite.tasks.runtime import snapshots
 
 import checks    # tests/tasks/checks.py
 import oracles   # tests/tasks/oracles.py

@@ -13,8 +13,8 @@ from hrc_suite import suite
 from hrc_suite.control import ik as ik_lib
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import metrics
 from hrc_suite.tasks import stacking
 
 import checks   # tests/tasks/checks.py

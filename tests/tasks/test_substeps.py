@@ -1,5 +1,5 @@
-"""One composer substep per RL step (tasks/substeps.py): composer's hooks
-still run every physics step, in composer's order, at the same states."""
+"""One composer substep per RL step (tasks/runtime/substeps.py): composer's
+hooks still run every physics step, in composer's order, at the same states."""
 
 from dm_control import composer
 from dm_control import mjcf

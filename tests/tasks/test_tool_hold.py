@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from hrc_suite.tasks import tool_hold
+from hrc_suite.tasks.runtime import tool_hold
 
 MASS = 0.58          # kg, the hammer's
 TIMESTEP = 0.004     # s, the suite's physics step

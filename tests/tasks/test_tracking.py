@@ -7,8 +7,8 @@ import pytest
 from hrc_suite import suite
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import metrics
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import metrics
 from hrc_suite.tasks import reach
 
 import checks    # tests/tasks/checks.py

@@ -108,7 +108,7 @@ def time_cycles(name, scene, cycles, seed=0, mode='ssm'):
   return times, cpu_times, interventions / cycles
 
 
-# Cycles per RL step (tasks.options.DEFAULT_SHIELD_SUBSTEPS).
+# Cycles per RL step (tasks.runtime.options.DEFAULT_SHIELD_SUBSTEPS).
 RL_STEP_CYCLES = 25
 
 

@@ -12,7 +12,7 @@ A mode says what the shield does with each cycle's verification
   the plan's capsule surface speeds, `shield.pfl_speed_tables`).
 * `allows_contact`: whether a robot-human contact below v_safe is within
   the mode's rules (tasks then call contacts critical above v_safe
-  instead of above the stopped speed; tasks/contacts.py).
+  instead of above the stopped speed; tasks/runtime/contacts.py).
 
 * the verification, readable and compiled: `failsafe_target` (the
   failsafe's final path velocity), `verdict` (the exact check of a

@@ -393,7 +393,7 @@ class Shield:
     they are at `reference` (None: the command): the largest displacement
     of a capsule axis end. Capsules move rigidly, so no point of a
     capsule moves farther than its farther end. (kernels.tracking_error,
-    which tasks/physics_loop.py calls too; its NumPy reference is in
+    which tasks/runtime/physics_loop.py calls too; its NumPy reference is in
     tests/safety/safety_references.py, equal to round-off.)"""
     q, reference = self._joint_pair(q, reference)
     robot = self.robot

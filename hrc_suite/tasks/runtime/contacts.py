@@ -12,8 +12,8 @@ categories, vectorised over `physics.data.contact`:
   shield's v_safe; SSM: SSM_STOPPED_SPEED, the robot is not stopped);
   pushed (`human_pushed`) instead of allowed when the person has pushed the
   robot off its command (below); with `energies`
-  (tasks/contact_energies.py) each such contact's energy is measured too,
-  and under `critical_by_energy` (shield mode 'pfl_energy') the contact is
+  (tasks/runtime/contact_energies.py) each such contact's energy is measured
+  too, and under `critical_by_energy` (shield mode 'pfl_energy') the contact is
   critical when its energy exceeds its body's limit instead;
 * robot-object, human-object, object-object, object-static: normal.
 
@@ -44,7 +44,7 @@ self-collision is judged geometrically by the task from the robot's capsule
 model (the one collision prevention uses), once per RL step.
 
 compiled=True (the default) classifies the contacts' geom pairs in one
-numba call over a table of every pair's type (tasks/contact_kernels.py)
+numba call over a table of every pair's type (tasks/runtime/contact_kernels.py)
 instead of a dozen NumPy calls; compiled=False runs the NumPy calls, the
 readable reference. Robot-human contacts are then judged as above (the
 same flags, tests/tasks/test_base.py).
@@ -55,7 +55,7 @@ import enum
 import mujoco
 import numpy as np
 
-from hrc_suite.tasks import contact_kernels
+from hrc_suite.tasks.runtime import contact_kernels
 
 # Geom categories (what a geom belongs to; not contact types).
 NONE, STATIC, ROBOT, OBJECT, HUMAN = range(5)
@@ -147,7 +147,7 @@ class ContactMonitor:
     self.max_human_contact_speed = 0.0
     self.energies = energies
     self.critical_by_energy = bool(critical_by_energy)
-    # What tasks/physics_loop.run judges contacts with; robot-human
+    # What tasks/runtime/physics_loop.run judges contacts with; robot-human
     # contacts measured by energy are judged here (human_in_python).
     self.tables = contact_kernels.ContactTables(
         self._pair_types, self._categories, self._geom_body, self._dofs,

@@ -2,8 +2,8 @@
 
 `tool_hold.CompliantHold.apply` (the maths and the reasons for its numbers
 are there) calls `apply` on every physics step; the compiled physics loop
-(tasks/physics_loop.py) calls the same function between its physics steps,
-so both paths give the same forces bit for bit. Quaternions are (w, x, y,
+(tasks/runtime/physics_loop.py) calls the same function between its physics
+steps, so both paths give the same forces bit for bit. Quaternions are (w, x, y,
 z); arithmetic in scalars, in a fixed order: `_mul`, `_matrix` and
 `_rotation_vector` compute rotations.quat_mul, quat_to_mat and
 quat_to_rotvec (tests/test_rotations.py checks they agree).

@@ -9,8 +9,8 @@ with a policy and returns the episode's metrics.
 
 import numpy as np
 
-from hrc_suite.tasks import contact_energies
-from hrc_suite.tasks import contacts
+from hrc_suite.tasks.runtime import contact_energies
+from hrc_suite.tasks.runtime import contacts
 
 # Counters every task reports; tasks add their own (e.g. handovers).
 # * shield_interventions: RL steps in which the shield overrode the intended
@@ -30,7 +30,7 @@ from hrc_suite.tasks import contacts
 # * goals_reached: RL steps at which the task's goal was reached.
 # * steps_outside_human_model: RL steps in which the person moved faster
 #   than the shield's human model (only with outside_human_model='allow':
-#   outside the safety guarantee, tasks/motions.check_motions).
+#   outside the safety guarantee, tasks/runtime/motions.check_motions).
 # Besides: success (0/1, reached at least once), return, steps,
 # min_human_distance (m, robot capsules at the shield's command to the human
 # body capsules, the minimum over RL step ends), max_human_contact_speed
@@ -44,7 +44,7 @@ COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
 # Episode maxima of step maxima.
 MAXIMA = ('max_human_contact_speed', 'max_tracking_error')
 # Episode maxima of robot-human contact energies, in every shield mode
-# (tasks/contact_energies.py: min(E_j, E_n) of the touching link at the
+# (tasks/runtime/contact_energies.py: min(E_j, E_n) of the touching link at the
 # commanded joint velocities, against the touched body's limit, clamped or
 # transient): max_contact_energy (J) and max_contact_energy_ratio over
 # every body, contact_energy/<body> and contact_energy_ratio/<body> per

@@ -17,7 +17,7 @@ from hrc_suite import layout
 from hrc_suite.entities import gripper as gripper_lib
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.safety.shield import modes
-from hrc_suite.tasks import actions
+from hrc_suite.tasks.runtime import actions
 
 # The class constant of each field, in field order.
 CONSTANTS = {

@@ -21,12 +21,12 @@ suite.Environment read, the hooks the stepper calls):
   verified set-point; the same commands as `Shield.step` every physics step
   (fast_path=False, the reference).
 * One composer substep per RL step (fast path, environments of
-  `suite.load`; tasks/substeps.py): composer sees one substep,
+  `suite.load`; tasks/runtime/substeps.py): composer sees one substep,
   `run_physics_steps`: the RL step's L physics steps, each with the same
   hooks in composer's order (the task's, the entities', the extra ones),
   mj_step2 and mj_step1 as dm_control's physics.step, and the task's
   after_substep; stretches where nothing needs Python run in one compiled
-  call (tasks/physics_loop.py).
+  call (tasks/runtime/physics_loop.py).
 * after_substep (`after_physics_step`): the tracking check, then the
   contact monitor (`contacts`). The measured joints are compared with
   where the shield's command puts them; farther than the shield's tracking
@@ -53,11 +53,11 @@ import numpy as np
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.entities import human_kernels
 from hrc_suite.safety.shield import batch
-from hrc_suite.tasks import contact_energies
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import metrics as metrics_lib
-from hrc_suite.tasks import physics_loop
-from hrc_suite.tasks import substeps as substeps_lib
+from hrc_suite.tasks.runtime import contact_energies
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import metrics as metrics_lib
+from hrc_suite.tasks.runtime import physics_loop
+from hrc_suite.tasks.runtime import substeps as substeps_lib
 
 # Flag positions of the contacts that cost collision_reward.
 _ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
@@ -68,7 +68,7 @@ class SteppedTask:
   composer and suite.Environment ask about the physics steps, and the
   hooks the stepper calls on the task around every physics step (the
   task's own work before each and, for the compiled loop,
-  tasks/physics_loop.py, what that work writes), which tasks override.
+  tasks/runtime/physics_loop.py, what that work writes), which tasks override.
   In them the stepper's `physics_step` is the index of the coming
   physics step, its `controller` the joint tracking controller (e.g. for
   settling steps at an episode's start)."""
@@ -162,7 +162,7 @@ class ShieldedStepper:
     self._human_v_max = shield.human.config.v_max.copy()
     self._one_substep = False
     self._physics_steps = substeps_lib.PhysicsSteps()
-    self._compiled_steps = None   # tasks/physics_loop.py, once bound
+    self._compiled_steps = None   # tasks/runtime/physics_loop.py, once bound
     self._controller = None
     self._monitor = None
     self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
@@ -365,8 +365,8 @@ class ShieldedStepper:
   def run_physics_steps(self, physics, action, random_state):
     """The RL step's physics steps, each with the hooks composer runs
     around a substep (`one_substep`: suite.Environment's only substep;
-    tasks/substeps.py): stretches in one compiled call where nothing needs
-    Python (tasks/physics_loop.py), the others one by one.
+    tasks/runtime/substeps.py): stretches in one compiled call where nothing
+    needs Python (tasks/runtime/physics_loop.py), the others one by one.
 
     Args:
       physics: the environment's physics.

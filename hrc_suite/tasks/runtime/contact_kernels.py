@@ -1,11 +1,11 @@
-"""Compiled (numba) kernels of the contact monitor (tasks/contacts.py).
+"""Compiled (numba) kernels of the contact monitor (tasks/runtime/contacts.py).
 
 `classify` flags the contact types of the contacts' geom pairs from a
 table of every pair's type, what contacts.ContactMonitor's NumPy path
 (its `compiled=False` reference) computes from the geoms' categories;
 `commanded_speed` is the speed of a contact point under the commanded
 joint velocities, which both paths and the compiled physics loop
-(tasks/physics_loop.py) use, summed in one fixed order. `ContactTables`
+(tasks/runtime/physics_loop.py) use, summed in one fixed order. `ContactTables`
 are what the compiled physics loop judges contacts with.
 """
 
@@ -49,7 +49,7 @@ def classify(geom, pair_types, flags):
 @_jit
 def commanded_speed(jacobian, dofs, dq_command):
   """|J[:, dofs] dq_command| (m/s), summed joint by joint in order (the
-  same value in the Python loop and tasks/physics_loop.py)."""
+  same value in the Python loop and tasks/runtime/physics_loop.py)."""
   v0 = v1 = v2 = 0.0
   for k in range(dofs.shape[0]):
     column = dofs[k]

@@ -9,10 +9,10 @@ and a static geom or a link that can close on it with the first
 its transient one (docs/safety.md, "Energy limits of body regions"). A
 ratio above 1 exceeds the limit.
 
-The monitor (tasks/contacts.py) measures every robot-human contact this
+The monitor (tasks/runtime/contacts.py) measures every robot-human contact this
 way in every shield mode, for the episode metrics (largest energy and
-ratio per body, tasks/metrics.py); in the mode 'pfl_energy' the ratio, not
-the commanded speed, decides whether the contact is critical.
+ratio per body, tasks/runtime/metrics.py); in the mode 'pfl_energy' the ratio,
+not the commanded speed, decides whether the contact is critical.
 
 The person is kinematic and has no MuJoCo contacts with static geometry,
 so a human geom counts as touching it where its capsule's bounding box

@@ -5,7 +5,7 @@ the task's counters), the action's (action_replacements, ik_failures:
 `actions.StepGoal`), the step's outcome (reward, self_collisions,
 goals_reached), the stepping's (shield, tracking and contacts:
 `ShieldedStepper.add_step_metrics`) and, where the task has a cost, the
-cost's (tasks/cost.py). The episode metrics (`metrics.EpisodeMetrics`)
+cost's (tasks/runtime/cost.py). The episode metrics (`metrics.EpisodeMetrics`)
 accumulate them, and the episode maxima of the robot-human contact
 energies (`metrics.CONTACT_ENERGY_MAXIMA`). An RL step cut short by a
 physics error records none of the task's metrics, reward 0 and
@@ -14,9 +14,9 @@ physics_errors 1 (docs/safety.md, "Physics errors").
 
 from typing import Any, Dict, Optional, Sequence
 
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import cost as cost_lib
-from hrc_suite.tasks import metrics as metrics_lib
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import cost as cost_lib
+from hrc_suite.tasks.runtime import metrics as metrics_lib
 
 
 class StepRecorder:

@@ -14,8 +14,8 @@ import collections
 from dm_control.composer.observation import observable
 import numpy as np
 
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import cost as cost_lib
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import cost as cost_lib
 
 # Human keypoints observed relative to the end effector: head and hands
 # (docs/reference_benchmark.md, Observations).

@@ -5,7 +5,7 @@ shield, the stepping and the metrics): the joint goal of the last action,
 the RL steps taken, the reward and discount of the last one and the task
 rewards still owed (reward_delay), whether the episode ends, collision
 prevention's random state and the person's clip count. Snapshots save and
-restore it (tasks/snapshots.py). `ProgressOfTask` shows it on the task.
+restore it (tasks/runtime/snapshots.py). `ProgressOfTask` shows it on the task.
 """
 
 import collections

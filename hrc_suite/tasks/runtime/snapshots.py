@@ -4,10 +4,10 @@ JSON spec.
 
 A snapshot of a running episode is a dict: 'physics' (MuJoCo's
 integration state), 'player' (the person's), 'shield', 'task' (the
-episode's progress, tasks/episode.py, the stepping's time, contact flags
-and last command, tasks/shielded_stepping.py, the metrics and the task's
+episode's progress, tasks/runtime/episode.py, the stepping's time, contact flags
+and last command, tasks/runtime/shielded_stepping.py, the metrics and the task's
 own state, `SnapshottedTask._task_state`) and 'grips' (the person's grips
-and welds, which change the model: tasks/grips.py).
+and welds, which change the model: tasks/runtime/grips.py).
 
 A snapshot is a nested value of dicts (string keys), lists, tuples,
 NumPy arrays, NumPy scalars, Python bool/int/float, None and strings.

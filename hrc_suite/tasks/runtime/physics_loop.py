@@ -1,7 +1,7 @@
 """An RL step's physics steps in one compiled call (the fast path).
 
 On the fast path the task runs the L physics steps of an RL step itself
-(tasks/substeps.py). Where nothing in a physics step needs
+(tasks/runtime/substeps.py). Where nothing in a physics step needs
 Python, `CompiledSteps.run` runs a stretch of them in one numba call:
 per step the person's mocap rows (HumanPlayback's precomputed arrays),
 the shield's precomputed set-point, the controller's torque
@@ -11,7 +11,7 @@ by name from compiled code), dm_control's warning check, then the task's
 after_substep: the tracking bound (over the tolerance, the exact
 distance, Shield.tracking_error's kernel) and the contacts' classification,
 robot-human contacts judged by the commanded speed at the contact point
-(mj_jac, as tasks/contacts.py). The arithmetic is the Python loop's,
+(mj_jac, as tasks/runtime/contacts.py). The arithmetic is the Python loop's,
 operation for operation, so both give the same states bit for bit
 (tests/tasks/test_fast_path.py). `run` takes its arguments in named
 groups (MuJoCo's pointers, the person's mocap rows, the shield's
@@ -29,16 +29,16 @@ before, at a step that needs it:
 * a physics step that raised a MuJoCo warning (the task raises
   dm_control's PhysicsError, as the Python loop does);
 * a robot-human contact where the contact monitor measures contact
-  energies (`ContactTables.human_in_python`; tasks/contact_energies.py:
+  energies (`ContactTables.human_in_python`; tasks/runtime/contact_energies.py:
   the energy model and the clamping are Python's).
 
 A task that works before every physics step (`_before_physics_step`)
 may hand the call what it writes there, computed for the RL step's
 physics steps at its start (`SteppedTask._physics_step_writes`,
-tasks/shielded_stepping.py: the carried plank's pose, the presenting
+tasks/runtime/shielded_stepping.py: the carried plank's pose, the presenting
 grip); where it cannot, an entity or an extra substep hook is active, or
 the model is not stepped the legacy way, the Python loop runs
-(ShieldedStepper.run_physics_steps, tasks/shielded_stepping.py).
+(ShieldedStepper.run_physics_steps, tasks/runtime/shielded_stepping.py).
 MuJoCo errors (mju_error, e.g. an exhausted arena) cannot pass through
 compiled frames as exceptions, so the call also needs the arena's high
 water mark below `ARENA_HEADROOM` of its size; above it the Python loop,
@@ -65,9 +65,9 @@ import numpy as np
 
 from hrc_suite.control import controller_kernels
 from hrc_suite.safety import kernels
-from hrc_suite.tasks import contact_kernels
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import tool_hold_kernels
+from hrc_suite.tasks.runtime import contact_kernels
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import tool_hold_kernels
 
 _jit = numba.njit(cache=True, fastmath=False)
 

@@ -9,7 +9,7 @@ path, environments made by `suite.load` tell composer that an RL step is
 one substep (`HrcTask.physics_steps_per_control_step`), and that substep
 is the task's (`suite.Environment._substep` calls
 `HrcTask.run_physics_steps`, which its `ShieldedStepper` runs,
-tasks/shielded_stepping.py): it runs the L physics steps itself, each
+tasks/runtime/shielded_stepping.py): it runs the L physics steps itself, each
 exactly as composer would: task hook, entity hooks, extra hooks, the
 physics step, then the after hooks in the same order.
 

@@ -19,7 +19,7 @@ set by `Human.hold`) but is switched off; the hold applies forces through
 
 The target's velocity and acceleration are finite differences of its poses
 at consecutive physics steps; `state()` / `set_state()` carry them through
-snapshots. The arithmetic is tasks/tool_hold_kernels.py's, which the
+snapshots. The arithmetic is tasks/runtime/tool_hold_kernels.py's, which the
 compiled physics loop calls too (`kernel_arguments`).
 """
 
@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from hrc_suite import rotations
-from hrc_suite.tasks import tool_hold_kernels as kernels
+from hrc_suite.tasks.runtime import tool_hold_kernels as kernels
 
 # Hand stiffness of a relaxed human arm: of the order of a few hundred N/m
 # (Mussa-Ivaldi, Hogan & Bizzi 1985, J. Neurosci. 5(10): 2732-2743, hand

@@ -6,8 +6,8 @@ class constants) and checks every value, with an error naming the
 argument, the bad value and what was expected. HrcTask builds its scene
 from the result, a frozen dataclass (in the spirit of MuJoCo
 Playground's task configs). What a module of its own interprets is
-checked there: motions (tasks/motions.py), observations and their noise
-and delay, cameras (tasks/observations.py).
+checked there: motions (tasks/runtime/motions.py), observations and their noise
+and delay, cameras (tasks/runtime/observations.py).
 """
 
 import dataclasses
@@ -19,9 +19,9 @@ from hrc_suite import robot_description
 from hrc_suite.entities import workcell as workcell_lib
 from hrc_suite.safety import collision_prevention as cp_lib
 from hrc_suite.safety.shield import modes as modes_lib
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import defaults as defaults_lib
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import defaults as defaults_lib
 
 DEFAULT_SHIELD_SUBSTEPS = 25          # L (docs/reference_benchmark.md, Timing)
 DEFAULT_PHYSICS_TIMESTEP = workcell_lib.PHYSICS_TIMESTEP   # 4 ms
@@ -112,7 +112,7 @@ class TaskOptions:
     most the workcell's offscreen framebuffer (960, 1280).
   * cost: None (no cost signal), True (the default `cost.CostSpec`), a
     CostSpec or a dict of its fields: every RL step's step metrics then
-    hold the safety cost's components and scalar (tasks/cost.py), and
+    hold the safety cost's components and scalar (tasks/runtime/cost.py), and
     the observables 'cost' and 'cost_components' exist (enabled by the
     'safe_rl' observations preset, which implies cost=True).
   """
@@ -120,7 +120,7 @@ class TaskOptions:
   # hrc_suite/assets/robots and those registered) or the path of a .json
   # description file (registered under its name), resolved to a name.
   robot: str
-  # 'joint' or 'cartesian' (tasks/actions.py).
+  # 'joint' or 'cartesian' (tasks/runtime/actions.py).
   action_space: str
   # A shield mode of safety/shield/modes.py ('ssm', 'pfl', 'off' or one
   # registered elsewhere).

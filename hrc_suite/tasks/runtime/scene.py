@@ -31,11 +31,11 @@ from hrc_suite.safety import contact_energy
 from hrc_suite.safety import robot_energy
 from hrc_suite.safety import shield as shield_lib
 from hrc_suite.safety.shield import modes
-from hrc_suite.tasks import actions
-from hrc_suite.tasks import contact_energies
-from hrc_suite.tasks import contacts
-from hrc_suite.tasks import motions as motions_lib
-from hrc_suite.tasks import self_collision as self_collision_lib
+from hrc_suite.tasks.runtime import actions
+from hrc_suite.tasks.runtime import contact_energies
+from hrc_suite.tasks.runtime import contacts
+from hrc_suite.tasks.runtime import motions as motions_lib
+from hrc_suite.tasks.runtime import self_collision as self_collision_lib
 
 
 class JointIndices(NamedTuple):
@@ -68,7 +68,7 @@ class Scene:
   def bind(self, physics, object_geoms, critical_speed, compiled):
     """The contact monitor and the robot's joint addresses of a compiled
     physics. The monitor measures every robot-human contact's energy
-    (tasks/contact_energies.py; the gripper as the payload, the shield's
+    (tasks/runtime/contact_energies.py; the gripper as the payload, the shield's
     clamp geometry and static boxes) and, in the shield mode 'pfl_energy', judges the
     contact by it.
 
