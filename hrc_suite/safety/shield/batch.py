@@ -25,11 +25,13 @@ set-points) before `Shield.resync`.
 """
 
 import math
+from typing import Tuple
 
 import numpy as np
 
 from hrc_suite.safety.shield import cycle_kernels as ck
 from hrc_suite.safety.shield import human_reach as human_reach_lib
+from hrc_suite.safety.shield import shield as shield_lib
 from hrc_suite.safety.shield import shield_state
 
 # Plan samples computed ahead of a compiled call, beyond the cycles' own
@@ -40,17 +42,30 @@ from hrc_suite.safety.shield import shield_state
 _FILL_MARGIN_CYCLES = 8
 
 
-def checkpoint(shield):
-  """The shield's state now (for `restore`): its `ShieldState`."""
+def checkpoint(shield: shield_lib.Shield) -> shield_state.ShieldState:
+  """The shield's state now, for `restore`.
+
+  Args:
+    shield: the shield.
+
+  Returns:
+    Its `ShieldState` (frozen: the checkpoint itself).
+  """
   return shield.state
 
 
-def restore(shield, saved):
-  """Returns the shield to a `checkpoint`."""
+def restore(shield: shield_lib.Shield,
+            saved: shield_state.ShieldState) -> None:
+  """Returns the shield to a `checkpoint`.
+
+  Args:
+    shield: the shield the checkpoint is of.
+    saved: the checkpoint.
+  """
   shield.state = saved
 
 
-def compiled_eligible(shield):
+def _compiled_eligible(shield):
   """Whether the next cycle may run compiled (see the module)."""
   human = shield.human
   return (shield.gates and human.use_combined_model
@@ -196,10 +211,24 @@ def _next_state(state, arrays, plan, candidate, key, check, frames, times,
           length_positions=length_positions))
 
 
-def step_many(shield, frames, times, compiled=True):
-  """Shield.step for each cycle: frames (n, N_kp, 3) measured at times
-  (n,). Returns set-points (n, 3, dof) (q, dq, ddq of each cycle) and
-  the cycles' `intervened` flags (n,)."""
+def step_many(shield: shield_lib.Shield, frames: np.ndarray,
+              times: np.ndarray, compiled: bool = True
+              ) -> Tuple[np.ndarray, np.ndarray]:
+  """Shield.step for each of n cycles (see the module).
+
+  Args:
+    shield: the shield.
+    frames: (n, N_kp, 3) the human keypoints measured at each cycle.
+    times: (n,) the cycles' times, s.
+    compiled: False runs Shield.step for every cycle.
+
+  Returns:
+    (set-points (n, 3, dof): q, dq, ddq of each cycle, the cycles'
+    `intervened` flags (n,)).
+
+  Raises:
+    ValueError: frames and times do not match.
+  """
   frames = np.ascontiguousarray(frames, dtype=float)
   times = np.ascontiguousarray(times, dtype=float)
   count = times.shape[0]
@@ -210,7 +239,7 @@ def step_many(shield, frames, times, compiled=True):
   intervened = np.empty(count, dtype=bool)
   c = 0
   while c < count:
-    if compiled and compiled_eligible(shield):
+    if compiled and _compiled_eligible(shield):
       done = _run_compiled(shield, frames[c:], times[c:], setpoints[c:],
                            intervened[c:])
       c += done

@@ -35,12 +35,15 @@ with a check of its own: "A compiled verification"):
 Tasks, rendering, tags and the binaries' flags ask `names()` / `get()`.
 """
 
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple, Optional, Protocol, Tuple, Type, TypeVar
 
 import numpy as np
 
 from hrc_suite import extensions
+from hrc_suite.safety import clamping
 from hrc_suite.safety import kernels
+from hrc_suite.safety import long_term_plan as ltp
+from hrc_suite.safety import robot_reach
 from hrc_suite.safety.shield import energy_check_kernels
 from hrc_suite.safety.shield import energy_verification
 from hrc_suite.safety.shield import mode_kernels
@@ -55,6 +58,50 @@ PFL_SPEED_MARGIN = 0.9
 S_DOT_TOLERANCE = 1e-9
 
 _MODES = {}   # name -> ShieldMode instance, in registration order
+_Mode = TypeVar('_Mode', bound='ShieldMode')   # register's class.
+
+
+class ShieldView(Protocol):
+  """What a mode reads of the shield whose cycles it checks: members of
+  `shield.Shield` (shield.py imports this module, so the modes name the
+  shield by what they read of it; docs/extending.md, "A shield mode")."""
+
+  @property
+  def speed_limit(self) -> Optional[float]:
+    """The mode's speed limit at the shield's v_safe, m/s (None: no
+    contact)."""
+
+  @property
+  def interval(self) -> float:
+    """The reachability slices' length, s (docs/shield_maths.md, 6)."""
+
+  @property
+  def robot(self) -> robot_reach.RobotReach:
+    """The robot's capsules and reach capsules."""
+
+  @property
+  def energy_limits(self) -> energy_verification.EnergyLimits:
+    """The allowed energies per body of the human model."""
+
+  @property
+  def clamp_geometry(self) -> clamping.ClampGeometry:
+    """What a body can be clamped against."""
+
+  def plan_speeds(self, plan: ltp.LongTermPlan
+                  ) -> Tuple[np.ndarray, np.ndarray]:
+    """PFL's speed tables of a plan (`Shield.plan_speeds`).
+
+    Args:
+      plan: a plan of the shield.
+    """
+
+  def plan_energies(self, plan: ltp.LongTermPlan
+                    ) -> Tuple[np.ndarray, np.ndarray]:
+    """Energy PFL's tables of a plan (`Shield.plan_energies`).
+
+    Args:
+      plan: a plan of the shield.
+    """
 
 
 class Slices(NamedTuple):
@@ -77,53 +124,94 @@ class ShieldMode:
   name = None
   gates = True
 
-  def speed_limit(self, v_safe):
-    """m/s under which the robot may touch the person; None: no contact."""
+  def speed_limit(self, v_safe: float) -> Optional[float]:
+    """The speed under which the robot may touch the person.
+
+    Args:
+      v_safe: the shield's contact speed, m/s.
+
+    Returns:
+      The limit, m/s; None: no contact.
+    """
     del v_safe
     return None
 
   @property
-  def allows_contact(self):
+  def allows_contact(self) -> bool:
+    """Whether a robot-human contact below v_safe is within the mode's
+    rules (tasks/runtime/contacts.py)."""
     return self.speed_limit(1.0) is not None
 
   # The verification: readable (Shield.step) and compiled (mode_kernels),
   # each the other's twin. These implement SSM (speed_limit None) and a
   # speed limit where contact is possible (PFL).
 
-  def failsafe_target(self, shield, plan, s) -> Optional[float]:
-    """The failsafe's final path velocity when the intended step ends at
-    plan time s on `plan` (None: brake to rest). With a speed limit: the
-    largest path velocity (1 at most) at which the rest of the plan stays
-    under it, since the robot keeps moving after the failsafe."""
+  def failsafe_target(self, shield: ShieldView, plan: ltp.LongTermPlan,
+                      s: float) -> Optional[float]:
+    """The failsafe's final path velocity. With a speed limit: the largest
+    path velocity (1 at most) at which the rest of the plan stays under
+    it, since the robot keeps moving after the failsafe.
+
+    Args:
+      shield: the shield whose cycle this is.
+      plan: the plan the monitored path is on.
+      s: the plan time (s) where the intended step ends.
+
+    Returns:
+      The path velocity; None: brake to rest.
+    """
     allowed = shield.speed_limit
     if allowed is None:
       return None
     remaining = shield.plan_speeds(plan)[1][plan.sample_index(s)]
     return 1.0 if remaining <= allowed else allowed / remaining
 
-  def verdict(self, shield, slices):
-    """(safe, first unsafe slice (-1: none)) of the exact check of a
-    cycle's `Slices`, run when no broad phase settled it: SSM's
-    (docs/shield_maths.md, 9.2); with a speed limit also safe when from
-    the first slice where contact is possible on the robot stays under it
-    (9.3)."""
+  def verdict(self, shield: ShieldView, slices: Slices
+              ) -> Tuple[bool, int]:
+    """The exact check of a cycle's slices, run when no broad phase settled
+    it: SSM's (docs/shield_maths.md, 9.2); with a speed limit also safe
+    when from the first slice where contact is possible on the robot
+    stays under it (9.3).
+
+    Args:
+      shield: the shield whose cycle this is.
+      slices: the cycle's slices and reach capsules.
+
+    Returns:
+      (safe, the first unsafe slice (-1: none)).
+    """
     first = kernels.ssm_first_unsafe(
         *slices.robot, *(np.ascontiguousarray(x) for x in slices.human))
     if first < 0 or shield.speed_limit is None:
       return first < 0, first
     return _slow_enough(shield, slices, first), first
 
-  def kernel_parameters(self, shield):
-    """The compiled verification's parameters: one group (a NamedTuple
-    registered with mode_kernels.register) from this shield."""
+  def kernel_parameters(self, shield: ShieldView) -> tuple:
+    """The compiled verification's parameters.
+
+    Args:
+      shield: the shield whose cycles run compiled.
+
+    Returns:
+      One group: a NamedTuple registered with mode_kernels.register.
+    """
     if shield.speed_limit is None:
       return mode_kernels.SsmParameters()
     return mode_kernels.SpeedLimitParameters(float(shield.speed_limit),
                                              S_DOT_TOLERANCE)
 
-  def plan_tables(self, shield, plan):
-    """The compiled verification's tables of `plan` (one group; the same
-    class for every plan of a mode)."""
+  def plan_tables(self, shield: ShieldView, plan: ltp.LongTermPlan
+                  ) -> tuple:
+    """The compiled verification's tables of a plan.
+
+    Args:
+      shield: the shield whose cycles run compiled.
+      plan: a plan of the shield.
+
+    Returns:
+      One group (a NamedTuple of mode_kernels), the same class for every
+      plan of the mode.
+    """
     if shield.speed_limit is None:
       return mode_kernels.NoTables()
     return mode_kernels.SpeedTables(*shield.plan_speeds(plan))
@@ -151,8 +239,19 @@ def _slow_enough(shield, slices, first):
           <= allowed)
 
 
-def register(cls):
-  """Class decorator: registers a ShieldMode subclass under `cls.name`."""
+def register(cls: Type[_Mode]) -> Type[_Mode]:
+  """Class decorator: registers a ShieldMode subclass under `cls.name`.
+
+  Args:
+    cls: the subclass; its `name` an identifier not registered yet.
+
+  Returns:
+    cls.
+
+  Raises:
+    TypeError: cls is not a ShieldMode subclass.
+    ValueError: its name is not an identifier or is registered already.
+  """
   if not (isinstance(cls, type) and issubclass(cls, ShieldMode)):
     raise TypeError(f'modes.register expects a ShieldMode subclass, got '
                     f'{cls!r}')
@@ -167,21 +266,39 @@ def register(cls):
   return cls
 
 
-def unregister(name):
-  """Removes a registered mode (e.g. one a test registered)."""
+def unregister(name: str) -> None:
+  """Removes a registered mode (e.g. one a test registered).
+
+  Args:
+    name: the mode's name.
+
+  Raises:
+    ValueError: no mode of that name is registered.
+  """
   get(name)
   del _MODES[name]
 
 
-def names():
+def names() -> Tuple[str, ...]:
   """Names of the registered modes (shipped first: ssm, pfl, off,
   pfl_energy)."""
   extensions.load()
   return tuple(_MODES)
 
 
-def get(name):
-  """The registered ShieldMode called `name`."""
+def get(name: str) -> ShieldMode:
+  """The registered mode of a name (extensions loaded first where it is
+  not registered yet).
+
+  Args:
+    name: the mode's name.
+
+  Returns:
+    The mode.
+
+  Raises:
+    ValueError: no mode of that name is registered.
+  """
   if isinstance(name, str) and name not in _MODES:
     extensions.load()
   if not isinstance(name, str) or name not in _MODES:
@@ -203,7 +320,15 @@ class Pfl(ShieldMode):
   slower than PFL_SPEED_MARGIN x v_safe (docs/shield_maths.md, 9.3)."""
   name = 'pfl'
 
-  def speed_limit(self, v_safe):
+  def speed_limit(self, v_safe: float) -> Optional[float]:
+    """PFL_SPEED_MARGIN x v_safe.
+
+    Args:
+      v_safe: the shield's contact speed, m/s.
+
+    Returns:
+      The limit, m/s.
+    """
     return PFL_SPEED_MARGIN * v_safe
 
 
@@ -227,27 +352,57 @@ class PflEnergy(ShieldMode):
   name = 'pfl_energy'
 
   @property
-  def allows_contact(self):
+  def allows_contact(self) -> bool:
+    """True: contacts within the energy limits are within the rules."""
     return True
 
-  def failsafe_target(self, shield, plan, s):
-    """The largest path velocity (1 at most) at which the rest of the plan
-    stays within the coasting energy (energy_verification.coasting_
-    speed)."""
+  def failsafe_target(self, shield: ShieldView, plan: ltp.LongTermPlan,
+                      s: float) -> Optional[float]:
+    """The failsafe's final path velocity: the largest (1 at most) at
+    which the rest of the plan stays within the coasting energy
+    (energy_verification.coasting_speed).
+
+    Args:
+      shield: the shield whose cycle this is.
+      plan: the plan the monitored path is on.
+      s: the plan time (s) where the intended step ends.
+
+    Returns:
+      The path velocity.
+    """
     remaining = shield.plan_energies(plan)[1][plan.sample_index(s)]
     return energy_verification.coasting_speed(remaining,
                                               shield.energy_limits)
 
-  def verdict(self, shield, slices):
-    """SSM-safe, or from the first slice where contact is possible on
-    within the energy limits (`_energy_enough`)."""
+  def verdict(self, shield: ShieldView, slices: Slices
+              ) -> Tuple[bool, int]:
+    """The exact check of a cycle's slices: SSM-safe, or from the first
+    slice where contact is possible on within the energy limits
+    (`_energy_enough`; docs/shield_maths.md, 9.4).
+
+    Args:
+      shield: the shield whose cycle this is.
+      slices: the cycle's slices and reach capsules.
+
+    Returns:
+      (safe, the first SSM-unsafe slice (-1: none)).
+    """
     first = kernels.ssm_first_unsafe(
         *slices.robot, *(np.ascontiguousarray(x) for x in slices.human))
     if first < 0:
       return True, first
     return _energy_enough(shield, slices, first), first
 
-  def kernel_parameters(self, shield):
+  def kernel_parameters(self, shield: ShieldView) -> tuple:
+    """The compiled verification's parameters: the shield's energy limits
+    and clamp geometry.
+
+    Args:
+      shield: the shield whose cycles run compiled.
+
+    Returns:
+      A mode_kernels.EnergyParameters.
+    """
     limits, clamp = shield.energy_limits, shield.clamp_geometry
     energy_check_kernels.warm_up()   # The readable verdict's kernel.
     return mode_kernels.EnergyParameters(
@@ -261,7 +416,18 @@ class PflEnergy(ShieldMode):
         frame_index=np.ascontiguousarray(shield.robot.frame_index,
                                          dtype=np.int64))
 
-  def plan_tables(self, shield, plan):
+  def plan_tables(self, shield: ShieldView, plan: ltp.LongTermPlan
+                  ) -> tuple:
+    """The compiled verification's tables of a plan: its energy tables
+    (`Shield.plan_energies`).
+
+    Args:
+      shield: the shield whose cycles run compiled.
+      plan: a plan of the shield.
+
+    Returns:
+      A mode_kernels.EnergyTables.
+    """
     return mode_kernels.EnergyTables(*shield.plan_energies(plan))
 
 

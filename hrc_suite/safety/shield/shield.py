@@ -50,6 +50,8 @@ asked.
 
 import dataclasses
 import math
+import pathlib
+from typing import Any, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -101,14 +103,64 @@ def _joint_list(values):
 class Shield:
   """SaRA-style reachability shield for one robot in a registered mode
   (`modes`: 'ssm', 'pfl', 'off', 'pfl_energy' or one registered
-  elsewhere)."""
+  elsewhere).
 
-  def __init__(self, robot_description, mode='ssm',
-               cycle_time=DEFAULT_CYCLE_TIME, human_model=None,
-               base_pose=None, tool_capsule=None, v_safe=None,
-               use_kalman_filter=False, use_combined_model=None,
-               secure_radius=None, alpha=None, q_init=None, payload=None,
-               static_boxes=None):
+  Args:
+    robot_description: the robot's description, or its name or file path
+      (robot_description.load).
+    mode: the name of a registered mode (`modes.names()`).
+    cycle_time: the shield's cycle (s), > 0.
+    human_model: the human's reachable-set model: a `HumanReach` (used
+      as it is), its `HumanModelConfig`, or a model file (None: the
+      shipped model, docs/shield_maths.md, 8).
+    base_pose: the robot base's pose, a 4x4 matrix or (x, y, z, roll,
+      pitch, yaw) (None: the robot's mount, layout.robot_mount).
+    tool_capsule: (p1 (3,), p2 (3,), radius) of the tool's capsule in the
+      last link's frame, m (None: no tool).
+    v_safe: the contact speed (m/s) the speed-limiting modes derive their
+      limit from, > 0 (None: the description's).
+    use_kalman_filter: whether the human's keypoint velocities come from a
+      Kalman filter instead of finite differences (docs/shield_maths.md,
+      8.1).
+    use_combined_model: whether the human's reachable set is the combined
+      model alone rather than POS, VEL and ACCEL together
+      (docs/shield_maths.md, 8.3; None: the model file's).
+    secure_radius: how far (m) the robot may be from its command (None:
+      the description's; docs/shield_maths.md, 5.2).
+    alpha: the path-curvature bound of the robot reach capsules, one value
+      or one per joint (None: the description's alpha_i_max;
+      docs/shield_maths.md, 5.2).
+    q_init: the joint positions (dof,) the shield starts at rest at (None:
+      the description's q_home).
+    payload: what the last link carries, for energy PFL (None: the
+      gripper, robot_energy.gripper_payload).
+    static_boxes: the boxes a body can be clamped against, for energy PFL:
+      name -> (min (3,), max (3,)), world frame (None: the workcell's,
+      collision_prevention.workcell_boxes).
+
+  Raises:
+    ValueError: cycle_time or v_safe is not positive, the mode is not
+      registered, or q_init is not dof finite joint positions within the
+      joint limits.
+  """
+
+  def __init__(
+      self,
+      robot_description: Union[str, robot_description_lib.RobotDescription],
+      mode: str = 'ssm', cycle_time: float = DEFAULT_CYCLE_TIME,
+      human_model: Union[None, str, pathlib.Path,
+                         human_reach_lib.HumanModelConfig,
+                         human_reach_lib.HumanReach] = None,
+      base_pose: Optional[Union[np.ndarray, Sequence[float]]] = None,
+      tool_capsule: Optional[Tuple[np.ndarray, np.ndarray, float]] = None,
+      v_safe: Optional[float] = None, use_kalman_filter: bool = False,
+      use_combined_model: Optional[bool] = None,
+      secure_radius: Optional[float] = None,
+      alpha: Optional[Union[float, np.ndarray]] = None,
+      q_init: Optional[np.ndarray] = None,
+      payload: Optional[robot_energy.Payload] = None,
+      static_boxes: Optional[Mapping[str, Tuple[Sequence[float],
+                                                Sequence[float]]]] = None):
     if isinstance(robot_description, str):
       robot_description = robot_description_lib.load(robot_description)
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
@@ -201,26 +253,27 @@ class Shield:
     self.reset(robot_description.q_home if q_init is None else q_init)
 
   @property
-  def mode(self):
-    """The name of the shield's mode (`modes`); settable."""
+  def mode(self) -> str:
+    """The name of the shield's mode (`modes`); settable (ValueError for
+    a name that is not registered)."""
     return self._mode.name
 
   @mode.setter
-  def mode(self, name):
+  def mode(self, name: str) -> None:
     self._mode = modes_lib.get(name)
     self._gates = self._mode.gates
     self.speed_limit = self._mode.speed_limit(self.v_safe)
     self._kernel_parameters = None   # kernel_parameters, made when asked.
 
   @property
-  def gates(self):
+  def gates(self) -> bool:
     """Whether the mode's verdict decides the command (`modes`)."""
     return self._gates
 
   # ------------------------------------------------------------ the state
 
   @property
-  def state(self):
+  def state(self) -> shield_state.ShieldState:
     """Everything a cycle reads and changes (`shield_state.ShieldState`,
     frozen): a checkpoint; settable (a restore, or the compiled cycles'
     result, safety/shield/batch.py). Its `human` is `self.human.state`."""
@@ -230,7 +283,7 @@ class Shield:
     return self._state
 
   @state.setter
-  def state(self, state):
+  def state(self, state: shield_state.ShieldState) -> None:
     if not isinstance(state, shield_state.ShieldState):
       raise TypeError(f'Shield.state: expected a ShieldState, got '
                       f'{type(state).__name__}')
@@ -245,7 +298,7 @@ class Shield:
       self._lazy = {}
 
   @property
-  def kernel_constants(self):
+  def kernel_constants(self) -> cycle_kernels.Constants:
     """The compiled cycles' constants of this shield
     (`cycle_kernels.Constants`; computed once)."""
     if self._kernel_constants is None:
@@ -278,22 +331,44 @@ class Shield:
             human._kernel_v_max, human._kernel_a_max, self._body_ends,
             human._kernel_ends, *arrays(human._half_thickness)))
 
-  def kernel_parameters(self):
+  def kernel_parameters(self) -> tuple:
     """The mode's parameter group for the compiled cycles
-    (`ShieldMode.kernel_parameters`, mode_kernels)."""
+    (`ShieldMode.kernel_parameters`, mode_kernels), made once per mode.
+
+    Returns:
+      The group: a NamedTuple registered with mode_kernels.register.
+    """
     if self._kernel_parameters is None:
       self._kernel_parameters = self._mode.kernel_parameters(self)
     return self._kernel_parameters
 
-  def kernel_tables(self, plan):
-    """The mode's tables of `plan` for the compiled cycles
-    (`ShieldMode.plan_tables`)."""
+  def kernel_tables(self, plan: ltp.LongTermPlan) -> tuple:
+    """The mode's tables of a plan for the compiled cycles
+    (`ShieldMode.plan_tables`).
+
+    Args:
+      plan: a plan of this shield (the adopted one or a candidate).
+
+    Returns:
+      The tables: one NamedTuple of mode_kernels, the same class for every
+      plan of the mode.
+    """
     return self._mode.plan_tables(self, plan)
 
   # --------------------------------------------------------------- commands
 
-  def reset(self, q, t=0.0):
-    """Robot at rest at q, no goal, no human measurement."""
+  def reset(self, q: np.ndarray, t: float = 0.0) -> None:
+    """Restarts the shield: the robot at rest at q, no goal, no human
+    measurement.
+
+    Args:
+      q: joint positions (dof,).
+      t: the time (s) of the restart (`time`).
+
+    Raises:
+      ValueError: q is not dof finite joint positions within the joint
+        limits.
+    """
     q = np.asarray(q, dtype=float)
     if q.shape != (self.dof,) or not np.all(np.isfinite(q)):
       raise ValueError(f'q: expected {self.dof} finite joint positions for '
@@ -315,14 +390,18 @@ class Shield:
             reach_distance=np.inf, edges=None),
         human=self.human.state))
 
-  def new_goal(self, q_goal, plan=None):
+  def new_goal(self, q_goal: np.ndarray,
+               plan: Optional[ltp.LongTermPlan] = None) -> None:
     """Plans to rest at q_goal (clamped 0.01 rad inside the limits) from the
     next step on; the new plan is adopted once a step on it verifies.
 
-    plan: the plan to q_goal made already from this shield's command
-    (`CollisionPrevention.filter_action` with plan_from=this shield): the
-    first candidate where it is the plan the shield would make now (the
-    same inputs, bit for bit: `LongTermPlan.made_from`), else ignored.
+    Args:
+      q_goal: the goal's joint positions (dof,).
+      plan: the plan to q_goal made already from this shield's command
+        (`CollisionPrevention.filter_action` with plan_from=this shield):
+        the first candidate where it is the plan the shield would make now
+        (the same inputs, bit for bit: `LongTermPlan.made_from`), else
+        ignored.
     """
     state = self.state
     goal = ltp.clamp_goal(q_goal, self.limits)
@@ -338,7 +417,7 @@ class Shield:
                                 candidate=candidate, candidate_key=key),
                   keep_readouts=True)
 
-  def resync(self, q):
+  def resync(self, q: np.ndarray) -> None:
     """The robot was measured at q, off the command by more than the
     tracking tolerance (a person pushed it): restart at rest at q.
 
@@ -354,6 +433,12 @@ class Shield:
     person). The goal is kept: it is planned again from q and adopted once
     a step on it verifies, as after new_goal. The last cycle's verdict and
     reach capsules stay readable (they describe that cycle's check).
+
+    Args:
+      q: the measured joint positions (dof,).
+
+    Raises:
+      ValueError: q is not dof finite joint positions.
     """
     q = np.asarray(q, dtype=float)
     if q.shape != (self.dof,) or not np.all(np.isfinite(q)):
@@ -370,31 +455,57 @@ class Shield:
         candidate_key=None))
 
   @property
-  def tracking_tolerance(self):
+  def tracking_tolerance(self) -> float:
     """How far (m) the robot may be from its command: the secure radius,
     by which every robot reach capsule is enlarged (docs/safety.md,
     Assumptions: Tracking)."""
     return self.robot.secure_radius
 
   @property
-  def tracking_levers(self):
+  def tracking_levers(self) -> np.ndarray:
     """Lever arms (dof,) in m/rad, read-only: sum_i lever_i |q_i - p_i|
     (`tracking_bound`) bounds `tracking_error(q, p)`."""
     return self._levers
 
-  def tracking_bound(self, q, reference=None):
+  def tracking_bound(self, q: np.ndarray,
+                     reference: Optional[np.ndarray] = None) -> float:
     """A cheap upper bound (m) on `tracking_error(q, reference)`: the joint
-    errors times `tracking_levers`."""
+    errors times `tracking_levers`.
+
+    Args:
+      q: joint positions (dof,), e.g. the measured ones.
+      reference: joint positions (dof,) to compare with (None: the
+        command's).
+
+    Returns:
+      The bound, m.
+
+    Raises:
+      ValueError: q or reference is not dof joint positions.
+    """
     q, reference = self._joint_pair(q, reference)
     return float(np.abs(q - reference) @ self._levers)
 
-  def tracking_error(self, q, reference=None):
+  def tracking_error(self, q: np.ndarray,
+                     reference: Optional[np.ndarray] = None) -> float:
     """How far (m) the robot's capsules at joint positions q are from where
     they are at `reference` (None: the command): the largest displacement
     of a capsule axis end. Capsules move rigidly, so no point of a
     capsule moves farther than its farther end. (kernels.tracking_error,
     which tasks/runtime/physics_loop.py calls too; its NumPy reference is in
-    tests/safety/safety_references.py, equal to round-off.)"""
+    tests/safety/safety_references.py, equal to round-off.)
+
+    Args:
+      q: joint positions (dof,), e.g. the measured ones.
+      reference: joint positions (dof,) to compare with (None: the
+        command's).
+
+    Returns:
+      The largest displacement, m.
+
+    Raises:
+      ValueError: q or reference is not dof joint positions.
+    """
     q, reference = self._joint_pair(q, reference)
     robot = self.robot
     return float(kernels.tracking_error(q, reference, *robot._kernel_model,
@@ -411,54 +522,60 @@ class Shield:
     return q, reference
 
   @property
-  def goal(self):
+  def goal(self) -> Optional[np.ndarray]:
     """The goal being planned to (None before the first new_goal)."""
     return self._state.goal
 
   @property
-  def plan(self):
+  def plan(self) -> ltp.LongTermPlan:
     """The adopted (verified) long-term plan."""
     return self._state.plan
 
   @property
-  def goal_pending(self):
+  def goal_pending(self) -> bool:
     """A goal was given whose plan has not been adopted yet."""
     return self._state.goal_pending
 
   # ------------------------------------------------------------- read-outs
 
   @property
-  def q(self):
+  def q(self) -> np.ndarray:
+    """The command's joint positions (dof,), rad."""
     return self._state.command[0]
 
   @property
-  def dq(self):
+  def dq(self) -> np.ndarray:
+    """The command's joint velocities (dof,), rad/s."""
     return self._state.command[1]
 
   @property
-  def ddq(self):
+  def ddq(self) -> np.ndarray:
+    """The command's joint accelerations (dof,), rad/s^2."""
     return self._state.command[2]
 
   @property
-  def dddq(self):
+  def dddq(self) -> np.ndarray:
+    """The command's joint jerks (dof,), rad/s^3."""
     return self._state.command[3]
 
   @property
-  def s(self):
+  def s(self) -> float:
     """Position along the adopted plan (plan time, s)."""
     return self._state.verified.s
 
   @property
-  def s_dot(self):
+  def s_dot(self) -> float:
+    """Path velocity along the adopted plan (plan time per time; 1: the
+    plan's nominal speed)."""
     return self._state.verified.s_dot
 
   @property
-  def time(self):
+  def time(self) -> float:
     """Time (s) of the last cycle (or of `reset`)."""
     return self._state.time
 
   @property
-  def intervened(self):
+  def intervened(self) -> bool:
     """The last cycle did not take the step its plan wanted."""
     return self._state.intervened
 
@@ -472,20 +589,21 @@ class Shield:
           state.time))
 
   @property
-  def is_safe(self):
+  def is_safe(self) -> bool:
     """The last cycle's monitored path verified (mode 'off': computed when
     first asked; True before the first step)."""
     self._check_now()
     return self._state.verification.is_safe
 
   @property
-  def first_unsafe_interval(self):
+  def first_unsafe_interval(self) -> int:
     """First slice of the last check that was not verified (-1: none)."""
     self._check_now()
     return self._state.verification.first_unsafe_interval
 
   @property
-  def robot_reach_capsules(self):
+  def robot_reach_capsules(
+      self) -> Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Robot reach capsules of the last check: c1, c2 (K, L, 3), r (K, L);
     slice 0 is the current step, then the failsafe (None before a check)."""
     self._check_now()
@@ -498,7 +616,8 @@ class Shield:
     return self._lazy['robot_reach']
 
   @property
-  def human_reach_capsules(self):
+  def human_reach_capsules(
+      self) -> Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Human reach capsules of the last check: c1, c2 (M, K, B, 3), r (M, K,
     B) (None without a measurement or check)."""
     self._check_now()
@@ -511,7 +630,7 @@ class Shield:
     return self._lazy['human_reach']
 
   @property
-  def reach_distance(self):
+  def reach_distance(self) -> float:
     """Clearance (m) of the last check: verification.ssm_verdict's
     min_distance (inf when nothing was near; a broad phase's lower bound
     when one settled the cycle; -inf when no path could be checked).
@@ -527,7 +646,7 @@ class Shield:
     return self._state.verification.reach_distance
 
   @property
-  def max_cartesian_speed(self):
+  def max_cartesian_speed(self) -> float:
     """Largest surface speed of any robot capsule at the command (m/s)."""
     if 'speed' not in self._lazy:
       command = self._state.command
@@ -536,7 +655,7 @@ class Shield:
     return self._lazy['speed']
 
   @property
-  def min_distance(self):
+  def min_distance(self) -> float:
     """Distance (m) between the robot's real capsules at the command and
     the human's real body capsules at the last measurement (inf without a
     measurement; negative when they overlap)."""
@@ -554,7 +673,7 @@ class Shield:
 
   # -------------------------------------------------------------- snapshots
 
-  def get_state(self):
+  def get_state(self) -> dict[str, Any]:
     """The shield's state as a flat dict of arrays, strings, numbers and
     booleans (no callables), for np.savez / JSON (after .tolist()).
     `set_state` restores it so that continuing gives identical commands.
@@ -563,6 +682,9 @@ class Shield:
     Ruckig plan's inputs) and rebuilt; caches (the pending candidate plan,
     PFL speed tables, lazy read-outs) are recomputed from the same inputs.
     In mode 'off' the cycle's check runs first (the read-outs are saved).
+
+    Returns:
+      The snapshot: name -> value.
     """
     self._check_now()
     reach_distance = float(self.reach_distance)
@@ -598,9 +720,17 @@ class Shield:
     snapshot.update({f'human_{k}': v for k, v in human.items()})
     return snapshot
 
-  def set_state(self, state):
-    """Restores a `get_state` of a shield of the same robot, mode and cycle
-    (arrays may be lists, as after JSON; 0-d arrays as after np.load)."""
+  def set_state(self, state: Mapping[str, Any]) -> None:
+    """Restores a `get_state` of a shield of the same robot, mode and cycle.
+
+    Args:
+      state: a `get_state` (arrays may be lists, as after JSON; 0-d arrays
+        as after np.load).
+
+    Raises:
+      ValueError: the state is of another robot, mode or cycle, or its
+        command has the wrong shape.
+    """
     def scalar(name):
       return np.asarray(state[name]).item()
     for name, mine in (('robot', self.description.name), ('mode', self.mode),
@@ -644,14 +774,22 @@ class Shield:
 
   # ------------------------------------------------------------------ step
 
-  def step(self, human_keypoints, t):
-    """One cycle at time t: returns the command (q, dq, ddq).
+  def step(self, human_keypoints: Optional[np.ndarray], t: float
+           ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One cycle at time t.
 
     Call once every cycle_time (the command advances the path by one
     cycle); the robot should reach the command within the cycle.
-    human_keypoints: (N_kp, 3) positions measured at t, or None if there is
-    no new measurement (the last one then ages; with no measurement ever the
-    workcell is taken to be empty).
+
+    Args:
+      human_keypoints: (N_kp, 3) positions measured at t, or None if there
+        is no new measurement (the last one then ages; with no measurement
+        ever the workcell is taken to be empty).
+      t: the cycle's time, s.
+
+    Returns:
+      The command: joint positions, velocities and accelerations (dof,)
+      each.
     """
     t = float(t)
     if human_keypoints is not None:
@@ -782,13 +920,21 @@ class Shield:
         self._jerk_numerator, self._jerk_acc, dens))
     return acc, (jerk if jerk > 0.0 else 0.0)
 
-  def candidate(self, state):
-    """(the plan to the pending goal from `state`'s command, its key) as a
-    cycle from `state` takes it: the state's candidate while the verified
-    path has not moved since it was planned, else a new one (`candidate_
-    from`); (None, None) where none can be made. The compiled cycles make
-    the same test (cycle_kernels.ssm_cycles stops for a candidate only
-    where a plan may start)."""
+  def candidate(self, state: shield_state.ShieldState
+                ) -> Tuple[Optional[ltp.LongTermPlan], Optional[tuple]]:
+    """The plan to the pending goal from a state's command as a cycle from
+    that state takes it: the state's candidate while the verified path has
+    not moved since it was planned, else a new one (`candidate_from`). The
+    compiled cycles make the same test (cycle_kernels.ssm_cycles stops for
+    a candidate only where a plan may start).
+
+    Args:
+      state: a state of this shield with a pending goal.
+
+    Returns:
+      (the plan, its key: the verified path's (s, s_dot) it starts from),
+      or (None, None) where none can be made.
+    """
     key = (state.verified.s, state.verified.s_dot)
     if state.candidate is not None and state.candidate_key == key:
       return state.candidate, key   # The robot has not moved: still valid.
@@ -803,12 +949,22 @@ class Shield:
     (docs/shield_maths.md, 1)."""
     return not (np.abs(command[2]) > self.limits.a_max_ltt).any()
 
-  def candidate_from(self, command, s, s_dot, recent=True):
-    """(plan to the pending goal from `command` (q, dq, ddq rows first)
-    at verified path position s and velocity s_dot, its key (s, s_dot)),
-    or None where none can be made; the caller has found that a plan may
-    start there (`_can_plan_from`). recent: as plan_to_goal's (False: a
-    command moved since anyone planned from it)."""
+  def candidate_from(self, command: np.ndarray, s: float, s_dot: float,
+                     recent: bool = True
+                     ) -> Optional[Tuple[ltp.LongTermPlan, tuple]]:
+    """The plan to the pending goal from a command; the caller has found
+    that a plan may start there (`_can_plan_from`).
+
+    Args:
+      command: (5, dof), the command's q, dq, ddq rows first.
+      s: the verified path's position (plan time, s) at the command.
+      s_dot: the verified path's velocity there.
+      recent: as plan_to_goal's (False: a command moved since anyone
+        planned from it).
+
+    Returns:
+      (the plan, its key (s, s_dot)), or None where none can be made.
+    """
     try:
       plan = ltp.plan_to_goal(command[0], command[1], command[2],
                               self._state.goal, self.limits, self.cycle_time,
@@ -817,13 +973,21 @@ class Shield:
       return None
     return plan, (s, s_dot)
 
-  def plan_speeds(self, plan):
+  def plan_speeds(self, plan: ltp.LongTermPlan
+                  ) -> Tuple[np.ndarray, np.ndarray]:
     """PFL tables of a plan's largest capsule surface speed at nominal
-    path speed: over the next PFL_WINDOW samples, and from each sample to
-    the end (both (N,), m/s). Kept on the plan for this robot
-    (`LongTermPlan.derived`): a candidate's tables stay its own when it
-    is adopted, and a plan shared through long_term_plan's cache of
-    recent plans is not tabled twice."""
+    path speed. Kept on the plan for this robot (`LongTermPlan.derived`):
+    a candidate's tables stay its own when it is adopted, and a plan
+    shared through long_term_plan's cache of recent plans is not tabled
+    twice.
+
+    Args:
+      plan: a plan of this shield.
+
+    Returns:
+      (window, suffix), both (N,), m/s: the largest speed over the next
+      PFL_WINDOW samples, and from each sample to the end.
+    """
     robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
     return plan.derived('pfl_speed_tables', robot,
                         lambda: speed_kernels.plan_speed_tables(
@@ -834,7 +998,7 @@ class Shield:
   # ------------------------------------------------------- energy PFL
 
   @property
-  def energy_model(self):
+  def energy_model(self) -> arm_energy.ArmEnergyModel:
     """The arm's energy model with its payload
     (`arm_energy.ArmEnergyModel`; made when first asked)."""
     if 'model' not in self._energy:
@@ -845,10 +1009,18 @@ class Shield:
                                                         payload)
     return self._energy['model']
 
-  def set_payload(self, payload):
-    """What the last link carries from now on (`robot_energy.Payload`: the
-    gripper and an object grasped, or the gripper alone after a release;
-    None: the gripper): energy PFL's plan tables follow it."""
+  def set_payload(self, payload: Optional[robot_energy.Payload]) -> None:
+    """Sets what the last link carries from now on: energy PFL's plan
+    tables follow it.
+
+    Args:
+      payload: the gripper and an object grasped, or the gripper alone
+        after a release (None: the gripper,
+        robot_energy.gripper_payload).
+
+    Raises:
+      TypeError: payload is neither a robot_energy.Payload nor None.
+    """
     if payload is not None and not isinstance(payload, robot_energy.Payload):
       raise TypeError(f'payload: expected a robot_energy.Payload or None, '
                       f'got {type(payload).__name__}')
@@ -856,7 +1028,7 @@ class Shield:
     self._energy.pop('model', None)
 
   @property
-  def energy_limits(self):
+  def energy_limits(self) -> energy_verification.EnergyLimits:
     """The allowed energies per body of the human model
     (`energy_verification.EnergyLimits`)."""
     if 'limits' not in self._energy:
@@ -865,7 +1037,7 @@ class Shield:
     return self._energy['limits']
 
   @property
-  def clamp_geometry(self):
+  def clamp_geometry(self) -> clamping.ClampGeometry:
     """What a body can be clamped against (`clamping.ClampGeometry` of the
     robot's capsules and the static boxes)."""
     if 'clamp' not in self._energy:
@@ -877,12 +1049,20 @@ class Shield:
           self.description, self.robot.frame_index, boxes)
     return self._energy['clamp']
 
-  def plan_energies(self, plan):
-    """Energy PFL tables of a plan (docs/shield_maths.md, 9.4): per link
-    the largest contact energy bound at nominal path speed over the next
-    PFL_WINDOW samples (N, dof), and of any link from each sample to the
-    end (N,), J. Kept on the plan for this shield's energy model (a new
-    payload makes new ones), as `plan_speeds`."""
+  def plan_energies(self, plan: ltp.LongTermPlan
+                    ) -> Tuple[np.ndarray, np.ndarray]:
+    """Energy PFL tables of a plan (docs/shield_maths.md, 9.4). Kept on the
+    plan for this shield's energy model (a new payload makes new ones), as
+    `plan_speeds`.
+
+    Args:
+      plan: a plan of this shield.
+
+    Returns:
+      (window (N, dof), suffix (N,)), J: per link the largest contact
+      energy bound at nominal path speed over the next PFL_WINDOW samples,
+      and of any link from each sample to the end.
+    """
     model = self.energy_model
     return plan.derived('pfl_energy_tables', model,
                         lambda: model.plan_tables(plan.samples(),
@@ -973,11 +1153,21 @@ class Shield:
     return 0.5 * (p1 + p2), grow
 
 
-def pfl_speed_tables(speeds, compiled=True):
-  """PFL tables from a plan's capsule surface speeds (N, L) at nominal
-  path speed: the largest over the next PFL_WINDOW samples (the last held
-  past the end), and from each sample to the end (both (N,)).
-  compiled=False runs the NumPy reference."""
+def pfl_speed_tables(speeds: np.ndarray, compiled: bool = True
+                     ) -> Tuple[np.ndarray, np.ndarray]:
+  """PFL tables from a plan's capsule surface speeds at nominal path speed
+  (`Shield.plan_speeds` computes them from the plan in one kernel).
+
+  Args:
+    speeds: (N, L) the surface speed of each capsule at each plan sample,
+      m/s.
+    compiled: False runs the NumPy reference.
+
+  Returns:
+    (window, suffix), both (N,): the largest speed over the next
+    PFL_WINDOW samples (the last held past the end), and from each sample
+    to the end.
+  """
   if compiled:
     return kernels.speed_tables(np.ascontiguousarray(speeds, dtype=float),
                                 PFL_WINDOW)

@@ -15,7 +15,7 @@ lengths and velocity errors (`HumanReach`), a plan's samples and tables
 """
 
 import dataclasses
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple, Optional, Sequence, Type, TypeVar, Union
 
 import numpy as np
 
@@ -26,6 +26,8 @@ from hrc_suite.safety.shield import path as path_lib
 # Floats of a path as an array (path_kernels): s, s_dot, s_ddot, jerk,
 # three phase ends, three phase jerks.
 PATH_SIZE = 10
+
+_Record = TypeVar('_Record')   # record's dataclass.
 
 
 class ReachEdges(NamedTuple):
@@ -76,8 +78,14 @@ class ShieldState:
   human: human_reach_lib.HumanState
 
   def replace(self, **changes: Any) -> 'ShieldState':
-    """A copy with `changes` (field name -> value): dataclasses.replace
-    without __init__ (`record`).
+    """A copy with changes: dataclasses.replace without __init__
+    (`record`).
+
+    Args:
+      **changes: field name -> its new value.
+
+    Returns:
+      The copy.
 
     Raises:
       TypeError: a change names no field.
@@ -88,11 +96,18 @@ class ShieldState:
     return record(ShieldState, **{**self.__dict__, **changes})
 
 
-def record(cls, **values: Any):
-  """`cls(**values)` for a frozen dataclass `cls` (`ShieldState`,
-  `Verification`, human_reach.HumanState) given every field, without its
+def record(cls: Type[_Record], **values: Any) -> _Record:
+  """`cls(**values)` for a frozen dataclass given every field, without its
   __init__'s one object.__setattr__ per field: the compiled cycles pack a
   record per call (safety/shield/batch.py).
+
+  Args:
+    cls: the dataclass (`ShieldState`, `Verification`,
+      human_reach.HumanState).
+    **values: field name -> value, for every field.
+
+  Returns:
+    The record.
 
   Raises:
     TypeError: values do not name exactly the fields of cls.
@@ -107,15 +122,28 @@ def record(cls, **values: Any):
 
 
 def path_array(path: path_lib.Path) -> np.ndarray:
-  """A `path.Path` as PATH_SIZE floats: s, s_dot, s_ddot, jerk, phase ends
-  and phase jerks."""
+  """A path's floats, as the compiled cycles take it (path_kernels).
+
+  Args:
+    path: the path.
+
+  Returns:
+    (PATH_SIZE,): s, s_dot, s_ddot, jerk, phase ends and phase jerks.
+  """
   ends, jerks = path.phase_ends, path.phase_jerks
   return np.array((path.s, path.s_dot, path.s_ddot, path.jerk, ends[0],
                    ends[1], ends[2], jerks[0], jerks[1], jerks[2]))
 
 
-def path_from_array(values) -> path_lib.Path:
-  """The `path.Path` of `path_array` (attributes set as stored).
+def path_from_array(values: Union[np.ndarray, Sequence[float]]
+                    ) -> path_lib.Path:
+  """The `path.Path` of `path_array`'s floats (attributes set as stored).
+
+  Args:
+    values: PATH_SIZE numbers, as `path_array` makes them.
+
+  Returns:
+    The path.
 
   Raises:
     ValueError: values are not PATH_SIZE numbers.
