@@ -44,6 +44,7 @@ DOCUMENTED_MODULES = (
     'hrc_suite/safety/shield/modes.py',
     'hrc_suite/safety/shield/shield_state.py',
     'hrc_suite/safety/shield/batch.py',
+    'hrc_suite/safety/collision_prevention/prevention.py',
     'agents',
     'agents/sac',
     'agents/sac_lag',

@@ -239,7 +239,7 @@ def test_path_sampling_bounds_the_motion_between_samples():
   limits = description.limits
   for _ in range(5):
     q0, q1 = rs.uniform(limits.q_min, limits.q_max, (2, description.dof))
-    steps = prevention.path_samples(q0, q1)
+    steps = prevention._path_samples(q0, q1)
     s = np.linspace(0.0, 1.0, steps * 20 + 1)
     p1, p2, r = prevention.reach.capsules(q0 + s[:, None] * (q1 - q0))
     # Largest end-point motion within one step (20 sub-samples).

@@ -53,10 +53,12 @@ self-collision).
 """
 
 import typing
+from typing import Callable, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from hrc_suite import layout
+from hrc_suite import robot_description as robot_description_lib
 from hrc_suite.safety import geometry
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
@@ -89,6 +91,10 @@ _ESCAPE_SLACK = 1e-9
 _ALWAYS_FRACTION = 1.0
 
 
+# A box (min (3,), max (3,)), world frame, m.
+Box = Tuple[Sequence[float], Sequence[float]]
+
+
 class FilteredAction(typing.NamedTuple):
   """`CollisionPrevention.filter_action`'s result."""
   action: np.ndarray
@@ -97,11 +103,51 @@ class FilteredAction(typing.NamedTuple):
   plan: typing.Optional[ltp.LongTermPlan]   # The goal's plan, if made.
 
 
-def workcell_boxes(floor=True, mount=layout.DEFAULT_MOUNT,
-                   table=layout.DEFAULT_TABLE):
-  """Named static boxes (min, max) of the workcell, world frame (layout),
-  with the pedestal of `mount` (layout.RobotMount) and `table`
-  (layout.Table)."""
+class PlanStart(typing.Protocol):
+  """What `CollisionPrevention.planned_paths_free` reads of the shield
+  that will execute a goal (`shield.Shield` is one): its command, where
+  the goal's long-term plan starts."""
+
+  @property
+  def q(self) -> np.ndarray:
+    """The command's joint positions (dof,)."""
+
+  @property
+  def dq(self) -> np.ndarray:
+    """The command's joint velocities (dof,)."""
+
+  @property
+  def ddq(self) -> np.ndarray:
+    """The command's joint accelerations (dof,)."""
+
+  @property
+  def s(self) -> float:
+    """The plan time (s) a new plan starts at."""
+
+  @property
+  def limits(self) -> robot_description_lib.JointLimits:
+    """The joint limits plans keep."""
+
+  @property
+  def cycle_time(self) -> float:
+    """The plans' sample period, s."""
+
+
+def workcell_boxes(floor: bool = True,
+                   mount: layout.RobotMount = layout.DEFAULT_MOUNT,
+                   table: layout.Table = layout.DEFAULT_TABLE
+                   ) -> dict[str, Box]:
+  """Named static boxes of the workcell (layout).
+
+  Args:
+    floor: whether the floor is one (a slab below z = 0).
+    mount: the robot's mount, whose pedestal is one.
+    table: the table, whose top is one.
+
+  Returns:
+    name -> (min (3,), max (3,)), world frame, m: 'table', 'pedestal' and
+    (with floor) 'floor'.
+  """
   table_min = (table.x[0], table.y[0],
                layout.TABLE_TOP_Z - layout.TABLE_THICKNESS)
   table_max = (table.x[1], table.y[1], layout.TABLE_TOP_Z)
@@ -134,12 +180,40 @@ def _polynomial(plan):
 
 
 class CollisionPrevention:
-  """Checks goals and straight joint paths; replaces unsafe actions."""
+  """Checks goals and straight joint paths; replaces unsafe actions.
 
-  def __init__(self, description, base_pose=None, tool_capsule=None,
-               extra_boxes=(), floor=True, tool_table_allowance=0.0,
-               max_step=DEFAULT_MAX_STEP, exclusion_samples=2000, seed=0,
-               compiled=True, table=layout.DEFAULT_TABLE):
+  Args:
+    description: the robot's description.
+    base_pose: the robot base's pose, a 4x4 matrix or (x, y, z, roll,
+      pitch, yaw) (None: the robot's mount, layout.robot_mount).
+    tool_capsule: (p1 (3,), p2 (3,), radius) of the tool's capsule in the
+      last link's frame, m (None: no tool).
+    extra_boxes: static boxes (min (3,), max (3,)), world frame, m,
+      besides the workcell's (`workcell_boxes`).
+    floor: whether the floor is checked.
+    tool_table_allowance: how deep (m) the tool capsule may enter the table
+      top (grasping).
+    max_step: the largest motion (m) of any capsule point between path
+      samples, > 0.
+    exclusion_samples: random configurations a capsule pair must overlap
+      in (with q_home) to be excluded as overlapping by construction.
+    seed: the seed of those configurations.
+    compiled: False runs the NumPy reference of the checks.
+    table: the table, whose top is a box.
+
+  Raises:
+    ValueError: max_step is not positive, an extra box is not (min (3,),
+      max (3,)) with min <= max, or the tool capsule is malformed.
+  """
+
+  def __init__(
+      self, description: robot_description_lib.RobotDescription,
+      base_pose: Optional[Union[np.ndarray, Sequence[float]]] = None,
+      tool_capsule: Optional[Tuple[np.ndarray, np.ndarray, float]] = None,
+      extra_boxes: Sequence[Box] = (), floor: bool = True,
+      tool_table_allowance: float = 0.0, max_step: float = DEFAULT_MAX_STEP,
+      exclusion_samples: int = 2000, seed: int = 0, compiled: bool = True,
+      table: layout.Table = layout.DEFAULT_TABLE):
     self.description = description
     # Compiled collision tests (`collision_kernels`); False runs the NumPy
     # reference (`_colliding_reference`), which the kernel is tested
@@ -310,15 +384,21 @@ class CollisionPrevention:
       hit |= np.any(pair_hit, axis=-1)
     return hit
 
-  def penetrations(self, q):
-    """Penetration depths (m) of configurations q (N, dof): boxes (N, Bx, L)
-    and pairs (N, P); > 0 is a collision, <= 0 clearance (unchecked
-    capsule-box combinations: -inf).
+  def penetrations(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Penetration depths (m) of configurations: > 0 is a collision, <= 0
+    clearance (unchecked capsule-box combinations: -inf).
 
     A capsule in a box: its radius minus its axis' distance to the box,
     plus how deep the deeper axis end lies inside the box (so a deeper
     capsule keeps counting deeper once its axis enters), minus the allowed
-    penetration. A pair: minus its capsule distance."""
+    penetration. A pair: minus its capsule distance.
+
+    Args:
+      q: configurations (N, dof) (or one, (dof,)).
+
+    Returns:
+      (boxes (N, Bx, L), pairs (N, P)).
+    """
     q = np.asarray(q, dtype=float).reshape(-1, self.dof)
     p1, p2, r = self.reach.capsules(q)
     n = q.shape[0]
@@ -339,15 +419,25 @@ class CollisionPrevention:
                                          p1[:, j], p2[:, j], r[j])
     return boxes, pairs
 
-  def in_collision(self, q):
-    """Exact collision flags of configurations q (..., dof)."""
+  def in_collision(self, q: np.ndarray) -> np.ndarray:
+    """Exact collision flags of configurations.
+
+    Args:
+      q: configurations (..., dof).
+
+    Returns:
+      Flags (...,): True where a configuration collides.
+
+    Raises:
+      ValueError: q's last axis is not dof.
+    """
     q = np.asarray(q, dtype=float)
     if q.ndim == 0 or q.shape[-1] != self.dof:
       raise ValueError(f'q: expected shape (..., {self.dof}), got {q.shape}')
     flat = q.reshape(-1, self.dof)
     return self._colliding(flat).reshape(q.shape[:-1])
 
-  def path_samples(self, q_start, q_goal):
+  def _path_samples(self, q_start, q_goal):
     """Number of steps for the straight path (no point moves > max_step)."""
     travel = (np.abs(np.subtract(q_goal, q_start)) @ self.levers).max()
     return max(1, int(np.ceil(travel / self.max_step)))
@@ -367,9 +457,10 @@ class CollisionPrevention:
     return np.all((q_goals >= limits.q_min) & (q_goals <= limits.q_max),
                   axis=-1)
 
-  def paths_free(self, q_start, q_goals):
-    """Flags (G,): goals (G, dof) within the joint limits whose straight
-    paths from q_start are collision-free.
+  def paths_free(self, q_start: np.ndarray, q_goals: np.ndarray
+                 ) -> np.ndarray:
+    """Which goals are within the joint limits and have collision-free
+    straight paths from q_start.
 
     Each sample stands for the path within half a step around it: against
     boxes each capsule is inflated by its largest motion over half a step,
@@ -386,6 +477,16 @@ class CollisionPrevention:
     (margins and refinement) from the sample after that on; all other
     elements are checked along the whole path. Between the start and that
     sample only the samples are checked for these elements.
+
+    Args:
+      q_start: the start's joint positions (dof,).
+      q_goals: the goals (G, dof).
+
+    Returns:
+      Flags (G,).
+
+    Raises:
+      ValueError: q_start is not dof joint positions.
     """
     q_start = self._check_start(q_start)
     q_goals = np.asarray(q_goals, dtype=float).reshape(-1, self.dof)
@@ -489,14 +590,14 @@ class CollisionPrevention:
     free_pair[:, colliding_pair] = free_at[:, count:]
     return collided, free_box, free_pair
 
-  def planned_paths_free(self, q_goals, plan_from):
-    """Flags (G,): goals whose long-term plans from the shield's current
-    command are collision-free (what the robot really does: a moving robot
-    overshoots before it turns to the goal).
+  def planned_paths_free(self, q_goals: np.ndarray, plan_from: PlanStart
+                         ) -> np.ndarray:
+    """Which goals have collision-free long-term plans from the shield's
+    current command (what the robot really does: a moving robot overshoots
+    before it turns to the goal).
 
-    plan_from: the `Shield` (or anything with q, dq, ddq, s, limits and
-    cycle_time): the plan is `long_term_plan.plan_to_goal` from its command
-    with its limits, exactly the shield's next candidate. Each plan cycle is
+    The plan is `long_term_plan.plan_to_goal` from plan_from's command with
+    its limits, exactly the shield's next candidate. Each plan cycle is
     covered by samples of the shield's own Taylor polynomial (at most
     max_step of capsule motion apart, margins from the polynomial's
     derivatives over half a sample spacing), refined like `paths_free`; the
@@ -505,6 +606,13 @@ class CollisionPrevention:
     (braking harder than the planning limits; the shield then keeps braking
     on its verified path and plans later), the straight path from the
     command is checked instead.
+
+    Args:
+      q_goals: the goals (G, dof).
+      plan_from: the `Shield` that will execute the goal.
+
+    Returns:
+      Flags (G,).
     """
     return self._planned(q_goals, plan_from)[0]
 
@@ -592,33 +700,62 @@ class CollisionPrevention:
                        np.concatenate(params), np.concatenate(halves),
                        evaluate)
 
-  def is_safe(self, q_start, q_goal):
-    """True iff q_goal is within the joint limits and the straight path to
-    it is collision-free."""
+  def is_safe(self, q_start: np.ndarray, q_goal: np.ndarray) -> bool:
+    """Whether q_goal is within the joint limits and the straight path to
+    it is collision-free (`paths_free`).
+
+    Args:
+      q_start: the start's joint positions (dof,).
+      q_goal: the goal's (dof,).
+
+    Returns:
+      True iff both.
+    """
     return bool(self.paths_free(q_start, np.asarray(q_goal)[None])[0])
 
   # -- Replacement ----------------------------------------------------------
 
-  def filter_action(self, action, q_current, action_to_goal, policy='zero',
-                    num_samples=DEFAULT_NUM_SAMPLES, action_low=-1.0,
-                    action_high=1.0, random_state=None, zero_action=None,
-                    plan_from=None):
-    """FilteredAction(action, q_goal, replaced, plan): the action if its
-    goal is safe, else a replacement chosen by `policy`.
+  def filter_action(
+      self, action: np.ndarray, q_current: np.ndarray,
+      action_to_goal: Callable[[np.ndarray], Optional[np.ndarray]],
+      policy: str = 'zero', num_samples: int = DEFAULT_NUM_SAMPLES,
+      action_low: Union[float, np.ndarray] = -1.0,
+      action_high: Union[float, np.ndarray] = 1.0,
+      random_state: Union[None, int, np.random.RandomState] = None,
+      zero_action: Optional[np.ndarray] = None,
+      plan_from: Optional[PlanStart] = None) -> FilteredAction:
+    """The action if its goal is safe, else a replacement chosen by
+    `policy`: 'zero': the zero action and q_current (stay); 'resample': the
+    first safe of up to num_samples uniform actions in [action_low,
+    action_high]; 'closest': the safe sample closest to the proposed
+    action. Without a safe sample the zero action is used.
 
-    plan_from: the `Shield` that will execute the goal; if given, goals are
-    checked along its long-term plan from its command
-    (`planned_paths_free`), else along the straight path from q_current.
-    `plan` is the returned goal's long-term plan made for that check
-    (`Shield.new_goal` takes it as its first candidate), None where none
-    was made (no plan_from, the zero action, a start braking too hard).
+    Args:
+      action: the proposed action.
+      q_current: the robot's joint positions (dof,).
+      action_to_goal: action -> its goal q_goal (dof,), or None (e.g. IK
+        failed: unsafe).
+      policy: one of POLICIES.
+      num_samples: the replacement samples drawn, >= 1.
+      action_low: the samples' lower bound.
+      action_high: their upper bound.
+      random_state: np.random.RandomState or seed (required for 'resample'
+        and 'closest').
+      zero_action: the zero action (None: zeros like action).
+      plan_from: the `Shield` that will execute the goal; if given, goals
+        are checked along its long-term plan from its command
+        (`planned_paths_free`), else along the straight path from
+        q_current.
 
-    action_to_goal(action) -> q_goal (dof,) or None (e.g. IK failed: unsafe).
-    'zero': the zero action and q_current (stay); 'resample': the first safe
-    of up to num_samples uniform actions in [action_low, action_high];
-    'closest': the safe sample closest to the proposed action. Without a
-    safe sample the zero action is used. random_state: np.random.RandomState
-    or seed (required for 'resample' and 'closest').
+    Returns:
+      FilteredAction(action, q_goal, replaced, plan): `plan` is the
+      returned goal's long-term plan made for the check (`Shield.new_goal`
+      takes it as its first candidate), None where none was made (no
+      plan_from, the zero action, a start braking too hard).
+
+    Raises:
+      ValueError: an unknown policy, num_samples < 1, or no random_state
+        for 'resample' or 'closest'.
     """
     if policy not in POLICIES:
       raise ValueError(f'policy: expected one of {POLICIES}, got {policy!r}')
