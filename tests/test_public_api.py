@@ -48,6 +48,7 @@ DOCUMENTED_MODULES = (
     'agents',
     'agents/sac',
     'agents/sac_lag',
+    'agents/imitation',
 )
 # Classes of other modules whose public API a user composes: the bases of
 # HrcTask that show a part of a task ('path:Class').

@@ -9,6 +9,7 @@ r = (1 - varsigma) r_env + varsigma * similarity.
 """
 
 import dataclasses
+from typing import Union
 
 import numpy as np
 
@@ -22,8 +23,20 @@ AIR_GRIPPER_SCALE = 0.5        # iota of the gripper part, action-based
 POSITION_WEIGHT = 0.7          # beta
 
 
-def similarity(distance, scale):
-  """2^(-(distance / scale)^2), elementwise."""
+def similarity(distance: Union[float, np.ndarray], scale: float
+               ) -> np.ndarray:
+  """2^(-(distance / scale)^2), elementwise.
+
+  Args:
+    distance: distances, >= 0.
+    scale: the distance of similarity 1/2 (iota), > 0.
+
+  Returns:
+    The similarities, in (0, 1], shaped as distance.
+
+  Raises:
+    ValueError: scale is not positive.
+  """
   if not scale > 0:
     raise ValueError(f'scale must be > 0, got {scale!r}')
   distance = np.asarray(distance, dtype=np.float64)
@@ -56,7 +69,20 @@ class ImitationReward:
       raise ValueError(f'gripper_size must be 0 or 1, got '
                        f'{self.gripper_size!r}')
 
-  def similarity(self, x, reference):
+  def similarity(self, x: np.ndarray, reference: np.ndarray) -> float:
+    """The similarity of x to a reference: of the whole vector, or mixed
+    from the position and the gripper part (see the module).
+
+    Args:
+      x: the vector (n,).
+      reference: the reference vector (n,).
+
+    Returns:
+      The similarity, in (0, 1].
+
+    Raises:
+      ValueError: x and reference differ in shape.
+    """
     x = np.asarray(x, dtype=np.float64)
     reference = np.asarray(reference, dtype=np.float64)
     if x.shape != reference.shape:
@@ -71,7 +97,17 @@ class ImitationReward:
                  (1.0 - self.position_weight) *
                  similarity(abs(grip), self.gripper_scale))
 
-  def reward(self, env_reward, x, reference):
-    """(1 - weight) env_reward + weight * similarity(x, reference)."""
+  def reward(self, env_reward: float, x: np.ndarray,
+             reference: np.ndarray) -> float:
+    """(1 - weight) env_reward + weight * similarity(x, reference).
+
+    Args:
+      env_reward: the environment's reward.
+      x: the vector (n,).
+      reference: the reference vector (n,).
+
+    Returns:
+      The mixed reward.
+    """
     return ((1.0 - self.weight) * float(env_reward) +
             self.weight * self.similarity(x, reference))

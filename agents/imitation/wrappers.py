@@ -24,23 +24,33 @@ SAC episodes from dataset states; here plain SAC samples fresh task
 instances (no wrapper).
 """
 
+from typing import Any, Callable, Optional
+
 import dm_env
+from dm_env import specs
 import numpy as np
 
 from agents.imitation import rewards as rewards_lib
 from hrc_suite import experts as experts_lib
+from hrc_suite.experts import dataset as dataset_lib
 
 DEFAULT_RSI_PROBABILITY = 0.5    # docs/reference_benchmark.md, Imitation
 
 
 class EnvironmentWrapper(dm_env.Environment):
-  """Delegates everything to the wrapped environment (task, physics...)."""
+  """Delegates everything to the wrapped environment (task, physics...).
 
-  def __init__(self, environment):
+  Args:
+    environment: the wrapped environment (a composer.Environment or
+      another wrapper).
+  """
+
+  def __init__(self, environment: dm_env.Environment):
     self._environment = environment
 
   @property
-  def environment(self):
+  def environment(self) -> dm_env.Environment:
+    """The wrapped environment."""
     return self._environment
 
   def __getattr__(self, name):
@@ -48,25 +58,44 @@ class EnvironmentWrapper(dm_env.Environment):
       raise AttributeError(name)
     return getattr(self._environment, name)
 
-  def reset(self):
+  def reset(self) -> dm_env.TimeStep:
+    """Starts an episode of the wrapped environment.
+
+    Returns:
+      Its first time step.
+    """
     return self._environment.reset()
 
-  def step(self, action):
+  def step(self, action: np.ndarray) -> dm_env.TimeStep:
+    """Steps the wrapped environment.
+
+    Args:
+      action: the action.
+
+    Returns:
+      The next time step.
+    """
     return self._environment.step(action)
 
-  def observation_spec(self):
+  def observation_spec(self) -> Any:
+    """The wrapped environment's observation spec (a nest of
+    specs.Array)."""
     return self._environment.observation_spec()
 
-  def action_spec(self):
+  def action_spec(self) -> specs.Array:
+    """The wrapped environment's action spec."""
     return self._environment.action_spec()
 
-  def reward_spec(self):
+  def reward_spec(self) -> specs.Array:
+    """The wrapped environment's reward spec."""
     return self._environment.reward_spec()
 
-  def discount_spec(self):
+  def discount_spec(self) -> specs.Array:
+    """The wrapped environment's discount spec."""
     return self._environment.discount_spec()
 
-  def close(self):
+  def close(self) -> None:
+    """Closes the wrapped environment."""
     return self._environment.close()
 
 
@@ -111,10 +140,23 @@ def _restart_observation(environment):
 
 
 class ReferenceStateInitialization(EnvironmentWrapper):
-  """Starts episodes from expert-dataset states with probability p."""
+  """Starts episodes from expert-dataset states with probability p.
 
-  def __init__(self, environment, dataset,
-               probability=DEFAULT_RSI_PROBABILITY, seed=0):
+  Args:
+    environment: the environment, of the dataset's task, robot and action
+      space.
+    dataset: the expert dataset (dataset.load_dataset).
+    probability: p, in [0, 1].
+    seed: the seed of the draws (whether and which reference state).
+
+  Raises:
+    ValueError: p is outside [0, 1], or the dataset is of another task,
+      robot or action space, or has no episodes.
+  """
+
+  def __init__(self, environment: dm_env.Environment,
+               dataset: dataset_lib.Dataset,
+               probability: float = DEFAULT_RSI_PROBABILITY, seed: int = 0):
     super().__init__(environment)
     if not 0.0 <= probability <= 1.0:
       raise ValueError(f'probability must be in [0, 1], got {probability!r}')
@@ -130,14 +172,21 @@ class ReferenceStateInitialization(EnvironmentWrapper):
     self.reference = None   # (episode, step) the episode started from.
 
   @property
-  def dataset(self):
+  def dataset(self) -> dataset_lib.Dataset:
+    """The expert dataset the reference states come from."""
     return self._dataset
 
   def _draw_reference(self):
     index = self._random.randint(len(self._episode_of))
     return int(self._episode_of[index]), int(self._step_of[index])
 
-  def reset(self):
+  def reset(self) -> dm_env.TimeStep:
+    """Starts an episode: with probability p from a dataset state drawn
+    uniformly (`reference` says which), else fresh.
+
+    Returns:
+      The first time step.
+    """
     timestep = self._environment.reset()
     self.reference = None
     if self._random.uniform() < self._probability:
@@ -159,13 +208,30 @@ def _state_names(task):
 
 
 class StateImitationReward(ReferenceStateInitialization):
-  """SIR: RSI plus a reward for staying near the reference episode."""
+  """SIR: RSI plus a reward for staying near the reference episode.
 
-  def __init__(self, environment, dataset, probability=1.0, seed=0,
-               weight=rewards_lib.IMITATION_WEIGHT,
-               scale=rewards_lib.DISTANCE_SCALE,
-               gripper_scale=rewards_lib.SIR_GRIPPER_SCALE,
-               position_weight=rewards_lib.POSITION_WEIGHT):
+  Args:
+    environment: the environment, of the dataset's task, robot and action
+      space.
+    dataset: the expert dataset (dataset.load_dataset).
+    probability: RSI's p, in [0, 1].
+    seed: the seed of RSI's draws.
+    weight: the imitation weight varsigma, in [0, 1].
+    scale: the distance scale iota of the position part (m or rad).
+    gripper_scale: the distance scale of the gripper part.
+    position_weight: the position part's weight beta, in [0, 1].
+
+  Raises:
+    ValueError: as ReferenceStateInitialization's, or a weight or scale
+      out of its range.
+  """
+
+  def __init__(self, environment: dm_env.Environment,
+               dataset: dataset_lib.Dataset, probability: float = 1.0,
+               seed: int = 0, weight: float = rewards_lib.IMITATION_WEIGHT,
+               scale: float = rewards_lib.DISTANCE_SCALE,
+               gripper_scale: float = rewards_lib.SIR_GRIPPER_SCALE,
+               position_weight: float = rewards_lib.POSITION_WEIGHT):
     super().__init__(environment, dataset, probability, seed)
     task = _composer_environment(environment).task
     self._names = _state_names(task)
@@ -179,13 +245,19 @@ class StateImitationReward(ReferenceStateInitialization):
     self._reference_states = None
     self._index = 0
 
-  def state(self):
+  def state(self) -> np.ndarray:
     """The compared state s now (noise-free)."""
     physics = _composer_environment(self._environment).physics
     return np.concatenate([np.ravel(obs._callable(physics)())   # pylint: disable=protected-access
                            for obs in self._observables])
 
-  def reset(self):
+  def reset(self) -> dm_env.TimeStep:
+    """Starts an episode as RSI does; one from a dataset state follows
+    that state's episode.
+
+    Returns:
+      The first time step.
+    """
     timestep = super().reset()
     if self.reference is None:
       self._reference_states = None
@@ -198,7 +270,16 @@ class StateImitationReward(ReferenceStateInitialization):
     self._index = step
     return timestep
 
-  def step(self, action):
+  def step(self, action: np.ndarray) -> dm_env.TimeStep:
+    """Steps the environment; with a reference episode the reward mixes in
+    the similarity of the state to the reference's next one.
+
+    Args:
+      action: the action.
+
+    Returns:
+      The next time step.
+    """
     timestep = self._environment.step(action)
     if self._reference_states is None or timestep.reward is None:
       return timestep
@@ -209,13 +290,28 @@ class StateImitationReward(ReferenceStateInitialization):
 
 
 class ActionImitationReward(EnvironmentWrapper):
-  """AIR: rewards agreement with the expert's action on the same state."""
+  """AIR: rewards agreement with the expert's action on the same state.
 
-  def __init__(self, environment, expert=None,
-               weight=rewards_lib.IMITATION_WEIGHT,
-               scale=rewards_lib.DISTANCE_SCALE,
-               gripper_scale=rewards_lib.AIR_GRIPPER_SCALE,
-               position_weight=rewards_lib.POSITION_WEIGHT):
+  Args:
+    environment: the environment.
+    expert: time step -> the expert's action (None: the task's expert,
+      experts.make).
+    weight: the imitation weight varsigma, in [0, 1].
+    scale: the distance scale iota of the arm part of actions.
+    gripper_scale: the distance scale of the gripper part.
+    position_weight: the arm part's weight beta, in [0, 1].
+
+  Raises:
+    ValueError: a weight or scale out of its range.
+  """
+
+  def __init__(
+      self, environment: dm_env.Environment,
+      expert: Optional[Callable[[dm_env.TimeStep], np.ndarray]] = None,
+      weight: float = rewards_lib.IMITATION_WEIGHT,
+      scale: float = rewards_lib.DISTANCE_SCALE,
+      gripper_scale: float = rewards_lib.AIR_GRIPPER_SCALE,
+      position_weight: float = rewards_lib.POSITION_WEIGHT):
     super().__init__(environment)
     inner = _composer_environment(environment)
     self._expert = expert if expert is not None else experts_lib.make(inner)
@@ -226,11 +322,29 @@ class ActionImitationReward(EnvironmentWrapper):
     self._timestep = None
     self.last_expert_action = None
 
-  def reset(self):
+  def reset(self) -> dm_env.TimeStep:
+    """Starts an episode of the wrapped environment.
+
+    Returns:
+      Its first time step.
+    """
     self._timestep = self._environment.reset()
     return self._timestep
 
-  def step(self, action):
+  def step(self, action: np.ndarray) -> dm_env.TimeStep:
+    """Steps the environment with the agent's action; the reward mixes in
+    the similarity of that action (clipped to [-1, 1]) to the expert's on
+    the state it was taken in (`last_expert_action`).
+
+    Args:
+      action: the agent's action.
+
+    Returns:
+      The next time step.
+
+    Raises:
+      RuntimeError: step before reset.
+    """
     if self._timestep is None:
       raise RuntimeError('step() before reset()')
     expert_action = np.asarray(self._expert(self._timestep), np.float64)
@@ -250,13 +364,28 @@ NEEDS_DATASET = ('rsi', 'sir', 'rsi+air')
 _RSI_KWARGS = ('probability',)
 
 
-def wrap(environment, agent, dataset=None, seed=0, **kwargs):
-  """The environment for `agent` ('sac': unchanged; 'rsi', 'sir' and
-  'rsi+air' need a loaded dataset, hrc_suite.experts.dataset.load_dataset).
+def wrap(environment: dm_env.Environment, agent: str,
+         dataset: Optional[dataset_lib.Dataset] = None, seed: int = 0,
+         **kwargs: Any) -> dm_env.Environment:
+  """The environment for an agent.
 
   'rsi+air' composes the two wrappers: episodes start from dataset states
   with probability p (kwarg `probability`, default 0.5, as the reference's
   agents did) and the reward is AIR's (the other kwargs).
+
+  Args:
+    environment: the environment.
+    agent: one of AGENTS ('sac': the environment unchanged).
+    dataset: the expert dataset (hrc_suite.experts.dataset.load_dataset),
+      needed by NEEDS_DATASET's agents.
+    seed: the seed of RSI's draws.
+    **kwargs: the wrapper's other arguments.
+
+  Returns:
+    The wrapped environment.
+
+  Raises:
+    ValueError: an unknown agent, or no dataset for one that needs it.
   """
   if agent not in AGENTS:
     raise ValueError(f'Unknown agent {agent!r}: expected one of '
