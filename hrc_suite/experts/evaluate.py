@@ -77,6 +77,7 @@ from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import adversary
 from hrc_suite.experts import noise as noise_lib
+from hrc_suite.experts import pace
 from hrc_suite.experts import results_file
 from hrc_suite.human import clip as clip_lib
 from hrc_suite import registry_flags
@@ -218,8 +219,9 @@ def _environment(domain, task, robot, action_space, policy, time_limit,
   return _ENV_CACHE[key]
 
 
-class _ClipObserver(metrics_lib.EpisodeMetricsObserver):
-  """Episode metrics and the name of the clip the episode starts with."""
+class _ClipObserver(pace.PaceObserver):
+  """Episode metrics (with experts/pace.py's) and the name of the clip the
+  episode starts with."""
 
   clip = None
 

@@ -52,6 +52,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import base
+from hrc_suite.tasks.runtime import robot_payload
 from hrc_suite.tasks.runtime import tool_hold
 
 SUCCESS_PROGRESS = 0.95        # nail driven in (reference)
@@ -178,7 +179,8 @@ class NailOutcome:
 
 @suite.register('hammering', 'default',
                 tags=('manufacturing', 'sparse', 'delayed', 'ssm'))
-class Hammering(NailOutcome, base.HrcTask):
+class Hammering(NailOutcome, robot_payload.CarriesPayload,
+                base.HrcTask):
   """Hold the nail board under the human's hammer until the nail is in."""
 
   MOTIONS = 'hammering'
@@ -361,6 +363,9 @@ class Hammering(NailOutcome, base.HrcTask):
 
   def _update_task(self, physics):
     return self._nail_outcome(physics, self._board.body)
+
+  def _held_bodies(self):
+    return (self._board.body,) if self._gripped else ()
 
   # -------------------------------------------------------- observables
 

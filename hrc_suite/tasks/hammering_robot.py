@@ -49,6 +49,7 @@ from hrc_suite.entities import props
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import base
 from hrc_suite.tasks import hammering
+from hrc_suite.tasks.runtime import robot_payload
 
 SUCCESS_PROGRESS = hammering.SUCCESS_PROGRESS
 BLOW_PROGRESS = hammering.BLOW_PROGRESS
@@ -129,7 +130,8 @@ def headings(points: np.ndarray) -> np.ndarray:
 
 @suite.register('hammering', 'robot_hammers',
                 tags=('manufacturing', 'sparse', 'delayed', 'pfl'))
-class RobotHammers(hammering.NailOutcome, base.HrcTask):
+class RobotHammers(hammering.NailOutcome, robot_payload.CarriesPayload,
+                   base.HrcTask):
   """Drive the nail of the plank the person brings with the held hammer."""
 
   MOTIONS = 'hammering_board'
@@ -364,6 +366,9 @@ class RobotHammers(hammering.NailOutcome, base.HrcTask):
     self._update_phase(physics)
     metrics['board_placed'] = float(self._phase == PLACED)
     return metrics
+
+  def _held_bodies(self):
+    return (self._hammer.body,) if self._gripped else ()
 
   # -------------------------------------------------------- observables
 

@@ -64,6 +64,7 @@ from hrc_suite.human import keypoints
 from hrc_suite.safety import geometry
 from hrc_suite.tasks import base
 from hrc_suite.tasks import common
+from hrc_suite.tasks.runtime import robot_payload
 
 # Reference: human placement randomisation for the handovers.
 PLACEMENT_RANGE = (0.0, 0.2, 0.1)        # m, m, rad
@@ -131,7 +132,7 @@ def _lying_quaternion(yaw):
   return rotations.axes_to_quat((c, s, 0.0), (0.0, 0.0, 1.0), (s, -c, 0.0))
 
 
-class _Handover(base.HrcTask):
+class _Handover(robot_payload.CarriesPayload, base.HrcTask):
   """Hammer, table region, human holding logic shared by both handovers."""
 
   HUMAN_STATION = layout.HUMAN_STATION_ACROSS
@@ -227,6 +228,9 @@ class _Handover(base.HrcTask):
   def _update_common(self, physics):
     self._holding_hand = self._player.clip.holding_hand or 'right'
     self._gripped = self._gripper.is_grasping(physics, self._hammer.body)
+
+  def _held_bodies(self):
+    return (self._hammer.body,) if self._gripped else ()
 
   def _completed(self):
     if self.success_after is None:

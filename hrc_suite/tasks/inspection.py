@@ -52,6 +52,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import base
 from hrc_suite.tasks import common
+from hrc_suite.tasks.runtime import robot_payload
 
 EVENT = clip_lib.Event.object_presented
 SUCCESS_DISTANCE = 0.1       # m, object to inspection target (reference)
@@ -79,7 +80,7 @@ TARGET_RGBA = (0.2, 0.4, 0.9, 0.4)
 
 @suite.register('inspection', 'default',
                 tags=('object_handling', 'sparse', 'delayed', 'ssm'))
-class Inspection(base.HrcTask):
+class Inspection(robot_payload.CarriesPayload, base.HrcTask):
   """Hold a cube at the person's inspection point until they leave."""
 
   MOTIONS = 'inspection'
@@ -217,6 +218,9 @@ class Inspection(base.HrcTask):
   def _human_events(self, physics):
     del physics
     return (EVENT,) if self._presented else ()
+
+  def _held_bodies(self):
+    return (self._cube.body,) if self._gripped else ()
 
   def _task_reward(self, physics):
     del physics

@@ -58,6 +58,7 @@ from hrc_suite.entities import element_ids
 from hrc_suite.entities import props
 from hrc_suite.human import keypoints
 from hrc_suite.tasks import base
+from hrc_suite.tasks.runtime import robot_payload
 
 MIN_NORMAL_Z = 0.8           # reference: board normal z below it fails
 MAX_TILT = float(np.arccos(MIN_NORMAL_Z))   # rad, ~37 deg
@@ -113,7 +114,7 @@ GRIP_FORCE = 100.0
 
 @suite.register('lifting', 'default',
                 tags=('object_handling', 'dense', 'ssm'))
-class Lifting(base.HrcTask):
+class Lifting(robot_payload.CarriesPayload, base.HrcTask):
   """Keep a board level together with a person who lifts and carries it."""
 
   MOTIONS = 'lifting'
@@ -299,6 +300,9 @@ class Lifting(base.HrcTask):
             'board_gripped': float(self._gripped),
             'released_steps': int(not self._gripped),
             'lifts': self._lifted}
+
+  def _held_bodies(self):
+    return (self._board.body,) if self._gripped else ()
 
   def _failed(self, physics):
     del physics

@@ -45,6 +45,7 @@ from hrc_suite.entities import props
 from hrc_suite.tasks.runtime import actions
 from hrc_suite.tasks import base
 from hrc_suite.tasks import common
+from hrc_suite.tasks.runtime import robot_payload
 
 SUCCESS_DISTANCE = 0.1       # m, cube to target (reference)
 REWARD_SUCCESS = common.SUCCESS_REWARD     # reference sparse reward
@@ -85,7 +86,7 @@ CLOSE_STATION_SHIFT = 0.15   # m
 
 @suite.register('pick_place', 'default',
                 tags=('coexistence', 'sparse', 'ssm'))
-class PickPlace(base.HrcTask):
+class PickPlace(robot_payload.CarriesPayload, base.HrcTask):
   """Pick a cube up and put it on the target on the other side."""
 
   MOTIONS = 'pick_place'
@@ -200,6 +201,9 @@ class PickPlace(base.HrcTask):
             'object_distance': self._distance,
             'grasps': int(grasped_now), 'gripped_steps': int(gripped),
             'object_at_target_steps': int(self._success)}
+
+  def _held_bodies(self):
+    return (self._cube.body,) if self._gripped else ()
 
   def _task_reward(self, physics):
     del physics

@@ -54,6 +54,7 @@ from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import keypoints
 from hrc_suite.human import task_motions
 from hrc_suite.tasks import base
+from hrc_suite.tasks.runtime import robot_payload
 
 STACK_TOLERANCE = 0.025        # m (reference)
 TOPPLE_DISTANCE = 2 * STACK_TOLERANCE   # m a stacked cube moved: fallen
@@ -115,7 +116,7 @@ def _distance(a, b):
 
 @suite.register('stacking', 'default',
                 tags=('assembly', 'sparse', 'delayed', 'ssm'))
-class Stacking(base.HrcTask):
+class Stacking(robot_payload.CarriesPayload, base.HrcTask):
   """Stack cubes 2 and 4 on the human's cubes 1 and 3."""
 
   MOTIONS = 'stacking'
@@ -362,6 +363,10 @@ class Stacking(base.HrcTask):
             'cubes_placed': newly,
             'stack_height': sum(placed),
             'object_gripped': float(self._gripped.any())}
+
+  def _held_bodies(self):
+    return tuple(body for body, gripped in zip(self._cube_bodies,
+                                               self._gripped) if gripped)
 
   def _human_events(self, physics):
     # The robot has put its cube down and withdrawn its gripper.
