@@ -203,13 +203,17 @@ class LiftingExpert(base.Expert):
     aim = self._within_reach(tcp + delta, q)
     return self._steer.action(aim, tcp, q, GRIPPER_CLOSED)
 
-  def hands_pace(self):
-    """How far (m) the middle of the person's hands moves horizontally in
-    an RL step at its velocity now."""
+  def hands_pace(self) -> float:
+    """How far the middle of the person's hands moves horizontally in an
+    RL step at its velocity now.
+
+    Returns:
+      The distance, m.
+    """
     velocity = self._task.player.velocities[self._hand_index].mean(axis=0)
     return float(np.linalg.norm(velocity[:2])) * self._dt
 
-  def paced_step(self, delta):
+  def paced_step(self, delta) -> np.ndarray:
     """The TCP step towards `delta` (m, world): `delta` cut to MAX_STEP,
     then its horizontal part lengthened by `hands_pace` (at most to
     `delta`'s own), its vertical part kept.
