@@ -19,10 +19,11 @@ Human to robot (`HumanToRobotExpert`): wait near where the person will
 present the hammer, and once it is presented (held, on its side, above the
 table, still; held low, still for a second) come down on the handle inside
 a cone (the reference's pick-and-place approach), slide the open pads
-along it to the grip point and close (a hand that sways in and out of the
-gripper-down reach is approached, the arm waiting at the edge of its
-reach; one held beyond it by more than SWAY_MARGIN is waited for at the
-ready point); once the person lets go, carry it
+along it to the grip point and close once the handle lies across the pads
+(MIN_GRASP_ANGLE; a hand that sways in and out of the gripper-down reach
+is approached, the arm waiting at the edge of its reach; one held beyond
+it by more than SWAY_MARGIN is waited for at the ready point); once the
+person lets go, carry it
 over the table target, lower it to RELEASE_HEIGHT and open: it drops the
 last centimetres. Then go home. A hammer lying on the table (before the
 person's pick, placed, or dropped) is left alone.
@@ -93,6 +94,14 @@ GRASP_ALONG = (-0.008, 0.012)            # m
 # robot slowed near them, which then hung in the cone above the hammer.
 DESCEND_ALONG = (-0.02, 0.08)            # m
 GRASP_ACROSS = 0.015                     # m
+# The pads close only on a handle lying across them: at least this angle
+# (rad) between the handle and the pads' closing axis (TCP y). The open pads
+# stand 0.085 m apart; a handle closer to the closing axis spans them
+# diagonally and jams them open on its edges: the hammer is carried with
+# the pads at full aperture and stays between them when they open over the
+# target (HumanRobotHandover_4 on the Schunk: the wrist, turned on its way
+# at the edge of the reach, closed 34 deg from the closing axis).
+MIN_GRASP_ANGLE = np.radians(60.0)
 GRASP_Z = 0.008                          # m
 KEEP_CLOSING = 0.035                     # m
 # Presented: held by the person, on its side (body y this close to up),
@@ -274,7 +283,11 @@ class _HammerExpert(base.Expert):
                       max(abs(across) - GRASP_ACROSS, 0.0))
     height = min(self._hover_height(grip, obs['joint_positions']),
                  CONE_SLOPE * excess(DESCEND_ALONG))
-    close = excess(GRASP_ALONG) == 0.0 and abs(offset[2]) < GRASP_Z
+    closing_axis = self._kinematics.tcp_pose(obs['joint_positions'])[:3, 1]
+    handle_axis = rotations.quat_to_mat(obs['object_quaternion'])[:, 0]
+    across_pads = abs(closing_axis @ handle_axis) < np.cos(MIN_GRASP_ANGLE)
+    close = (excess(GRASP_ALONG) == 0.0 and abs(offset[2]) < GRASP_Z
+             and across_pads)
     # Closing: the aperture dropped after a close command (the last one,
     # where known: open pads pushed in by the person's hand are not).
     closing = (obs['gripper_aperture'][0] < CLOSING_APERTURE

@@ -14,6 +14,10 @@ the board and after they put it down the TCP stays on the handle.
 * Steps are short (MAX_STEP): near the person the SSM shield stops a robot
   commanded far ahead (the Schunk in joint space stalls for seconds with
   0.1 m steps; measured, 6/10 -> 6/10 Cartesian, 4/10 -> 6/10 joint).
+  Horizontally they keep pace with the person's hands (`paced_step`): a
+  person who pushes the board towards the robot and pulls it back faster
+  than MAX_STEP per RL step stretched the compliant holds until they
+  pried the handle out of the pads.
 * Reach means gripper-down IK from the current joints succeeds and its
   posture collides neither with the table nor with the robot itself (the
   collision prevention would hold the robot still). Where the level
@@ -31,9 +35,12 @@ the board and after they put it down the TCP stays on the handle.
   grip yaw.
 
 Measured (docs/results/experts.md): 50 of 50 episodes on the Schunk
-(expert and noisy expert) and on the Panda (expert). Recorded people
-(docs/tasks.md, lifting/default; seeds 0-9): Schunk 9/10 (noisy 10/10),
-Panda 10/10.
+(expert and noisy expert) and on the Panda (expert). Recorded people, each
+clip alone (docs/motion_library.md, "On the shared recordings of the
+other tasks"; clips 0-9, seeds 0-2): Panda 30/30 (28/30 with steps cut
+to MAX_STEP as a whole: CollaborativeLifting_4, seeds 0 and 2), Schunk
+24/30 (25/30; its misses move between clips and seeds from one version
+to the next).
 """
 
 import numpy as np
@@ -52,6 +59,14 @@ from hrc_suite.tasks import lifting
 LOOKAHEAD = 0.2
 # Longest TCP step aimed at per RL step (m); the Cartesian action space
 # allows 0.1 m (module doc: the shield stalls longer ones near the person).
+# Its horizontal part may be longer by the distance the person's hands
+# move horizontally in an RL step (`paced_step`): recorded people push
+# their end 0.5 m towards the robot and pull it back at up to 0.46 m/s
+# (CollaborativeLifting_4), and a robot end that fell behind at 0.03 m per
+# RL step let the compliant holds stretch by 0.4 m until they pried the
+# handle out of the pads (Panda and Schunk). Vertically the step stays:
+# a robot end rising faster than the board's pried the handle down in the
+# Schunk's pads (CollaborativeLifting_0).
 MAX_STEP = 0.03
 # Where the aim is out of gripper-down reach, the robot end goes this much
 # lower (m, the first that IK reaches): the board tilts towards the robot
@@ -93,6 +108,7 @@ class LiftingExpert(base.Expert):
     self._box = actions.workspace_box(self._task.kinematics)
     self._checker = self._task.collision_checker
     self._base = self._task.kinematics.base_pose[:3, 3]
+    self._dt = float(self._task.control_timestep)
 
   def _anchors(self):
     """(2, 3) anchor points of the active hold welds on the board (board
@@ -181,14 +197,42 @@ class LiftingExpert(base.Expert):
       middle, offset, heading = wanted
       aim = self._tilted_aim(middle, offset, tcp - handle, q)
     # Keep the TCP's offset from the handle (the grasp as it is).
-    delta = aim + (tcp - handle) - tcp
-    norm = np.linalg.norm(delta)
-    if norm > MAX_STEP:
-      delta *= MAX_STEP / norm
+    delta = self.paced_step(aim + (tcp - handle) - tcp)
     if self._steer.space == 'joint':
       self._steer.yaw = lifting.GRIP_YAW + heading
     aim = self._within_reach(tcp + delta, q)
     return self._steer.action(aim, tcp, q, GRIPPER_CLOSED)
+
+  def hands_pace(self) -> float:
+    """How far the middle of the person's hands moves horizontally in an
+    RL step at its velocity now.
+
+    Returns:
+      The distance, m.
+    """
+    velocity = self._task.player.velocities[self._hand_index].mean(axis=0)
+    return float(np.linalg.norm(velocity[:2])) * self._dt
+
+  def paced_step(self, delta) -> np.ndarray:
+    """The TCP step towards `delta` (m, world): `delta` cut to MAX_STEP,
+    then its horizontal part lengthened by `hands_pace` (at most to
+    `delta`'s own), its vertical part kept.
+
+    Args:
+      delta: (3,) wanted TCP displacement.
+
+    Returns:
+      (3,) the displacement aimed at this RL step.
+    """
+    delta = np.asarray(delta, dtype=np.float64)
+    norm = np.linalg.norm(delta)
+    step = delta * (MAX_STEP / norm) if norm > MAX_STEP else delta.copy()
+    pace = self.hands_pace()
+    wanted = np.linalg.norm(delta[:2])
+    if norm > MAX_STEP and pace > 0.0 and wanted > 0.0:
+      reach = min(wanted, np.linalg.norm(step[:2]) + pace)
+      step[:2] = delta[:2] * (reach / wanted)
+    return step
 
   def _reaches(self, aim, q):
     """Whether gripper-down IK from q reaches `aim` without a collision."""

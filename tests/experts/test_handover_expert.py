@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import experts
+from hrc_suite import rotations
 from hrc_suite import suite
 from hrc_suite.experts import handover as handover_experts
 from hrc_suite.experts import noise as noise_lib
@@ -176,6 +177,9 @@ def recordings(tmp_path_factory, recordings_dir):
     ('human_to_robot', 'HumanRobotHandover_advanced_0', 'panda', 0),
     # Swung between 0.6 and 1.1 m out, within reach about 2 s at a time.
     ('human_to_robot', 'HumanRobotHandover_4', 'panda', 0),
+    # At the edge of the Schunk's reach its wrist turns on the way: the
+    # pads wait for the handle to lie across them before they close.
+    ('human_to_robot', 'HumanRobotHandover_4', 'schunk', 0),
 ])
 def test_expert_hands_over_with_recorded_people(recordings, task, clip,
                                                robot, seed):
@@ -203,6 +207,27 @@ def test_human_to_robot_waits_for_a_presentation_beyond_its_reach(
   assert metrics['ik_failures'] == 0
   assert metrics['action_replacements'] == 0
   assert metrics['contacts_human_critical'] == 0
+
+
+@pytest.mark.parametrize('handle_along, closes', [
+    (0, True),     # TCP x: the handle lies across the pads.
+    (1, False),    # TCP y, the pads' closing axis: it would jam them open.
+])
+def test_human_to_robot_closes_only_across_the_handle(handle_along, closes):
+  env = _env('human_to_robot', 'panda')
+  env.reset()
+  expert = experts.make(env)
+  obs = expert.observe()
+  tcp_axes = env.task.kinematics.tcp_pose(obs['joint_positions'])[:3, :3]
+  handle = tcp_axes[:, handle_along] * (1.0, 1.0, 0.0)
+  handle /= np.linalg.norm(handle)
+  up = np.array([0.0, 0.0, 1.0])
+  # The hammer on its side (body y up), its grip point at the TCP.
+  obs['object_quaternion'] = rotations.axes_to_quat(
+      handle, up, np.cross(handle, up))
+  obs['object_position'] = obs['eef_position'].copy()
+  action = expert._grasp(obs)   # pylint: disable=protected-access
+  assert (action[-1] > 0.0) == closes
 
 
 def test_robot_to_human_waits_where_the_palm_came_nearest():
