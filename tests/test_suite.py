@@ -26,9 +26,12 @@ def test_every_module_of_the_tasks_package_is_imported():
   suite.all_tasks()
   folder = pathlib.Path(tasks_package.__file__).parent
   names = extensions.package_modules(tasks_package)
-  assert names == tuple(sorted(f'hrc_suite.tasks.{path.stem}'
-                               for path in folder.glob('*.py')
-                               if path.stem != '__init__'))
+  files = [path.stem for path in folder.glob('*.py')
+           if path.stem != '__init__']
+  subpackages = [path.parent.name for path in folder.glob('*/__init__.py')]
+  assert 'runtime' in subpackages
+  assert names == tuple(sorted(f'hrc_suite.tasks.{name}'
+                               for name in files + subpackages))
   assert all(name in sys.modules for name in names)
   # Each shipped task is registered by a module of the package.
   modules = {suite.task_class(*name).__module__ for name in suite.ALL_TASKS}
