@@ -73,6 +73,16 @@ def test_bad_arguments_are_named(panda):
     shield.step(np.zeros((3, 3)), 0.0)
 
 
+def test_the_description_by_name_path_or_object(panda):
+  by_path = shield_lib.Shield(robot_description.ROBOTS_DIR / 'panda.json')
+  by_name = shield_lib.Shield('panda')
+  assert by_path.description.name == by_name.description.name == panda.name
+  with pytest.raises(TypeError, match='robot_description: expected a '
+                     'RobotDescription, a robot name or a description file '
+                     'path, got 7'):
+    shield_lib.Shield(7)
+
+
 def test_starts_at_rest_and_defaults(panda):
   shield = shield_lib.Shield(panda)
   np.testing.assert_array_equal(shield.q, panda.q_home)

@@ -50,6 +50,7 @@ asked.
 
 import dataclasses
 import math
+import os
 import pathlib
 from typing import Any, Mapping, Optional, Sequence, Tuple, Union
 
@@ -146,7 +147,8 @@ class Shield:
 
   def __init__(
       self,
-      robot_description: Union[str, robot_description_lib.RobotDescription],
+      robot_description: Union[str, os.PathLike,
+                               robot_description_lib.RobotDescription],
       mode: str = 'ssm', cycle_time: float = DEFAULT_CYCLE_TIME,
       human_model: Union[None, str, pathlib.Path,
                          human_reach_lib.HumanModelConfig,
@@ -161,8 +163,13 @@ class Shield:
       payload: Optional[robot_energy.Payload] = None,
       static_boxes: Optional[Mapping[str, Tuple[Sequence[float],
                                                 Sequence[float]]]] = None):
-    if isinstance(robot_description, str):
+    if isinstance(robot_description, (str, os.PathLike)):
       robot_description = robot_description_lib.load(robot_description)
+    elif not isinstance(robot_description,
+                        robot_description_lib.RobotDescription):
+      raise TypeError(
+          f'robot_description: expected a RobotDescription, a robot name or '
+          f'a description file path, got {robot_description!r}')
     kernels.warm_up()   # Compiled or loaded once per process, not mid-run.
     cycle_kernels.warm_up()
     plan_kernels.warm_up()   # Its plans' (long_term_plan).
