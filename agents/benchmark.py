@@ -30,7 +30,6 @@ from typing import Dict, Mapping, Optional, Sequence, Tuple
 from absl import app
 from absl import flags
 import jax
-import numpy as np
 
 from agents import config as config_lib
 from agents import loop as loop_lib

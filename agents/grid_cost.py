@@ -30,7 +30,6 @@ over the agents measured. Per-run actors are not modelled.
 """
 
 import collections
-import math
 import os
 import sys
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
