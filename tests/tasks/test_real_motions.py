@@ -8,6 +8,7 @@ import pytest
 from hrc_suite import experts
 from hrc_suite import layout
 from hrc_suite import suite
+from hrc_suite.experts import adversary
 from hrc_suite.human import clip as clip_lib
 from hrc_suite.human import recording_cache
 from hrc_suite.tasks import stacking
@@ -78,6 +79,28 @@ def test_fast_recordings_are_refused_by_default(recordings_dir):
       break
   assert outside > 0
 
+
+
+def test_critical_contacts_split_by_the_human_model(recordings_dir):
+  """Without the shield the chaser strikes a recorded person who at times
+  moves faster than the shield's human model: each RL step's critical
+  contacts count as outside the model exactly when the person was, and
+  the episode has contacts on both sides."""
+  env = _load(recordings_dir, 'PickPlaceCloseHuman', 'panda', seed=2,
+              shield='off')
+  policy = adversary.PersonChaser(env)
+  timestep = env.reset()
+  for _ in range(300):
+    timestep = env.step(policy(timestep))
+    step = env.task.step_metrics
+    expected = (step['contacts_human_critical']
+                if step['steps_outside_human_model'] else 0)
+    assert step['contacts_human_critical_outside_model'] == expected
+    if timestep.last():
+      break
+  episode = env.task.episode_metrics
+  outside = episode['contacts_human_critical_outside_model']
+  assert 0 < outside < episode['contacts_human_critical'], episode
 
 def test_stacking_people_bring_their_cubes_and_set_them_down(
     recordings_dir):

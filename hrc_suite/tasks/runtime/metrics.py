@@ -31,6 +31,12 @@ from hrc_suite.tasks.runtime import contacts
 # * steps_outside_human_model: RL steps in which the person moved faster
 #   than the shield's human model (only with outside_human_model='allow':
 #   outside the safety guarantee, tasks/runtime/motions.check_motions).
+# * contacts_human_critical_outside_model: the contacts_human_critical of
+#   RL steps in which the person moved faster than the shield's human
+#   model (steps_outside_human_model); the rest happened with the person
+#   inside the model, where the shield's guarantee applies
+#   (docs/safety.md, "Assumptions"). A contact caused by a faster motion in
+#   an earlier RL step counts as inside: the inside count errs high.
 # Besides: success (0/1, reached at least once), return, steps,
 # min_human_distance (m, robot capsules at the shield's command to the human
 # body capsules, the minimum over RL step ends), max_human_contact_speed
@@ -40,7 +46,8 @@ from hrc_suite.tasks.runtime import contacts
 COUNTERS = (('shield_interventions', 'action_replacements', 'ik_failures',
              'self_collisions', 'goals_reached', 'steps_outside_human_model')
             + tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES)
-            + ('shield_resyncs', 'physics_errors'))
+            + ('contacts_human_critical_outside_model', 'shield_resyncs',
+               'physics_errors'))
 # Episode maxima of step maxima.
 MAXIMA = ('max_human_contact_speed', 'max_tracking_error')
 # Episode maxima of robot-human contact energies, in every shield mode

@@ -489,6 +489,9 @@ class ShieldedStepper:
     step.setdefault('physics_errors', 0)
     for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
       step[f'contacts_{name}'] = int(count)
+    critical = step['contacts_human_critical']
+    step['contacts_human_critical_outside_model'] = (
+        critical if self._outside_model else 0)
     self._contact_steps[:] = 0
 
   def contact_energy_maxima(self):
