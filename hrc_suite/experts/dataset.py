@@ -29,7 +29,7 @@ import numpy as np
 from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib
-from hrc_suite.tasks.runtime import snapshots
+from hrc_suite.tasks.runtime import snapshot_arrays
 
 FORMAT = 'hrc_suite.expert_dataset'
 FORMAT_VERSION = 1
@@ -110,8 +110,8 @@ class _SnapshotStack:
 
   def add(self, state):
     """Flattens `state` now (flat buffers are smaller than nested states)."""
-    spec, buffers = snapshots.flatten(state)
-    key = snapshots.spec_to_json(spec)
+    spec, buffers = snapshot_arrays.flatten(state)
+    key = snapshot_arrays.spec_to_json(spec)
     self._index.append(self._specs.setdefault(key, len(self._specs)))
     self._parts.append(buffers)
 
@@ -476,8 +476,8 @@ class Episode:
         offsets = arrays[f'{SNAPSHOT}offsets/{name}']
         buffers[name] = data[offsets[step]:offsets[step + 1]]
     try:
-      return snapshots.unflatten(
-          snapshots.spec_from_json(str(specs[spec_index])), buffers)
+      return snapshot_arrays.unflatten(
+          snapshot_arrays.spec_from_json(str(specs[spec_index])), buffers)
     except (ValueError, IndexError) as e:
       raise DatasetError(f'{self.path}: snapshot {step}: {e}') from e
 
