@@ -67,9 +67,12 @@ import subprocess
 import sys
 import time
 import traceback
+from typing import Any, Iterable, Mapping, Optional, Sequence, Union
 
 from absl import app
 from absl import flags
+import dm_env
+from dm_env import specs
 import numpy as np
 
 from hrc_suite import statistics
@@ -113,6 +116,15 @@ TRACEBACK_FRAMES = 8
 MISSING = '—'
 _REPOSITORY = pathlib.Path(__file__).resolve().parents[2]
 
+# An episode to run: (domain, task, robot, action_space, policy, time_limit,
+# seed, motions, shield) (`job_fields`), a list once stored in JSON.
+Job = Sequence[Any]
+# An episode's result (`run_job`) and a table row (`summarise`), JSON-able.
+Result = dict[str, Any]
+Row = dict[str, Any]
+# People: (label, folder) of recorded motions, None for the shipped library.
+Motions = Optional[Sequence[str]]
+
 
 def _parse_task(name):
   if name.count('/') != 1:
@@ -120,8 +132,17 @@ def _parse_task(name):
   return tuple(name.split('/'))
 
 
-def available_tasks(tasks=None):
-  """(tasks whose expert imports, {task: error} of those that do not)."""
+def available_tasks(
+    tasks: Optional[Iterable[tuple[str, str]]] = None
+) -> tuple[tuple[tuple[str, str], ...], dict[tuple[str, str], str]]:
+  """The tasks whose expert imports.
+
+  Args:
+    tasks: (domain, task) pairs; None: every registered expert's.
+
+  Returns:
+    (tasks whose expert imports, {task: error} of those that do not).
+  """
   tasks = experts.registered() if tasks is None else tuple(tasks)
   ok, missing = [], {}
   for task in tasks:
@@ -140,11 +161,21 @@ def _people_kwargs(motions):
       None if motions is None else motions[1])
 
 
-def tasks_with_motions(tasks, motions, robot):
-  """(tasks that build with `motions` = (label, folder), {task: reason}
-  of those that do not, e.g. no sub-folder of theirs in the folder).
-  Building each task once also converts its recordings into the cache
-  before workers start."""
+def tasks_with_motions(
+    tasks: Iterable[tuple[str, str]], motions: Motions, robot: str
+) -> tuple[tuple[tuple[str, str], ...], dict[tuple[str, str], str]]:
+  """The tasks that build with the given people. Building each task once
+  also converts its recordings into the cache before workers start.
+
+  Args:
+    tasks: (domain, task) pairs.
+    motions: the people, (label, folder), or None.
+    robot: the robot the tasks are built with.
+
+  Returns:
+    (tasks that build, {task: reason} of those that do not, e.g. no
+    sub-folder of theirs in the folder).
+  """
   ok, missing = [], {}
   for domain, task in tasks:
     try:
@@ -163,9 +194,16 @@ def tasks_with_motions(tasks, motions, robot):
 class RandomPolicy:
   """Uniform actions in the action spec's bounds. Episode `seed` draws from
   its own generator, np.random.default_rng(seed) (`set_episode`), never
-  from numpy's global state."""
+  from numpy's global state.
 
-  def __init__(self, action_spec):
+  Args:
+    action_spec: the environment's action spec (finite bounds).
+
+  Raises:
+    ValueError: a bound that is not finite.
+  """
+
+  def __init__(self, action_spec: specs.BoundedArray):
     low = np.broadcast_to(action_spec.minimum, action_spec.shape)
     high = np.broadcast_to(action_spec.maximum, action_spec.shape)
     if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
@@ -176,10 +214,23 @@ class RandomPolicy:
     self._rng = None
     self.set_episode(0)
 
-  def set_episode(self, seed):
+  def set_episode(self, seed: int) -> None:
+    """Starts episode `seed`'s draws.
+
+    Args:
+      seed: the episode's seed.
+    """
     self._rng = np.random.default_rng(seed)
 
-  def __call__(self, timestep):
+  def __call__(self, timestep: dm_env.TimeStep) -> np.ndarray:
+    """A uniform action (the timestep is not read).
+
+    Args:
+      timestep: the environment's current timestep.
+
+    Returns:
+      The action, of the spec's shape and dtype.
+    """
     del timestep
     return self._rng.uniform(self._low, self._high).astype(self._dtype)
 
@@ -235,29 +286,48 @@ def _json_number(value):
   return value if np.isfinite(value) else None
 
 
-def job_fields(job):
-  """(domain, task, robot, action_space, policy, time_limit, seed, motions,
-  shield) of a job; jobs of files written before people and shields were
-  choices lack the last two (None: synthetic people, default shield)."""
+def job_fields(job: Job) -> tuple[Any, ...]:
+  """The fields of a job.
+
+  Args:
+    job: a job; jobs of files written before people and shields were
+      choices lack the last two fields.
+
+  Returns:
+    (domain, task, robot, action_space, policy, time_limit, seed, motions,
+    shield), missing ones None (synthetic people, default shield).
+  """
   job = list(job)
   return tuple(job + [None] * (9 - len(job)))
 
 
-def people(result):
-  """The label of an episode's people: SYNTHETIC or --motions_label."""
+def people(result: Mapping[str, Any]) -> str:
+  """The label of an episode's people.
+
+  Args:
+    result: the episode's result (`run_job`).
+
+  Returns:
+    SYNTHETIC or the motions' label (--motions_label).
+  """
   motions = job_fields(result.get('job', ()))[7]
   return SYNTHETIC if motions is None else motions[0]
 
 
-def run_job(job):
-  """One episode: job = (domain, task, robot, action_space, policy,
-  time_limit, seed, motions, shield); motions: None (the shipped library)
-  or (label, folder); shield: None (the task's default) or a mode.
-  Returns its result dict (JSON-able; 'clip' names the person's first
-  clip). An exception in the policy or the
-  task does not stop the run: the episode's result then carries 'error'
-  (the exception) and 'traceback' (its innermost frames) and counts as a
-  failure."""
+def run_job(job: Job) -> Result:
+  """One episode. An exception in the policy or the task does not stop
+  the run: the episode's result then carries 'error' (the exception) and
+  'traceback' (its innermost frames) and counts as a failure.
+
+  Args:
+    job: (domain, task, robot, action_space, policy, time_limit, seed,
+      motions, shield); motions: None (the shipped library) or (label,
+      folder); shield: None (the task's default) or a mode.
+
+  Returns:
+    Its result (JSON-able; 'metrics' the episode metrics, None if it
+    raised; 'clip' names the person's first clip).
+  """
   (domain, task, robot, action_space, policy_name, time_limit, seed,
    motions, shield) = job_fields(job)
   result = {'job': list(job), 'domain': domain, 'task': task, 'robot': robot,
@@ -289,11 +359,29 @@ def run_job(job):
   return result
 
 
-def jobs(tasks, robots, policies, episodes, action_spaces=(None,),
-         time_limit=None, pairs=None, motions=None, shields=(None,)):
-  """Every episode to run, grouped by environment: robots x policies, or
-  the (robot, policy) `pairs` when given, x shields (None: the task's
-  default) x action spaces; motions: None or (label, folder)."""
+def jobs(tasks: Iterable[tuple[str, str]], robots: Sequence[str],
+         policies: Sequence[str], episodes: int,
+         action_spaces: Sequence[Optional[str]] = (None,),
+         time_limit: Optional[float] = None,
+         pairs: Optional[Sequence[tuple[str, str]]] = None,
+         motions: Motions = None,
+         shields: Sequence[Optional[str]] = (None,)) -> list[tuple]:
+  """Every episode to run, grouped by environment.
+
+  Args:
+    tasks: (domain, task) pairs.
+    robots: robot names (with `policies`, unless `pairs`).
+    policies: policy names (POLICIES).
+    episodes: episodes (seeds 0..episodes-1) per combination.
+    action_spaces: action spaces (None: the task's default).
+    time_limit: episode length in s (None: the task's horizon).
+    pairs: (robot, policy) pairs run instead of robots x policies.
+    motions: the people, (label, folder), or None.
+    shields: shield modes (None: the task's default).
+
+  Returns:
+    The jobs: tasks x pairs x shields x action spaces x seeds.
+  """
   pairs = pairs or [(robot, policy) for robot in robots
                     for policy in policies]
   motions = None if motions is None else list(motions)
@@ -308,9 +396,16 @@ def _job_key(job):
   return json.dumps(list(job))
 
 
-def load_partial(path):
-  """{job key: result} of the episodes a previous run logged to `path`
-  (one JSON object per line; a torn last line is ignored)."""
+def load_partial(path: Union[str, os.PathLike]) -> dict[str, Result]:
+  """The episodes a previous run logged.
+
+  Args:
+    path: the log, one JSON object per line (a torn last line is
+      ignored); it need not exist.
+
+  Returns:
+    {job key (the job as JSON): result}.
+  """
   done = {}
   path = pathlib.Path(path)
   if not path.exists():
@@ -325,11 +420,21 @@ def load_partial(path):
   return done
 
 
-def run(job_list, workers=1, progress=False, partial=None):
-  """Results of `job_list`, in its order; workers > 1 runs them in spawned
-  processes. With `partial` (a path), every finished episode is appended
-  to it as a JSON line, and episodes already logged there are not run
-  again (a killed run resumes)."""
+def run(job_list: Sequence[Job], workers: int = 1, progress: bool = False,
+        partial: Optional[Union[str, os.PathLike]] = None) -> list[Result]:
+  """Runs episodes (`run_job`).
+
+  Args:
+    job_list: the jobs.
+    workers: processes; more than 1 runs the jobs in spawned processes.
+    progress: show a tqdm progress bar.
+    partial: a path or None; every finished episode is appended to it as
+      a JSON line, and episodes already logged there are not run again
+      (a killed run resumes).
+
+  Returns:
+    The results, in the jobs' order.
+  """
   done = load_partial(partial) if partial is not None else {}
   results = [done.get(_job_key(job)) for job in job_list]
   todo = [(i, job) for i, job in enumerate(job_list) if results[i] is None]
@@ -376,9 +481,18 @@ def _run_indexed(item):
 # ---------------------------------------------------------------- summary
 
 
-def success_ci(successes, seed=BOOTSTRAP_SEED):
-  """(rate, low, high): mean and 95 % percentile-bootstrap CI (10^4
-  resamples, seeded) of 0/1 outcomes."""
+def success_ci(successes: Sequence[float],
+               seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+  """The success rate and its 95 % percentile-bootstrap CI (10^4
+  resamples, seeded).
+
+  Args:
+    successes: 0/1 outcomes.
+    seed: the resampling's seed.
+
+  Returns:
+    (rate, low, high).
+  """
   return statistics.bootstrap_ci(np.asarray(successes, dtype=float),
                                  np.random.RandomState(seed))
 
@@ -399,9 +513,16 @@ def _episodes_with(results, name):
   return sum(1 for v in values if v) if values else None
 
 
-def summarise(results):
-  """One row per (task, robot, action space, policy, people, shield), in
-  first-seen order."""
+def summarise(results: Sequence[Mapping[str, Any]]) -> list[Row]:
+  """The table's rows.
+
+  Args:
+    results: episode results (`run_job`).
+
+  Returns:
+    One row per (task, robot, action space, policy, people, shield), in
+    first-seen order.
+  """
   groups = collections.OrderedDict()
   for result in results:
     choice = job_fields(result.get('job', ()))[8]
@@ -451,10 +572,17 @@ def _gates(shield):
   return shield is None or modes_lib.get(shield).gates
 
 
-def below_bar(row):
-  """Reasons a row misses the bar (empty if it passes): experts must
-  succeed (SUCCESS_BAR); with the shield on no policy may touch the person
-  critically; no episode may raise."""
+def below_bar(row: Mapping[str, Any]) -> list[str]:
+  """Reasons a row misses the bar: experts must succeed (SUCCESS_BAR);
+  with the shield on no policy may touch the person critically; no
+  episode may raise.
+
+  Args:
+    row: a row of `summarise`.
+
+  Returns:
+    The reasons, empty if it passes.
+  """
   reasons = []
   if row['policy'] in EXPERT_POLICIES and row['success'] < SUCCESS_BAR:
     reasons.append(f'success {row["success"]:.2f} < {SUCCESS_BAR:.2f}')
@@ -466,8 +594,15 @@ def below_bar(row):
   return reasons
 
 
-def bar_text(rows):
-  """The bar of `rows`' policies, in words."""
+def bar_text(rows: Iterable[Mapping[str, Any]]) -> str:
+  """The bar of the rows' policies, in words.
+
+  Args:
+    rows: rows of `summarise`.
+
+  Returns:
+    The text.
+  """
   policies = {row['policy'] for row in rows}
   parts = []
   if policies & set(EXPERT_POLICIES):
@@ -480,8 +615,15 @@ def bar_text(rows):
   return '; '.join(parts)
 
 
-def title(rows):
-  """The table's title: its policies and, if not synthetic, its people."""
+def title(rows: Sequence[Mapping[str, Any]]) -> str:
+  """The table's title: its policies and, if not synthetic, its people.
+
+  Args:
+    rows: the table's rows.
+
+  Returns:
+    The title.
+  """
   policies = {row['policy'] for row in rows}
   if policies <= set(EXPERT_POLICIES):
     text = 'Expert baseline'
@@ -495,9 +637,16 @@ def title(rows):
   return text
 
 
-def row_name(row):
-  """'domain/task robot policy', with its people and shield unless they
-  are the synthetic library and the task's default."""
+def row_name(row: Mapping[str, Any]) -> str:
+  """A row's name in the text.
+
+  Args:
+    row: a row of `summarise`.
+
+  Returns:
+    'domain/task robot policy', with its people and shield unless they
+    are the synthetic library and the task's default.
+  """
   name = f'{row["domain"]}/{row["task"]} {row["robot"]} {row["policy"]}'
   if row['people'] != SYNTHETIC or row['shield_choice'] != DEFAULT_SHIELD:
     name += f' ({row["people"]} people, shield {row["shield"]})'
@@ -515,8 +664,9 @@ def _cpu_model():
   return platform.processor() or platform.machine()
 
 
-def machine():
-  """A short description of the machine."""
+def machine() -> dict[str, Any]:
+  """A short description of the machine: cpus, platform, processor,
+  python."""
   return {'cpus': os.cpu_count(), 'platform': platform.platform(),
           'processor': _cpu_model(), 'python': platform.python_version()}
 
@@ -539,10 +689,17 @@ HEADER = ('| task | robot | policy | people | shield | action space | '
           + ' | wall time / episode (s) |')
 
 
-def row_key(result):
-  """The table row an episode belongs to: 'domain/task robot policy
-  action_space' (job's action space: None = the task's default), then
-  ' people=<label>' unless synthetic and ' shield=<mode>' if chosen."""
+def row_key(result: Mapping[str, Any]) -> str:
+  """The table row an episode belongs to.
+
+  Args:
+    result: the episode's result (`run_job`).
+
+  Returns:
+    'domain/task robot policy action_space' (the job's action space:
+    'default' for the task's default), then ' people=<label>' unless
+    synthetic and ' shield=<mode>' if chosen.
+  """
   domain, task, robot, space, policy, _, _, motions, shield = job_fields(
       result['job'])
   key = f'{domain}/{task} {robot} {policy} {space or "default"}'
@@ -553,16 +710,32 @@ def row_key(result):
   return key
 
 
-def task_key(domain, task, motions=None):
-  """The key of a task not evaluated: 'domain/task', then ' people=<label>'
-  with motions (label, folder)."""
+def task_key(domain: str, task: str, motions: Motions = None) -> str:
+  """The key of a task not evaluated.
+
+  Args:
+    domain: the task's domain.
+    task: the task.
+    motions: the people, (label, folder), or None.
+
+  Returns:
+    'domain/task', then ' people=<label>' with motions.
+  """
   key = f'{domain}/{task}'
   return key if motions is None else f'{key} people={motions[0]}'
 
 
-def merge(old, new):
-  """`old` episodes with the rows `new` re-ran replaced in place (rows
-  only in `new` at the end)."""
+def merge(old: Sequence[Result], new: Sequence[Result]) -> list[Result]:
+  """Episodes of a table with the rows a new run redid replaced.
+
+  Args:
+    old: the table's episodes.
+    new: the new run's episodes.
+
+  Returns:
+    `old` with the rows of `new` replaced in place (rows only in `new` at
+    the end).
+  """
   fresh = collections.OrderedDict()
   for result in new:
     fresh.setdefault(row_key(result), []).append(result)
@@ -580,10 +753,18 @@ def merge(old, new):
   return merged
 
 
-def merge_runs(old_runs, run):
-  """The runs behind a merged table: `run` (with its 'rows') last, older
-  runs keeping only the rows it did not redo (runs left without rows
-  dropped)."""
+def merge_runs(old_runs: Sequence[Mapping[str, Any]],
+               run: Mapping[str, Any]) -> list[dict[str, Any]]:
+  """The runs behind a merged table.
+
+  Args:
+    old_runs: the table's runs, each with its 'rows' (row keys).
+    run: the new run, with its 'rows'.
+
+  Returns:
+    The older runs keeping only the rows `run` did not redo (runs left
+    without rows dropped), then `run`.
+  """
   redone = set(run['rows'])
   kept = []
   for old in old_runs:
@@ -593,9 +774,20 @@ def merge_runs(old_runs, run):
   return kept + [run]
 
 
-def merge_not_evaluated(old, new, results):
-  """{task key: reason}: `old` less the tasks (with their people) that
-  `results` evaluated, then `new`."""
+def merge_not_evaluated(old: Mapping[str, str], new: Mapping[str, str],
+                        results: Iterable[Mapping[str, Any]]
+                        ) -> dict[str, str]:
+  """The tasks not evaluated after a run.
+
+  Args:
+    old: {task key: reason} of the table.
+    new: {task key: reason} of the run.
+    results: the run's episodes.
+
+  Returns:
+    {task key: reason}: `old` less the tasks (with their people) that
+    `results` evaluated, then `new`, sorted by key.
+  """
   done = {task_key(r['domain'], r['task'], job_fields(r['job'])[7])
           for r in results}
   merged = {key: reason for key, reason in old.items() if key not in done}
@@ -603,16 +795,39 @@ def merge_not_evaluated(old, new, results):
   return dict(sorted(merged.items()))
 
 
-def load_previous(path):
-  """(episodes, runs) of an existing results JSON, ([], []) if none. A
-  file written before runs were recorded (one 'info') counts as one run
-  of all its rows."""
+def load_previous(path: Union[str, os.PathLike]
+                  ) -> tuple[list[Result], list[dict[str, Any]]]:
+  """The episodes and runs of a results JSON. A file written before
+  runs were recorded (one 'info') counts as one run of all its rows.
+
+  Args:
+    path: the JSON; it need not exist.
+
+  Returns:
+    (episodes, runs), ([], []) if there is no file.
+
+  Raises:
+    ValueError: a file that is not a results file.
+  """
   return load_results(path)[:2]
 
 
-def load_results(path):
-  """(episodes, runs, {task key: reason not evaluated}, notes or None) of
-  a results JSON; ([], [], {}, None) if there is none."""
+def load_results(
+    path: Union[str, os.PathLike]
+) -> tuple[list[Result], list[dict[str, Any]], dict[str, str],
+           Optional[str]]:
+  """What a results JSON holds.
+
+  Args:
+    path: the JSON; it need not exist.
+
+  Returns:
+    (episodes, runs, {task key: reason not evaluated}, notes or None);
+    ([], [], {}, None) if there is no file.
+
+  Raises:
+    ValueError: a file that is not a results file.
+  """
   path = pathlib.Path(path)
   if not path.exists():
     return [], [], {}, None
@@ -694,10 +909,23 @@ def _shield_off_lines(rows):
   return lines
 
 
-def markdown(rows, runs, not_evaluated=(), results=(), notes=None):
-  """The table and its provenance (`runs`, oldest first) as Markdown;
-  not_evaluated: {task key: reason}; results: the episodes (to name the
-  people's folders); notes: Markdown put under "Notes"."""
+def markdown(rows: Sequence[Mapping[str, Any]],
+             runs: Sequence[Mapping[str, Any]],
+             not_evaluated: Union[Mapping[str, str], Sequence] = (),
+             results: Sequence[Mapping[str, Any]] = (),
+             notes: Optional[str] = None) -> str:
+  """The table and its provenance as Markdown.
+
+  Args:
+    rows: rows of `summarise`.
+    runs: the runs behind them, oldest first.
+    not_evaluated: {task key: reason}.
+    results: the episodes (to name the people's folders).
+    notes: Markdown put under "Notes".
+
+  Returns:
+    The document.
+  """
   latest = runs[-1]
   described = [f'Episodes: seeds 0..N-1 per row; shield and action '
                "space: the task's defaults unless the row says otherwise"]
@@ -768,11 +996,26 @@ def markdown(rows, runs, not_evaluated=(), results=(), notes=None):
   return '\n'.join(lines) + '\n'
 
 
-def write(results, out, json_out, runs, not_evaluated=(), notes=None):
-  """Writes the Markdown table and the JSON results; returns the rows.
-  not_evaluated: {task key (`task_key`): reason}. The table is that of
+def write(results: Sequence[Mapping[str, Any]],
+          out: Union[str, os.PathLike], json_out: Union[str, os.PathLike],
+          runs: Sequence[Mapping[str, Any]],
+          not_evaluated: Union[Mapping[str, str], Sequence] = (),
+          notes: Optional[str] = None) -> list[Row]:
+  """Writes the Markdown table and the JSON results. The table is that of
   the episodes as stored (rounded: results_file), so that writing it
-  again from the JSON gives the same table."""
+  again from the JSON gives the same table.
+
+  Args:
+    results: the episodes (`run_job`).
+    out: the Markdown file.
+    json_out: the JSON file.
+    runs: the runs behind the episodes, oldest first.
+    not_evaluated: {task key (`task_key`): reason}.
+    notes: Markdown put under "Notes".
+
+  Returns:
+    The rows (`summarise`).
+  """
   results = results_file.unpack(results_file.pack(results))
   rows = summarise(results)
   not_evaluated = dict(sorted(dict(not_evaluated).items()))
@@ -790,10 +1033,22 @@ def write(results, out, json_out, runs, not_evaluated=(), notes=None):
   return rows
 
 
-def rewrite(out, json_out, notes=None):
+def rewrite(out: Union[str, os.PathLike], json_out: Union[str, os.PathLike],
+            notes: Optional[str] = None) -> list[Row]:
   """Writes the table of an existing results JSON again (and the JSON, in
-  the current format) without running episodes; `notes` replace its
-  notes if given. Returns the rows."""
+  the current format) without running episodes.
+
+  Args:
+    out: the Markdown file.
+    json_out: the existing JSON.
+    notes: replace its notes if given.
+
+  Returns:
+    The rows (`summarise`).
+
+  Raises:
+    ValueError: no results file, or none of this command.
+  """
   episodes, runs, not_evaluated, old_notes = load_results(json_out)
   if not runs:
     raise ValueError(f'{json_out}: no results to rewrite')
@@ -803,9 +1058,13 @@ def rewrite(out, json_out, notes=None):
 
 # -------------------------------------------------------------------- main
 
-def define_flags(flag_values=flags.FLAGS):
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
   """Defines the command's flags (only when run as a program, so that the
-  module can be imported next to other binaries)."""
+  module can be imported next to other binaries).
+
+  Args:
+    flag_values: where they are defined.
+  """
   fv = flag_values
   flags.DEFINE_integer('episodes', 50, 'Episodes (seeds 0..N-1) per task, '
                        'robot, policy and shield.', lower_bound=1,
@@ -912,7 +1171,17 @@ def _read_notes(path):
     raise app.UsageError(f'--notes: {e}') from e
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """The command (module doc).
+
+  Args:
+    argv: the command line (no positional arguments).
+    flag_values: the flags of `define_flags`.
+
+  Raises:
+    app.UsageError: bad arguments.
+  """
   f = flag_values
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')

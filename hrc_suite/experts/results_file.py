@@ -20,6 +20,7 @@ list 'episodes') read as well.
 import itertools
 import json
 import math
+from typing import Any, Mapping, Optional, Sequence, Union
 
 # Significant digits of a stored metric: with 6 every mean the tables of
 # docs/results (experts.md, robots_sweep.md, safety_real.md) print is the
@@ -35,7 +36,7 @@ _SEED_INDEX = 6
 _STRUCTURED = ('job', 'metrics')
 
 
-def round_metric(value):
+def round_metric(value: Optional[float]) -> Optional[Union[int, float]]:
   """`value` to METRIC_DIGITS significant digits (None stays None).
 
   Args:
@@ -52,7 +53,7 @@ def round_metric(value):
   return int(value) if value.is_integer() else value
 
 
-def round_row(row):
+def round_row(row: Mapping[str, Any]) -> dict[str, Any]:
   """A table row with its floats to METRIC_DIGITS significant digits.
 
   Args:
@@ -107,7 +108,7 @@ def _group(job, episodes):
           'metrics': metrics}
 
 
-def pack(episodes):
+def pack(episodes: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
   """The episode groups of `episodes` (evaluate.run_job results).
 
   Args:
@@ -150,7 +151,7 @@ def _episodes(group):
   return episodes
 
 
-def unpack(groups):
+def unpack(groups: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
   """The episodes (one dict each, as evaluate.run_job returns) of
   `groups`.
 
@@ -166,7 +167,7 @@ def unpack(groups):
   return [episode for group in groups for episode in _episodes(group)]
 
 
-def episodes(payload):
+def episodes(payload: Mapping[str, Any]) -> list[dict[str, Any]]:
   """The episodes of a results file's payload, of either layout.
 
   Args:
@@ -193,7 +194,7 @@ def _flat(value):
   return True
 
 
-def dumps(value, indent=0):
+def dumps(value: Any, indent: int = 0) -> str:
   """JSON of `value`: a container of containers one item per line,
   anything flatter (_flat) on one line.
 
