@@ -29,7 +29,7 @@ placement, targets, idle phases) and printed:
 
 A summary per task, robot and policy follows. Exit status: 0 when every
 recording was derived and every row reaches the experts' bar
-(evaluate.SUCCESS_BAR, no critical contact), 1 otherwise, 2 on bad
+(evaluation_rows.SUCCESS_BAR, no critical contact), 1 otherwise, 2 on bad
 arguments. Clips go to --work (a folder of one folder per clip, reused
 by the episodes' worker processes).
 """
@@ -47,7 +47,8 @@ import numpy as np
 from hrc_suite import experts
 from hrc_suite import registry_flags
 from hrc_suite import suite
-from hrc_suite.experts import evaluate
+from hrc_suite.experts import evaluation_episodes
+from hrc_suite.experts import evaluation_rows
 from hrc_suite.human import bvh
 from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
@@ -56,7 +57,7 @@ from hrc_suite.human import recording_cache
 from hrc_suite.motion_tools import compare
 from hrc_suite.tasks.runtime import motions as motions_lib
 
-# The people label of the episodes' rows (evaluate.people).
+# The people label of the episodes' rows (evaluation_episodes.people).
 LABEL = 'check'
 # Per-episode metrics printed per clip (name, what), means per episode.
 EPISODE_COLUMNS = (('shield_interventions', 'shield'),
@@ -173,7 +174,7 @@ def outcome_line(robot: str, policy: str,
   Args:
     robot: the robot's name.
     policy: the policy's name.
-    results: the episodes' results (`evaluate.run`).
+    results: the episodes' results (`evaluation_episodes.run`).
 
   Returns:
     The line.
@@ -198,17 +199,17 @@ def passed(results: Sequence[Mapping[str, Any]]) -> bool:
   """Whether episodes reach the experts' bar.
 
   Args:
-    results: the episodes' results (`evaluate.run`).
+    results: the episodes' results (`evaluation_episodes.run`).
 
   Returns:
     True if every episode ran, the success rate is at least
-    evaluate.SUCCESS_BAR and no episode had a critical contact.
+    evaluation_rows.SUCCESS_BAR and no episode had a critical contact.
   """
   done = [r for r in results if r['metrics']]
   if len(done) < len(results) or not results:
     return False
   rate = np.mean([r['metrics']['success'] > 0.5 for r in done])
-  return bool(rate >= evaluate.SUCCESS_BAR and not any(
+  return bool(rate >= evaluation_rows.SUCCESS_BAR and not any(
       r['metrics']['contacts_human_critical'] for r in done))
 
 
@@ -266,7 +267,7 @@ def check(motions: Union[str, pathlib.Path],
                [LABEL, folder], None)
               for domain, task, _, folder in plan
               for robot, policy in pairs for seed in range(episodes)]
-  results = evaluate.run(job_list, workers=workers)
+  results = evaluation_episodes.run(job_list, workers=workers)
   by_clip = collections.OrderedDict()
   for (domain, task, name, _), start in zip(
       plan, range(0, len(job_list), len(pairs) * episodes)):
@@ -344,10 +345,10 @@ def main(argv: Sequence[str],
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
   f = flag_values
-  bad = [p for p in f.policies if p not in evaluate.EXPERT_POLICIES]
+  bad = [p for p in f.policies if p not in evaluation_episodes.EXPERT_POLICIES]
   if bad:
     raise app.UsageError(f'--policies: unknown {bad[0]!r}: expected '
-                         f'{" or ".join(evaluate.EXPERT_POLICIES)}')
+                         f'{" or ".join(evaluation_episodes.EXPERT_POLICIES)}')
   try:
     tasks = ([_task_name(t) for t in f.tasks] if f.tasks
              else list(experts.registered()))

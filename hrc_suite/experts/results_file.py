@@ -4,7 +4,7 @@ A results JSON holds 'runs' (the commands behind the table), 'rows' (the
 table's rows), 'episode_groups', 'not_evaluated' and, if any, 'notes'.
 A group is a run of consecutive episodes of one job but for its seed:
 
-  {"job": the job without its seed (evaluate.run_job; null: no job),
+  {"job": the job without its seed (evaluation_episodes.run_job; null: no job),
    "fields": {name: the value every episode of the group has},
    "columns": {name: [one value per episode]}   (seed, wall_time, clip...),
    "metrics": {name: [one value per episode]}}
@@ -30,7 +30,7 @@ METRIC_DIGITS = 6
 # Decimals of a stored wall time (s): a millisecond, below the table's
 # 0.1 s.
 WALL_TIME_DECIMALS = 3
-# Index of the seed in a job (evaluate.run_job).
+# Index of the seed in a job (evaluation_episodes.run_job).
 _SEED_INDEX = 6
 # Episode keys stored apart from 'fields' and 'columns'.
 _STRUCTURED = ('job', 'metrics')
@@ -57,7 +57,7 @@ def round_row(row: Mapping[str, Any]) -> dict[str, Any]:
   """A table row with its floats to METRIC_DIGITS significant digits.
 
   Args:
-    row: a row of evaluate.summarise.
+    row: a row of evaluation_rows.summarise.
 
   Returns:
     A new dict; floats stay floats, non-finite ones become None.
@@ -109,7 +109,7 @@ def _group(job, episodes):
 
 
 def pack(episodes: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-  """The episode groups of `episodes` (evaluate.run_job results).
+  """The episode groups of `episodes` (evaluation_episodes.run_job results).
 
   Args:
     episodes: result dicts, in table order.
@@ -152,7 +152,7 @@ def _episodes(group):
 
 
 def unpack(groups: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-  """The episodes (one dict each, as evaluate.run_job returns) of
+  """The episodes (one dict each, as evaluation_episodes.run_job returns) of
   `groups`.
 
   Args:
