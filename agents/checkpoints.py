@@ -31,7 +31,7 @@ import numpy as np
 
 from agents import agent as agent_lib
 from agents import agent_checkpoint
-from hrc_suite.tasks.runtime import snapshots
+from hrc_suite.tasks.runtime import snapshot_arrays
 
 KEEP = 2                     # checkpoints kept per run
 _LATEST = 'latest'
@@ -157,7 +157,7 @@ def save(logdir: Path, steps: int, agent: agent_lib.Agent,
   episode_info = None
   if episode is not None:
     episode_info, observation, snapshot = episode
-    arrays = snapshots.to_arrays(snapshot, prefix=_TASK_PREFIX)
+    arrays = snapshot_arrays.to_arrays(snapshot, prefix=_TASK_PREFIX)
     for key, value in observation.items():
       arrays[_OBSERVATION_PREFIX + key] = np.asarray(value)
     np.savez(os.path.join(temporary, _EPISODE_FILE), **arrays)
@@ -251,7 +251,7 @@ def load_episode(directory: Path
                  for name, value in arrays.items()
                  if name.startswith(_OBSERVATION_PREFIX)}
   return (state['episode'], observation,
-          snapshots.from_arrays(arrays, prefix=_TASK_PREFIX))
+          snapshot_arrays.from_arrays(arrays, prefix=_TASK_PREFIX))
 
 
 def agent_directory(path: Path) -> str:

@@ -30,7 +30,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(
     __file__))))
 # pylint: disable=wrong-import-position
 from hrc_suite import suite
-from hrc_suite.experts import evaluate
+from hrc_suite.experts import evaluation_report
+from hrc_suite.experts import evaluation_rows
 from hrc_suite.experts import results_file
 
 COLUMNS = ('robot', 'people', 'shield', 'episodes', 'success [95 % CI]',
@@ -73,7 +74,7 @@ def summarise(episodes):
     metrics = [e['metrics'] or {} for e in group]
     def values(name):
       return [m.get(name) for m in metrics]
-    rate, low, high = evaluate.success_ci(
+    rate, low, high = evaluation_rows.success_ci(
         [m.get('success') or 0.0 for m in metrics])
     times = [v for v in values(f'time_to/{event}') if v is not None]
     step = group[0]['control_timestep'] or math.nan
@@ -99,7 +100,7 @@ def summarise(episodes):
 
 
 def _cell(value, digits=2):
-  return evaluate.MISSING if not math.isfinite(value) else (
+  return evaluation_report.MISSING if not math.isfinite(value) else (
       f'{value:.{digits}f}')
 
 

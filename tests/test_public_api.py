@@ -45,6 +45,7 @@ DOCUMENTED_MODULES = (
     'hrc_suite/safety/shield/shield_state.py',
     'hrc_suite/safety/shield/batch.py',
     'hrc_suite/safety/collision_prevention/prevention.py',
+    'hrc_suite/experts',
     'agents',
     'agents/sac',
     'agents/sac_lag',

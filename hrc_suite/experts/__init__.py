@@ -14,17 +14,34 @@ the extension modules (`hrc_suite.extensions`; docs/extending.md).
 
 import importlib
 import sys
+from typing import Callable, Optional, Union
+
+from dm_control import composer
 
 from hrc_suite import extensions
+from hrc_suite.experts import base
+from hrc_suite.experts import noise as noise_lib
 
 _EXPERTS = {}          # (domain, task) -> expert class
 _IMPORT_ERRORS = {}    # module -> error of an expert module that failed
 _LOADED = False
 
 
-def register(domain, *tasks):
+def register(domain: str, *tasks: str) -> Callable[[type], type]:
   """Class decorator: the class is the expert of domain/task for each of
-  `tasks` (built as cls(env) by `make`)."""
+  `tasks` (built as cls(env) by `make`).
+
+  Args:
+    domain: the suite domain, e.g. 'pick_place'.
+    *tasks: the domain's tasks the class solves, at least one.
+
+  Returns:
+    The decorator, which returns the class unchanged.
+
+  Raises:
+    ValueError: no task named, or (when decorating) another class is
+      registered for one of them.
+  """
   if not tasks:
     raise ValueError(f'experts.register({domain!r}): name at least one task')
 
@@ -40,8 +57,16 @@ def register(domain, *tasks):
   return decorator
 
 
-def unregister(domain, task):
-  """Removes a registered expert (e.g. one a test registered)."""
+def unregister(domain: str, task: str) -> None:
+  """Removes a registered expert (e.g. one a test registered).
+
+  Args:
+    domain: the suite domain.
+    task: the task.
+
+  Raises:
+    ValueError: no expert is registered for domain/task.
+  """
   if (domain, task) not in _EXPERTS:
     raise ValueError(f'No expert for {domain}/{task} is registered')
   del _EXPERTS[(domain, task)]
@@ -62,13 +87,26 @@ def _load():
   extensions.load()
 
 
-def registered():
+def registered() -> tuple[tuple[str, str], ...]:
   """The (domain, task) pairs with an expert, sorted."""
   _load()
   return tuple(sorted(_EXPERTS))
 
 
-def expert_class(domain, task):
+def expert_class(domain: str, task: str) -> type[base.Expert]:
+  """The expert class registered for domain/task.
+
+  Args:
+    domain: the suite domain.
+    task: the task.
+
+  Returns:
+    The class (a `base.Expert` subclass), built as cls(env).
+
+  Raises:
+    ValueError: no expert is registered for domain/task.
+    ImportError: none is, and an expert module failed to import.
+  """
   _load()
   key = (domain, task)
   if key not in _EXPERTS:
@@ -81,11 +119,26 @@ def expert_class(domain, task):
   return _EXPERTS[key]
 
 
-def make(env, noise=None, seed=0):
+def make(env: composer.Environment,
+         noise: Optional[noise_lib.OrnsteinUhlenbeckNoise] = None,
+         seed: int = 0) -> Union[base.Expert, noise_lib.NoisyExpert]:
   """The expert of the environment's task (`env.task.suite_name`), wrapped
-  in `noise.NoisyExpert` (noise seeded by `seed`) when `noise` (a noise
-  process, e.g. `noise.OrnsteinUhlenbeckNoise.reference(size, space)`) is
-  given."""
+  in `noise.NoisyExpert` (noise seeded by `seed`) when `noise` is given.
+
+  Args:
+    env: an environment of `hrc_suite.suite.load`.
+    noise: a noise process (e.g.
+      `noise.OrnsteinUhlenbeckNoise.reference(size, space)`), or None.
+    seed: the seed of the noise.
+
+  Returns:
+    The expert (`base.Expert`), or the `noise.NoisyExpert` around it:
+    action = expert(timestep).
+
+  Raises:
+    ValueError: the environment is not of suite.load, or its task has no
+      expert.
+  """
   name = getattr(env.task, 'suite_name', None)
   if name is None:
     raise ValueError('make(env) needs an environment from hrc_suite.suite.'
@@ -93,5 +146,4 @@ def make(env, noise=None, seed=0):
   expert = expert_class(*name)(env)
   if noise is None:
     return expert
-  from hrc_suite.experts import noise as noise_lib   # pylint: disable=g-import-not-at-top
   return noise_lib.NoisyExpert(expert, noise, seed=seed)

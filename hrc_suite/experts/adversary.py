@@ -18,6 +18,9 @@ have no critical contact. Deterministic; any task with a person.
   joint: any link, at any orientation, that can reach the person does.
 """
 
+from typing import Mapping
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite.experts import base
@@ -32,11 +35,15 @@ GRADIENT_STEP = 1e-4
 class PersonChaser(base.Expert):
   """Drives the robot at the person as fast as it can (see module doc).
 
-  Privileged: none (the task's own observables, noise-free)."""
+  Privileged: none (the task's own observables, noise-free).
+
+  Args:
+    env: the environment (hrc_suite.suite.load) of a task with a person.
+  """
 
   OBSERVED = ('eef_position', 'joint_positions', 'human_keypoints')
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     self._gripper = CLOSED if self._steer.has_gripper else None
@@ -44,7 +51,16 @@ class PersonChaser(base.Expert):
     self._robot_capsules = shield.robot.capsules
     self._body_capsules = shield.human.body_capsules
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: the TCP (Cartesian) or the arm (joint) towards the
+      person, gripper closed.
+    """
     q = observation['joint_positions']
     points = observation['human_keypoints']
     if self._steer.space == 'joint':
@@ -55,9 +71,17 @@ class PersonChaser(base.Expert):
     aim = points[int(np.argmin(np.linalg.norm(points - tcp, axis=1)))]
     return self._steer.action(aim, tcp, q, self._gripper)
 
-  def distance(self, q, points):
-    """Distance (m) between the robot's capsules at joint positions q
-    (..., dof) and the person's body capsules at keypoints `points`."""
+  def distance(self, q: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance (m) between the robot's capsules and the person's body
+    capsules.
+
+    Args:
+      q: joint positions (..., dof).
+      points: the person's keypoints (the `human_keypoints` observable).
+
+    Returns:
+      The smallest capsule distance per configuration (...).
+    """
     r1, r2, rr = self._robot_capsules(np.asarray(q, dtype=float))
     h1, h2, hr = self._body_capsules(points)
     return geometry.capsule_distance(

@@ -17,18 +17,31 @@ online for an agent's action (action-based imitation reward). `reset()` is
 called at every first timestep.
 """
 
+from typing import Mapping
+
+from dm_control import composer
+from dm_control import mjcf
+import dm_env
 import numpy as np
 
 
 class Expert:
-  """Base class: subclasses implement `action(observation) -> array`."""
+  """Base class: subclasses implement `action(observation) -> array`.
+
+  Args:
+    env: the environment (of hrc_suite.suite.load) whose task the expert
+      solves.
+
+  Raises:
+    ValueError: the task lacks an OBSERVED observable.
+  """
 
   # Names of the task observables the expert reads (see `observe`).
   OBSERVED = ()
   # (domain, task) pairs the expert solves; empty = any.
   TASKS = ()
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     self._env = env
     self._task = env.task
     missing = [name for name in self.OBSERVED
@@ -43,22 +56,29 @@ class Expert:
     self._callables = None
 
   @property
-  def env(self):
+  def env(self) -> composer.Environment:
+    """The environment the expert acts in."""
     return self._env
 
   @property
-  def task(self):
+  def task(self) -> composer.Task:
+    """The environment's task (an HrcTask)."""
     return self._task
 
   @property
-  def physics(self):
+  def physics(self) -> mjcf.Physics:
+    """The environment's current physics."""
     return self._env.physics
 
-  def reset(self):
+  def reset(self) -> None:
     """Forgets the previous episode (called at every first timestep)."""
 
-  def observe(self):
-    """{name: noise-free value now} of the OBSERVED task observables."""
+  def observe(self) -> dict[str, np.ndarray]:
+    """The OBSERVED task observables now, without noise or delay.
+
+    Returns:
+      {name: value}.
+    """
     if self._callables is None:
       observables = self._task.task_observables
       # The raw callables: no corruptor (noise) and no delay buffer.
@@ -66,10 +86,31 @@ class Expert:
                          for name in self.OBSERVED}
     return {name: np.asarray(fn()) for name, fn in self._callables.items()}
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The expert's action (subclasses implement it).
+
+    Args:
+      observation: `observe`'s values.
+
+    Returns:
+      The action, an array of the action spec's shape (clipped to [-1, 1]
+      by `__call__`).
+    """
     raise NotImplementedError
 
-  def __call__(self, timestep):
+  def __call__(self, timestep: dm_env.TimeStep) -> np.ndarray:
+    """The expert's action at a timestep (its observation is not read:
+    `observe`); resets the expert at a first timestep.
+
+    Args:
+      timestep: the environment's current timestep.
+
+    Returns:
+      The action (float64, the action spec's shape, within [-1, 1]).
+
+    Raises:
+      ValueError: `action` returned another shape.
+    """
     if timestep.first():
       self._callables = None   # The physics may have been rebuilt.
       self.reset()

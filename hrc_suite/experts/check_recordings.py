@@ -29,7 +29,7 @@ placement, targets, idle phases) and printed:
 
 A summary per task, robot and policy follows. Exit status: 0 when every
 recording was derived and every row reaches the experts' bar
-(evaluate.SUCCESS_BAR, no critical contact), 1 otherwise, 2 on bad
+(evaluation_rows.SUCCESS_BAR, no critical contact), 1 otherwise, 2 on bad
 arguments. Clips go to --work (a folder of one folder per clip, reused
 by the episodes' worker processes).
 """
@@ -38,6 +38,7 @@ import collections
 import pathlib
 import sys
 import tempfile
+from typing import Any, Mapping, Sequence, TextIO, Union
 
 from absl import app
 from absl import flags
@@ -46,7 +47,8 @@ import numpy as np
 from hrc_suite import experts
 from hrc_suite import registry_flags
 from hrc_suite import suite
-from hrc_suite.experts import evaluate
+from hrc_suite.experts import evaluation_episodes
+from hrc_suite.experts import evaluation_rows
 from hrc_suite.human import bvh
 from hrc_suite.human import bvh_import
 from hrc_suite.human import clip as clip_lib
@@ -55,7 +57,7 @@ from hrc_suite.human import recording_cache
 from hrc_suite.motion_tools import compare
 from hrc_suite.tasks.runtime import motions as motions_lib
 
-# The people label of the episodes' rows (evaluate.people).
+# The people label of the episodes' rows (evaluation_episodes.people).
 LABEL = 'check'
 # Per-episode metrics printed per clip (name, what), means per episode.
 EPISODE_COLUMNS = (('shield_interventions', 'shield'),
@@ -64,8 +66,16 @@ EPISODE_COLUMNS = (('shield_interventions', 'shield'),
                    ('steps_outside_human_model', 'outside model'))
 
 
-def task_motions(tasks):
-  """{clip task: [(domain, task), ...]} of `tasks` (their MOTIONS)."""
+def task_motions(tasks: Sequence[tuple[str, str]]
+                 ) -> dict[str, list[tuple[str, str]]]:
+  """The tasks grouped by the clips they play (their MOTIONS).
+
+  Args:
+    tasks: (domain, task) pairs; unregistered ones are left out.
+
+  Returns:
+    {clip task: [(domain, task), ...]}, in the tasks' order.
+  """
   grouped = collections.OrderedDict()
   for domain, task in tasks:
     task_class = suite.task_class(domain, task)
@@ -75,9 +85,18 @@ def task_motions(tasks):
   return grouped
 
 
-def import_folder(folder, clip_task):
-  """[(source name, Clip or error message)] of the recordings (or saved
-  clips) in `folder`, each imported for `clip_task` on its own."""
+def import_folder(folder: Union[str, pathlib.Path], clip_task: str
+                  ) -> list[tuple[str, Union[clip_lib.Clip, str]]]:
+  """The recordings (or saved clips) in a folder, each imported for a
+  task on its own.
+
+  Args:
+    folder: the folder of BVH recordings (or saved clips).
+    clip_task: the clips' task (a task class's MOTIONS).
+
+  Returns:
+    [(source name, Clip, or the import's error message)].
+  """
   folder = pathlib.Path(folder)
   files = recording_cache.bvh_files(folder)
   if not files:
@@ -95,8 +114,15 @@ def _point(value):
   return '(' + ', '.join(f'{v:.2f}' for v in np.asarray(value)) + ')'
 
 
-def derived_lines(clip):
-  """Lines describing what the import derived for `clip`."""
+def derived_lines(clip: clip_lib.Clip) -> list[str]:
+  """Lines describing what the import derived for a clip.
+
+  Args:
+    clip: an imported clip.
+
+  Returns:
+    The placement, hands and keyframes, and targets lines.
+  """
   lines = []
   placement = clip.metadata.get('import', {}).get('placement')
   if placement:
@@ -116,8 +142,17 @@ def derived_lines(clip):
   return lines
 
 
-def speed_line(clip, v_max):
-  """The clip's speed against the shield's human model, one line."""
+def speed_line(clip: clip_lib.Clip, v_max: np.ndarray) -> str:
+  """The clip's speed against the shield's human model, one line.
+
+  Args:
+    clip: an imported clip.
+    v_max: the human model's speed limits (K,), m/s, in
+      keypoints.KEYPOINT_NAMES order (`compare.shield_limits`).
+
+  Returns:
+    The line.
+  """
   speeds = clip_lib.keypoint_speeds(clip)
   frame, k = np.unravel_index(int(np.argmax(speeds)), speeds.shape)
   over = float(np.mean((speeds > v_max).any(axis=1))) * 100.0
@@ -132,8 +167,18 @@ def speed_line(clip, v_max):
   return line + f'; worst {name} {speed:.2f} m/s at t = {time:.1f} s'
 
 
-def outcome_line(robot, policy, results):
-  """One line of a clip's episodes with `robot` and `policy`."""
+def outcome_line(robot: str, policy: str,
+                 results: Sequence[Mapping[str, Any]]) -> str:
+  """One line of a clip's episodes with a robot and policy.
+
+  Args:
+    robot: the robot's name.
+    policy: the policy's name.
+    results: the episodes' results (`evaluation_episodes.run`).
+
+  Returns:
+    The line.
+  """
   done = [r for r in results if r['metrics']]
   successes = sum(int(r['metrics']['success'] > 0.5) for r in done)
   critical = sum(1 for r in done if r['metrics']['contacts_human_critical'])
@@ -150,19 +195,43 @@ def outcome_line(robot, policy, results):
   return ', '.join(parts)
 
 
-def passed(results):
-  """Whether episodes reach the experts' bar (success rate, no critical
-  contact)."""
+def passed(results: Sequence[Mapping[str, Any]]) -> bool:
+  """Whether episodes reach the experts' bar.
+
+  Args:
+    results: the episodes' results (`evaluation_episodes.run`).
+
+  Returns:
+    True if every episode ran, the success rate is at least
+    evaluation_rows.SUCCESS_BAR and no episode had a critical contact.
+  """
   done = [r for r in results if r['metrics']]
   if len(done) < len(results) or not results:
     return False
   rate = np.mean([r['metrics']['success'] > 0.5 for r in done])
-  return bool(rate >= evaluate.SUCCESS_BAR and not any(
+  return bool(rate >= evaluation_rows.SUCCESS_BAR and not any(
       r['metrics']['contacts_human_critical'] for r in done))
 
 
-def check(motions, tasks, pairs, episodes, work, workers=1, out=sys.stdout):
-  """Runs the check (module doc); returns whether everything passed."""
+def check(motions: Union[str, pathlib.Path],
+          tasks: Sequence[tuple[str, str]],
+          pairs: Sequence[tuple[str, str]], episodes: int,
+          work: Union[str, pathlib.Path], workers: int = 1,
+          out: TextIO = sys.stdout) -> bool:
+  """Runs the check (module doc).
+
+  Args:
+    motions: the folder of recordings (`task_kwargs={'motions': ...}`).
+    tasks: (domain, task) pairs to check (those whose motions it holds).
+    pairs: (robot, policy) pairs of the episodes.
+    episodes: episodes (seeds 0..episodes-1) per clip, robot and policy.
+    work: the folder the imported clips are saved in.
+    workers: parallel processes of the episodes.
+    out: where the report is printed.
+
+  Returns:
+    Whether every recording was derived and every row reaches the bar.
+  """
   v_max, _ = compare.shield_limits()
   ok = True
   grouped = task_motions(tasks)
@@ -198,7 +267,7 @@ def check(motions, tasks, pairs, episodes, work, workers=1, out=sys.stdout):
                [LABEL, folder], None)
               for domain, task, _, folder in plan
               for robot, policy in pairs for seed in range(episodes)]
-  results = evaluate.run(job_list, workers=workers)
+  results = evaluation_episodes.run(job_list, workers=workers)
   by_clip = collections.OrderedDict()
   for (domain, task, name, _), start in zip(
       plan, range(0, len(job_list), len(pairs) * episodes)):
@@ -236,8 +305,12 @@ def _task_name(name):
   return domain, task
 
 
-def define_flags(flag_values=flags.FLAGS):
-  """The command's flags on `flag_values`."""
+def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """Defines the command's flags.
+
+  Args:
+    flag_values: where they are defined.
+  """
   fv = flag_values
   flags.DEFINE_string('motions', None, 'Folder of recordings (BVH + '
                       '<n>_info.json, or one sub-folder per task).',
@@ -258,14 +331,24 @@ def define_flags(flag_values=flags.FLAGS):
   registry_flags.check_robot('robots', flag_values=fv)
 
 
-def main(argv, flag_values=flags.FLAGS):
+def main(argv: Sequence[str],
+         flag_values: flags.FlagValues = flags.FLAGS) -> None:
+  """The command (module doc); exits with its status.
+
+  Args:
+    argv: the command line (no positional arguments).
+    flag_values: the flags of `define_flags`.
+
+  Raises:
+    app.UsageError: bad arguments.
+  """
   if len(argv) > 1:
     raise app.UsageError(f'Unexpected arguments: {argv[1:]}')
   f = flag_values
-  bad = [p for p in f.policies if p not in evaluate.EXPERT_POLICIES]
+  bad = [p for p in f.policies if p not in evaluation_episodes.EXPERT_POLICIES]
   if bad:
     raise app.UsageError(f'--policies: unknown {bad[0]!r}: expected '
-                         f'{" or ".join(evaluate.EXPERT_POLICIES)}')
+                         f'{" or ".join(evaluation_episodes.EXPERT_POLICIES)}')
   try:
     tasks = ([_task_name(t) for t in f.tasks] if f.tasks
              else list(experts.registered()))

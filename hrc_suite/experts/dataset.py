@@ -22,14 +22,17 @@ import math
 import os
 import pathlib
 import zipfile
+from typing import Any, Callable, Mapping, Optional, Union
 
+from dm_control import composer
 from dm_control.composer.observation import observable as observable_lib
+import dm_env
 import numpy as np
 
 from hrc_suite import experts
 from hrc_suite import suite
 from hrc_suite.experts import noise as noise_lib
-from hrc_suite.tasks.runtime import snapshots
+from hrc_suite.tasks.runtime import snapshot_arrays
 
 FORMAT = 'hrc_suite.expert_dataset'
 FORMAT_VERSION = 1
@@ -55,8 +58,16 @@ class DatasetError(ValueError):
   """A dataset file is missing, corrupt or does not match."""
 
 
-def episode_seed(seed, index):
-  """Seed of episode `index`'s environment random_state."""
+def episode_seed(seed: int, index: int) -> int:
+  """Seed of episode `index`'s environment random_state.
+
+  Args:
+    seed: the dataset's seed.
+    index: the episode's index.
+
+  Returns:
+    seed + index.
+  """
   return int(seed) + int(index)
 
 
@@ -94,8 +105,15 @@ def _spec_of(value):
   return {'shape': list(value.shape), 'dtype': value.dtype.name}
 
 
-def expert_observation_names(task):
-  """Every non-camera observable of the task (the 'full' preset)."""
+def expert_observation_names(task: composer.Task) -> tuple[str, ...]:
+  """Every non-camera observable of the task (the 'full' preset).
+
+  Args:
+    task: the task.
+
+  Returns:
+    The observables' names, in the task's order.
+  """
   return tuple(name for name, obs in task.task_observables.items()
                if not isinstance(obs, observable_lib.MJCFCamera))
 
@@ -110,8 +128,8 @@ class _SnapshotStack:
 
   def add(self, state):
     """Flattens `state` now (flat buffers are smaller than nested states)."""
-    spec, buffers = snapshots.flatten(state)
-    key = snapshots.spec_to_json(spec)
+    spec, buffers = snapshot_arrays.flatten(state)
+    key = snapshot_arrays.spec_to_json(spec)
     self._index.append(self._specs.setdefault(key, len(self._specs)))
     self._parts.append(buffers)
 
@@ -130,12 +148,22 @@ class _SnapshotStack:
     return arrays
 
 
-def record_episode(env, policy, progress=None):
-  """Plays one episode (env.reset() first) and returns (arrays, summary):
-  the episode file's arrays and its summary metrics. `policy(timestep)`
-  may expose `last_expert_action` (a NoisyExpert); otherwise the executed
-  action is the expert action. `progress` (a tqdm bar) is updated per
-  step."""
+def record_episode(env: composer.Environment,
+                   policy: Callable[[dm_env.TimeStep], np.ndarray],
+                   progress: Optional[Any] = None
+                   ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+  """Plays one episode (env.reset() first).
+
+  Args:
+    env: the environment.
+    policy: action = policy(timestep); it may expose `last_expert_action`
+      (a NoisyExpert), otherwise the executed action is the expert action.
+    progress: a tqdm bar, updated per step, or None.
+
+  Returns:
+    (arrays, summary): the episode file's arrays (docs/datasets.md) and
+    its summary: 'steps' and the episode metrics (JSON-able).
+  """
   timestep = env.reset()
   task, physics = env.task, env.physics
   observables = task.task_observables
@@ -224,9 +252,21 @@ def _check_policy(policy, make_policy):
 
 class DatasetWriter:
   """Creates a dataset directory or reopens one with the same
-  configuration; `add` writes the next episode."""
+  configuration; `add` writes the next episode.
 
-  def __init__(self, directory, config):
+  Args:
+    directory: the dataset folder (created if needed).
+    config: the collection's configuration (`collect`'s dataset.json
+      entries but the episodes); a reopened folder keeps the episodes
+      whose files exist, up to the first missing one.
+
+  Raises:
+    DatasetError: the folder holds another collection, or an unreadable
+      description.
+  """
+
+  def __init__(self, directory: Union[str, os.PathLike],
+               config: Mapping[str, Any]):
     self.directory = pathlib.Path(directory)
     self.directory.mkdir(parents=True, exist_ok=True)
     path = self.directory / METADATA_FILE
@@ -254,11 +294,18 @@ class DatasetWriter:
       self._write_metadata()
 
   @property
-  def num_episodes(self):
+  def num_episodes(self) -> int:
+    """The number of episodes written."""
     return len(self.metadata['episodes'])
 
-  def add(self, arrays, summary):
-    """Writes episode `num_episodes` (arrays from record_episode)."""
+  def add(self, arrays: Mapping[str, np.ndarray],
+          summary: Mapping[str, Any]) -> None:
+    """Writes episode `num_episodes` and updates dataset.json.
+
+    Args:
+      arrays: the episode file's arrays (`record_episode`).
+      summary: its summary (`record_episode`).
+    """
     index = self.num_episodes
     name = EPISODE_FILE.format(index)
     _write_atomically(self.directory / name,
@@ -274,15 +321,20 @@ class DatasetWriter:
                       lambda f: f.write(text.encode()))
 
 
-def collect(directory, domain, task, task_kwargs=None, policy='noisy_expert',
-            episodes=1, seed=0, noise_kwargs=None, make_policy=None,
-            progress=False):
+def collect(directory: Union[str, os.PathLike], domain: str, task: str,
+            task_kwargs: Optional[Mapping[str, Any]] = None,
+            policy: str = 'noisy_expert', episodes: int = 1, seed: int = 0,
+            noise_kwargs: Optional[Mapping[str, Any]] = None,
+            make_policy: Optional[Callable[[composer.Environment],
+                                           Callable]] = None,
+            progress: bool = False) -> 'Dataset':
   """Collects episodes 0..episodes-1 into `directory` (resuming after the
   ones already there) and returns the loaded Dataset.
 
   Args:
     directory: the dataset folder (created if needed).
-    domain, task: a registered task.
+    domain: a registered task's domain.
+    task: the task.
     task_kwargs: its kwargs (JSON-able; robot, action_space, time_limit..).
     policy: 'expert' or 'noisy_expert', or a name for `make_policy`.
     episodes: total number of episodes the folder should hold.
@@ -292,6 +344,14 @@ def collect(directory, domain, task, task_kwargs=None, policy='noisy_expert',
     make_policy: optional `make_policy(env) -> policy` replacing the
       expert (e.g. a scripted policy); `policy` is then only its name.
     progress: show tqdm progress bars.
+
+  Returns:
+    The loaded Dataset.
+
+  Raises:
+    ValueError: an unknown policy, bad episodes or seed, or noise_kwargs
+      for the policy 'expert'.
+    DatasetError: the folder holds another collection.
   """
   _check_policy(policy, make_policy)
   if not isinstance(episodes, int) or episodes < 0:
@@ -372,9 +432,13 @@ def _read_metadata(path):
 
 
 class Episode:
-  """One episode file, read on first use (every array at once)."""
+  """One episode file, read on first use (every array at once).
 
-  def __init__(self, path):
+  Args:
+    path: the episode's .npz file.
+  """
+
+  def __init__(self, path: Union[str, os.PathLike]):
     self.path = pathlib.Path(path)
     self._arrays = None
 
@@ -415,53 +479,79 @@ class Episode:
     return {key[len(prefix):]: value for key, value in self._load().items()
             if key.startswith(prefix)}
 
+  # The properties raise DatasetError for an unreadable or inconsistent
+  # file.
+
   @property
-  def arrays(self):
+  def arrays(self) -> dict[str, np.ndarray]:
     """Every array of the file by key."""
     return dict(self._load())
 
   @property
-  def num_steps(self):
+  def num_steps(self) -> int:
+    """T, the number of RL steps (actions)."""
     return self._load()['action'].shape[0]
 
   @property
-  def observations(self):
+  def observations(self) -> dict[str, np.ndarray]:
+    """The agent's observations by name, (T+1, ...) each."""
     return self._group(OBSERVATION)
 
   @property
-  def expert_observations(self):
+  def expert_observations(self) -> dict[str, np.ndarray]:
+    """Every non-camera observable without noise or delay by name,
+    (T+1, ...) each."""
     return self._group(EXPERT_OBSERVATION)
 
   @property
-  def actions(self):
+  def actions(self) -> np.ndarray:
+    """The executed actions (T, action size)."""
     return self._load()['action']
 
   @property
-  def expert_actions(self):
+  def expert_actions(self) -> np.ndarray:
+    """The expert's actions before noise (T, action size)."""
     return self._load()['expert_action']
 
   @property
-  def rewards(self):
+  def rewards(self) -> np.ndarray:
+    """The rewards (T,) of the timesteps the actions led to."""
     return self._load()['reward']
 
   @property
-  def discounts(self):
+  def discounts(self) -> np.ndarray:
+    """The discounts (T,) of the timesteps the actions led to."""
     return self._load()['discount']
 
   @property
-  def step_types(self):
+  def step_types(self) -> np.ndarray:
+    """The step types (T+1,) uint8: 0 first, 1 mid, 2 last."""
     return self._load()['step_type']
 
   @property
-  def step_metrics(self):
+  def step_metrics(self) -> dict[str, np.ndarray]:
+    """The step metrics by name, (T,) float64 each (NaN where a step
+    lacks the entry)."""
     return self._group(STEP_METRICS)
 
   @property
-  def episode_metrics(self):
+  def episode_metrics(self) -> dict[str, float]:
+    """The episode metrics at the end by name."""
     return {k: float(v) for k, v in self._group(EPISODE_METRICS).items()}
 
-  def snapshot(self, step):
-    """The task state at timestep `step` (0..num_steps), for set_state."""
+  def snapshot(self, step: int) -> dict[str, Any]:
+    """The task state at a timestep, for set_state.
+
+    Args:
+      step: the timestep, 0..num_steps.
+
+    Returns:
+      The snapshot (tasks/runtime/snapshots.py).
+
+    Raises:
+      IndexError: a step outside 0..num_steps.
+      DatasetError: an unreadable file or snapshot.
+    """
     arrays = self._load()
     count = arrays[SNAPSHOT + 'spec_index'].shape[0]
     if not isinstance(step, (int, np.integer)) or not 0 <= step < count:
@@ -476,8 +566,8 @@ class Episode:
         offsets = arrays[f'{SNAPSHOT}offsets/{name}']
         buffers[name] = data[offsets[step]:offsets[step + 1]]
     try:
-      return snapshots.unflatten(
-          snapshots.spec_from_json(str(specs[spec_index])), buffers)
+      return snapshot_arrays.unflatten(
+          snapshot_arrays.spec_from_json(str(specs[spec_index])), buffers)
     except (ValueError, IndexError) as e:
       raise DatasetError(f'{self.path}: snapshot {step}: {e}') from e
 
@@ -510,25 +600,60 @@ class _Episodes:
 
 
 class Dataset:
-  """A loaded dataset: `metadata` (dataset.json), lazy `episodes`."""
+  """A loaded dataset: `metadata` (dataset.json), lazy `episodes`.
 
-  def __init__(self, directory, metadata):
+  Args:
+    directory: the dataset folder.
+    metadata: its dataset.json, parsed.
+  """
+
+  def __init__(self, directory: Union[str, os.PathLike],
+               metadata: Mapping[str, Any]):
     self.directory = pathlib.Path(directory)
     self.metadata = metadata
     self.episodes = _Episodes(self.directory, metadata['episodes'])
 
-  def snapshot(self, episode, step):
-    """Nested task state of `episode` at timestep `step` (set_state)."""
+  def snapshot(self, episode: int, step: int) -> dict[str, Any]:
+    """Nested task state of an episode at a timestep (set_state).
+
+    Args:
+      episode: the episode's index.
+      step: the timestep, 0..its num_steps.
+
+    Returns:
+      The snapshot (`Episode.snapshot`).
+
+    Raises:
+      IndexError: an episode or step out of range.
+      DatasetError: a missing or unreadable episode file.
+    """
     return self.episodes[episode].snapshot(step)
 
-  def environment(self, seed=None):
-    """A new environment of the dataset's task and task kwargs."""
+  def environment(self, seed: Optional[int] = None) -> composer.Environment:
+    """A new environment of the dataset's task and task kwargs.
+
+    Args:
+      seed: the environment's random_state seed (None: unseeded).
+
+    Returns:
+      The environment (hrc_suite.suite.load).
+    """
     return _environment(self.metadata['domain'], self.metadata['task'],
                         self.metadata['task_kwargs'], seed)
 
 
-def load_dataset(directory):
-  """The dataset in `directory` (dataset.json and its episode files)."""
+def load_dataset(directory: Union[str, os.PathLike]) -> Dataset:
+  """The dataset in a folder (dataset.json and its episode files).
+
+  Args:
+    directory: the dataset folder.
+
+  Returns:
+    The Dataset (episode files opened on access).
+
+  Raises:
+    DatasetError: no readable dataset.json of this format there.
+  """
   path = pathlib.Path(directory) / METADATA_FILE
   if not path.exists():
     raise DatasetError(f'{path}: no dataset description (is {directory} a '

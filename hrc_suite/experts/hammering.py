@@ -25,6 +25,9 @@ turned ~45 deg and fell, and clip hammering_07's blows landed 1-3 cm beside
 the nail). Measured results are in docs/tasks.md (hammering).
 """
 
+from typing import Mapping
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -59,18 +62,30 @@ DEADBAND = 0.002
 @experts.register('hammering', 'default')
 class HammeringExpert(base.Expert):
   """Brings the nail head to the nail target and holds it there
-  (hammering/default). Reads observables only."""
+  (hammering/default). Reads observables only.
+
+  Args:
+    env: the environment (hrc_suite.suite.load) whose task it solves.
+  """
 
   OBSERVED = ('eef_position', 'eef_quaternion', 'joint_positions',
               'eef_to_target', 'nail_target', 'nail_progress',
               'hammer_head_position')
   TASKS = (('hammering', 'default'),)
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: the TCP by `nail_offset`, gripper closed.
+    """
     tcp = observation['eef_position']
     q = observation['joint_positions']
     offset = self.nail_offset(observation)
@@ -78,8 +93,15 @@ class HammeringExpert(base.Expert):
       self._steer.yaw = rotations.quat_yaw(observation['eef_quaternion'])
     return self._steer.action(tcp + offset, tcp, q, GRIPPER_CLOSED)
 
-  def nail_offset(self, observation):
-    """Where the nail head should move (m, world displacement)."""
+  def nail_offset(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Where the nail head should move.
+
+    Args:
+      observation: the OBSERVED observables now.
+
+    Returns:
+      The nail head's displacement (3,), m, world.
+    """
     target = observation['nail_target']
     nail = target - observation['eef_to_target']
     if observation['nail_progress'][0] > hammering.SUCCESS_PROGRESS:

@@ -18,6 +18,9 @@ The shield (SSM) slows the arm near the person's hand, which rests on the
 plank's handle 0.235 m from the nail (tasks/hammering_robot.py).
 """
 
+from typing import Mapping
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -49,25 +52,39 @@ STEP = 0.02
 @experts.register('hammering', 'robot_hammers')
 class RobotHammersExpert(base.Expert):
   """Drives the nail with blows (hammering/robot_hammers). Reads
-  observables only, plus its own blow phase."""
+  observables only, plus its own blow phase.
+
+  Args:
+    env: the environment (hrc_suite.suite.load) whose task it solves.
+  """
 
   OBSERVED = ('eef_position', 'eef_quaternion', 'joint_positions',
               'nail_head_position', 'hammer_head_position', 'nail_progress',
               'board_placed', 'object_gripped')
   TASKS = (('hammering', 'robot_hammers'),)
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     home = self._task.robot.description.q_home
     self._wait = self._task.kinematics.tcp_pose(home)[:3, 3].copy()
     self.reset()
 
-  def reset(self):
+  def reset(self) -> None:
+    """Forgets the blow phase (not striking)."""
     self._striking = False
     self._on_head = 0
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: the hammer face towards
+      `face_goal`, at most STEP near the nail, gripper closed.
+    """
     tcp = observation['eef_position']
     q = observation['joint_positions']
     if self._steer.space == 'joint':
@@ -80,8 +97,15 @@ class RobotHammersExpert(base.Expert):
       move *= STEP / length
     return self._steer.action(tcp + move, tcp, q, GRIPPER_CLOSED)
 
-  def face_goal(self, observation):
-    """Where the hammer face should go now (world, m)."""
+  def face_goal(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Where the hammer face should go now; updates the blow phase.
+
+    Args:
+      observation: the OBSERVED observables now.
+
+    Returns:
+      The face's goal (3,), world, m.
+    """
     face = observation['hammer_head_position']
     head = observation['nail_head_position']
     tcp = observation['eef_position']

@@ -36,6 +36,9 @@ while the person sways back) and its last gripper command; all are
 forgotten at reset, so it can take over from any state.
 """
 
+from typing import Mapping
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -175,7 +178,12 @@ class _HammerExpert(base.Expert):
               'object_position', 'object_quaternion', 'object_gripped',
               'object_held_by_human', 'target_position')
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
+    """The expert of `env`'s task.
+
+    Args:
+      env: the environment (hrc_suite.suite.load) whose task it solves.
+    """
     super().__init__(env)
     self._last_close = None    # the last gripper command closed (memory)
     self._steer = steering.Steering(self._task)
@@ -307,11 +315,17 @@ class RobotToHumanExpert(_HammerExpert):
 
   TASKS = (('handover', 'robot_to_human'),)
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
+    """The expert of `env`'s task.
+
+    Args:
+      env: the environment (hrc_suite.suite.load) whose task it solves.
+    """
     super().__init__(env)
     self.reset()
 
-  def reset(self):
+  def reset(self) -> None:
+    """Forgets the palm aimed at and the stall count."""
     self._nearest_palm = None
     self._last_tcp = None
     self._stalled = 0        # RL steps the TCP has not moved
@@ -342,7 +356,17 @@ class RobotToHumanExpert(_HammerExpert):
       return palm.copy()
     return self._nearest_palm.copy()
 
-  def action(self, obs):
+  def action(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      obs: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: the handle's end towards the person's palm, gripper
+      closed; once the person holds the hammer: open, clear the handle
+      and go home.
+    """
     tcp = obs['eef_position']
     held = obs['object_held_by_human'][0] > 0.5
     if held:
@@ -408,17 +432,33 @@ class HumanToRobotExpert(_HammerExpert):
 
   TASKS = (('handover', 'human_to_robot'),)
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
+    """The expert of `env`'s task.
+
+    Args:
+      env: the environment (hrc_suite.suite.load) whose task it solves.
+    """
     super().__init__(env)
     self.reset()
 
-  def reset(self):
+  def reset(self) -> None:
+    """Forgets the grip points seen, the still count and the last gripper
+    command."""
     self._previous_grip = None
     self._last_presented = None
     self._last_close = None
     self._still_steps = 0
 
-  def action(self, obs):
+  def action(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now; notes whether its gripper command closes.
+
+    Args:
+      obs: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: take the presented hammer, carry it to the table target
+      and let go there.
+    """
     action = self._action(obs)
     self._last_close = bool(action[-1] > 0.0)
     return action

@@ -13,6 +13,8 @@ so the expert holds the cube wherever the shield stopped it and continues
 when allowed. Privileged: none (observables only).
 """
 
+from typing import Mapping
+
 import numpy as np
 
 from hrc_suite import experts
@@ -41,7 +43,17 @@ class InspectionExpert(pick_place_expert.PickPlaceExpert):
   GRASP_ABOVE = inspection.GRASP_TCP_ABOVE_CENTRE
   HOVER = HOVER
 
-  def plan(self, observation):
+  def plan(self, observation: Mapping[str, np.ndarray]
+           ) -> tuple[str, np.ndarray, float]:
+    """The phase and where the TCP and gripper go
+    (`pick_place.PickPlaceExpert.plan`).
+
+    Args:
+      observation: the OBSERVED observables now.
+
+    Returns:
+      (phase name, TCP aim (3,), gripper command).
+    """
     if not self.in_hand(observation):
       return self._pick(observation)
     self._reopening = False

@@ -43,6 +43,9 @@ to MAX_STEP as a whole: CollaborativeLifting_4, seeds 0 and 2), Schunk
 to the next).
 """
 
+from typing import Mapping, Optional
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -94,13 +97,16 @@ class LiftingExpert(base.Expert):
   where the hands took it; a partner sees where the hands hold the board),
   and the hands' velocity (`task.player.velocities`, what a human tracker
   estimates).
+
+  Args:
+    env: the environment (hrc_suite.suite.load) whose task it solves.
   """
 
   OBSERVED = ('eef_position', 'eef_to_hands', 'joint_positions',
               'board_position', 'board_quaternion', 'handle_position')
   TASKS = (('lifting', 'default'),)
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     self._hand_index = np.array(keypoints.index(
@@ -152,10 +158,18 @@ class LiftingExpert(base.Expert):
         handle_local - anchors.mean(axis=0))
     return middle, offset, heading
 
-  def board_aim(self, observation):
-    """(world position of the handle on the board the person's hands want,
-    that board's heading: world yaw of its long axis, rad), or None when
-    nobody holds the board."""
+  def board_aim(self, observation: Mapping[str, np.ndarray]
+                ) -> Optional[tuple[np.ndarray, float]]:
+    """Where the person's hands want the board.
+
+    Args:
+      observation: the OBSERVED observables now.
+
+    Returns:
+      (world position (3,) of the handle on the board the hands want, that
+      board's heading: world yaw of its long axis, rad), or None when
+      nobody holds the board.
+    """
     wanted = self._wanted_board(observation)
     if wanted is None:
       return None
@@ -184,7 +198,16 @@ class LiftingExpert(base.Expert):
     away = np.append(away / max(np.linalg.norm(away), 1e-9), 0.0)
     return [point] + [point + distance * away for distance in REACH_AWAY]
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: the TCP a paced step towards the wanted board's handle
+      (tilted or moved where out of reach), gripper closed.
+    """
     tcp = observation['eef_position']
     q = observation['joint_positions']
     handle = observation['handle_position']
@@ -213,7 +236,7 @@ class LiftingExpert(base.Expert):
     velocity = self._task.player.velocities[self._hand_index].mean(axis=0)
     return float(np.linalg.norm(velocity[:2])) * self._dt
 
-  def paced_step(self, delta) -> np.ndarray:
+  def paced_step(self, delta: np.ndarray) -> np.ndarray:
     """The TCP step towards `delta` (m, world): `delta` cut to MAX_STEP,
     then its horizontal part lengthened by `hands_pace` (at most to
     `delta`'s own), its vertical part kept.

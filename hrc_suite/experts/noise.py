@@ -27,8 +27,13 @@ expert's own action. The reference's joint-space reach uses alpha 10
 
 import math
 import numbers
+from typing import Any, Optional, Union
 
+from dm_control import composer
+import dm_env
 import numpy as np
+
+from hrc_suite.experts import base
 
 # Reference parameters (docs/reference_benchmark.md, Experts),
 # per action space: OU rate alpha (1/s), stationary std sigma (normalised
@@ -68,8 +73,19 @@ def _finite(name, value, size, minimum=None, strict=False):
   return array
 
 
-def random_state_from(seed):
-  """A RandomState from an int seed or a RandomState (used as is)."""
+def random_state_from(
+    seed: Union[int, np.random.RandomState]) -> np.random.RandomState:
+  """A RandomState from an int seed or a RandomState (used as is).
+
+  Args:
+    seed: an integer >= 0 (taken modulo 2**32), or a RandomState.
+
+  Returns:
+    The RandomState.
+
+  Raises:
+    ValueError: neither.
+  """
   if isinstance(seed, np.random.RandomState):
     return seed
   if isinstance(seed, numbers.Integral) and not isinstance(seed, bool) and (
@@ -79,9 +95,20 @@ def random_state_from(seed):
                    f'np.random.RandomState, got {seed!r}')
 
 
-def episode_random_state(seed, episode):
+def episode_random_state(seed: int, episode: int) -> np.random.RandomState:
   """The noise stream of episode `episode` of a NoisyExpert seeded `seed`:
-  RandomState(SeedSequence((_NOISE_STREAM, seed + episode)))."""
+  RandomState(SeedSequence((_NOISE_STREAM, seed + episode))).
+
+  Args:
+    seed: the NoisyExpert's seed, an integer >= 0.
+    episode: the episode's index, an integer >= 0.
+
+  Returns:
+    The episode's RandomState.
+
+  Raises:
+    ValueError: a seed or episode that is not an integer >= 0.
+  """
   for name, value in (('seed', seed), ('episode', episode)):
     if not isinstance(value, numbers.Integral) or isinstance(
         value, bool) or value < 0:
@@ -93,10 +120,14 @@ def episode_random_state(seed, episode):
 class OrnsteinUhlenbeckNoise:
   """An exact AR(1) discretisation of an OU process per action dimension."""
 
-  def __init__(self, size, alpha=DEFAULT_ALPHA, sigma=DEFAULT_SIGMA,
-               dt=DEFAULT_DT, mu=0.0, weight=DEFAULT_WEIGHT,
-               start='stationary'):
-    """Args:
+  def __init__(self, size: int,
+               alpha: Union[float, np.ndarray] = DEFAULT_ALPHA,
+               sigma: Union[float, np.ndarray] = DEFAULT_SIGMA,
+               dt: float = DEFAULT_DT, mu: Union[float, np.ndarray] = 0.0,
+               weight: float = DEFAULT_WEIGHT, start: str = 'stationary'):
+    """An OU process; sample it after `reset`.
+
+    Args:
       size: number of action dimensions (a positive integer).
       alpha: mean-reversion rate (1/s), > 0, scalar or per dimension.
       sigma: stationary standard deviation, >= 0, scalar or per dimension.
@@ -106,6 +137,9 @@ class OrnsteinUhlenbeckNoise:
         (NoisyExpert executes (1 - w) a_e + w X).
       start: 'stationary' (X_0 ~ N(mu, sigma^2), so every sample has the
         stationary law) or 'mean' (X_0 = mu).
+
+    Raises:
+      ValueError: a parameter outside its range.
     """
     if not isinstance(size, numbers.Integral) or isinstance(
         size, bool) or size < 1:
@@ -131,16 +165,28 @@ class OrnsteinUhlenbeckNoise:
     self._random_state = None
 
   @classmethod
-  def reference(cls, size, action_space='cartesian', **kwargs):
-    """The reference's parameters for `action_space` ('cartesian' or
-    'joint'); kwargs override them."""
+  def reference(cls, size: int, action_space: str = 'cartesian',
+                **kwargs: Any) -> 'OrnsteinUhlenbeckNoise':
+    """The process with the reference's parameters for an action space.
+
+    Args:
+      size: number of action dimensions.
+      action_space: 'cartesian' or 'joint' (REFERENCE_PARAMETERS).
+      **kwargs: parameters of the constructor that override them.
+
+    Returns:
+      The process.
+
+    Raises:
+      ValueError: an unknown action space.
+    """
     if action_space not in REFERENCE_PARAMETERS:
       raise ValueError(f'Unknown action_space {action_space!r}: expected one '
                        f'of {", ".join(map(repr, REFERENCE_PARAMETERS))}')
     return cls(size, **{**REFERENCE_PARAMETERS[action_space], **kwargs})
 
   @property
-  def parameters(self):
+  def parameters(self) -> dict[str, Any]:
     """JSON-able parameters (per-dimension values as lists)."""
     return {'size': self.size, 'alpha': self.alpha.tolist(),
             'sigma': self.sigma.tolist(), 'dt': self.dt,
@@ -148,15 +194,27 @@ class OrnsteinUhlenbeckNoise:
             'start': self.start}
 
   @property
-  def stationary_std(self):
+  def stationary_std(self) -> np.ndarray:
+    """The stationary standard deviation per dimension (sigma)."""
     return self.sigma.copy()
 
-  def autocorrelation(self, lag):
-    """Theoretical autocorrelation at `lag` samples: phi^lag."""
+  def autocorrelation(self, lag: Union[int, np.ndarray]) -> np.ndarray:
+    """Theoretical autocorrelation at `lag` samples: phi^lag.
+
+    Args:
+      lag: samples apart (an int or an array of them).
+
+    Returns:
+      phi^lag per dimension (broadcast with the lags).
+    """
     return self.phi**lag
 
-  def reset(self, seed):
-    """Starts a new sequence from `seed` (an int or a RandomState)."""
+  def reset(self, seed: Union[int, np.random.RandomState]) -> None:
+    """Starts a new sequence.
+
+    Args:
+      seed: an int or a RandomState (`random_state_from`).
+    """
     self._random_state = random_state_from(seed)
     if self.start == 'stationary':
       self._value = self.mu + self.sigma * self._random_state.standard_normal(
@@ -164,8 +222,12 @@ class OrnsteinUhlenbeckNoise:
     else:
       self._value = self.mu.copy()
 
-  def sample(self):
-    """The current value X_k (shape (size,)); advances to X_{k+1}."""
+  def sample(self) -> np.ndarray:
+    """The current value X_k (shape (size,)); advances to X_{k+1}.
+
+    Raises:
+      RuntimeError: before `reset`.
+    """
     if self._value is None:
       raise RuntimeError('OrnsteinUhlenbeckNoise.sample before reset(seed)')
     value = self._value
@@ -174,8 +236,16 @@ class OrnsteinUhlenbeckNoise:
         self._innovation_std * eps)
     return value.copy()
 
-  def mix(self, expert_action, noise):
-    """(1 - w) expert_action + w noise."""
+  def mix(self, expert_action: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """The executed action (unclipped).
+
+    Args:
+      expert_action: a_e.
+      noise: X, a `sample`.
+
+    Returns:
+      (1 - w) expert_action + w noise.
+    """
     return (1.0 - self.weight) * expert_action + self.weight * noise
 
 
@@ -188,9 +258,18 @@ class NoisyExpert:
   sets it, e.g. to resume a dataset), so episode k is the same whatever
   ran before it. The executed action (1 - w) a_e + w X is clipped to
   [-1, 1]; `last_expert_action` is a_e and `last_noise` X of the last call.
+
+  Args:
+    expert: the expert.
+    noise: the noise process, of the action's size.
+    seed: the noise's seed, an integer >= 0.
+
+  Raises:
+    ValueError: a noise of another size than the action, or a bad seed.
   """
 
-  def __init__(self, expert, noise, seed=0):
+  def __init__(self, expert: base.Expert, noise: OrnsteinUhlenbeckNoise,
+               seed: int = 0):
     shape = tuple(expert.env.action_spec().shape)
     if shape != (noise.size,):
       raise ValueError(f'The noise has {noise.size} dimensions but the '
@@ -201,24 +280,44 @@ class NoisyExpert:
     self.seed = int(seed)
     self.episode = 0
     self._started = False
-    self.last_expert_action = None
-    self.last_noise = None
+    self.last_expert_action: Optional[np.ndarray] = None
+    self.last_noise: Optional[np.ndarray] = None
 
   @property
-  def env(self):
+  def env(self) -> composer.Environment:
+    """The expert's environment."""
     return self.expert.env
 
   @property
-  def task(self):
+  def task(self) -> composer.Task:
+    """The expert's task."""
     return self.expert.task
 
-  def set_episode(self, episode):
-    """The next first timestep starts episode `episode` (an int >= 0)."""
+  def set_episode(self, episode: int) -> None:
+    """The next first timestep starts episode `episode`.
+
+    Args:
+      episode: the episode's index, an integer >= 0.
+
+    Raises:
+      ValueError: otherwise.
+    """
     episode_random_state(self.seed, episode)   # Validates.
     self.episode = int(episode)
     self._started = False
 
-  def __call__(self, timestep):
+  def __call__(self, timestep: dm_env.TimeStep) -> np.ndarray:
+    """The noisy action at a timestep; the noise restarts at a first one.
+
+    Args:
+      timestep: the environment's current timestep.
+
+    Returns:
+      (1 - w) a_e + w X, clipped to [-1, 1].
+
+    Raises:
+      RuntimeError: a call mid-episode before any first timestep.
+    """
     if timestep.first():
       if self._started:
         self.episode += 1

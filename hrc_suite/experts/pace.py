@@ -19,7 +19,10 @@ lazily from its state.
 """
 
 import math
+from typing import Optional
 
+from dm_control import composer
+import dm_env
 import numpy as np
 
 from hrc_suite.tasks.runtime import metrics as metrics_lib
@@ -33,14 +36,29 @@ NEAR_DISTANCE = 0.4
 class PaceObserver(metrics_lib.EpisodeMetricsObserver):
   """EpisodeMetricsObserver with the pace metrics of the module."""
 
-  def observe_first(self, env, timestep):
+  def observe_first(self, env: composer.Environment,
+                    timestep: dm_env.TimeStep) -> None:
+    """Starts an episode's metrics.
+
+    Args:
+      env: the environment.
+      timestep: its first timestep.
+    """
     super().observe_first(env, timestep)
     self._speeds, self._near = [], []
     self._counters = tuple(env.task.defaults().extra_counters)
     self._first = {name: math.nan for name in self._counters}
     self._add(env)
 
-  def observe(self, env, timestep, action=None):
+  def observe(self, env: composer.Environment, timestep: dm_env.TimeStep,
+              action: Optional[np.ndarray] = None) -> None:
+    """Adds an RL step to the episode's metrics.
+
+    Args:
+      env: the environment.
+      timestep: the timestep the step led to.
+      action: the action taken (unused).
+    """
     step = env.task.step_metrics
     speed = float(env.task.shield.max_cartesian_speed)
     self._speeds.append(speed)

@@ -37,6 +37,9 @@ Both action spaces through `steering` (Cartesian: straight TCP line; joint:
 one-step gripper-down IK). Privileged: none (observables only).
 """
 
+from typing import Mapping
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -74,9 +77,24 @@ IN_HAND = 0.03             # m, cube centre from where a grasp holds it
 OPEN, CLOSED = -1.0, 1.0
 
 
-def cone_aim(point, tcp, hover, slope=CONE_SLOPE, radius=CONE_RADIUS,
-             below=BELOW_CONE):
-  """The TCP aim towards `point` from above, inside the descent cone."""
+def cone_aim(point: np.ndarray, tcp: np.ndarray, hover: float,
+             slope: float = CONE_SLOPE, radius: float = CONE_RADIUS,
+             below: float = BELOW_CONE) -> np.ndarray:
+  """The TCP aim towards `point` from above, inside the descent cone.
+
+  Args:
+    point: where the TCP goes (3,), m.
+    tcp: the TCP now (3,), m.
+    hover: the largest height over `point` (m).
+    slope: the cone's height over `point` per metre of horizontal error
+      beyond `radius`.
+    radius: horizontal error (m) within which the aim is `point` itself.
+    below: a TCP more than this (m) below the cone rises vertically first.
+
+  Returns:
+    The aim (3,): above `point` at the cone's height, or straight above
+    the TCP when it is below the cone.
+  """
   horizontal = np.linalg.norm(point[:2] - tcp[:2])
   height = point[2] + min(hover, slope * max(0.0, horizontal - radius))
   if tcp[2] < height - below:   # Below the cone: straight up first.
@@ -86,7 +104,11 @@ def cone_aim(point, tcp, hover, slope=CONE_SLOPE, radius=CONE_RADIUS,
 
 @experts.register('pick_place', 'default', 'close')
 class PickPlaceExpert(base.Expert):
-  """Picks the cube and puts it on the target (both action spaces)."""
+  """Picks the cube and puts it on the target (both action spaces).
+
+  Args:
+    env: the environment (hrc_suite.suite.load) whose task it solves.
+  """
 
   OBSERVED = ('object_gripped', 'object_position', 'target_position',
               'object_at_target', 'gripper_aperture', 'eef_position',
@@ -95,17 +117,25 @@ class PickPlaceExpert(base.Expert):
   GRASP_ABOVE = pick_place.GRASP_TCP_ABOVE_CENTRE
   HOVER = HOVER
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     self.reset()
 
-  def reset(self):
+  def reset(self) -> None:
+    """Forgets the missed-grasp hysteresis and the last phase."""
     self._reopening = False   # Hysteresis of a missed grasp.
     self.phase = None         # The last phase (for inspection and tests).
 
-  def in_hand(self, observation):
-    """True if the cube is held (gripped, or closing on it in place)."""
+  def in_hand(self, observation: Mapping[str, np.ndarray]) -> bool:
+    """Whether the cube is held (gripped, or closing on it in place).
+
+    Args:
+      observation: the OBSERVED observables now.
+
+    Returns:
+      True if it is.
+    """
     if observation['object_gripped'][0] > 0.5:
       return True
     grasp_pose = observation['object_position'] + (0, 0, self.GRASP_ABOVE)
@@ -141,8 +171,16 @@ class PickPlaceExpert(base.Expert):
     aim = cone_aim(place + (0, 0, self.GRASP_ABOVE), tcp, self.HOVER)
     return 'carry', aim, CLOSED
 
-  def plan(self, observation):
-    """(phase, TCP aim, gripper command) of the state machine."""
+  def plan(self, observation: Mapping[str, np.ndarray]
+           ) -> tuple[str, np.ndarray, float]:
+    """The state machine's phase, TCP aim and gripper command.
+
+    Args:
+      observation: the OBSERVED observables now.
+
+    Returns:
+      (phase name, TCP aim (3,), gripper command: OPEN or CLOSED).
+    """
     target = observation['target_position']
     if self.in_hand(observation):
       self._reopening = False
@@ -152,7 +190,15 @@ class PickPlaceExpert(base.Expert):
       return 'done', target + (0, 0, PLACE_ABOVE + self.HOVER), OPEN
     return self._pick(observation)
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action towards `plan`'s aim (GAIN of the way within NEAR).
+    """
     self.phase, aim, gripper = self.plan(observation)
     tcp = observation['eef_position']
     gain = GAIN if np.linalg.norm(aim - tcp) < NEAR else 1.0

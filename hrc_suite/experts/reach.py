@@ -41,6 +41,9 @@ robot's capsules and the workcell boxes) and the shield's command
 (`task.shield`, for the planned-path check), for the via point.
 """
 
+from typing import Mapping, Optional
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -65,13 +68,17 @@ SIDE_STEP = 0.05
 
 @experts.register('reach', 'dense', 'sparse')
 class ReachExpert(base.Expert):
-  """Moves the joints (joint space) or the TCP (Cartesian) to the goal."""
+  """Moves the joints (joint space) or the TCP (Cartesian) to the goal.
+
+  Args:
+    env: the environment (hrc_suite.suite.load) whose task it solves.
+  """
 
   OBSERVED = ('goal_joint_difference', 'goal_position', 'eef_position',
               'joint_positions')
   TASKS = (('reach', 'dense'), ('reach', 'sparse'))
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     self._checker = self._task.collision_checker
@@ -80,12 +87,13 @@ class ReachExpert(base.Expert):
     self._via_range = layout.reach_joint_goal_range(description)
     self.reset()
 
-  def reset(self):
+  def reset(self) -> None:
+    """Forgets the via point and the last fruitless search."""
     self._via = None      # None: straight to the goal.
     self._failed_search = None   # (q, goal) of the last fruitless search.
 
   @property
-  def via(self):
+  def via(self) -> Optional[np.ndarray]:
     """The planned via point (joint positions) or None."""
     return None if self._via is None else self._via.copy()
 
@@ -171,7 +179,16 @@ class ReachExpert(base.Expert):
       self._via = self._plan(q, goal)
     return goal if self._via is None else self._via
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action: joint space towards the goal, through a via point where
+      the straight path is not free; Cartesian straight to the goal.
+    """
     q = observation['joint_positions']
     tcp = observation['eef_position']
     if self._steer.space == 'joint':

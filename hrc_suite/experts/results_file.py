@@ -4,7 +4,7 @@ A results JSON holds 'runs' (the commands behind the table), 'rows' (the
 table's rows), 'episode_groups', 'not_evaluated' and, if any, 'notes'.
 A group is a run of consecutive episodes of one job but for its seed:
 
-  {"job": the job without its seed (evaluate.run_job; null: no job),
+  {"job": the job without its seed (evaluation_episodes.run_job; null: no job),
    "fields": {name: the value every episode of the group has},
    "columns": {name: [one value per episode]}   (seed, wall_time, clip...),
    "metrics": {name: [one value per episode]}}
@@ -20,6 +20,7 @@ list 'episodes') read as well.
 import itertools
 import json
 import math
+from typing import Any, Mapping, Optional, Sequence, Union
 
 # Significant digits of a stored metric: with 6 every mean the tables of
 # docs/results (experts.md, robots_sweep.md, safety_real.md) print is the
@@ -29,13 +30,13 @@ METRIC_DIGITS = 6
 # Decimals of a stored wall time (s): a millisecond, below the table's
 # 0.1 s.
 WALL_TIME_DECIMALS = 3
-# Index of the seed in a job (evaluate.run_job).
+# Index of the seed in a job (evaluation_episodes.run_job).
 _SEED_INDEX = 6
 # Episode keys stored apart from 'fields' and 'columns'.
 _STRUCTURED = ('job', 'metrics')
 
 
-def round_metric(value):
+def round_metric(value: Optional[float]) -> Optional[Union[int, float]]:
   """`value` to METRIC_DIGITS significant digits (None stays None).
 
   Args:
@@ -52,11 +53,11 @@ def round_metric(value):
   return int(value) if value.is_integer() else value
 
 
-def round_row(row):
+def round_row(row: Mapping[str, Any]) -> dict[str, Any]:
   """A table row with its floats to METRIC_DIGITS significant digits.
 
   Args:
-    row: a row of evaluate.summarise.
+    row: a row of evaluation_rows.summarise.
 
   Returns:
     A new dict; floats stay floats, non-finite ones become None.
@@ -107,8 +108,8 @@ def _group(job, episodes):
           'metrics': metrics}
 
 
-def pack(episodes):
-  """The episode groups of `episodes` (evaluate.run_job results).
+def pack(episodes: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+  """The episode groups of `episodes` (evaluation_episodes.run_job results).
 
   Args:
     episodes: result dicts, in table order.
@@ -150,8 +151,8 @@ def _episodes(group):
   return episodes
 
 
-def unpack(groups):
-  """The episodes (one dict each, as evaluate.run_job returns) of
+def unpack(groups: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+  """The episodes (one dict each, as evaluation_episodes.run_job returns) of
   `groups`.
 
   Args:
@@ -166,7 +167,7 @@ def unpack(groups):
   return [episode for group in groups for episode in _episodes(group)]
 
 
-def episodes(payload):
+def episodes(payload: Mapping[str, Any]) -> list[dict[str, Any]]:
   """The episodes of a results file's payload, of either layout.
 
   Args:
@@ -193,7 +194,7 @@ def _flat(value):
   return True
 
 
-def dumps(value, indent=0):
+def dumps(value: Any, indent: int = 0) -> str:
   """JSON of `value`: a container of containers one item per line,
   anything flatter (_flat) on one line.
 

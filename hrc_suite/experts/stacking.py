@@ -37,6 +37,9 @@ Joint space: the same aims, through `steering.Steering` (one gripper-down
 IK step at the task's yaw at a time).
 """
 
+from typing import Mapping
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite import experts
@@ -136,6 +139,9 @@ class StackingExpert(base.Expert):
   (not state): the shield's robot capsules at the observed joint positions
   and the person's body capsules at the observed keypoints, for the
   clearance that sets its speed near the person.
+
+  Args:
+    env: the environment (hrc_suite.suite.load) whose task it solves.
   """
 
   OBSERVED = ('eef_position', 'joint_positions', 'gripper_aperture',
@@ -143,7 +149,7 @@ class StackingExpert(base.Expert):
               'cubes_stacked', 'human_keypoints')
   TASKS = (('stacking', 'default'),)
 
-  def __init__(self, env):
+  def __init__(self, env: composer.Environment):
     super().__init__(env)
     self._steer = steering.Steering(self._task)
     self._size = float(self._task.cubes[0].size)
@@ -180,7 +186,16 @@ class StackingExpert(base.Expert):
 
   # ---------------------------------------------------------- actions
 
-  def action(self, observation):
+  def action(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The action now.
+
+    Args:
+      observation: the OBSERVED observables now (`base.Expert.observe`).
+
+    Returns:
+      The action of the phase the observed cubes are in: fetch, carry or
+      place the next robot cube, or back away.
+    """
     obs = observation
     tcp, cubes, slots, stacked, held = self._state(obs)
     aperture = float(obs['gripper_aperture'][0])
@@ -327,8 +342,15 @@ class StackingExpert(base.Expert):
     speed = PLACE_SPEED if np.linalg.norm(goal - cube) < PLACE_ZONE else 1.0
     return goal + offset, CLOSED, speed
 
-  def clearance(self, obs):
-    """Distance (m) between the robot's and the person's capsules."""
+  def clearance(self, obs: Mapping[str, np.ndarray]) -> float:
+    """Distance between the robot's and the person's capsules.
+
+    Args:
+      obs: the OBSERVED observables now (joint positions, keypoints).
+
+    Returns:
+      The smallest capsule distance, m.
+    """
     r1, r2, rr = self._robot_capsules(obs['joint_positions'])
     h1, h2, hr = self._body_capsules(obs['human_keypoints'])
     return float(geometry.capsule_distance(

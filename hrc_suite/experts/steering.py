@@ -31,9 +31,13 @@ Tasks with a gripper get the gripper command (-1 open ... +1 closed)
 appended. Everything is deterministic.
 """
 
+from typing import Optional
+
+from dm_control import composer
 import numpy as np
 
 from hrc_suite.control import ik as ik_lib
+from hrc_suite.safety.collision_prevention import prevention
 from hrc_suite.tasks.runtime import actions
 
 # Joint goals at most this many control steps at v_max ahead: 2 lets the
@@ -42,10 +46,22 @@ SPEED_HEADROOM = 2.0
 
 
 class Steering:
-  """Aims to actions for one task (its action space, yaw and gripper)."""
+  """Aims to actions for one task (its action space, yaw and gripper).
 
-  def __init__(self, task, cartesian_step=actions.CARTESIAN_STEP,
-               limit_speed=True):
+  Args:
+    task: the task (an HrcTask) whose actions it makes.
+    cartesian_step: the longest TCP step (m) of a joint-space action
+      (module doc), > 0.
+    limit_speed: whether steps are shrunk to the joints' velocity limits
+      (SPEED_HEADROOM).
+
+  Raises:
+    ValueError: a cartesian_step that is not > 0.
+  """
+
+  def __init__(self, task: composer.Task,
+               cartesian_step: float = actions.CARTESIAN_STEP,
+               limit_speed: bool = True):
     if not cartesian_step > 0:
       raise ValueError(f'cartesian_step must be > 0 m, got {cartesian_step!r}')
     self._task = task
@@ -63,7 +79,8 @@ class Steering:
                              * np.asarray(limits.v_max, dtype=float))
 
   @property
-  def ik(self):
+  def ik(self) -> ik_lib.InverseKinematics:
+    """The gripper-down inverse kinematics of the task's robot."""
     return self._ik
 
   def _finish(self, arm, gripper):
@@ -84,9 +101,20 @@ class Steering:
                        f'{np.asarray(value).tolist()!r}')
     return value
 
-  def cartesian_arm(self, aim, tcp):
-    """Cartesian arm action (3,) from the TCP towards `aim` (direction
-    kept, largest entry at most 1)."""
+  def cartesian_arm(self, aim: np.ndarray, tcp: np.ndarray) -> np.ndarray:
+    """Cartesian arm action from the TCP towards `aim`.
+
+    Args:
+      aim: the world point (3,) the TCP goes to, m.
+      tcp: the TCP now (3,), m.
+
+    Returns:
+      The arm action (3,): the displacement / CARTESIAN_STEP, direction
+      kept, largest entry at most 1.
+
+    Raises:
+      ValueError: an aim or tcp that is not 3 finite numbers.
+    """
     delta = (self._check('aim', aim, 3) - self._check('tcp', tcp, 3))
     arm = delta / actions.CARTESIAN_STEP
     largest = np.abs(arm).max()
@@ -94,12 +122,23 @@ class Steering:
       arm /= largest
     return arm
 
-  def reaches(self, aim, q, checker, first_step=False):
+  def reaches(self, aim: np.ndarray, q: np.ndarray,
+              checker: prevention.CollisionPrevention,
+              first_step: bool = False) -> bool:
     """Whether gripper-down IK from q reaches `aim` in a configuration
-    free of collisions (`checker`: the task's collision prevention); with
-    `first_step`, also whether the straight joint path of the first
-    Cartesian step towards it (<= cartesian_step) is free: what collision
-    prevention checks before letting the step through."""
+    free of collisions; with `first_step`, also whether the straight joint
+    path of the first Cartesian step towards it (<= cartesian_step) is
+    free: what collision prevention checks before letting the step through.
+
+    Args:
+      aim: the world point (3,) of the TCP, m.
+      q: joint positions (dof,) the IK starts from.
+      checker: the task's collision prevention.
+      first_step: whether the first step's path is checked too.
+
+    Returns:
+      True if it reaches.
+    """
     result = self._ik.solve(aim, q, self.yaw)
     if not result.success or checker.in_collision(result.q):
       return False
@@ -115,9 +154,22 @@ class Steering:
         return False
     return checker.is_safe(q, result.q)
 
-  def ik_target(self, aim, tcp, q):
+  def ik_target(self, aim: np.ndarray, tcp: np.ndarray,
+                q: np.ndarray) -> np.ndarray:
     """Joint positions one gripper-down IK step (<= cartesian_step) from
-    q towards `aim` (the best iterate if the solve misses)."""
+    q towards `aim` (the best iterate if the solve misses).
+
+    Args:
+      aim: the world point (3,) the TCP goes to, m.
+      tcp: the TCP now (3,), m.
+      q: joint positions now (dof,).
+
+    Returns:
+      The joint positions (dof,).
+
+    Raises:
+      ValueError: an aim or tcp that is not 3 finite numbers.
+    """
     aim = self._check('aim', aim, 3)
     tcp = self._check('tcp', tcp, 3)
     delta = aim - tcp
@@ -134,11 +186,24 @@ class Steering:
     largest = ratio.max()
     return 1.0 / largest if largest > 1.0 else 1.0
 
-  def joint_arm(self, q_goal, q, keep_direction=True):
-    """Joint arm action (dof,) towards joint positions q_goal: the joint
-    difference / JOINT_STEP, scaled down as a whole into [-1, 1] (a straight
-    joint-space path) or, keep_direction=False, clipped per joint (the
-    reference's clip(goal difference))."""
+  def joint_arm(self, q_goal: np.ndarray, q: np.ndarray,
+                keep_direction: bool = True) -> np.ndarray:
+    """Joint arm action towards joint positions q_goal.
+
+    Args:
+      q_goal: the joint goal (dof,).
+      q: joint positions now (dof,).
+      keep_direction: whether the action is scaled down as a whole (a
+        straight joint-space path, within the speed limit) or clipped per
+        joint (the reference's clip(goal difference)).
+
+    Returns:
+      The arm action (dof,): the joint difference / JOINT_STEP, within
+      [-1, 1].
+
+    Raises:
+      ValueError: a q_goal or q that is not dof finite numbers.
+    """
     dof = self._model.dof
     q_goal = self._check('q_goal', q_goal, dof)
     q = self._check('q', q, dof)
@@ -149,14 +214,31 @@ class Steering:
     largest = np.abs(arm).max()
     return arm / largest if largest > 1.0 else arm
 
-  def action(self, aim, tcp, q, gripper=None, gain=1.0):
+  def action(self, aim: np.ndarray, tcp: np.ndarray,
+             q: Optional[np.ndarray], gripper: Optional[float] = None,
+             gain: float = 1.0) -> np.ndarray:
     """The action moving the TCP from `tcp` (joint positions q) towards
     the world point `aim`, with the gripper command if the task has one.
 
-    gain (0, 1]: the fraction of the way to the aim asked for in this step
-    (1: all of it, up to the step limits; less: a gentler, proportional
-    approach that lets the robot brake without overshooting the aim).
-    In Cartesian space q may be None: the speed limit is then skipped."""
+    Args:
+      aim: the world point (3,) the TCP goes to, m.
+      tcp: the TCP now (3,), m.
+      q: joint positions now (dof,); in Cartesian space it may be None:
+        the speed limit is then skipped.
+      gripper: the gripper command (-1 open ... +1 closed), for a task
+        with a gripper action; None for one without.
+      gain: in (0, 1], the fraction of the way to the aim asked for in this
+        step (1: all of it, up to the step limits; less: a gentler,
+        proportional approach that lets the robot brake without
+        overshooting the aim).
+
+    Returns:
+      The action of the task's action space.
+
+    Raises:
+      ValueError: a gain outside (0, 1], malformed positions, or a gripper
+        command given (or missing) against the task's action space.
+    """
     if not 0.0 < gain <= 1.0:
       raise ValueError(f'gain must be in (0, 1], got {gain!r}')
     tcp = self._check('tcp', tcp, 3)
@@ -176,10 +258,26 @@ class Steering:
       arm = self.joint_arm(self.ik_target(aim, tcp, q), q)
     return self._finish(arm, gripper)
 
-  def joint_goal_action(self, q_goal, q, tcp, gripper=None,
-                        keep_direction=True):
+  def joint_goal_action(self, q_goal: np.ndarray, q: np.ndarray,
+                        tcp: np.ndarray, gripper: Optional[float] = None,
+                        keep_direction: bool = True) -> np.ndarray:
     """The action moving the joints to q_goal (joint space, see
-    `joint_arm`) or the TCP to q_goal's TCP position (Cartesian space)."""
+    `joint_arm`) or the TCP to q_goal's TCP position (Cartesian space).
+
+    Args:
+      q_goal: the joint goal (dof,).
+      q: joint positions now (dof,).
+      tcp: the TCP now (3,), m.
+      gripper: the gripper command, for a task with a gripper action.
+      keep_direction: joint space: `joint_arm`'s keep_direction.
+
+    Returns:
+      The action of the task's action space.
+
+    Raises:
+      ValueError: malformed positions, or a gripper command given (or
+        missing) against the task's action space.
+    """
     if self.space == 'joint':
       arm = self.joint_arm(q_goal, q, keep_direction)
     else:

@@ -9,7 +9,7 @@ import pytest
 from hrc_suite import suite
 from hrc_suite.experts import dataset
 from hrc_suite.experts import noise as noise_lib
-from hrc_suite.tasks.runtime import snapshots
+from hrc_suite.tasks.runtime import snapshot_arrays
 
 DOMAIN, TASK = 'reach', 'dense'
 KWARGS = {'robot': 'schunk', 'time_limit': 1.5}   # 15 RL steps
@@ -82,7 +82,7 @@ def test_snapshot_restores_the_next_observation(tmp_path):
     env.task.set_state(env.physics, state)
     restored = env.task.get_state(env.physics)
     for part in ('physics', 'shield', 'player'):
-      assert snapshots.equal(restored[part], state[part]), part
+      assert snapshot_arrays.equal(restored[part], state[part]), part
     timestep = env.step(episode.actions[step])
     assert timestep.reward == episode.rewards[step]
     np.testing.assert_array_equal(

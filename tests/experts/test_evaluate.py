@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 
 from hrc_suite.experts import evaluate
+from hrc_suite.experts import evaluation_episodes as episodes_lib
+from hrc_suite.experts import evaluation_report as report_lib
+from hrc_suite.experts import evaluation_rows as rows_lib
 from hrc_suite.human import recording_cache
 
 
 @pytest.fixture(autouse=True)
 def _clear_cache():
-  evaluate._ENV_CACHE.clear()   # pylint: disable=protected-access
+  episodes_lib._ENV_CACHE.clear()   # pylint: disable=protected-access
 
 
 def _flags(**values):
@@ -27,18 +30,18 @@ def _flags(**values):
 
 
 def test_success_ci_known_cases():
-  assert evaluate.success_ci([1.0] * 20) == (1.0, 1.0, 1.0)
-  assert evaluate.success_ci([0.0] * 7) == (0.0, 0.0, 0.0)
+  assert rows_lib.success_ci([1.0] * 20) == (1.0, 1.0, 1.0)
+  assert rows_lib.success_ci([0.0] * 7) == (0.0, 0.0, 0.0)
   # Half of 400 successes: the bootstrap CI is close to the normal
   # approximation 0.5 +- 1.96 sqrt(0.25 / 400) = 0.5 +- 0.049.
-  rate, low, high = evaluate.success_ci([0.0, 1.0] * 200)
+  rate, low, high = rows_lib.success_ci([0.0, 1.0] * 200)
   assert rate == 0.5
   assert low == pytest.approx(0.451, abs=0.006)
   assert high == pytest.approx(0.549, abs=0.006)
   # Seeded: the same numbers again; 9 of 10 successes leave the CI below 1.
-  assert evaluate.success_ci([1.0] * 9 + [0.0]) == evaluate.success_ci(
+  assert rows_lib.success_ci([1.0] * 9 + [0.0]) == rows_lib.success_ci(
       [1.0] * 9 + [0.0])
-  rate, low, high = evaluate.success_ci([1.0] * 9 + [0.0])
+  rate, low, high = rows_lib.success_ci([1.0] * 9 + [0.0])
   assert rate == 0.9 and 0.6 <= low < 0.9 and high == 1.0
 
 
@@ -62,16 +65,16 @@ def test_summary_and_bar():
   results = [_result(1.0, seed=0), _result(1.0, seed=1),
              _result(0.0, critical=2, seed=2),
              _result(1.0, seed=0, policy='noisy_expert')]
-  rows = evaluate.summarise(results)
+  rows = rows_lib.summarise(results)
   assert [row['policy'] for row in rows] == ['expert', 'noisy_expert']
   row = rows[0]
   assert row['episodes'] == 3 and row['success'] == pytest.approx(2 / 3)
   assert row['steps'] == 11.0 and row['seconds'] == pytest.approx(1.1)
   assert row['contacts_human_critical'] == pytest.approx(2 / 3)
   assert row['critical_episodes'] == 1
-  assert evaluate.below_bar(row) == [
+  assert rows_lib.below_bar(row) == [
       'success 0.67 < 0.80', 'critical human contacts in 1 of 3 episodes']
-  assert evaluate.below_bar(rows[1]) == []
+  assert rows_lib.below_bar(rows[1]) == []
 
 
 def _table_rows(text):
@@ -97,14 +100,14 @@ def test_tiny_run_writes_a_well_formed_table(tmp_path):
                          'ssm', 'joint', '1']
     assert cells[9:11] == ['5.0', '0.5']   # 5 RL steps of 0.1 s
   assert '* Command: `python -m hrc_suite.experts.evaluate' in text
-  assert f'{evaluate.machine()["cpus"]} CPUs' in text
+  assert f'{report_lib.machine()["cpus"]} CPUs' in text
   # One line per row below the bar (one episode of 0.5 s does not reach
   # the goal).
   below = [line for line in text.splitlines()
            if line.startswith('* BELOW THE BAR: reach/dense schunk')]
   assert len(below) == 2 and 'success 0.00 < 0.80' in below[0]
   payload = json.loads(json_out.read_text())
-  episodes = evaluate.load_results(json_out)[0]
+  episodes = report_lib.load_results(json_out)[0]
   assert [e['seed'] for e in episodes] == [0, 0]
   assert episodes[0]['metrics']['steps'] == 5.0
   assert len(payload['episode_groups']) == len(payload['rows']) == 2
@@ -154,15 +157,15 @@ def test_update_reads_a_file_of_one_run_and_rejects_other_files(tmp_path):
                                     'expert', None, 0])
   old.write_text(json.dumps({'info': {'command': 'c'}, 'episodes': [episode],
                              'rows': []}))
-  episodes, runs = evaluate.load_previous(old)
+  episodes, runs = report_lib.load_previous(old)
   assert episodes == [episode]
   assert runs == [{'command': 'c',
                    'rows': ['reach/dense schunk expert default']}]
-  assert evaluate.load_previous(tmp_path / 'missing.json') == ([], [])
+  assert report_lib.load_previous(tmp_path / 'missing.json') == ([], [])
   bad = tmp_path / 'bad.json'
   bad.write_text('{"rows": []}')
   with pytest.raises(ValueError, match='bad.json: not a results file'):
-    evaluate.load_previous(bad)
+    report_lib.load_previous(bad)
 
 
 def test_unknown_task_or_policy_is_a_usage_error():
@@ -187,56 +190,57 @@ def test_an_episode_that_raises_is_a_reported_failure(monkeypatch):
       raise RuntimeError('expert lost track')
     return policy
 
-  monkeypatch.setattr(evaluate.experts, 'make', broken)
-  job_list = evaluate.jobs([('reach', 'dense')], ['schunk'], ['expert'], 2,
-                           time_limit=0.3)
-  results = evaluate.run(job_list)
+  monkeypatch.setattr(episodes_lib.experts, 'make', broken)
+  job_list = episodes_lib.jobs([('reach', 'dense')], ['schunk'], ['expert'], 2,
+                               time_limit=0.3)
+  results = episodes_lib.run(job_list)
   assert [r['error'] for r in results] == [
       'RuntimeError: expert lost track'] * 2
-  row, = evaluate.summarise(results)
+  row, = rows_lib.summarise(results)
   assert row['errors'] == 2 and row['success'] == 0.0
-  assert evaluate.below_bar(row)[-1] == (
+  assert rows_lib.below_bar(row)[-1] == (
       '2 episodes raised (RuntimeError: expert lost track)')
 
 
 def test_a_killed_run_resumes_from_its_partial_log(tmp_path, monkeypatch):
   partial = tmp_path / 'experts.json.partial.jsonl'
-  job_list = evaluate.jobs([('reach', 'dense')], ['schunk'], ['expert'], 2,
-                           time_limit=0.3)
+  job_list = episodes_lib.jobs([('reach', 'dense')], ['schunk'], ['expert'], 2,
+                               time_limit=0.3)
   calls = []
-  real = evaluate.run_job
-  monkeypatch.setattr(evaluate, 'run_job',
+  real = episodes_lib.run_job
+  monkeypatch.setattr(episodes_lib, 'run_job',
                       lambda job: calls.append(job) or real(job))
-  first = evaluate.run(job_list, partial=partial)
+  first = episodes_lib.run(job_list, partial=partial)
   assert len(calls) == 2 and len(partial.read_text().splitlines()) == 2
   # Kill after episode 0: its line stays, a torn line follows.
   line = json.loads(partial.read_text().splitlines()[0])
   partial.write_text(json.dumps(line) + '\n{"job": ["rea')
-  resumed = evaluate.run(job_list, partial=partial)
+  resumed = episodes_lib.run(job_list, partial=partial)
   assert calls[2:] == [job_list[1]]   # Only the missing episode ran.
   assert resumed[0] == first[0]
   assert resumed[1]['metrics'] == first[1]['metrics']
   # Both episodes are logged now (after the torn line): nothing runs.
-  assert evaluate.run(job_list, partial=partial)[1] == resumed[1]
+  assert episodes_lib.run(job_list, partial=partial)[1] == resumed[1]
   assert len(calls) == 3
 
 
 @pytest.mark.slow   # Spawned processes import hrc_suite afresh (~15 s).
 def test_spawned_workers_give_the_same_episodes():
-  job_list = evaluate.jobs([('reach', 'dense')], ['schunk'],
-                           ['expert', 'noisy_expert'], 2, time_limit=0.4)
-  serial = evaluate.run(job_list)
-  parallel = evaluate.run(job_list, workers=2)
+  job_list = episodes_lib.jobs([('reach', 'dense')], ['schunk'],
+                               ['expert', 'noisy_expert'], 2, time_limit=0.4)
+  serial = episodes_lib.run(job_list)
+  parallel = episodes_lib.run(job_list, workers=2)
   assert [r['job'] for r in parallel] == [list(job) for job in job_list]
   for one, other in zip(serial, parallel):
     assert one['metrics'] == other['metrics'] and other['error'] is None
 
 
 def test_pairs_choose_robot_and_policy_combinations():
-  job_list = evaluate.jobs([('reach', 'dense')], ['schunk', 'panda'],
-                           ['expert', 'noisy_expert'], 2,
-                           pairs=[('schunk', 'expert'), ('panda', 'expert'),
-                                  ('schunk', 'noisy_expert')])
+  job_list = episodes_lib.jobs([('reach', 'dense')], ['schunk', 'panda'],
+                               ['expert', 'noisy_expert'], 2,
+                               pairs=[('schunk', 'expert'),
+                                      ('panda', 'expert'),
+                                      ('schunk', 'noisy_expert')])
   assert [(job[2], job[4]) for job in job_list[::2]] == [
       ('schunk', 'expert'), ('panda', 'expert'), ('schunk', 'noisy_expert')]
   assert len(job_list) == 6
@@ -248,7 +252,7 @@ def test_pairs_choose_robot_and_policy_combinations():
 def test_random_policy_is_uniform_and_seeded_per_episode():
   spec = specs.BoundedArray((3,), np.float32, minimum=[-1.0, 0.0, -2.0],
                             maximum=[1.0, 0.5, 2.0])
-  policy = evaluate.RandomPolicy(spec)
+  policy = episodes_lib.RandomPolicy(spec)
 
   def episode(seed, steps=200):
     policy.set_episode(seed)
@@ -270,32 +274,32 @@ def test_random_policy_is_uniform_and_seeded_per_episode():
   np.testing.assert_array_equal(actions, again)
   assert not np.array_equal(episode(4), actions)
   with pytest.raises(ValueError, match='finite bounds'):
-    evaluate.RandomPolicy(specs.BoundedArray((2,), float, -np.inf, 1.0))
+    episodes_lib.RandomPolicy(specs.BoundedArray((2,), float, -np.inf, 1.0))
 
 
 def test_jobs_and_row_keys_name_people_and_shield():
   real = ('real', '/data/motions')
-  job_list = evaluate.jobs([('lifting', 'default')], ['panda'], ['random'],
-                           2, motions=real, shields=(None, 'off'))
+  job_list = episodes_lib.jobs([('lifting', 'default')], ['panda'], ['random'],
+                               2, motions=real, shields=(None, 'off'))
   assert [job[-1] for job in job_list] == [None, None, 'off', 'off']
   assert job_list[0][7] == list(real)   # As it reads back from JSON.
-  keys = [evaluate.row_key({'job': job}) for job in job_list]
+  keys = [rows_lib.row_key({'job': job}) for job in job_list]
   assert keys[0] == 'lifting/default panda random default people=real'
   assert keys[2] == keys[0] + ' shield=off'
   # A job of a file written before people and shields: synthetic people
   # and the task's shield, its row key unchanged.
   old = ['reach', 'dense', 'schunk', None, 'expert', None, 0]
-  assert evaluate.job_fields(old)[7:] == (None, None)
-  assert evaluate.row_key({'job': old}) == 'reach/dense schunk expert default'
-  assert evaluate.people({'job': old}) == 'synthetic'
-  assert evaluate.people({'job': job_list[0]}) == 'real'
+  assert episodes_lib.job_fields(old)[7:] == (None, None)
+  assert rows_lib.row_key({'job': old}) == 'reach/dense schunk expert default'
+  assert episodes_lib.people({'job': old}) == 'synthetic'
+  assert episodes_lib.people({'job': job_list[0]}) == 'real'
 
 
 def _run(rows):
   return {'command': 'python -m hrc_suite.experts.evaluate', 'date': 'd',
           'commit': 'abc', 'workers': 1, 'wall_time': 1.0,
-          'machine': evaluate.machine(),
-          'rows': [evaluate.row_key(r) for r in rows]}
+          'machine': report_lib.machine(),
+          'rows': [rows_lib.row_key(r) for r in rows]}
 
 
 def test_random_rows_have_the_safety_bar_and_shield_off_has_none():
@@ -309,17 +313,17 @@ def test_random_rows_have_the_safety_bar_and_shield_off_has_none():
 
   results = ([random(s, 'ssm', 0) for s in range(3)]
              + [random(s, 'off', 2 * (s > 0)) for s in range(3)])
-  on, off = evaluate.summarise(results)
+  on, off = rows_lib.summarise(results)
   assert (on['people'], on['shield'], on['shield_choice']) == (
       'real', 'ssm', 'default')
   assert (off['shield'], off['critical_episodes']) == ('off', 2)
   assert off['min_human_distance'] == pytest.approx(-0.1)
   # No success bar for a random policy; no safety bar with the shield off.
-  assert evaluate.below_bar(on) == [] and evaluate.below_bar(off) == []
-  with_contact = evaluate.summarise([random(0, 'ssm', 1)])[0]
-  assert evaluate.below_bar(with_contact) == [
+  assert rows_lib.below_bar(on) == [] and rows_lib.below_bar(off) == []
+  with_contact = rows_lib.summarise([random(0, 'ssm', 1)])[0]
+  assert rows_lib.below_bar(with_contact) == [
       'critical human contacts in 1 of 1 episodes']
-  text = evaluate.markdown([on, off], [_run(results)], results=results)
+  text = report_lib.markdown([on, off], [_run(results)], results=results)
   assert text.startswith('# Test-policy safety check (people: real)\n')
   assert ('## Rows below the bar (random policy: zero critical human '
           'contacts with the shield on)') in text
@@ -329,13 +333,13 @@ def test_random_rows_have_the_safety_bar_and_shield_off_has_none():
   assert "real: the task's motions in `/data`" in text
   # A shield-off row without critical contacts says so.
   quiet = [random(0, 'off', 0)]
-  assert 'NO critical human contact in 1 episodes' in evaluate.markdown(
-      evaluate.summarise(quiet), [_run(quiet)])
+  assert 'NO critical human contact in 1 episodes' in report_lib.markdown(
+      rows_lib.summarise(quiet), [_run(quiet)])
 
 
 def test_metrics_older_episodes_lack_show_as_missing():
-  row, = evaluate.summarise([_result(1.0)])   # No pushed contacts etc.
-  text = evaluate.markdown([row], [_run([])])
+  row, = rows_lib.summarise([_result(1.0)])   # No pushed contacts etc.
+  text = report_lib.markdown([row], [_run([])])
   cells = _row_cells(text)[0]
   header = [c.strip() for c in _table_rows(text)[0].strip('|').split('|')]
   assert len(cells) == len(header)
@@ -343,7 +347,7 @@ def test_metrics_older_episodes_lack_show_as_missing():
   assert values['contacts human critical'] == '0.00'
   for name in ('contacts human pushed', 'steps outside human model',
                'shield resyncs', 'physics errors'):
-    assert values[name] == evaluate.MISSING
+    assert values[name] == report_lib.MISSING
 
 
 def _old_file(path):
@@ -360,7 +364,7 @@ def test_rewrite_only_writes_the_table_without_running(tmp_path,
                                                        monkeypatch):
   out, json_out = tmp_path / 't.md', tmp_path / 't.json'
   episode = _old_file(json_out)
-  monkeypatch.setattr(evaluate, 'run_job', lambda job: pytest.fail('ran'))
+  monkeypatch.setattr(episodes_lib, 'run_job', lambda job: pytest.fail('ran'))
   notes = tmp_path / 'notes.md'
   notes.write_text('Hand-written note.\n')
   evaluate.main(['evaluate'], _flags(rewrite_only=True, out=str(out),
@@ -373,7 +377,7 @@ def test_rewrite_only_writes_the_table_without_running(tmp_path,
   assert '* Command: `old command`' in text
   assert '## Notes\n\nHand-written note.\n' in text
   payload = json.loads(json_out.read_text())
-  assert evaluate.load_results(json_out)[0] == [episode] and payload['notes']
+  assert report_lib.load_results(json_out)[0] == [episode] and payload['notes']
   # Again without --notes: the notes stay, the table is the same.
   evaluate.main(['evaluate'], _flags(rewrite_only=True, out=str(out),
                                      json_out=str(json_out)))
@@ -417,7 +421,7 @@ def test_random_policy_on_real_recordings_with_and_without_shield(
   assert ("* reach/dense (real people): skipped: ClipError: "
           in text) and "no sub-folder for task 'reach'" in text
   payload = json.loads(json_out.read_text())
-  episodes = evaluate.load_results(json_out)[0]
+  episodes = report_lib.load_results(json_out)[0]
   assert episodes[0] == old
   assert [r['people'] for r in payload['rows']] == [
       'synthetic', 'real', 'real']

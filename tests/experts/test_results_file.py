@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from hrc_suite.experts import evaluate
+from hrc_suite.experts import evaluation_report
 from hrc_suite.experts import results_file
 
 
@@ -112,9 +112,9 @@ def test_files_of_one_dict_per_episode_read_as_well(tmp_path):
   episodes = [_episode(0), _episode(1)]
   old = tmp_path / 'old.json'
   old.write_text(json.dumps({'runs': [], 'rows': [], 'episodes': episodes}))
-  assert evaluate.load_results(old)[0] == episodes
+  assert evaluation_report.load_results(old)[0] == episodes
   new = tmp_path / 'new.json'
   new.write_text(json.dumps({'runs': [], 'rows': [], 'episode_groups':
                              results_file.pack(episodes)}))
-  assert evaluate.load_results(new)[0] == results_file.unpack(
+  assert evaluation_report.load_results(new)[0] == results_file.unpack(
       results_file.pack(episodes))

@@ -5,7 +5,7 @@ import pytest
 
 from hrc_suite import suite
 from hrc_suite.tasks import pick_place
-from hrc_suite.tasks.runtime import snapshots
+from hrc_suite.tasks.runtime import snapshot_arrays
 
 import checks    # tests/tasks/checks.py
 import oracles   # tests/tasks/oracles.py
@@ -16,9 +16,9 @@ CONTINUATION = 10   # RL steps compared after restoring
 
 
 def _save_and_load(state, path):
-  np.savez(path, **snapshots.to_arrays(state))
+  np.savez(path, **snapshot_arrays.to_arrays(state))
   with np.load(path, allow_pickle=False) as saved:
-    return snapshots.from_arrays(dict(saved))
+    return snapshot_arrays.from_arrays(dict(saved))
 
 
 def _nested():
@@ -39,7 +39,7 @@ def _nested():
 def test_nested_values_round_trip_with_their_types(tmp_path):
   state = _nested()
   loaded = _save_and_load(state, tmp_path / 'state.npz')
-  assert snapshots.equal(loaded, state)
+  assert snapshot_arrays.equal(loaded, state)
   assert type(loaded['np_float']) is np.float64
   assert type(loaded['int']) is int and type(loaded['bool']) is bool
   assert isinstance(loaded['tuple'], tuple) and isinstance(
@@ -54,18 +54,19 @@ def test_nested_values_round_trip_with_their_types(tmp_path):
 
 def test_equal_sees_types_and_bits():
   state = _nested()
-  assert snapshots.equal(state, _nested())
+  assert snapshot_arrays.equal(state, _nested())
   for key, other in (('float', np.float64(0.1)), ('tuple', [None, {'x': 1.0}]),
                      ('bool', 0), ('array', np.arange(6).reshape(2, 3)),
                      ('negative_zero', 0.0)):
     changed = dict(state, **{key: other})
-    assert not snapshots.equal(state, changed), key
+    assert not snapshot_arrays.equal(state, changed), key
 
 
 def test_spec_depends_on_structure_not_numbers():
-  first, _ = snapshots.flatten({'a': 1.0, 'b': np.zeros(3), 'c': [1]})
-  second, _ = snapshots.flatten({'a': 2.0, 'b': np.ones(3), 'c': [5]})
-  assert snapshots.spec_to_json(first) == snapshots.spec_to_json(second)
+  first, _ = snapshot_arrays.flatten({'a': 1.0, 'b': np.zeros(3), 'c': [1]})
+  second, _ = snapshot_arrays.flatten({'a': 2.0, 'b': np.ones(3), 'c': [5]})
+  assert (snapshot_arrays.spec_to_json(first)
+          == snapshot_arrays.spec_to_json(second))
 
 
 @pytest.mark.parametrize('value, message', [
@@ -77,20 +78,20 @@ def test_spec_depends_on_structure_not_numbers():
 ])
 def test_unstorable_values_name_their_path(value, message):
   with pytest.raises(ValueError, match=message):
-    snapshots.flatten(value)
+    snapshot_arrays.flatten(value)
 
 
 def test_corrupt_arrays_give_clear_errors():
-  arrays = snapshots.to_arrays({'q': np.zeros(4)})
+  arrays = snapshot_arrays.to_arrays({'q': np.zeros(4)})
   with pytest.raises(ValueError, match="No snapshot spec 'spec'"):
-    snapshots.from_arrays({'buffer_float64': np.zeros(4)})
+    snapshot_arrays.from_arrays({'buffer_float64': np.zeros(4)})
   with pytest.raises(ValueError, match=r'reads float64\[0:4\] but that buffer '
                      'has 2 entries'):
-    snapshots.from_arrays(dict(arrays, buffer_float64=np.zeros(2)))
+    snapshot_arrays.from_arrays(dict(arrays, buffer_float64=np.zeros(2)))
   with pytest.raises(ValueError, match="needs a 'float64' buffer"):
-    snapshots.from_arrays({'spec': arrays['spec']})
+    snapshot_arrays.from_arrays({'spec': arrays['spec']})
   with pytest.raises(ValueError, match='not valid JSON'):
-    snapshots.from_arrays(dict(arrays, spec=np.array('{"dict": [')))
+    snapshot_arrays.from_arrays(dict(arrays, spec=np.array('{"dict": [')))
 
 
 def _make(domain, task, robot, seed=0):
@@ -104,7 +105,7 @@ def _assert_restores_from_file(env, make_fresh, path):
   bit."""
   state = env.task.get_state(env.physics)
   loaded = _save_and_load(state, path)
-  assert snapshots.equal(loaded, state)
+  assert snapshot_arrays.equal(loaded, state)
   # Gripper closed: tasks that start with an object gripped (hammering's
   # board, the handover's hammer) keep it, so the episode goes on.
   actions = checks.random_actions(env, CONTINUATION, seed=3, gripper=1.0)

@@ -32,6 +32,7 @@ from hrc_suite.safety import kernels as safety_kernels
 from hrc_suite.safety.collision_prevention import bounds
 
 _jit = safety_kernels._jit
+_inline = safety_kernels._inline
 
 
 class PlanPolynomial(typing.NamedTuple):
@@ -344,6 +345,19 @@ def run_motion(q, reach, first, stop, centre, motion):
     motion[0, d] = spread + largest
 
 
+@_inline
+def _sweep_test_arrays(sweep, rows):
+  """The capsule and pair counts (L, P) of a sweep (SweepSettings) and
+  the arrays of its `_hit` calls: zero capsule margins (rows, L) and pair
+  margins (rows, P), the tests without margins, and empty box and pair
+  masks (nothing ignored)."""
+  count_l = sweep.levers.shape[1]
+  count_p = sweep.pair_levers.shape[1]
+  return (count_l, count_p, np.zeros((rows, count_l)),
+          np.zeros((rows, count_p)), np.zeros((0, 0, 0), dtype=np.bool_),
+          np.zeros((0, 0), dtype=np.bool_))
+
+
 @_jit
 def _refine_collides(plan, sweep, robot, tests, base_ends, base_s,
                      base_half):
@@ -362,12 +376,8 @@ def _refine_collides(plan, sweep, robot, tests, base_ends, base_s,
       tests.box_min, tests.box_max, tests.box_checked, tests.box_allowance,
       tests.pairs)
   dof = plan.coefficients.shape[2]
-  count_l = levers.shape[1]
-  count_p = pair_levers.shape[1]
-  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
-  no_pairs = np.zeros((0, 0), dtype=np.bool_)
-  zero_l = np.zeros((1, count_l))
-  zero_p = np.zeros((1, count_p))
+  count_l, count_p, zero_l, zero_p, no_boxes, no_pairs = _sweep_test_arrays(
+      sweep, 1)
   # Refinement stack: (path parameter, half width, level).
   width = offsets.shape[0]
   stack_s = np.empty(levels * width + 1)
@@ -441,12 +451,8 @@ def planned_path_collides(start, plan, sweep, robot, tests):
       tests.box_min, tests.box_max, tests.box_checked, tests.box_allowance,
       tests.pairs)
   dof = plan.coefficients.shape[2]
-  count_l = levers.shape[1]
-  count_p = pair_levers.shape[1]
-  no_boxes = np.zeros((0, 0, 0), dtype=np.bool_)
-  no_pairs = np.zeros((0, 0), dtype=np.bool_)
-  zero_l = np.zeros((run, count_l))
-  zero_p = np.zeros((run, count_p))
+  count_l, count_p, zero_l, zero_p, no_boxes, no_pairs = _sweep_test_arrays(
+      sweep, run)
   ends = safety_kernels._endpoints(safety_kernels._frames(start, fixed),
                                    points, frame_index)
   if _hit(ends, 0, radii, zero_l, zero_p, box_min, box_max, box_checked,

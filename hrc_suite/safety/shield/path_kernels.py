@@ -18,6 +18,7 @@ from hrc_suite.safety import kernels
 from hrc_suite.safety.shield import path as path_lib
 
 _jit = kernels._jit
+_inline = kernels._inline
 
 PATH_SIZE = 10
 # Pieces of constant jerk of a path (segments): three phases and the coast.
@@ -149,15 +150,23 @@ def segments(p, out):
   return count + 1
 
 
-@_jit
-def sample_s(pieces, count, t):
-  """Path.sample's s at one time t from now (pieces from `segments`)."""
+@_inline
+def _piece_at(pieces, count, t):
+  """Path.sample's piece at one time t from now (pieces from `segments`):
+  its index i, and d, the time since its start (0 before it)."""
   i = count - 1
   while i > 0 and pieces[i, 0] > t:
     i -= 1
   d = t - pieces[i, 0]
   if d < 0.0:
     d = 0.0
+  return i, d
+
+
+@_jit
+def sample_s(pieces, count, t):
+  """Path.sample's s at one time t from now (pieces from `segments`)."""
+  i, d = _piece_at(pieces, count, t)
   v, a, jerk = pieces[i, 2], pieces[i, 3], pieces[i, 4]
   return pieces[i, 1] + d * (v + d * (0.5 * a + d * jerk / 6.0))
 
@@ -165,12 +174,7 @@ def sample_s(pieces, count, t):
 @_jit
 def sample_s_dot(pieces, count, t):
   """Path.sample's s_dot at one time t from now."""
-  i = count - 1
-  while i > 0 and pieces[i, 0] > t:
-    i -= 1
-  d = t - pieces[i, 0]
-  if d < 0.0:
-    d = 0.0
+  i, d = _piece_at(pieces, count, t)
   return pieces[i, 2] + d * (pieces[i, 3] + 0.5 * d * pieces[i, 4])
 
 
