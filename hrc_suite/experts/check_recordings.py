@@ -23,13 +23,16 @@ placement, targets, idle phases) and printed:
   `tasks/runtime/motions.speed_excess`);
 * expert: per robot and policy, episodes (seeds 0..N-1) with only this
   clip as the task's people (played with outside_human_model='allow'):
-  successes, mean length, episodes with a critical human contact, and per
+  successes, mean length, episodes with a critical human contact while the
+  person was inside the shield's human model (and, where any, outside
+  it: evaluation_rows.critical_inside_model), and per
   episode the shield's interventions, collision prevention's replaced
   actions, failed IK steps and steps outside the human model.
 
 A summary per task, robot and policy follows. Exit status: 0 when every
 recording was derived and every row reaches the experts' bar
-(evaluation_rows.SUCCESS_BAR, no critical contact), 1 otherwise, 2 on bad
+(evaluation_rows.SUCCESS_BAR, no critical contact inside the human
+model), 1 otherwise, 2 on bad
 arguments. Clips go to --work (a folder of one folder per clip, reused
 by the episodes' worker processes).
 """
@@ -167,6 +170,16 @@ def speed_line(clip: clip_lib.Clip, v_max: np.ndarray) -> str:
   return line + f'; worst {name} {speed:.2f} m/s at t = {time:.1f} s'
 
 
+def _critical_episodes(done):
+  """(episodes with a critical contact inside the human model, episodes
+  with one outside it) of episodes that ran."""
+  inside = sum(1 for r in done
+               if evaluation_rows.critical_inside_model(r['metrics']))
+  outside = sum(1 for r in done if r['metrics'].get(
+      'contacts_human_critical_outside_model', 0))
+  return inside, outside
+
+
 def outcome_line(robot: str, policy: str,
                  results: Sequence[Mapping[str, Any]]) -> str:
   """One line of a clip's episodes with a robot and policy.
@@ -181,12 +194,14 @@ def outcome_line(robot: str, policy: str,
   """
   done = [r for r in results if r['metrics']]
   successes = sum(int(r['metrics']['success'] > 0.5) for r in done)
-  critical = sum(1 for r in done if r['metrics']['contacts_human_critical'])
+  critical, outside = _critical_episodes(done)
   parts = [f'{robot} {policy}: success {successes}/{len(results)}']
   if done:
     parts.append('length ' + f"{np.mean([r['metrics']['steps'] for r in done]):.0f}"
                  ' steps')
     parts.append(f'critical contacts in {critical}')
+    if outside:
+      parts.append(f'outside the human model in {outside}')
     parts += [f'{what} ' + f"{np.mean([r['metrics'].get(name) or 0 for r in done]):.0f}"
               for name, what in EPISODE_COLUMNS]
   errors = [r['error'] for r in results if r['error']]
@@ -203,14 +218,15 @@ def passed(results: Sequence[Mapping[str, Any]]) -> bool:
 
   Returns:
     True if every episode ran, the success rate is at least
-    evaluation_rows.SUCCESS_BAR and no episode had a critical contact.
+    evaluation_rows.SUCCESS_BAR and no episode had a critical contact
+    inside the human model.
   """
   done = [r for r in results if r['metrics']]
   if len(done) < len(results) or not results:
     return False
   rate = np.mean([r['metrics']['success'] > 0.5 for r in done])
   return bool(rate >= evaluation_rows.SUCCESS_BAR and not any(
-      r['metrics']['contacts_human_critical'] for r in done))
+      evaluation_rows.critical_inside_model(r['metrics']) for r in done))
 
 
 def check(motions: Union[str, pathlib.Path],
@@ -288,9 +304,11 @@ def check(motions: Union[str, pathlib.Path],
     done = [r for r in group if r['metrics']]
     rate = (np.mean([r['metrics']['success'] > 0.5 for r in done])
             if done else 0.0)
-    critical = sum(1 for r in done if r['metrics']['contacts_human_critical'])
+    critical, outside = _critical_episodes(done)
     print(f'{domain}/{task} {robot} {policy}: success {rate:.2f} over '
-          f'{len(group)} episodes, {critical} with critical contacts: '
+          f'{len(group)} episodes, {critical} with critical contacts'
+          + (f' ({outside} outside the human model)' if outside else '')
+          + ': '
           f'{"ok" if good else "BELOW THE BAR"}', file=out)
   return ok
 

@@ -289,7 +289,9 @@ def markdown(rows: Sequence[Mapping[str, Any]],
       'pushed: the person had pushed the robot off its command, '
       'docs/safety.md "Pushed robots"). Steps outside human model: RL '
       "steps per episode in which the person moved faster than the shield's "
-      'human model (outside its guarantee). Shield resyncs: physics steps '
+      'human model (outside its guarantee). Human critical outside model: '
+      'the physics steps of human critical contacts in those RL steps. '
+      'Shield resyncs: physics steps '
       'per episode after which the shield restarted at the pushed '
       "robot's pose. Physics errors: the share of episodes a MuJoCo "
       'physics error ended (docs/safety.md "Physics errors"). '

@@ -17,7 +17,8 @@ from hrc_suite.safety.shield import modes as modes_lib
 # shield mode (hrc_suite/safety/shield/modes.py).
 DEFAULT_SHIELD = 'default'
 # The bar every expert must reach: success in at least 80 % of
-# the episodes of its task, with no critical human contact.
+# the episodes of its task, with no critical human contact while the
+# person was inside the shield's human model (`critical_inside_model`).
 SUCCESS_BAR = 0.8
 # Seed of every row's bootstrap resampling (rows are reproducible alone).
 BOOTSTRAP_SEED = 0
@@ -28,10 +29,28 @@ CONTACT_COLUMNS = (('static', 'contacts_static'), ('self', 'self_collisions'),
                    ('human critical', 'contacts_human_critical'),
                    ('human pushed', 'contacts_human_pushed'))
 SAFETY_COLUMNS = (('steps outside human model', 'steps_outside_human_model'),
+                  ('human critical outside model',
+                   'contacts_human_critical_outside_model'),
                   ('shield resyncs', 'shield_resyncs'),
                   ('physics errors', 'physics_errors'))
 # A table row (`summarise`), JSON-able.
 Row = dict[str, Any]
+
+
+def critical_inside_model(metrics: Mapping[str, float]) -> float:
+  """An episode's critical human contacts while the person was inside the
+  shield's human model, where its guarantee holds (docs/tasks.md,
+  "Metrics").
+
+  Args:
+    metrics: the episode's metrics.
+
+  Returns:
+    contacts_human_critical less contacts_human_critical_outside_model
+    (all of them for episodes run before that metric existed).
+  """
+  return (metrics['contacts_human_critical']
+          - metrics.get('contacts_human_critical_outside_model', 0))
 
 
 def success_ci(successes: Sequence[float],
@@ -108,6 +127,8 @@ def summarise(results: Sequence[Mapping[str, Any]]) -> list[Row]:
         'shield_interventions': _mean(group, 'shield_interventions'),
         'critical_episodes': sum(
             1 for r in done if r['metrics']['contacts_human_critical']),
+        'critical_inside_model_episodes': sum(
+            1 for r in done if critical_inside_model(r['metrics'])),
         'pushed_episodes': _episodes_with(group, 'contacts_human_pushed'),
         'physics_error_episodes': _episodes_with(group, 'physics_errors'),
         # m, robot capsules at the command to the person's, over episodes.
@@ -135,8 +156,8 @@ def shield_gates(shield: Optional[str]) -> bool:
 
 def below_bar(row: Mapping[str, Any]) -> list[str]:
   """Reasons a row misses the bar: experts must succeed (SUCCESS_BAR);
-  with the shield on no policy may touch the person critically; no
-  episode may raise.
+  with the shield on no policy may touch the person critically while the
+  person is inside the shield's human model; no episode may raise.
 
   Args:
     row: a row of `summarise`.
@@ -148,9 +169,11 @@ def below_bar(row: Mapping[str, Any]) -> list[str]:
   if (row['policy'] in episodes_lib.EXPERT_POLICIES
       and row['success'] < SUCCESS_BAR):
     reasons.append(f'success {row["success"]:.2f} < {SUCCESS_BAR:.2f}')
-  if shield_gates(row['shield']) and row['critical_episodes']:
-    reasons.append(f'critical human contacts in {row["critical_episodes"]} '
-                   f'of {row["episodes"]} episodes')
+  inside = row.get('critical_inside_model_episodes',
+                   row['critical_episodes'])
+  if shield_gates(row['shield']) and inside:
+    reasons.append(f'critical human contacts inside the human model in '
+                   f'{inside} of {row["episodes"]} episodes')
   if row['errors']:
     reasons.append(f'{row["errors"]} episodes raised ({row["first_error"]})')
   return reasons
@@ -169,11 +192,11 @@ def bar_text(rows: Iterable[Mapping[str, Any]]) -> str:
   parts = []
   if policies & set(episodes_lib.EXPERT_POLICIES):
     parts.append(f'experts: success >= {SUCCESS_BAR:.0%} and no critical '
-                  'human contact with the shield on')
+                  'human contact inside the human model with the shield on')
   tests = sorted(policies & set(episodes_lib.TEST_POLICIES))
   if tests:
     parts.append(f'{" and ".join(tests)} policy: zero critical human '
-                 'contacts with the shield on')
+                 'contacts inside the human model with the shield on')
   return '; '.join(parts)
 
 

@@ -73,8 +73,29 @@ def test_summary_and_bar():
   assert row['contacts_human_critical'] == pytest.approx(2 / 3)
   assert row['critical_episodes'] == 1
   assert rows_lib.below_bar(row) == [
-      'success 0.67 < 0.80', 'critical human contacts in 1 of 3 episodes']
+      'success 0.67 < 0.80',
+      'critical human contacts inside the human model in 1 of 3 episodes']
   assert rows_lib.below_bar(rows[1]) == []
+
+
+def test_contacts_outside_the_human_model_do_not_fail_the_bar():
+  """Critical contacts while the person moved faster than the shield's
+  human model are outside its guarantee: counted, not held against the
+  row; one contact inside the model fails it."""
+  outside = _result(1.0, critical=3, seed=0)
+  outside['metrics']['contacts_human_critical_outside_model'] = 3.0
+  mixed = _result(1.0, critical=3, seed=1)
+  mixed['metrics']['contacts_human_critical_outside_model'] = 2.0
+  assert rows_lib.critical_inside_model(outside['metrics']) == 0
+  assert rows_lib.critical_inside_model(mixed['metrics']) == 1
+  row, = rows_lib.summarise([outside, _result(1.0, seed=2)])
+  assert (row['critical_episodes'],
+          row['critical_inside_model_episodes']) == (1, 0)
+  assert row['contacts_human_critical_outside_model'] == 3.0
+  assert rows_lib.below_bar(row) == []
+  row, = rows_lib.summarise([outside, mixed])
+  assert rows_lib.below_bar(row) == [
+      'critical human contacts inside the human model in 1 of 2 episodes']
 
 
 def _table_rows(text):
@@ -322,11 +343,11 @@ def test_random_rows_have_the_safety_bar_and_shield_off_has_none():
   assert rows_lib.below_bar(on) == [] and rows_lib.below_bar(off) == []
   with_contact = rows_lib.summarise([random(0, 'ssm', 1)])[0]
   assert rows_lib.below_bar(with_contact) == [
-      'critical human contacts in 1 of 1 episodes']
+      'critical human contacts inside the human model in 1 of 1 episodes']
   text = report_lib.markdown([on, off], [_run(results)], results=results)
   assert text.startswith('# Test-policy safety check (people: real)\n')
   assert ('## Rows below the bar (random policy: zero critical human '
-          'contacts with the shield on)') in text
+          'contacts inside the human model with the shield on)') in text
   assert ('* reach/dense schunk random (real people, shield off): critical '
           'human contacts in 2 of 3 episodes (1.3 physics steps per '
           'episode); closest approach -0.100 m') in text
