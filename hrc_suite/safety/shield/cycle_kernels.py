@@ -262,14 +262,20 @@ def run_cycles(constants, mode, state, plan, candidate, frames, times,
   entry = _ENTRIES.get(kind)
   if entry is None:
     entry = _ENTRIES[kind] = _entry(*kind)
-  return entry(tuple(tuple(group) for group in constants), tuple(mode),
-               tuple(state), (plan[0], plan[1], plan[2], tuple(plan[3])),
+  if constants is not _CONSTANT_FIELDS[0]:
+    _CONSTANT_FIELDS[:] = constants, tuple(tuple(group)
+                                           for group in constants)
+  return entry(_CONSTANT_FIELDS[1], tuple(mode), tuple(state),
+               (plan[0], plan[1], plan[2], tuple(plan[3])),
                (candidate[0], candidate[1], candidate[2],
                 tuple(candidate[3])), frames, times, setpoints, intervened)
 
 
 # (parameter group class, tables class) -> the compiled entry (`_entry`).
 _ENTRIES = {}
+# The last `Constants` run and its fields as plain tuples: a shield makes
+# its constants once (Shield.kernel_constants), so its calls share them.
+_CONSTANT_FIELDS = [None, None]
 
 
 def _entry(parameters_class, tables_class):

@@ -90,10 +90,15 @@ class ShieldState:
     Raises:
       TypeError: a change names no field.
     """
-    unknown = changes.keys() - self.__dataclass_fields__.keys()
-    if unknown:
-      raise TypeError(f'ShieldState.replace: no fields {sorted(unknown)}')
-    return record(ShieldState, **{**self.__dict__, **changes})
+    fields = self.__dataclass_fields__
+    if not changes.keys() <= fields.keys():
+      raise TypeError(f'ShieldState.replace: no fields '
+                      f'{sorted(changes.keys() - fields.keys())}')
+    made = object.__new__(ShieldState)   # As `record`: every field given.
+    values = made.__dict__
+    values.update(self.__dict__)
+    values.update(changes)
+    return made
 
 
 def record(cls: Type[_Record], **values: Any) -> _Record:

@@ -476,6 +476,7 @@ class CompiledSteps:
     self._no_writes = kernels.as_fields(StepWrites(
         np.zeros(0), np.zeros(0, dtype=np.int64),
         np.zeros((max(len(playback.times), 1), 0))))
+    self._no_write_groups = (self._no_writes, self._no_writes)
     physics_data = physics.data
     self._no_hold = kernels.as_fields(tool_hold_kernels.idle_hold(
         tool_hold_kernels.HoldData(
@@ -498,12 +499,15 @@ class CompiledSteps:
     (target, index, rows) groups (SteppedTask._physics_step_writes);
     hold: tool_hold.CompliantHold.kernel_arguments, or None. The stretch's
     results are in `record` (StepRecord)."""
-    if len(writes) > 2:
-      raise ValueError(f'at most two groups of writes, got {len(writes)}')
-    groups = [tuple(StepWrites(*group)) for group in writes]
-    groups += [self._no_writes] * (2 - len(groups))
-    shield = ShieldSetpoints(setpoints, setpoint_flags, setpoints_from,
-                             expected_rows)
-    return run(k0, k1, *self._before_shield, tuple(shield),
-               *self._after_shield, *groups,
+    if writes:
+      if len(writes) > 2:
+        raise ValueError(f'at most two groups of writes, got {len(writes)}')
+      groups = [tuple(StepWrites(*group)) for group in writes]
+      groups += [self._no_writes] * (2 - len(groups))
+    else:
+      groups = self._no_write_groups
+    shield = (setpoints, setpoint_flags, setpoints_from,   # ShieldSetpoints
+              expected_rows)
+    return run(k0, k1, *self._before_shield, shield, *self._after_shield,
+               *groups,
                self._no_hold if hold is None else kernels.as_fields(hold))

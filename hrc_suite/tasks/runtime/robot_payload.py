@@ -82,6 +82,8 @@ class CarriesPayload:
 
   _held_ids = ()          # element ids of the held bodies, told last
   _held_payload = None    # the payload told last (None: the gripper)
+  # (model, {bodies: element ids}) of the compiled model they were bound in
+  _held_id_cache = None
 
   def _held_bodies(self) -> Sequence[mjcf.Element]:
     """The MJCF bodies the gripper holds now, by the task's own decision
@@ -122,10 +124,24 @@ class CarriesPayload:
 
   def _follow_held(self, physics):
     bodies = tuple(self._held_bodies())
-    ids = tuple(int(i) for i in physics.bind(bodies).element_id) if (
-        bodies) else ()
+    ids = self._element_ids(physics, bodies)
     if ids != self._held_ids:
       self._tell(ids, held_payload(physics, self._robot, bodies))
+
+  def _element_ids(self, physics, bodies):
+    """The element ids of `bodies` in the physics' model: bound once per
+    compiled model and set of bodies (called after every RL step)."""
+    if not bodies:
+      return ()
+    model = physics.model.ptr
+    cache = self._held_id_cache
+    if cache is None or cache[0] is not model:
+      cache = self._held_id_cache = (model, {})
+    ids = cache[1].get(bodies)
+    if ids is None:
+      ids = cache[1][bodies] = tuple(
+          int(i) for i in physics.bind(bodies).element_id)
+    return ids
 
   def _tell(self, ids, payload):
     """Gives `payload` to the shield and the contact monitor's meter."""

@@ -53,14 +53,15 @@ import numpy as np
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.entities import human_kernels
 from hrc_suite.safety.shield import batch
-from hrc_suite.tasks.runtime import contact_energies
 from hrc_suite.tasks.runtime import contacts
 from hrc_suite.tasks.runtime import metrics as metrics_lib
 from hrc_suite.tasks.runtime import physics_loop
 from hrc_suite.tasks.runtime import substeps as substeps_lib
 
 # Flag positions of the contacts that cost collision_reward.
-_ILLEGAL_FLAGS = np.array([int(kind) for kind in contacts.ILLEGAL_TYPES])
+_ILLEGAL_FLAGS = tuple(int(kind) for kind in contacts.ILLEGAL_TYPES)
+# The step metrics of the contact counts, in contacts.CONTACT_TYPES' order.
+_CONTACT_METRICS = tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES)
 
 
 class SteppedTask:
@@ -279,7 +280,11 @@ class ShieldedStepper:
     """Whether this RL step had a static or critical human contact
     (contacts.ILLEGAL_TYPES: with self-collisions, what costs
     collision_reward)."""
-    return bool(self._step_flags[_ILLEGAL_FLAGS].any())
+    flags = self._step_flags
+    for kind in _ILLEGAL_FLAGS:
+      if flags[kind]:
+        return True
+    return False
 
   @property
   def command_dq(self) -> np.ndarray:
@@ -487,21 +492,25 @@ class ShieldedStepper:
     step['shield_resyncs'] = self._resyncs
     step['max_tracking_error'] = self._max_tracking_error
     step.setdefault('physics_errors', 0)
-    for name, count in zip(contacts.CONTACT_TYPES, self._contact_steps):
-      step[f'contacts_{name}'] = int(count)
+    step.update(zip(_CONTACT_METRICS, self._contact_steps.tolist()))
     critical = step['contacts_human_critical']
     step['contacts_human_critical_outside_model'] = (
         critical if self._outside_model else 0)
     self._contact_steps[:] = 0
 
-  def contact_energy_maxima(self):
+  def contact_energy_maxima(self) -> Optional[dict]:
     """The RL step's largest robot-human contact energies and ratios
-    (metrics.contact_energy_maxima; zeros where the monitor measures
-    none)."""
+    (metrics.contact_energy_maxima), or None where it measured none (no
+    robot-human contact, or a monitor without energies): all zeros, which
+    raise no episode maximum.
+
+    Returns:
+      {name: value} of metrics.CONTACT_ENERGY_MAXIMA, or None.
+    """
     energies = self._monitor.energies
-    if energies is None:
-      zeros = np.zeros(len(contact_energies.BODIES))
-      return metrics_lib.contact_energy_maxima(zeros, zeros)
+    if energies is None or not (energies.max_energy.any()
+                                or energies.max_ratio.any()):
+      return None
     return metrics_lib.contact_energy_maxima(energies.max_energy,
                                              energies.max_ratio)
 

@@ -82,4 +82,6 @@ class StepRecorder:
     if self.cost is not None:
       step.update(self.cost.step_metrics(step, self._shield.reach_distance))
     self.metrics.record(step)
-    self.metrics.record_episode_maxima(self._stepper.contact_energy_maxima())
+    maxima = self._stepper.contact_energy_maxima()
+    if maxima is not None:
+      self.metrics.record_episode_maxima(maxima)
