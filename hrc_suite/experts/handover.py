@@ -22,8 +22,9 @@ a cone (the reference's pick-and-place approach), slide the open pads
 along it to the grip point and close once the handle lies across the pads
 (MIN_GRASP_ANGLE; a hand that sways in and out of the gripper-down reach
 is approached, the arm waiting at the edge of its reach; one held beyond
-it by more than SWAY_MARGIN is waited for at the ready point); once the
-person lets go, carry it
+it by more than SWAY_MARGIN is waited for at the ready point, one held
+above the Cartesian box all along its sway at home); once the person
+lets go, carry it
 over the table target, lower it to RELEASE_HEIGHT and open: it drops the
 last centimetres. Then go home. A hammer lying on the table (before the
 person's pick, placed, or dropped) is left alone.
@@ -32,8 +33,10 @@ Both derive their phase from the observed state every step (which hand
 holds the hammer, gripper aperture, where the hammer is). The human-to-robot
 expert also remembers the previous grip point (the hammer's speed), for
 how long it has been held still, the last presented one (where to wait
-while the person sways back) and its last gripper command; all are
-forgotten at reset, so it can take over from any state.
+while the person sways back), whether the sway of the presentation held
+still now has brought it within the Cartesian box's reach, and its last
+gripper command; all are forgotten at reset, so it can take over from
+any state.
 """
 
 from typing import Mapping
@@ -79,6 +82,15 @@ MIN_HOVER_HEIGHT = 0.025                 # m
 # gripper-down IK reaching it at 0.64 m); the arm approaches and closes
 # when the sway brings the grip point between its pads.
 SWAY_MARGIN = 0.05                       # m
+# The TCP's highest target is the top of the Cartesian box: the pads close
+# on a grip point at most GRASP_Z above it. A presentation whose sway
+# keeps the grip point higher (recording advanced_1 of HumanRobotHandover:
+# 1.40-1.42 m, the Schunk's box ending at 1.33 m) is waited for at home:
+# at the ready point, under the hammer, and pushing its pads against the
+# hammer's head, the arm was hit by the hammer at every sway (shield
+# resyncs). One whose sway brings it within the box (advanced_0: 1.31-1.35
+# m on the Schunk) is approached while the person holds it still: the
+# pads close when the sway brings the handle between them.
 # Close when the grip point is between the pads: TCP offset from it along
 # the handle (towards its end; the head is 0.034 m the other way, the pads
 # 0.01 m wide), across it (the pads open 0.085 m around the 0.022 m deep
@@ -426,8 +438,10 @@ class HumanToRobotExpert(_HammerExpert):
 
   Memory: the previous grip point (the hammer's speed) and for how many
   steps it has been held still, the last grip point seen presented (where
-  to wait when the person sways it back) and whether the last gripper
-  command closed (`_grasp`).
+  to wait when the person sways it back), whether the sway of the
+  presentation held still now has brought the grip point within the
+  Cartesian box's reach and whether the last gripper command closed
+  (`_grasp`).
   """
 
   TASKS = (('handover', 'human_to_robot'),)
@@ -448,6 +462,7 @@ class HumanToRobotExpert(_HammerExpert):
     self._last_presented = None
     self._last_close = None
     self._still_steps = 0
+    self._sway_within_box = False
 
   def action(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
     """The action now; notes whether its gripper command closes.
@@ -537,11 +552,19 @@ class HumanToRobotExpert(_HammerExpert):
       return self._hover(obs, grip + (0.0, 0.0, HOVER_HEIGHT))
     if self._in_hand(obs) and not held:
       return self._carry(obs)
-    if self._presented(obs):
+    presented = self._presented(obs)
+    if not presented or speed >= PRESENTED_SPEED:
+      self._sway_within_box = False
+    elif grip[2] <= self._box[1][2] + GRASP_Z:
+      self._sway_within_box = True
+    if presented:
       # Beyond the reach by more than a sway (held too high or too far):
       # wait for a presentation the arm reaches, where the last one was,
-      # instead of pushing the arm against its reach.
+      # instead of pushing the arm against its reach; held above the box
+      # all along its sway, at home, clear of the hammer.
       q = obs['joint_positions']
+      if speed < PRESENTED_SPEED and not self._sway_within_box:
+        return self._go_home(obs, -1.0)
       if speed < PRESENTED_SPEED and self._graspable(grip, q):
         self._last_presented = grip.copy()
         return self._grasp(obs)

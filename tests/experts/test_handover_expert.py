@@ -12,6 +12,7 @@ from hrc_suite import suite
 from hrc_suite.experts import handover as handover_experts
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.human import recording_cache
+from hrc_suite.tasks.runtime import actions
 
 
 def _env(task, robot='schunk', space='cartesian', seed=0, **kwargs):
@@ -172,9 +173,12 @@ def recordings(tmp_path_factory, recordings_dir):
     ('human_to_robot', 'HumanRobotHandover_3', 'schunk', 0),
     # The arm drifts along the handle's line while waiting.
     ('human_to_robot', 'HumanRobotHandover_6', 'panda', 0),
-    # Held 1.35 m high; the hand sways the grip point in and out of the
-    # gripper-down reach (0.62-0.67 m from the base, reached at 0.64 m).
+    # Held 1.31-1.35 m high; the hand sways the grip point in and out of
+    # the gripper-down reach (0.62-0.67 m from the base, reached at
+    # 0.64 m) and, on the Schunk, above the top of its Cartesian box
+    # (1.33 m): taken when the sway brings the handle within reach.
     ('human_to_robot', 'HumanRobotHandover_advanced_0', 'panda', 0),
+    ('human_to_robot', 'HumanRobotHandover_advanced_0', 'schunk', 0),
     # Swung between 0.6 and 1.1 m out, within reach about 2 s at a time.
     ('human_to_robot', 'HumanRobotHandover_4', 'panda', 0),
     # At the edge of the Schunk's reach its wrist turns on the way: the
@@ -193,12 +197,12 @@ def test_expert_hands_over_with_recorded_people(recordings, task, clip,
 
 @pytest.mark.slow
 @pytest.mark.recordings
-def test_human_to_robot_waits_for_a_presentation_beyond_its_reach(
+def test_human_to_robot_at_the_edge_of_its_reach_fails_no_ik_step(
     recordings):
-  # advanced_1 holds the hammer 1.42 m high, its grip point 0.06-0.09 m
-  # beyond the Panda's gripper-down reach: the arm waits at its ready
-  # point instead of pushing against its reach (no failed IK step, no
-  # action collision prevention replaces).
+  # advanced_1 holds the hammer 1.40-1.42 m high, 0.63-0.65 m out, where
+  # the Panda's gripper-down reach ends 0.60-0.62 m out: the open pads
+  # come as close as the hammer's head lets them, without a failed IK
+  # step or an action collision prevention replaces.
   env = _env('human_to_robot', 'panda', seed=0,
              motions=[recordings['HumanRobotHandover_advanced_1']],
              outside_human_model='allow')
@@ -207,6 +211,56 @@ def test_human_to_robot_waits_for_a_presentation_beyond_its_reach(
   assert metrics['ik_failures'] == 0
   assert metrics['action_replacements'] == 0
   assert metrics['contacts_human_critical'] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.recordings
+def test_human_to_robot_waits_at_home_for_a_hammer_above_its_box(
+    recordings):
+  # advanced_1 on the Schunk: the grip point sways 1.40-1.42 m high, above
+  # the top of its Cartesian box (1.33 m). The arm waits at home, clear of
+  # the hammer; at the ready point, under it, the hammer hit the gripper
+  # at every sway.
+  env = _env('human_to_robot', 'schunk', seed=0,
+             motions=[recordings['HumanRobotHandover_advanced_1']],
+             outside_human_model='allow')
+  expert = experts.make(env)
+  _run(env, expert, max_steps=400)
+  metrics = env.task.episode_metrics
+  assert metrics['ik_failures'] == 0
+  assert metrics['contacts_human_critical'] == 0
+  # The gripper touched the hammer in at most the physics steps of 20 RL
+  # steps.
+  per_step = round(env.task.control_timestep / env.task.physics_timestep)
+  assert metrics['contacts_robot_object'] < 20 * per_step
+  home = env.task.kinematics.tcp_pose(
+      env.task.kinematics.description.q_home)[:3, 3]
+  assert np.linalg.norm(expert.observe()['eef_position'] - home) < 0.05
+
+
+@pytest.mark.parametrize('above_box, goes_home', [
+    (0.1, True),     # Out of the TCP's reach: wait at home.
+    (-0.1, False),   # Within it: the approach.
+])
+def test_human_to_robot_waits_at_home_while_held_above_its_box(
+    above_box, goes_home):
+  env = _env('human_to_robot', 'panda')
+  env.reset()
+  expert = experts.make(env)
+  obs = expert.observe()
+  top = actions.workspace_box(env.task.kinematics)[1][2]
+  # Held still by the person on its side (body y up), in front of the TCP.
+  handle, up = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+  obs['object_quaternion'] = rotations.axes_to_quat(
+      handle, up, np.cross(handle, up))
+  obs['object_position'] = obs['eef_position'] + (0.1, 0.0, 0.0)
+  obs['object_position'][2] = top + above_box
+  obs['object_held_by_human'] = np.array([1.0])
+  obs['object_gripped'] = np.array([0.0])
+  expert.action(obs)
+  action = expert.action(obs)
+  home = expert._go_home(obs, -1.0)   # pylint: disable=protected-access
+  assert np.allclose(action, home) == goes_home
 
 
 @pytest.mark.parametrize('handle_along, closes', [
