@@ -58,6 +58,8 @@ OBJECT_STORE_BYTES = 100 * 1024 ** 2
 RESUMABLE_CHANGES = ('steps',)
 # Seconds to wait for an existing cluster's address to answer.
 CONNECT_TIMEOUT_S = 10
+# Exit status after Ctrl-C: 128 + SIGINT, the shells' convention.
+INTERRUPTED_STATUS = 130
 
 # Grid fields whose flags take lists, integers, JSON or plain strings.
 _LIST_FIELDS = ('tasks', 'agents')
@@ -614,7 +616,8 @@ def main(argv: Sequence[str],
     flag_values: the parsed flags.
 
   Returns:
-    The exit status: 0, 1 where runs failed, 2 on bad settings.
+    The exit status: 0, 1 where runs failed, 2 on bad settings,
+    INTERRUPTED_STATUS after Ctrl-C.
 
   Raises:
     app.UsageError: arguments, or bad or missing flags.
@@ -640,6 +643,11 @@ def main(argv: Sequence[str],
   except (ValueError, ConnectionError, RuntimeError) as e:
     print(f'agents.sweep: {e}', file=sys.stderr)
     return 2
+  except KeyboardInterrupt:
+    print('[sweep] interrupted: finished runs are kept and the others '
+          'resume from their last checkpoint when the same command starts '
+          'again', file=sys.stderr)
+    return INTERRUPTED_STATUS
   if failures:
     print(f'[sweep] {len(failures)} failed: {", ".join(failures)} (their '
           'error.json); start the command again to retry them',

@@ -86,6 +86,18 @@ def test_unreachable_cluster_addresses_are_named(tmp_path):
   assert 'Cannot reach a Ray cluster' in stderr.getvalue()
 
 
+
+def test_ctrl_c_says_how_to_resume(tmp_path, monkeypatch, capsys):
+  """Ctrl-C during the sweep ends it with the shells' status and the way
+  to resume, not a traceback from inside Ray's wait."""
+  def interrupted(*args, **kwargs):
+    raise KeyboardInterrupt
+  monkeypatch.setattr(sweep, 'run_sweep', interrupted)
+  status = sweep.main(['sweep'], _flags('--grid=smoke', f'--out={tmp_path}'))
+  assert status == sweep.INTERRUPTED_STATUS == 130
+  assert 'resume from their last checkpoint when the same command starts '\
+      'again' in capsys.readouterr().err
+
 def test_a_sweep_directory_keeps_its_grid(tmp_path):
   grid = grids.get('smoke')
   sweep.open_sweep(str(tmp_path), grid)
