@@ -19,7 +19,8 @@ suite.Environment read, the hooks the stepper calls):
   (`safety.shield.batch.step_many`: the playback's frames are known in
   advance) and each physics step hands the controller its precomputed,
   verified set-point; the same commands as `Shield.step` every physics step
-  (fast_path=False, the reference).
+  (fast_path=False, the reference). The set-points and the shield's
+  rewinding are tasks/runtime/shield_setpoints.py's.
 * One composer substep per RL step (fast path, environments of
   `suite.load`; tasks/runtime/substeps.py): composer sees one substep,
   `run_physics_steps`: the RL step's L physics steps, each with the same
@@ -43,6 +44,9 @@ suite.Environment read, the hooks the stepper calls):
   step short (`cut_short`); the shield is then rewound to the physics step
   that failed (`stop_at_physics_error`), so that its metrics are those of
   the reference path.
+* What the RL step's physics steps add up to (interventions, resyncs, the
+  largest tracking error, contact flags and counts) and the step metrics
+  from it: tasks/runtime/step_tally.py.
 """
 
 from typing import Optional
@@ -52,16 +56,11 @@ import numpy as np
 
 from hrc_suite.control import controller as controller_lib
 from hrc_suite.entities import human_kernels
-from hrc_suite.safety.shield import batch
 from hrc_suite.tasks.runtime import contacts
-from hrc_suite.tasks.runtime import metrics as metrics_lib
 from hrc_suite.tasks.runtime import physics_loop
+from hrc_suite.tasks.runtime import shield_setpoints
+from hrc_suite.tasks.runtime import step_tally
 from hrc_suite.tasks.runtime import substeps as substeps_lib
-
-# Flag positions of the contacts that cost collision_reward.
-_ILLEGAL_FLAGS = tuple(int(kind) for kind in contacts.ILLEGAL_TYPES)
-# The step metrics of the contact counts, in contacts.CONTACT_TYPES' order.
-_CONTACT_METRICS = tuple(f'contacts_{name}' for name in contacts.CONTACT_TYPES)
 
 
 class SteppedTask:
@@ -140,8 +139,9 @@ class SteppedTask:
 
 class ShieldedStepper:
   """An HrcTask's physics steps: the person's poses, the shield's
-  commands, the controller, the tracking check and the contact monitor,
-  and the state they keep within and across RL steps."""
+  commands (`shield_setpoints.ShieldSetpoints`), the controller, the
+  tracking check and the contact monitor, and the state they keep within
+  and across RL steps (the RL step's record: `step_tally.StepTally`)."""
 
   def __init__(self, task, options, shield, playback, robot):
     """Stepping for `task` (not yet bound to a physics: `bind`).
@@ -166,15 +166,14 @@ class ShieldedStepper:
     self._compiled_steps = None   # tasks/runtime/physics_loop.py, once bound
     self._controller = None
     self._monitor = None
-    self._step_flags = np.zeros(len(contacts.CONTACT_TYPES), dtype=bool)
-    self._contact_steps = np.zeros(len(contacts.CONTACT_TYPES), dtype=int)
+    self._tally = step_tally.StepTally()
+    self._setpoints = shield_setpoints.ShieldSetpoints(
+        shield, playback, robot.dof, options.fast_path)
     self._command_dq = np.zeros(robot.dof)
     # Tracking check (after_physics_step): where the command puts the
     # joints after the physics step, and how far the robot may be from it
     # (m; the levers turn joint errors into a cheap upper bound).
-    self._expected_buffer = np.zeros(robot.dof)
-    self._expected_q = self._expected_buffer
-    self._expected_rows = None
+    self._expected_q = np.zeros(robot.dof)
     self._tracking_levers = shield.tracking_levers
     self._tracking_tolerance = shield.tracking_tolerance
     self.reset()
@@ -182,17 +181,12 @@ class ShieldedStepper:
   def reset(self):
     """The state of an episode's start."""
     self._time = 0.0
-    self._intervened = False
     self._substep = 0
     self._completed_substeps = 0
-    self._resyncs = 0
-    self._max_tracking_error = 0.0
-    self._outside_model = False
     self._playback.forget_clip()
-    self._step_flags[:] = False
-    self._contact_steps[:] = 0
+    self._tally.reset()
     self._command_dq[:] = 0.0
-    self._forget_setpoints()
+    self._setpoints.forget()
 
   def bind(self, physics, root_entity, monitor):
     """Binds the stepping to a compiled physics.
@@ -204,6 +198,7 @@ class ShieldedStepper:
     """
     fast_path = self._options.fast_path
     self._dt = float(physics.model.opt.timestep)
+    self._setpoints.bind(self._dt)
     self._physics_steps.bind(physics, root_entity)
     self._playback.bind(physics)
     self._controller = controller_lib.JointTrackingController(
@@ -219,8 +214,8 @@ class ShieldedStepper:
         self._compiled_steps = physics_loop.CompiledSteps(
             physics, self._controller, self._playback, self._monitor,
             self._tracking_levers, self._tracking_tolerance,
-            self._q_measured, self._command_dq, self._step_flags,
-            self._contact_steps, self._shield.robot)
+            self._q_measured, self._command_dq, self._tally.step_flags,
+            self._tally.contact_steps, self._shield.robot)
       except ValueError:
         pass   # The Python loop runs every physics step.
 
@@ -273,18 +268,13 @@ class ShieldedStepper:
   def step_flags(self) -> np.ndarray:
     """Contact flags of this RL step (contacts.CONTACT_TYPES), updated in
     place (observables read the array)."""
-    return self._step_flags
+    return self._tally.step_flags
 
   @property
   def illegal_contact(self) -> bool:
     """Whether this RL step had a static or critical human contact
-    (contacts.ILLEGAL_TYPES: with self-collisions, what costs
-    collision_reward)."""
-    flags = self._step_flags
-    for kind in _ILLEGAL_FLAGS:
-      if flags[kind]:
-        return True
-    return False
+    (`step_tally.StepTally.illegal_contact`)."""
+    return self._tally.illegal_contact
 
   @property
   def command_dq(self) -> np.ndarray:
@@ -300,15 +290,8 @@ class ShieldedStepper:
         added holds fewer (new types go last: contacts.CONTACT_TYPES).
       command_dq: as `command_dq`.
     """
-    flags = np.asarray(step_flags, dtype=bool)
-    if flags.shape[0] > self._step_flags.shape[0]:
-      raise ValueError(f'step_flags: expected at most '
-                       f'{self._step_flags.shape[0]} contact flags '
-                       f'({", ".join(contacts.CONTACT_TYPES)}), got '
-                       f'{flags.shape[0]}')
+    self._tally.set_flags(step_flags)
     self._time = float(time)
-    self._step_flags[:] = False
-    self._step_flags[:flags.shape[0]] = flags
     self._command_dq[:] = command_dq
 
   # --------------------------------------------------- one composer substep
@@ -345,16 +328,12 @@ class ShieldedStepper:
   def begin_step(self):
     """Starts an RL step (after the shield's new goal): clears its flags
     and counters and advances the person's playback through it."""
-    self._intervened = False
-    self._step_flags[:] = False
     self._monitor.reset()
     self._substep = 0
     self._completed_substeps = 0
-    self._resyncs = 0
-    self._max_tracking_error = 0.0
-    self._forget_setpoints()
+    self._setpoints.forget()
     self._playback.advance(self._dt)
-    self._outside_model = self._faster_than_model()
+    self._tally.begin_step(outside_model=self._faster_than_model())
 
   def _faster_than_model(self):
     """Whether a keypoint moves faster than the shield's human model between
@@ -407,24 +386,24 @@ class ShieldedStepper:
                     writes, hold):
     """Physics steps k..end-1 in the compiled call, then what it left to
     Python (physics_loop.run's status)."""
-    self._plan_setpoints(k)
+    setpoints = self._setpoints
+    setpoints.plan(k)
     record = compiled.record
-    record.largest_tracking_bound[0] = self._max_tracking_error
+    record.largest_tracking_bound[0] = self._tally.max_tracking_error
     record.intervened[0] = False
     record.largest_contact_speed[0] = self._monitor.max_human_contact_speed
-    stopped, status = compiled.run(k, end, self._setpoints,
-                                   self._setpoint_flags,
-                                   self._setpoints_from, self._expected_rows,
-                                   writes, hold)
+    stopped, status = compiled.run(k, end, setpoints.setpoints,
+                                   setpoints.flags, setpoints.start,
+                                   setpoints.expected_rows, writes, hold)
     self._completed_substeps += stopped - k
-    self._max_tracking_error = float(record.largest_tracking_bound[0])
-    self._intervened |= bool(record.intervened[0])
+    self._tally.add_compiled(float(record.largest_tracking_bound[0]),
+                             bool(record.intervened[0]))
     self._monitor.max_human_contact_speed = float(
         record.largest_contact_speed[0])
     last = stopped - 1 if status == physics_loop.DONE else stopped
     self._substep = last + 1
     self._time = self._playback.times[last]
-    self._expected_q = self._expected_rows[last - self._setpoints_from]
+    self._expected_q = setpoints.expected_at(last)
     if status == physics_loop.PHYSICS_WARNING:
       self._physics_steps.raise_warnings(compiled.warnings_before)
     elif status == physics_loop.PYTHON_AFTER:
@@ -442,7 +421,9 @@ class ShieldedStepper:
     self._substep = k + 1
     positions = self._playback.apply(physics, k)
     self._time = self._playback.times[k]
-    q, dq, ddq = self._shield_command(k, positions)   # and _expected_q
+    (q, dq, ddq), intervened, self._expected_q = self._setpoints.command(
+        k, positions, self._time)
+    self._tally.add_intervention(intervened)
     self._command_dq[:] = dq
     self._controller(physics, q, dq, ddq)
     self._task._before_physics_step(physics)
@@ -458,127 +439,38 @@ class ShieldedStepper:
       distance = self._shield.tracking_error(self._q_measured,
                                              self._expected_q)
       pushed = distance > self._tracking_tolerance
-    if distance > self._max_tracking_error:
-      self._max_tracking_error = distance
-    flags = self._monitor.update(self._command_dq,
-                                 self._expected_q if pushed else None)
-    if flags.any():
-      self._step_flags |= flags
-      self._contact_steps += flags
+    self._tally.add_tracking_error(distance)
+    self._tally.add_contacts(self._monitor.update(
+        self._command_dq, self._expected_q if pushed else None))
     if pushed:
       # The robot is not where the shield believes: it plans from the
       # measured pose from the next physics step on.
-      self._rewind_shield(self._substep - 1)
+      self._setpoints.rewind(self._substep - 1)
       self._shield.resync(self._q_measured)
-      self._resyncs += 1
+      self._tally.add_resync()
 
   def stop_at_physics_error(self):
     """After an RL step cut short by a physics error: the shield as after
     the physics step that failed (the fast path had planned the RL step's
     later cycles), so that its metrics are those of the reference."""
-    self._rewind_shield(self._substep - 1)
+    self._setpoints.rewind(self._substep - 1)
 
   def add_step_metrics(self, step):
     """Adds the RL step's shield, tracking and contact metrics to `step`
-    (a dict) and restarts the contact counts.
+    (a dict) and restarts the contact counts
+    (`step_tally.StepTally.add_step_metrics`).
 
     Args:
       step: the RL step's metrics so far.
     """
-    step['shield_interventions'] = int(self._intervened)
-    step['min_human_distance'] = self._shield.min_distance
-    step['steps_outside_human_model'] = int(self._outside_model)
-    step['max_human_contact_speed'] = self._monitor.max_human_contact_speed
-    step['shield_resyncs'] = self._resyncs
-    step['max_tracking_error'] = self._max_tracking_error
-    step.setdefault('physics_errors', 0)
-    step.update(zip(_CONTACT_METRICS, self._contact_steps.tolist()))
-    critical = step['contacts_human_critical']
-    step['contacts_human_critical_outside_model'] = (
-        critical if self._outside_model else 0)
-    self._contact_steps[:] = 0
+    self._tally.add_step_metrics(step, self._shield.min_distance,
+                                 self._monitor.max_human_contact_speed)
 
   def contact_energy_maxima(self) -> Optional[dict]:
     """The RL step's largest robot-human contact energies and ratios
-    (metrics.contact_energy_maxima), or None where it measured none (no
-    robot-human contact, or a monitor without energies): all zeros, which
-    raise no episode maximum.
+    (`step_tally.contact_energy_maxima`), or None where it measured none.
 
     Returns:
       {name: value} of metrics.CONTACT_ENERGY_MAXIMA, or None.
     """
-    energies = self._monitor.energies
-    if energies is None or not (energies.max_energy.any()
-                                or energies.max_ratio.any()):
-      return None
-    return metrics_lib.contact_energy_maxima(energies.max_energy,
-                                             energies.max_ratio)
-
-  # ------------------------------------------------------ shield set-points
-
-  def _forget_setpoints(self):
-    """No precomputed shield set-points (a new RL step, or a resync)."""
-    self._setpoints = None
-    self._setpoint_flags = None
-    self._setpoints_from = 0
-    self._shield_checkpoint = None
-
-  def _shield_command(self, k, positions):
-    """The shield's command for physics step k, and where it puts the
-    joints (`_expected`): precomputed for the rest of the RL step at its
-    first physics step (or after a resync) on the fast path, else one
-    Shield.step."""
-    if not self._options.fast_path:
-      command = self._shield.step(positions, self._time)
-      self._intervened |= self._shield.intervened
-      self._expected_q = self._expected(*command, self._expected_buffer)
-      return command
-    self._plan_setpoints(k)
-    i = k - self._setpoints_from
-    self._intervened |= bool(self._setpoint_flags[i])
-    self._expected_q = self._expected_rows[i]
-    return self._setpoints[i]
-
-  def _plan_setpoints(self, k):
-    """The shield's set-points from physics step k to the RL step's end
-    (one compiled call, `batch.step_many`) if not planned yet."""
-    if self._setpoints is not None:
-      return
-    self._shield_checkpoint = batch.checkpoint(self._shield)
-    self._setpoints_from = k
-    self._setpoints, self._setpoint_flags = batch.step_many(
-        self._shield, self._playback.positions[k:],
-        self._playback.times[k:])
-    setpoints = self._setpoints
-    self._expected_rows = self._expected(
-        setpoints[:, 0], setpoints[:, 1], setpoints[:, 2],
-        np.empty(setpoints.shape[:1] + setpoints.shape[2:]))
-
-  def _expected(self, q, dq, ddq, out):
-    """Where command(s) (q, dq, ddq) put the joints after a physics step,
-    written into out: the controller drives the command's acceleration
-    from the command's state, and MuJoCo's semi-implicit Euler moves q by
-    h (dq + h ddq). (The command is the robot's state at the step's start:
-    measured within ~2e-6 rad; after the step within ~2e-5 rad of this.)
-    Element by element, so rows computed at once equal single ones."""
-    np.multiply(ddq, self._dt, out=out)
-    out += dq
-    out *= self._dt
-    out += q
-    return out
-
-  def _rewind_shield(self, k):
-    """The shield back at the end of cycle k (its state when physics step
-    k ran), from the checkpoint and a replay of the precomputed cycles
-    (deterministic: checked)."""
-    if self._setpoints is None:
-      return
-    start = self._setpoints_from
-    batch.restore(self._shield, self._shield_checkpoint)
-    replay, _ = batch.step_many(self._shield,
-                                self._playback.positions[start:k + 1],
-                                self._playback.times[start:k + 1])
-    if not np.array_equal(replay, self._setpoints[:k + 1 - start]):
-      raise RuntimeError('The shield replay differs from its set-points: '
-                         'Shield cycles are not deterministic')
-    self._forget_setpoints()
+    return step_tally.contact_energy_maxima(self._monitor)
