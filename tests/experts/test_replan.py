@@ -10,6 +10,8 @@ from hrc_suite import suite
 from hrc_suite.experts import adversary
 from hrc_suite.experts import noise as noise_lib
 from hrc_suite.experts import replan
+from hrc_suite.human import clip as clip_lib
+from hrc_suite.human import keypoints
 from hrc_suite.human import recording_cache
 from hrc_suite.tasks.runtime import actions
 
@@ -178,3 +180,37 @@ def test_noisy_stacking_expert_folded_into_itself_replans(
   assert done['action_replacements'] < stuck['action_replacements'] / 5
   assert expert.replanner.detours >= 1
   assert done['contacts_human_critical'] == 0
+
+
+def _leaning_in(lean):
+  """The shipped stacking clip 0 with the person's upper body leaning
+  `lean` m further over the table (the torso half as far) all along."""
+  clip = clip_lib.shipped_library('stacking')[0]
+  index = keypoints.KEYPOINT_INDEX
+  upper = [index[name] for name in (
+      'chest', 'neck', 'head', 'left_shoulder', 'right_shoulder',
+      'left_elbow', 'right_elbow', 'left_wrist', 'right_wrist', 'left_hand',
+      'right_hand')]
+  positions = clip.positions.astype(np.float64)
+  positions[:, upper, 0] += lean
+  positions[:, index['torso'], 0] += lean / 2
+  return clip.replace(positions=positions.astype(np.float32),
+                      name=f'{clip.name}_leaning')
+
+
+def test_a_person_leaning_in_does_not_hold_the_noisy_stacking_arm():
+  """A person leaning 0.15 m further over the table keeps their hands near
+  the stack: the Schunk's noisy expert parks its cube towards its raised
+  base, folds into itself, and without re-planning has every action
+  replaced to the end of the minute. With re-planning no run of replaced
+  actions outlasts REPLAN_AFTER (the stack is not built within the minute
+  either: the parking aim leads back into the fold)."""
+  env = suite.load('stacking', 'default', task_kwargs={
+      'robot': 'schunk', 'time_limit': 60.0, 'outside_human_model': 'allow',
+      'motions': [_leaning_in(0.15)]},
+                   environment_kwargs={'random_state': 0})
+  stuck, stuck_run, _ = _noisy_episode(env, replans=False)
+  assert stuck_run > 10 * replan.REPLAN_AFTER
+  freed, freed_run, expert = _noisy_episode(env, replans=True)
+  assert freed_run <= replan.REPLAN_AFTER and expert.replanner.detours >= 1
+  assert freed['action_replacements'] < stuck['action_replacements'] / 2
