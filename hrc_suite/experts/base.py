@@ -50,6 +50,9 @@ class Expert:
   # Whether the expert re-plans when collision prevention keeps replacing
   # its actions (experts/replan.py).
   REPLANS = True
+  # The re-planning `__init__` makes (None: the expert's actions as they
+  # are, also for a subclass that sets up without `Expert.__init__`).
+  _replanner = None
 
   def __init__(self, env: composer.Environment):
     self._env = env
