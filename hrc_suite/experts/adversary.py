@@ -42,6 +42,8 @@ class PersonChaser(base.Expert):
   """
 
   OBSERVED = ('eef_position', 'joint_positions', 'human_keypoints')
+  # A safety test drives at the person as it is told: no detours.
+  REPLANS = False
 
   def __init__(self, env: composer.Environment):
     super().__init__(env)

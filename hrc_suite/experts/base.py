@@ -15,14 +15,21 @@ that an expert can take over from any state, e.g. an episode started from a
 dataset snapshot (reference-state initialisation) or when it is queried
 online for an agent's action (action-based imitation reward). `reset()` is
 called at every first timestep.
+
+Re-planning (experts/replan.py): an expert whose actions collision
+prevention replaces REPLAN_AFTER times in a row is taken on a detour to a
+waypoint whose first step is accepted, then resumes its own actions
+(`REPLANS`; an episode in which that never happens is unchanged).
 """
 
-from typing import Mapping
+from typing import Mapping, Optional
 
 from dm_control import composer
 from dm_control import mjcf
 import dm_env
 import numpy as np
+
+from hrc_suite.experts import replan
 
 
 class Expert:
@@ -40,6 +47,12 @@ class Expert:
   OBSERVED = ()
   # (domain, task) pairs the expert solves; empty = any.
   TASKS = ()
+  # Whether the expert re-plans when collision prevention keeps replacing
+  # its actions (experts/replan.py).
+  REPLANS = True
+  # The re-planning `__init__` makes (None: the expert's actions as they
+  # are, also for a subclass that sets up without `Expert.__init__`).
+  _replanner = None
 
   def __init__(self, env: composer.Environment):
     self._env = env
@@ -54,6 +67,7 @@ class Expert:
     spec = env.action_spec()
     self._action_shape = spec.shape
     self._callables = None
+    self._replanner = replan.Replanner(self._task) if self.REPLANS else None
 
   @property
   def env(self) -> composer.Environment:
@@ -69,6 +83,11 @@ class Expert:
   def physics(self) -> mjcf.Physics:
     """The environment's current physics."""
     return self._env.physics
+
+  @property
+  def replanner(self) -> Optional[replan.Replanner]:
+    """The re-planning of the expert's actions (None without `REPLANS`)."""
+    return self._replanner
 
   def reset(self) -> None:
     """Forgets the previous episode (called at every first timestep)."""
@@ -100,7 +119,8 @@ class Expert:
 
   def __call__(self, timestep: dm_env.TimeStep) -> np.ndarray:
     """The expert's action at a timestep (its observation is not read:
-    `observe`); resets the expert at a first timestep.
+    `observe`), or a detour's where collision prevention kept replacing
+    its actions (`replanner`); resets the expert at a first timestep.
 
     Args:
       timestep: the environment's current timestep.
@@ -113,9 +133,14 @@ class Expert:
     """
     if timestep.first():
       self._callables = None   # The physics may have been rebuilt.
+      if self._replanner is not None:
+        self._replanner.reset()
       self.reset()
     action = np.asarray(self.action(self.observe()), dtype=np.float64)
     if action.shape != self._action_shape:
       raise ValueError(f'{type(self).__name__} produced an action of shape '
                        f'{action.shape}, expected {self._action_shape}')
+    if self._replanner is not None:
+      action = np.asarray(self._replanner.action(
+          action, self.physics, timestep.first()), dtype=np.float64)
     return np.clip(action, -1.0, 1.0)

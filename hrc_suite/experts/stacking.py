@@ -35,6 +35,12 @@ take over from any state (snapshots, an agent's states).
 
 Joint space: the same aims, through `steering.Steering` (one gripper-down
 IK step at the task's yaw at a time).
+
+An arm that the noisy expert's drift folded into itself while parking a
+cube (the Schunk, whose raised base stands 0.35 m from the stack) has
+every action replaced by collision prevention; after replan.REPLAN_AFTER
+such steps the expert takes a detour that unfolds it (experts/replan.py,
+`base.Expert`).
 """
 
 from typing import Mapping
