@@ -295,7 +295,7 @@ class ActionImitationReward(EnvironmentWrapper):
   Args:
     environment: the environment.
     expert: time step -> the expert's action (None: the task's expert,
-      experts.make).
+      experts.make, without re-planning: Expert.disable_replanning).
     weight: the imitation weight varsigma, in [0, 1].
     scale: the distance scale iota of the arm part of actions.
     gripper_scale: the distance scale of the gripper part.
@@ -314,13 +314,23 @@ class ActionImitationReward(EnvironmentWrapper):
       position_weight: float = rewards_lib.POSITION_WEIGHT):
     super().__init__(environment)
     inner = _composer_environment(environment)
-    self._expert = expert if expert is not None else experts_lib.make(inner)
+    if expert is None:
+      # The advice on a state is the expert's action there, never a detour
+      # driven by the agent's replaced actions (experts/replan.py).
+      expert = experts_lib.make(inner)
+      expert.disable_replanning()
+    self._expert = expert
     self._reward = rewards_lib.ImitationReward(
         weight=weight, scale=scale, gripper_scale=gripper_scale,
         position_weight=position_weight,
         gripper_size=int(inner.task.HAS_GRIPPER_ACTION))
     self._timestep = None
     self.last_expert_action = None
+
+  @property
+  def expert(self) -> Callable[[dm_env.TimeStep], np.ndarray]:
+    """The expert queried on the agent's states."""
+    return self._expert
 
   def reset(self) -> dm_env.TimeStep:
     """Starts an episode of the wrapped environment.

@@ -86,8 +86,18 @@ class Expert:
 
   @property
   def replanner(self) -> Optional[replan.Replanner]:
-    """The re-planning of the expert's actions (None without `REPLANS`)."""
+    """The re-planning of the expert's actions (None without `REPLANS`
+    or after `disable_replanning`)."""
     return self._replanner
+
+  def disable_replanning(self) -> None:
+    """Answers every query with the expert's own action, never a detour.
+
+    For an expert queried on states another policy reached (action-based
+    imitation, agents/imitation/wrappers.py): its advice then depends on
+    the state alone, not on how often that policy's actions were replaced.
+    """
+    self._replanner = None
 
   def reset(self) -> None:
     """Forgets the previous episode (called at every first timestep)."""

@@ -41,9 +41,10 @@ of replaced actions in a row, the detour (waypoint, steps left, its
 replaced actions in a row) and the detour count; all are forgotten at
 reset.
 
-What is counted are the actions the task executed: an expert queried on an
-agent's states (action-based imitation) re-plans when the agent's actions
-keep being replaced, and advises the detour from there.
+What is counted are the actions the task executed. An expert queried on
+an agent's states (action-based imitation) has re-planning switched off
+(`Expert.disable_replanning`): its advice there is its own action at each
+state, not a detour that depends on the agent's past actions.
 """
 
 from typing import Optional

@@ -113,6 +113,14 @@ def test_sir_reward_follows_the_reference(reach_dataset):
   assert env_reward == pytest.approx(env.task.step_metrics['reward'])
 
 
+def test_air_queries_the_expert_without_replanning():
+  # Advice on a state must not depend on how often the agent's actions were
+  # replaced (hrc_suite/experts/replan.py): the task's own expert re-plans.
+  env = imitation.ActionImitationReward(_env(seed=4))
+  assert experts.make(_env(seed=4)).replanner is not None
+  assert env.expert.replanner is None
+
+
 def test_air_rewards_agreeing_with_the_expert():
   env = imitation.ActionImitationReward(_env(seed=4))
   shadow = _env(seed=4)
