@@ -40,7 +40,9 @@ def merge_inertia(mass_a, centre_a, inertia_a, mass_b, centre_b, inertia_b):
 
 
 class ArmEnergyModel:
-  """Link energies and plan energy tables of one arm (see the module).
+  """Link energies and plan energy tables of one arm (see the module);
+  `kernel_arrays` (energy_kernels.ArmArrays) hands the model to compiled
+  code (the shield's energy_table_kernels).
 
   Args:
     description: the robot's description.
@@ -88,6 +90,10 @@ class ArmEnergyModel:
                                for l in range(i, dof))
         for i in range(dof)])
     self.trace_bound = np.sqrt(np.cumsum(diagonal))
+    self.kernel_arrays = energy_kernels.ArmArrays(
+        self.fixed, self.masses, self.centres, self.inertias, self.armature,
+        np.ascontiguousarray(levers), np.ascontiguousarray(self.trace_bound),
+        np.ascontiguousarray(self.inertia_bound))
     self._reference = None
     energy_kernels.warm_up()
 

@@ -28,6 +28,7 @@ kernels (cache=True, fastmath=False).
 """
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,6 +36,19 @@ from hrc_suite.safety import kernels
 
 _jit = kernels._jit
 _inline = kernels._inline
+
+
+class ArmArrays(NamedTuple):
+  """An arm's energy model for the kernels (arm_energy.ArmEnergyModel):
+  `energy_bounds`' arguments after the samples, but the step."""
+  fixed: np.ndarray          # (dof, 3, 4) fixed transforms A_i.
+  masses: np.ndarray         # (dof,) kg, the payload merged into the last.
+  centres: np.ndarray        # (dof, 3) m, centres of mass (link axes).
+  inertias: np.ndarray       # (dof, 3, 3) kg m^2, about them.
+  armature: np.ndarray       # (dof,) kg m^2.
+  levers: np.ndarray         # (dof, dof) m (energy_bounds).
+  trace_bound: np.ndarray    # (dof,) (energy_bounds).
+  inertia_bound: np.ndarray  # (dof,) kg m^2 (energy_bounds).
 
 
 @_inline

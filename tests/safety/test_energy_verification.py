@@ -180,6 +180,38 @@ def test_compiled_check_equals_the_reference_bit_for_bit(limits):
   assert 30 < clamps < 270           # and clamped and free contacts.
 
 
+def test_compiled_verdict_at_the_limits_equals_the_reference(limits):
+  # The compiled verdict skips contacts whose ratios are both within the
+  # limit before any geometry: energies at the allowed energies, a rounding
+  # step either side, give the reference's verdict.
+  rng = np.random.RandomState(11)
+  tolerance = 1.0 + ev.RATIO_TOLERANCE
+  verdicts = set()
+  for _ in range(200):
+    robot, human, energies, geometry = _random_case(rng, limits)
+    allowed = np.where(rng.uniform(size=energies.shape) < 0.5,
+                       limits.clamped[rng.randint(len(limits.bodies),
+                                                  size=energies.shape)],
+                       limits.transient[rng.randint(len(limits.bodies),
+                                                    size=energies.shape)])
+    energies = allowed * tolerance
+    nudge = rng.randint(-1, 2, energies.shape)
+    energies = np.where(nudge > 0, np.nextafter(energies, np.inf),
+                        np.where(nudge < 0, np.nextafter(energies, 0.0),
+                                 energies))
+    expected = ev.first_unsafe(ev.energy_ratios(robot, human, energies,
+                                                limits, geometry))
+    start = rng.randint(0, energies.shape[0] + 1)
+    tail = ev.first_unsafe_slice(robot, human, energies, limits, geometry,
+                                 compiled=False, start=start)
+    assert ev.first_unsafe_slice(robot, human, energies, limits,
+                                 geometry) == expected
+    assert ev.first_unsafe_slice(robot, human, energies, limits, geometry,
+                                 start=start) == tail
+    verdicts.add(expected < 0)
+  assert verdicts == {True, False}
+
+
 def test_bad_arguments_are_named(limits):
   robot, human, geometry = _one_hand_scene(limits, TOP + 0.6)
   with pytest.raises(ValueError, match=r'energies: expected \(1, 1\)'):

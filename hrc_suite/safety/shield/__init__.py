@@ -6,7 +6,8 @@ cycle), `shield_state` (its state), `modes` and `mode_kernels` (what a
 mode checks, readable and compiled), `verification`, `energy_verification`
 and `energy_check_kernels` (the SSM and energy verdicts), `human_reach`
 (the human's reachable set), `path` and `path_kernels` (the monitored
-path), `speed_kernels` (PFL speed tables), `cycle_kernels` and `batch`
+path), `speed_kernels` and `energy_table_kernels` (PFL's and energy
+PFL's tables of a plan), `cycle_kernels` and `batch`
 (the compiled cycles) and `benchmark` (their timing).
 """
 

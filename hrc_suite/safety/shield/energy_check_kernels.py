@@ -4,11 +4,14 @@
 reference, with clamping.contacts_and_clamps) with the same floating-point
 operations in the same order, so the ratios are the same bits
 (tests/safety/test_energy_verification.py); `energy_first_unsafe` gives
-the verdict, stopping at the first unsafe slice and at the first contact
-that fails a model. Both skip work that cannot change the result: a pair
-whose bounding balls are apart (kernels' broad phase, with its slack), and
-the clamping tests of a contact whose clamped ratio could not raise the
-model's largest ratio. Same compilation settings as the shield's kernels.
+the verdict of those ratios, stopping at the first unsafe slice and at the
+first contact that fails a model. Both skip work that cannot change their
+result: `energy_ratios` a pair whose bounding balls are apart (kernels'
+broad phase, with its slack) and the clamping tests of a contact whose
+clamped ratio could not raise the model's largest ratio;
+`energy_first_unsafe` every contact whose ratios are both within the
+limit, before any geometry (`_model_exceeds`). Same compilation settings
+as the shield's kernels.
 """
 
 import math
@@ -106,9 +109,8 @@ def _clamped(robot, human, limits, clamp, m, k, l, b):
 
 
 @_inline
-def _model_ratio(robot, human, energies, limits, clamp, balls, m, k, stop):
-  """Model m's largest ratio in slice k; returns as soon as it exceeds
-  `stop` (np.inf: never)."""
+def _model_ratio(robot, human, energies, limits, clamp, balls, m, k):
+  """Model m's largest ratio in slice k."""
   rc1, rc2, rr = robot
   hc1, hc2, hr = human
   r_mid, r_reach = balls.robot_mid, balls.robot_reach
@@ -136,9 +138,40 @@ def _model_ratio(robot, human, energies, limits, clamp, balls, m, k, stop):
       if energies[k, l] / clamped[b] > best and _clamped(
           robot, human, limits, clamp, m, k, l, b):
         best = energies[k, l] / clamped[b]
-      if best > stop:
-        return best
   return best
+
+
+@_inline
+def _model_exceeds(robot, human, energies, limits, clamp, m, k, limit):
+  """Whether model m's largest ratio in slice k exceeds `limit` (as
+  `_model_ratio(...) > limit`): whether a possible contact's energy over
+  its allowed energy does. A contact whose energy over its clamped limit,
+  the larger of its two ratios, is within `limit` cannot, so only the
+  others are tested; a robot capsule whose energy over the smallest
+  clamped limit is within has none (a correctly rounded division by a
+  larger positive number is not larger)."""
+  rc1, rc2, rr = robot
+  hc1, hc2, hr = human
+  transient, clamped = limits.transient, limits.clamped
+  count_b = hr.shape[2]
+  if count_b == 0:
+    return False
+  smallest = clamped.min()
+  for l in range(rr.shape[1]):
+    energy = energies[k, l]
+    if energy / smallest <= limit:
+      continue
+    for b in range(count_b):
+      if energy / clamped[b] <= limit:
+        continue
+      if (_distance(rc1, rc2, k, l, hc1, hc2, m, b) - rr[k, l]
+          - hr[m, k, b] >= 0.0):
+        continue
+      if energy / transient[b] > limit:
+        return True
+      if _clamped(robot, human, limits, clamp, m, k, l, b):
+        return True
+  return False
 
 
 @_inline
@@ -165,7 +198,7 @@ def energy_ratios(rc1, rc2, rr, hc1, hc2, hr, energies, transient, clamped,
   for m in range(count_m):
     for k in range(count_k):
       out[m, k] = _model_ratio(robot, human, energies, limits, clamp, balls,
-                               m, k, np.inf)
+                               m, k)
   return out
 
 
@@ -176,14 +209,13 @@ def first_unsafe(robot, human, energies, limits, clamp, start):
   exceeds 1 + the tolerance, or -1 (robot and human `Capsules`, energies
   (K, L), `BodyLimits`, `ClampBoxes`; rows of energies before start are
   not read)."""
-  balls = _balls(robot, human)
   count_m, count_k = human.r.shape[0], human.r.shape[1]
   limit = 1.0 + _RATIO_TOLERANCE
   for k in range(start, count_k):
     passed = False
     for m in range(count_m):
-      if _model_ratio(robot, human, energies, limits, clamp, balls, m, k,
-                      limit) <= limit:
+      if not _model_exceeds(robot, human, energies, limits, clamp, m, k,
+                            limit):
         passed = True
         break
     if not passed:

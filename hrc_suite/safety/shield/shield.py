@@ -68,6 +68,7 @@ from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import robot_energy
 from hrc_suite.safety import robot_reach as robot_reach_lib
 from hrc_suite.safety.shield import cycle_kernels
+from hrc_suite.safety.shield import energy_table_kernels
 from hrc_suite.safety.shield import energy_verification
 from hrc_suite.safety.shield import human_reach as human_reach_lib
 from hrc_suite.safety.shield import modes as modes_lib
@@ -1014,6 +1015,7 @@ class Shield:
         payload = robot_energy.gripper_payload(self.description.name)
       self._energy['model'] = arm_energy.ArmEnergyModel(self.description,
                                                         payload)
+      energy_table_kernels.warm_up()   # Its plans' tables.
     return self._energy['model']
 
   def set_payload(self, payload: Optional[robot_energy.Payload]) -> None:
@@ -1072,9 +1074,9 @@ class Shield:
     """
     model = self.energy_model
     return plan.derived('pfl_energy_tables', model,
-                        lambda: model.plan_tables(plan.samples(),
-                                                  self.cycle_time,
-                                                  PFL_WINDOW))
+                        lambda: energy_table_kernels.plan_energy_tables(
+                            plan.samples(), model.kernel_arrays,
+                            float(self.cycle_time), PFL_WINDOW))
 
   def _verify(self, plan, current, failsafe, previous_q, now):
     """Checks the slice current -> intended step, then the failsafe, at
