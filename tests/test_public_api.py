@@ -55,7 +55,7 @@ DOCUMENTED_MODULES = (
 # HrcTask that show a part of a task ('path:Class').
 DOCUMENTED_CLASSES = (
     'hrc_suite/tasks/runtime/scene.py:SceneParts',
-    'hrc_suite/tasks/runtime/shielded_stepping.py:SteppedTask',
+    'hrc_suite/tasks/runtime/stepped_task.py:SteppedTask',
     'hrc_suite/tasks/runtime/snapshots.py:SnapshottedTask',
     'hrc_suite/tasks/runtime/episode.py:ProgressOfTask',
     'hrc_suite/tasks/runtime/defaults.py:TaskConstants',

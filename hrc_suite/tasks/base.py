@@ -32,7 +32,7 @@ override `_build_task`, `_initialize_task`, `_update_task`,
 optionally `_human_events`, `_failed`, `_task_observables` (name ->
 observable; an entity's own where it declares the quantity, e.g.
 `self._board.observables.position`), the physics-step hooks
-(`shielded_stepping.SteppedTask`) and, where TASK_STATE (the attributes
+(`stepped_task.SteppedTask`) and, where TASK_STATE (the attributes
 snapshots copy) is not enough, the snapshot hooks
 (`snapshots.SnapshottedTask`). The person's grips on the task's objects
 are `self._grips` (`grips.HumanGrips`).
@@ -57,6 +57,7 @@ from hrc_suite.tasks.runtime import options as options_lib
 from hrc_suite.tasks.runtime import reward_bounds
 from hrc_suite.tasks.runtime import scene as scene_lib
 from hrc_suite.tasks.runtime import shielded_stepping
+from hrc_suite.tasks.runtime import stepped_task
 from hrc_suite.tasks.runtime import snapshots
 from hrc_suite.tasks.runtime import step_recorder
 
@@ -68,7 +69,7 @@ def _read(path, doc):
   return property(operator.attrgetter(path), doc=doc)
 
 
-class HrcTask(scene_lib.SceneParts, shielded_stepping.SteppedTask,
+class HrcTask(scene_lib.SceneParts, stepped_task.SteppedTask,
               snapshots.SnapshottedTask, episode_lib.ProgressOfTask,
               composer.Task, defaults_lib.TaskConstants,
               options_lib.OptionNames, reward_bounds.RewardBounds):

@@ -173,10 +173,15 @@ def _lever_sum(x, levers):
 
 def _polynomial(plan):
   """The compiled sweep's PlanPolynomial of a LongTermPlan."""
+  return collision_kernels.PlanPolynomial(*_polynomial_fields(plan))
+
+
+def _polynomial_fields(plan):
+  """`_polynomial`'s fields as a plain tuple, as the compiled sweep takes
+  them (kernels.as_fields)."""
   cycle = plan.cycle_time
-  return collision_kernels.PlanPolynomial(
-      plan._all(), plan.start_time, plan._inverse_cycle, cycle, cycle ** 2,
-      cycle ** 3, plan.num_samples - 1)
+  return (plan._all(), plan.start_time, plan._inverse_cycle, cycle,
+          cycle ** 2, cycle ** 3, plan.num_samples - 1)
 
 
 class CollisionPrevention:
@@ -657,7 +662,7 @@ class CollisionPrevention:
     collides (then `_planned_sweep` decides): the compiled sweep of
     `_planned_sweep` (collision_kernels.planned_path_collides)."""
     return collision_kernels.planned_path_collides(
-        start, tuple(_polynomial(plan)), *self._sweep_groups)
+        start, _polynomial_fields(plan), *self._sweep_groups)
 
   def _planned_sweep(self, q0, plans, cycle):
     """Collision flags of plans (None: not made, not flagged) from q0, by

@@ -73,22 +73,22 @@ def _compiled_eligible(shield):
           and human.has_velocity)
 
 
-def _kernel_plan(shield, plan, s, count):
-  """`plan` for the kernel (`cycle_kernels.Plan`): its samples (writeable)
-  computed up to the reach of `count` cycles and a failsafe from plan
-  time s, and the mode's tables of it."""
-  tables = shield.kernel_tables(plan)
+def _kernel_plan(shield, plan, tables, s, count):
+  """`plan` for the kernel: the fields of its `cycle_kernels.Plan` (a
+  plain tuple, the mode's tables as `tables`, their fields): its samples
+  (writeable) computed up to the reach of `count` cycles and a failsafe
+  from plan time s."""
   horizon = (count + _FILL_MARGIN_CYCLES) * shield.cycle_time
   samples = plan.samples_through(
       plan.sample_index(s + horizon + shield.max_s_stop))
   if not samples.flags.writeable:
     samples = np.array(samples)
-  return ck.Plan(samples, plan.start_time, plan.filled, tables)
+  return samples, plan.start_time, plan.filled, tables
 
 
 def _cycle_state(state):
   """The kernel's arrays of a `ShieldState` (copies: the kernel changes
-  them in place)."""
+  them in place), as the fields of a `cycle_kernels.CycleState`."""
   human = state.human
   key = state.candidate_key or (0.0, 0.0)
   scalars = np.empty(1, dtype=ck.SCALARS)
@@ -97,11 +97,12 @@ def _cycle_state(state):
       state.candidate is not None, -1, key[0], key[1],
       human.last_measurement_time, human.last_period,
       human.num_measurements)
-  return ck.CycleState(   # command, previous_q, verified, intended, ...
+  intended = state.intended
+  return (   # command, previous_q, verified, intended, ...
       state.command.copy(), np.array(state.previous_q, dtype=float),
       shield_state.path_array(state.verified),
-      (np.zeros(shield_state.PATH_SIZE) if state.intended is None
-       else shield_state.path_array(state.intended)),
+      (np.zeros(shield_state.PATH_SIZE) if intended is None
+       else shield_state.path_array(intended)),
       np.array(human.positions, dtype=float),
       np.array(human.velocities, dtype=float), scalars)
 
@@ -118,16 +119,24 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
   plan, candidate, key = state.plan, state.candidate, state.candidate_key
   s = state.verified.s
   arrays = _cycle_state(state)
-  flags = arrays.scalars[0]
+  flags = arrays[-1][0]   # The SCALARS record, changed by the kernel.
+  # The mode's tables of each plan, made once per call (Shield.kernel_tables).
+  tables = {}
+  def plan_fields(made):
+    kept = tables.get(id(made))
+    if kept is None:
+      group = shield.kernel_tables(made)
+      kept = tables[id(made)] = (made, type(group), tuple(group))
+    return kept[1], _kernel_plan(shield, made, kept[2], s, len(times))
   total, check = 0, None
   while total < len(times):
-    plan_group = _kernel_plan(shield, plan, s, len(times))
+    tables_class, plan_group = plan_fields(plan)
     candidate_group = plan_group
     if candidate is not None:
-      candidate_group = _kernel_plan(shield, candidate, s, len(times))
+      candidate_group = plan_fields(candidate)[1]
     (done, status, first, distance, s_edges, t_edges, q_edges,
-     missing) = ck.run_cycles(
-         constants, mode, arrays, plan_group, candidate_group,
+     missing) = ck.run_cycle_fields(
+         constants, mode, tables_class, arrays, plan_group, candidate_group,
          frames[total:], times[total:], setpoints[total:],
          intervened[total:])
     if done:
@@ -143,8 +152,8 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
       # (Shield.candidate; it stops only where a plan may start there):
       # made here (nobody planned from this command before: not looked
       # up among recent plans), the cycles go on.
-      verified = arrays.verified
-      made = shield.candidate_from(arrays.command, verified[0], verified[1],
+      verified = arrays[2]
+      made = shield.candidate_from(arrays[0], verified[0], verified[1],
                                    recent=False)
       if made is None:
         break   # step_many's next call runs the cycle as Shield.step.
@@ -169,10 +178,13 @@ def _run_compiled(shield, frames, times, setpoints, intervened):
 
 def _next_state(state, arrays, plan, candidate, key, check, frames, times,
                 total, intervened):
-  """The `ShieldState` after `total` compiled cycles from `state`."""
+  """The `ShieldState` after `total` compiled cycles from `state`
+  (arrays: the kernel's `CycleState` fields)."""
   status, first, distance, s_edges, t_edges, q_edges = check
+  command, previous_q, verified, intended, positions, velocities, scalars = (
+      arrays)
   (has_intended, goal_pending, has_candidate, _, _, _, last_t, last_period,
-   count) = arrays.scalars[0].item()   # SCALARS' fields.
+   count) = scalars.item(0)   # SCALARS' fields.
   human = state.human
   length_positions = human.length_positions
   if count != human.num_measurements:
@@ -181,14 +193,14 @@ def _next_state(state, arrays, plan, candidate, key, check, frames, times,
     last = total - 1   # The last cycle that measured (usually the last).
     while last > 0 and times[last] != last_t:
       last -= 1
-    length_positions = (arrays.positions if last == total - 1
+    length_positions = (positions if last == total - 1
                         else np.array(frames[last], dtype=float))
   record = shield_state.record
   return record(
       shield_state.ShieldState,
-      command=arrays.command, previous_q=arrays.previous_q,
-      verified=shield_state.path_from_array(arrays.verified),
-      intended=(shield_state.path_from_array(arrays.intended)
+      command=command, previous_q=previous_q,
+      verified=shield_state.path_from_array(verified),
+      intended=(shield_state.path_from_array(intended)
                 if has_intended else None),
       plan=plan, goal=state.goal, goal_pending=bool(goal_pending),
       candidate=candidate if has_candidate else None,
@@ -203,8 +215,8 @@ def _next_state(state, arrays, plan, candidate, key, check, frames, times,
               plan, s_edges.tolist(), t_edges.tolist(), q_edges),
           pending=None),
       human=record(
-          human_reach_lib.HumanState, positions=arrays.positions,
-          velocities=arrays.velocities, last_measurement_time=last_t,
+          human_reach_lib.HumanState, positions=positions,
+          velocities=velocities, last_measurement_time=last_t,
           last_period=last_period, num_measurements=count,
           covariance=human.covariance,
           extremity_lengths=human.extremity_lengths,

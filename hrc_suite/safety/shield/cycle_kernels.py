@@ -257,18 +257,43 @@ def run_cycles(constants, mode, state, plan, candidate, frames, times,
   same tables' class). They cross into compiled code as plain tuples
   (numba types a plain tuple of arrays from a fingerprint, a NamedTuple
   in Python: microseconds a field) through the mode's entry
-  (`_entry`), which names them again."""
-  kind = (type(mode), type(plan.tables))
-  entry = _ENTRIES.get(kind)
+  (`_entry`), which names them again; `run_cycle_fields` takes them as
+  such."""
+  return run_cycle_fields(
+      constants, mode, type(plan.tables), tuple(state),
+      (plan[0], plan[1], plan[2], tuple(plan[3])),
+      (candidate[0], candidate[1], candidate[2], tuple(candidate[3])),
+      frames, times, setpoints, intervened)
+
+
+def run_cycle_fields(constants, mode, tables_class, state, plan, candidate,
+                     frames, times, setpoints, intervened):
+  """`run_cycles` with state, plan and candidate as the plain tuples of
+  their fields (the plans' tables, of class tables_class, too): what
+  batch.step_many passes on every call.
+
+  Args:
+    constants: the shield's `Constants`.
+    mode: the mode's parameter group (mode_kernels).
+    tables_class: the class of the mode's plan tables (mode_kernels).
+    state: `CycleState`'s fields, changed in place.
+    plan, candidate: `Plan`'s fields, the tables as their fields.
+    frames, times, setpoints, intervened: as `ssm_cycles`'.
+
+  Returns:
+    `ssm_cycles`' result.
+  """
+  if mode is not _LAST_MODE[0]:
+    _LAST_MODE[:] = mode, tuple(mode)
+  entry = _ENTRIES.get((type(mode), tables_class))
   if entry is None:
-    entry = _ENTRIES[kind] = _entry(*kind)
+    entry = _ENTRIES[type(mode), tables_class] = _entry(type(mode),
+                                                        tables_class)
   if constants is not _CONSTANT_FIELDS[0]:
     _CONSTANT_FIELDS[:] = constants, tuple(tuple(group)
                                            for group in constants)
-  return entry(_CONSTANT_FIELDS[1], tuple(mode), tuple(state),
-               (plan[0], plan[1], plan[2], tuple(plan[3])),
-               (candidate[0], candidate[1], candidate[2],
-                tuple(candidate[3])), frames, times, setpoints, intervened)
+  return entry(_CONSTANT_FIELDS[1], _LAST_MODE[1], state, plan, candidate,
+               frames, times, setpoints, intervened)
 
 
 # (parameter group class, tables class) -> the compiled entry (`_entry`).
@@ -276,6 +301,9 @@ _ENTRIES = {}
 # The last `Constants` run and its fields as plain tuples: a shield makes
 # its constants once (Shield.kernel_constants), so its calls share them.
 _CONSTANT_FIELDS = [None, None]
+# The last mode parameter group run and its fields, likewise (made once
+# per mode: Shield.kernel_parameters).
+_LAST_MODE = [None, None]
 
 
 def _entry(parameters_class, tables_class):

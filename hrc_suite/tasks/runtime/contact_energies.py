@@ -96,11 +96,19 @@ class ContactEnergies:
     self._frame_index = frame_index
     self.max_energy = np.zeros(len(BODIES))   # J, per body
     self.max_ratio = np.zeros(len(BODIES))
+    self._measured = False
+
+  @property
+  def measured(self) -> bool:
+    """Whether a contact was measured since the last `reset` (if not, the
+    maxima are zero)."""
+    return self._measured
 
   def reset(self):
     """Starts a new interval for the maxima."""
     self.max_energy[:] = 0.0
     self.max_ratio[:] = 0.0
+    self._measured = False
 
   def clamped(self, geom1, geom2) -> set:
     """The human geoms clamped in the contacts (geom1, geom2) (C,), those
@@ -148,4 +156,5 @@ class ContactEnergies:
                                 BODIES[body], clamped)
     self.max_energy[body] = max(self.max_energy[body], result.energy)
     self.max_ratio[body] = max(self.max_ratio[body], result.ratio)
+    self._measured = True
     return result

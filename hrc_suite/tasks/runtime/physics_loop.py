@@ -35,7 +35,7 @@ before, at a step that needs it:
 A task that works before every physics step (`_before_physics_step`)
 may hand the call what it writes there, computed for the RL step's
 physics steps at its start (`SteppedTask._physics_step_writes`,
-tasks/runtime/shielded_stepping.py: the carried plank's pose, the presenting
+tasks/runtime/stepped_task.py: the carried plank's pose, the presenting
 grip); where it cannot, an entity or an extra substep hook is active, or
 the model is not stepped the legacy way, the Python loop runs
 (ShieldedStepper.run_physics_steps, tasks/runtime/shielded_stepping.py).
@@ -320,7 +320,7 @@ def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
       (SteppedTask._physics_step_writes; index (0,): none).
     hold: tool_hold_kernels.Hold, a compliant hold's force on its tool
       after the writes (tool_hold_kernels.apply; a hold that is off does
-      nothing).
+      nothing), or None: no hold (numba compiles the call without it).
 
   Returns:
     (k, status): DONE, PYTHON_AFTER or PHYSICS_WARNING at step k.
@@ -333,7 +333,6 @@ def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
   tables = contact_kernels.ContactTables(*tables)
   record = StepRecord(*record)
   writes0, writes1 = StepWrites(*writes0), StepWrites(*writes1)
-  hold = tool_hold_kernels.named_hold(hold)
   model, data = mujoco_.model, mujoco_.data
   warnings, before = mujoco_.warnings, mujoco_.warnings_before
   mocap_pos, mocap_rows = person.mocap_pos, person.rows
@@ -375,7 +374,8 @@ def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
       writes0.target[writes0.index[j]] = writes0.rows[k, j]
     for j in range(writes1.index.shape[0]):
       writes1.target[writes1.index[j]] = writes1.rows[k, j]
-    tool_hold_kernels.apply(hold)
+    if hold is not None:
+      tool_hold_kernels.apply(tool_hold_kernels.named_hold(hold))
     for w in range(warnings.shape[0]):
       before[w] = warnings[w]
     _STEP2(model, data)
@@ -477,12 +477,6 @@ class CompiledSteps:
         np.zeros(0), np.zeros(0, dtype=np.int64),
         np.zeros((max(len(playback.times), 1), 0))))
     self._no_write_groups = (self._no_writes, self._no_writes)
-    physics_data = physics.data
-    self._no_hold = kernels.as_fields(tool_hold_kernels.idle_hold(
-        tool_hold_kernels.HoldData(
-            physics_data.mocap_pos, physics_data.mocap_quat,
-            physics.model.eq_data, physics_data.qpos, physics_data.qvel,
-            physics_data.xfrc_applied)))
 
   def has_headroom(self):
     """Whether MuJoCo's arena is far enough from full (module doc)."""
@@ -509,5 +503,4 @@ class CompiledSteps:
     shield = (setpoints, setpoint_flags, setpoints_from,   # ShieldSetpoints
               expected_rows)
     return run(k0, k1, *self._before_shield, shield, *self._after_shield,
-               *groups,
-               self._no_hold if hold is None else kernels.as_fields(hold))
+               *groups, None if hold is None else kernels.as_fields(hold))

@@ -178,8 +178,8 @@ def contact_energy_maxima(monitor: contacts.ContactMonitor) -> Optional[dict]:
     {name: value} of metrics.CONTACT_ENERGY_MAXIMA, or None.
   """
   energies = monitor.energies
-  if energies is None or not (energies.max_energy.any()
-                              or energies.max_ratio.any()):
+  if (energies is None or not energies.measured
+      or not (energies.max_energy.any() or energies.max_ratio.any())):
     return None
   return metrics_lib.contact_energy_maxima(energies.max_energy,
                                            energies.max_ratio)

@@ -134,21 +134,6 @@ def _rotation_vector(t0, t1, t2, t3, f0, f1, f2, f3, out):
   out[0], out[1], out[2] = d1 * scale, d2 * scale, d3 * scale
 
 
-def idle_hold(data):
-  """A `Hold` that is off (`apply` does nothing), in the HoldData `data`:
-  the compiled physics loop's hold where a task has none."""
-  # HoldParameters' arrays in order: k_rot .. com_local (3,),
-  # inertia_quat (4,), offset_pos (3,), offset_quat (4,), gravity (3,).
-  vectors = [np.zeros(n) for n in (3, 3, 3, 3, 4, 3, 4, 3)]
-  flags = [np.zeros(1, dtype=np.int64) for _ in range(5)]
-  return Hold(
-      HoldParameters(0.0, 0.0, 0.0, 0.0, *vectors, 0.0, 0.0, 0.0, 0.0),
-      HoldAddresses(0, 0, 0),
-      HoldState(*flags[:4], np.zeros(3), np.zeros((2, 7)), np.zeros(3),
-                flags[4]),
-      np.zeros(0), data)
-
-
 @_jit
 def named_hold(fields):
   """The `Hold` of its fields (kernels.as_fields(hold): plain tuples)."""
