@@ -267,7 +267,34 @@ def train_run(root: str, run_name: str, run_config: Mapping[str, Any],
         os.remove(os.path.join(directory, layout.ERROR_FILE))
       return record
     except BaseException as e:
-      layout.write_json(os.path.join(directory, layout.ERROR_FILE), {
-          'error': f'{type(e).__name__}: {e}',
-          'traceback': traceback.format_exc(), 'time': time.time()})
+      if interrupted(e):   # Not a failure: the run resumes from its
+        logging.warning(   # last checkpoint when the sweep starts again.
+            'Run %s interrupted (%s); it resumes from its last checkpoint',
+            run_name, type(e).__name__)
+      else:
+        layout.write_json(os.path.join(directory, layout.ERROR_FILE), {
+            'error': f'{type(e).__name__}: {e}',
+            'traceback': traceback.format_exc(), 'time': time.time()})
       raise
+
+
+def interrupted(error: BaseException) -> bool:
+  """Whether `error` is an interruption (Ctrl-C, a cancelled or exiting
+  worker) rather than a failure of the run: a KeyboardInterrupt or
+  SystemExit, or an error raised while one propagated (a C extension
+  that got Ctrl-C inside a call raises SystemError with the interrupt as
+  its context).
+
+  Args:
+    error: what the run raised.
+
+  Returns:
+    True for an interruption.
+  """
+  seen = set()
+  while error is not None and id(error) not in seen:
+    if isinstance(error, (KeyboardInterrupt, SystemExit)):
+      return True
+    seen.add(id(error))
+    error = error.__cause__ or error.__context__
+  return False

@@ -1,5 +1,6 @@
 """agents.sweep: flags, resuming a killed sweep on a real local Ray, errors."""
 
+import contextlib
 import io
 import os
 import signal
@@ -97,6 +98,41 @@ def test_ctrl_c_says_how_to_resume(tmp_path, monkeypatch, capsys):
   assert status == sweep.INTERRUPTED_STATUS == 130
   assert 'resume from their last checkpoint when the same command starts '\
       'again' in capsys.readouterr().err
+
+def _raises_interrupt_inside_a_call():
+  try:
+    raise KeyboardInterrupt
+  except KeyboardInterrupt:   # As a C extension reports Ctrl-C in a call.
+    raise SystemError('returned a result with an exception set')
+
+
+@pytest.mark.parametrize('raise_it, failure', [
+    (lambda: (_ for _ in ()).throw(KeyboardInterrupt), False),
+    (_raises_interrupt_inside_a_call, False),
+    (lambda: (_ for _ in ()).throw(RuntimeError('diverged')), True),
+])
+def test_an_interrupted_run_is_not_recorded_as_failed(
+    raise_it, failure, tmp_path, monkeypatch):
+  from agents import train   # pylint: disable=g-import-not-at-top
+  def stop(*args, **kwargs):
+    raise_it()
+  monkeypatch.setattr(train, 'make_run_config',
+                      lambda dataset=None, **config: dict(config))
+  monkeypatch.setattr(train, 'train', stop)
+  monkeypatch.setattr(sweep_work, 'cpu_slot',   # Leave this process's
+                      lambda cpus: contextlib.nullcontext())   # cores.
+  root = str(tmp_path / 'sweep')
+  with pytest.raises(BaseException):
+    sweep_work.train_run(root, 'reach/sac/seed0', {'steps': 10}, cpus=1)
+  directory = layout.run_directory(root, 'reach/sac/seed0')
+  error_file = os.path.join(directory, layout.ERROR_FILE)
+  assert os.path.exists(error_file) == failure
+  if failure:
+    assert 'RuntimeError: diverged' in open(error_file).read()
+  else:
+    assert 'interrupted' in open(os.path.join(directory,
+                                              layout.LOG_FILE)).read()
+
 
 def test_a_sweep_directory_keeps_its_grid(tmp_path):
   grid = grids.get('smoke')
