@@ -13,14 +13,15 @@ reference, tested against it on random inputs to 1e-12):
 * `human_velocity_capsules`: the velocity model (COMBINED or ACCEL) of
   human_reach.HumanReach.reach_capsules;
 * `horizon_balls`, `balls_capsules_distance`: the shield's broad
-  phases (shield.Shield._human_horizon_balls,
+  phases (shield.path_check.PathCheck.verify; their references:
   tests/safety/safety_references.py); `swept_balls_gap`, a lower
   bound of the second from one forward kinematics (its own reference is
   the bound it must stay below, tested);
 * `plan_positions`: LongTermPlan.positions (its reference:
   tests/safety/safety_references.py);
-* `speed_tables`: shield.pfl_speed_tables(compiled=False) (the same
-  from a plan's samples in one pass: speed_kernels.plan_speed_tables).
+* `speed_tables`: shield.pfl_tables.pfl_speed_tables(compiled=False)
+  (the same from a plan's samples in one pass:
+  speed_kernels.plan_speed_tables).
 
 Compiled with cache=True (the machine code is stored in __pycache__ and
 reloaded by later processes) and fastmath=False (IEEE arithmetic, no
@@ -660,8 +661,9 @@ def capsules_min_distance(q, fixed, points, frame_index, radii, keypoints,
 
 @_jit
 def tracking_error(q, reference, fixed, points, frame_index):
-  """Shield.tracking_error: the largest displacement (m) of a capsule
-  axis end between joint positions q and reference (dof,)."""
+  """TrackingBounds.error (safety/shield/tracking.py): the largest
+  displacement (m) of a capsule axis end between joint positions q and
+  reference (dof,)."""
   pair = np.empty((2, q.shape[0]))
   pair[0] = q
   pair[1] = reference

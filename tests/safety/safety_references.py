@@ -33,6 +33,28 @@ def min_distance(shield):
       hr[None]).min())
 
 
+def horizon_balls(shield, now, horizon):
+  """The first broad phase's balls by NumPy (path_check.PathCheck runs
+  kernels.horizon_balls): one ball per human body containing its
+  maximal-velocity (VEL) reachable set over the whole horizon (s after
+  the cycle's time `now`): the measured body capsule grown by max(v_max,
+  measured speed) of its faster end times the measurement's age plus
+  horizon and delay, plus the position error. Returns centres (B, 3) and
+  radii (B,)."""
+  human, config = shield.human, shield.human.config
+  p1, p2, radius = human.body_capsules(human.positions)
+  speeds = np.sqrt(np.einsum('ni,ni->n', human.velocities,
+                             human.velocities))
+  np.maximum(speeds, config.v_max, out=speeds)
+  ends = speeds[shield.terms.body_ends]
+  age = now - human.last_measurement_time + config.delay + horizon
+  half = p2 - p1
+  grow = (np.maximum(ends[0], ends[1]) * age + radius
+          + config.measurement_error_pos)
+  grow += 0.5 * np.sqrt(np.einsum('bi,bi->b', half, half))
+  return 0.5 * (p1 + p2), grow
+
+
 def balls_capsules_distance(centre, radius, capsules):
   """kernels.balls_capsules_distance by NumPy: a lower bound of the
   distance between balls (B,) and capsules (K, L), each capsule bounded by

@@ -158,15 +158,17 @@ def test_shield_broad_phases_match_reference():
     config = human.config
     age = (now - human.last_measurement_time + config.delay
            + horizon)
+    terms = shield.terms
     centre, radius, gap = kernels.horizon_balls(
-        human.positions, human.velocities, shield._human_v_max,
-        shield._body_ends, shield._half_thickness, age,
-        config.measurement_error_pos, shield._base)
-    ref_centre, ref_radius = shield._human_horizon_balls(now, horizon)
+        human.positions, human.velocities, terms.human_v_max,
+        terms.body_ends, terms.half_thickness, age,
+        config.measurement_error_pos, terms.base)
+    ref_centre, ref_radius = safety_references.horizon_balls(shield, now,
+                                                             horizon)
     np.testing.assert_allclose(centre, ref_centre, rtol=0, atol=1e-12)
     np.testing.assert_allclose(radius, ref_radius, rtol=0, atol=1e-12)
     assert gap == pytest.approx(
-        (np.linalg.norm(ref_centre - shield._base, axis=1)
+        (np.linalg.norm(ref_centre - terms.base, axis=1)
          - ref_radius).min(), abs=1e-12)
     q = rng.uniform(-1, 1, (6, 7))
     capsules = shield.robot.reach_capsules(q, np.arange(6) * 0.02)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hrc_suite import robot_description
+from hrc_suite.safety.shield import path_check
 from hrc_suite.safety.shield import shield as shield_lib
 
 import shield_harness as harness
@@ -95,12 +96,12 @@ def test_off_mode_checks_only_when_a_read_out_is_asked(monkeypatch):
   """Unshielded: no verification per cycle; the read-outs, when read, are
   those of a shield that checks every cycle on the same commands."""
   calls = []
-  verify = shield_lib.Shield._verify
+  verify = path_check.PathCheck.verify
 
   def counting(self, *args):
-    calls.append(self.mode)
+    calls.append(args[6].mode)   # The shield.
     return verify(self, *args)
-  monkeypatch.setattr(shield_lib.Shield, '_verify', counting)
+  monkeypatch.setattr(path_check.PathCheck, 'verify', counting)
   lazy, eager = _shield('panda', mode='off'), _shield('panda', mode='off')
   goals = [harness.random_goals(lazy.description,
                                 np.random.RandomState(2))() for _ in range(20)]

@@ -53,9 +53,9 @@ class CycleConstants(NamedTuple):
   error_vel: float    # m/s, ... velocity error ...
   delay: float        # s, ... and measurement delay.
   min_period: float   # s, human_reach's shortest velocity sample period.
-  same: float         # shield._SAME_COMMAND.
-  slack: float        # m, shield._BROAD_PHASE_SLACK.
-  rest: float         # shield.REST_TOLERANCE.
+  same: float         # cycle_terms.SAME_COMMAND.
+  slack: float        # m, cycle_terms.BROAD_PHASE_SLACK.
+  rest: float         # cycle_terms.REST_TOLERANCE.
 
 
 class JointTerms(NamedTuple):
@@ -166,11 +166,12 @@ def _path_limits(v_nominal, joints):
 @_inline
 def _verify(constants, mode, plan, current, previous_q, failsafe, now,
             measured):
-  """Shield._verify (a measured human with a velocity; the mode's exact
-  verdict: mode_kernels) of the failsafe from path array `current` on
-  `Plan` plan. Returns (status, first unsafe slice, reach distance (nan:
-  not computed), s_edges, t_edges, q_edges); status 1 verified, 0 not, -1
-  a plan sample is missing (the cycle goes to Python)."""
+  """path_check.PathCheck.verify (a measured human with a velocity; the
+  mode's exact verdict: mode_kernels) of the failsafe from path array
+  `current` on `Plan` plan. Returns (status, first unsafe slice, reach
+  distance (nan: not computed), s_edges, t_edges, q_edges); status 1
+  verified, 0 not, -1 a plan sample is missing (the cycle goes to
+  Python)."""
   cycle, robot, human = constants.cycle, constants.robot, constants.human
   joints = constants.joints
   dt = cycle.cycle

@@ -9,7 +9,7 @@ A mode says what the shield does with each cycle's verification
 * `speed_limit(v_safe)`: None (SSM: the robot's reachable set must not
   meet the human's), or the surface speed (m/s) the robot must stay under
   wherever it may touch the person (PFL; the shield's speed tables bound
-  the plan's capsule surface speeds, `shield.pfl_speed_tables`).
+  the plan's capsule surface speeds, `pfl_tables.pfl_speed_tables`).
 * `allows_contact`: whether a robot-human contact below v_safe is within
   the mode's rules (tasks then call contacts critical above v_safe
   instead of above the stopped speed; tasks/runtime/contacts.py).
@@ -40,11 +40,11 @@ from typing import Any, NamedTuple, Optional, Protocol, Tuple, Type, TypeVar
 import numpy as np
 
 from hrc_suite import extensions
-from hrc_suite.safety import clamping
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import robot_reach
 from hrc_suite.safety.shield import energy_check_kernels
+from hrc_suite.safety.shield import energy_setup
 from hrc_suite.safety.shield import energy_verification
 from hrc_suite.safety.shield import mode_kernels
 
@@ -80,12 +80,9 @@ class ShieldView(Protocol):
     """The robot's capsules and reach capsules."""
 
   @property
-  def energy_limits(self) -> energy_verification.EnergyLimits:
-    """The allowed energies per body of the human model."""
-
-  @property
-  def clamp_geometry(self) -> clamping.ClampGeometry:
-    """What a body can be clamped against."""
+  def energy(self) -> energy_setup.EnergySetup:
+    """Energy PFL's inputs: the allowed energies per body, what a body
+    can be clamped against and a plan's energy tables."""
 
   def plan_speeds(self, plan: ltp.LongTermPlan
                   ) -> Tuple[np.ndarray, np.ndarray]:
@@ -95,19 +92,12 @@ class ShieldView(Protocol):
       plan: a plan of the shield.
     """
 
-  def plan_energies(self, plan: ltp.LongTermPlan
-                    ) -> Tuple[np.ndarray, np.ndarray]:
-    """Energy PFL's tables of a plan (`Shield.plan_energies`).
-
-    Args:
-      plan: a plan of the shield.
-    """
-
 
 class Slices(NamedTuple):
-  """A cycle's check for a mode's readable `verdict` (Shield._verify):
-  K slices (the current step, then the failsafe's) and their K + 1
-  edges; the compiled twin is mode_kernels.Slices."""
+  """A cycle's check for a mode's readable `verdict`
+  (path_check.PathCheck.verify): K slices (the current step, then the
+  failsafe's) and their K + 1 edges; the compiled twin is
+  mode_kernels.Slices."""
   plan: Any          # long_term_plan.LongTermPlan the path is on.
   current: Any       # path.Path at the cycle's start.
   failsafe: Any      # path.Path of the failsafe.
@@ -346,9 +336,9 @@ class PflEnergy(ShieldMode):
   every possible contact stays within its body region's energy limit,
   clamped or transient, and the robot coasts after the failsafe within
   the smallest clamped limit (docs/shield_maths.md, 9.4; docs/safety.md,
-  "Energy limits of body regions"). The shield's energy model, limits
-  and clamp geometry: `Shield.energy_model`, `energy_limits`,
-  `clamp_geometry`; its plan tables: `Shield.plan_energies`."""
+  "Energy limits of body regions"). The shield's energy model, limits,
+  clamp geometry and plan tables: its `energy`
+  (energy_setup.EnergySetup)."""
   name = 'pfl_energy'
 
   @property
@@ -370,9 +360,9 @@ class PflEnergy(ShieldMode):
     Returns:
       The path velocity.
     """
-    remaining = shield.plan_energies(plan)[1][plan.sample_index(s)]
-    return energy_verification.coasting_speed(remaining,
-                                              shield.energy_limits)
+    energy = shield.energy
+    remaining = energy.plan_energies(plan)[1][plan.sample_index(s)]
+    return energy_verification.coasting_speed(remaining, energy.limits)
 
   def verdict(self, shield: ShieldView, slices: Slices
               ) -> Tuple[bool, int]:
@@ -403,7 +393,7 @@ class PflEnergy(ShieldMode):
     Returns:
       A mode_kernels.EnergyParameters.
     """
-    limits, clamp = shield.energy_limits, shield.clamp_geometry
+    limits, clamp = shield.energy.limits, shield.energy.clamp_geometry
     energy_check_kernels.warm_up()   # The readable verdict's kernel.
     return mode_kernels.EnergyParameters(
         transient=np.ascontiguousarray(limits.transient, dtype=float),
@@ -419,7 +409,7 @@ class PflEnergy(ShieldMode):
   def plan_tables(self, shield: ShieldView, plan: ltp.LongTermPlan
                   ) -> tuple:
     """The compiled verification's tables of a plan: its energy tables
-    (`Shield.plan_energies`).
+    (`EnergySetup.plan_energies`).
 
     Args:
       shield: the shield whose cycles run compiled.
@@ -428,7 +418,7 @@ class PflEnergy(ShieldMode):
     Returns:
       A mode_kernels.EnergyTables.
     """
-    return mode_kernels.EnergyTables(*shield.plan_energies(plan))
+    return mode_kernels.EnergyTables(*shield.energy.plan_energies(plan))
 
 
 def _energy_enough(shield, slices, first):
@@ -438,7 +428,8 @@ def _energy_enough(shield, slices, first):
   the failsafe within the coasting energy (energy_verification.verify)."""
   plan, failsafe, times = slices.plan, slices.failsafe, slices.times
   s_edges, pieces = slices.s_edges, slices.pieces
-  window, suffix = shield.plan_energies(plan)
+  energy = shield.energy
+  window, suffix = energy.plan_energies(plan)
   s_dot = np.zeros(len(times))
   rows = np.zeros(len(times), dtype=int)
   for i in range(first, len(times)):
@@ -450,6 +441,6 @@ def _energy_enough(shield, slices, first):
   energies = energy_verification.slice_energies(
       s_dot, window[rows], shield.robot.frame_index)
   return energy_verification.verify(
-      slices.robot, slices.human, energies, shield.energy_limits,
-      shield.clamp_geometry, failsafe.final()[1],
+      slices.robot, slices.human, energies, energy.limits,
+      energy.clamp_geometry, failsafe.final()[1],
       suffix[plan.sample_index(s_edges[-1])], start=first) < 0

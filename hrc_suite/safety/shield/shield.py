@@ -11,9 +11,8 @@ last verified path, so repeated failures brake it to rest along the plan
 (path-consistent braking). Nothing here reads the measured robot state: the
 shield's own command is the robot state (the controller must track it within
 the secure radius). When it does not (a person pushed the robot farther than
-that, `tracking_error` > `tracking_tolerance`; `tracking_bound` is a cheap
-upper bound to check first), the caller hands the measured pose to
-`resync`, which restarts the shield at rest there.
+that: its `tracking`, tracking.TrackingBounds), the caller hands the
+measured pose to `resync`, which restarts the shield at rest there.
 
 Differences to the original (docs/shield_maths.md, 10), on purpose:
 * B1: plan look-ups subtract the plan's start once (`long_term_plan`).
@@ -28,11 +27,7 @@ Differences to the original (docs/shield_maths.md, 10), on purpose:
   robot keeps moving at the limited path speed after the failsafe ends.
 * Before the exact check, the maximal-velocity (VEL) model over the whole
   horizon (one ball per body) is tried against the robot's workspace ball
-  and reach capsules: a cheap model that, if collision-free, settles the
-  cycle under SSM's "some model is collision-free" rule. The reach
-  capsules' test is first bounded from one forward kinematics
-  (kernels.swept_balls_gap, docs/shield_maths.md, 5.3), which settles
-  most such cycles without the reach capsules.
+  and reach capsules (`path_check`, docs/shield_maths.md, 5.3).
 
 State: everything a cycle reads and changes is one frozen record,
 `state` (`shield_state.ShieldState`, with the human's measurement,
@@ -41,40 +36,49 @@ compiled cycles (`batch`), and a checkpoint is the record itself. What a
 mode checks comes from the mode (`modes.ShieldMode.failsafe_target`,
 `verdict`, and their compiled twins, `mode_kernels`).
 
+Parts: the cycle's constants (`terms`, cycle_terms.CycleTerms, and their
+compiled twin `kernel_constants`), the check of a monitored path
+(path_check.PathCheck), the tracking bounds (`tracking`), energy PFL's
+inputs (`energy`, energy_setup.EnergySetup) and the state as a dict
+(`get_state`, state_io). The shield's `tracking_*`, energy and table
+members hand over to these parts.
+
 Speed: the per-cycle geometry runs in compiled kernels (`kernels`, numba),
 each tested against its readable NumPy reference (kept in `robot_reach`,
-`human_reach`, `verification`, `long_term_plan` and here); the verdict
+`human_reach`, `verification`, `long_term_plan`, `pfl_tables` and
+tests/safety/safety_references.py); the verdict
 stops at the first unsafe slice and `reach_distance` is computed when
 asked.
 """
 
 import dataclasses
-import math
 import os
 import pathlib
 from typing import Any, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from hrc_suite import layout
 from hrc_suite import robot_description as robot_description_lib
-from hrc_suite.human import keypoints
 from hrc_suite.safety import arm_energy
 from hrc_suite.safety import clamping
-from hrc_suite.safety import collision_prevention
 from hrc_suite.safety import kernels
 from hrc_suite.safety import long_term_plan as ltp
 from hrc_suite.safety import plan_kernels
 from hrc_suite.safety import robot_energy
 from hrc_suite.safety import robot_reach as robot_reach_lib
 from hrc_suite.safety.shield import cycle_kernels
-from hrc_suite.safety.shield import energy_table_kernels
+from hrc_suite.safety.shield import cycle_terms
+from hrc_suite.safety.shield import energy_setup
 from hrc_suite.safety.shield import energy_verification
 from hrc_suite.safety.shield import human_reach as human_reach_lib
 from hrc_suite.safety.shield import modes as modes_lib
 from hrc_suite.safety.shield import path as path_lib
+from hrc_suite.safety.shield import path_check
+from hrc_suite.safety.shield import pfl_tables
 from hrc_suite.safety.shield import shield_state
 from hrc_suite.safety.shield import speed_kernels
+from hrc_suite.safety.shield import state_io
+from hrc_suite.safety.shield import tracking as tracking_lib
 from hrc_suite.safety.shield import verification
 
 # Default shield cycle (s): human-robot-gym's control_sample_time
@@ -83,23 +87,14 @@ DEFAULT_CYCLE_TIME = 0.004
 # PFL: speeds are compared with this fraction of v_safe
 # (safety/shield/modes.py).
 PFL_SPEED_MARGIN = modes_lib.PFL_SPEED_MARGIN
-# PFL: samples over which a reachable-set slice can extend (one slice is
-# reachability_interval_cycles = 5 cycles of plan time at s_dot <= 1; one
-# more for the Taylor step past the last sample).
-PFL_WINDOW = 6
-# Subtracted from broad-phase distance bounds (m): covers the round-off of
-# computing distances from squared norms.
-_BROAD_PHASE_SLACK = 1e-6
-# Joint-space differences below this count as "the same command" (rad, rad/s).
-_SAME_COMMAND = 1e-9
-# The command is at rest when every joint's velocity (rad/s) and
-# acceleration (rad/s^2) is within this of zero (braking ends at exactly
-# zero; this only absorbs round-off).
-REST_TOLERANCE = 1e-12
-
-
-def _joint_list(values):
-  return [float(x) for x in values]
+# PFL: samples a slice's tables look ahead (pfl_tables.py).
+PFL_WINDOW = pfl_tables.PFL_WINDOW
+# The cycle's tolerances (cycle_terms.py).
+_BROAD_PHASE_SLACK = cycle_terms.BROAD_PHASE_SLACK
+_SAME_COMMAND = cycle_terms.SAME_COMMAND
+REST_TOLERANCE = cycle_terms.REST_TOLERANCE
+# PFL's speed tables from capsule speeds (pfl_tables.py).
+pfl_speed_tables = pfl_tables.pfl_speed_tables
 
 
 class Shield:
@@ -185,14 +180,6 @@ class Shield:
     if not self.v_safe > 0:
       raise ValueError(f'v_safe: expected > 0 m/s, got {v_safe}')
     self.mode = mode   # After v_safe: the mode's speed limit depends on it.
-    # Energy PFL's inputs (docs/shield_maths.md, 9.4), its models made
-    # when a mode first needs them: what the last link carries
-    # (robot_energy.Payload; None: the gripper, robot_energy.gripper_
-    # payload) and the static boxes a body can be clamped against
-    # (clamping.clamp_geometry's; None: the workcell's).
-    self._payload = payload
-    self._static_boxes = static_boxes
-    self._energy = {}
     self.interval = params.reachability_interval_cycles * self.cycle_time
     self.max_s_stop = params.max_s_stop
     self.robot = robot_reach_lib.RobotReach(
@@ -204,59 +191,24 @@ class Shield:
       self.human = human_reach_lib.HumanReach(
           human_model, use_kalman_filter=use_kalman_filter,
           use_combined_model=use_combined_model)
-    limits = robot_description.limits
-    self.limits = limits
-    # Per-joint terms of `path.path_limits` (docs/shield_maths.md, 3).
-    a_ltt = np.abs(limits.a_max_ltt)
-    self._den_offset = _joint_list(a_ltt * self.max_s_stop)
-    self._den_offset[0] += 1e-9
-    self._acc_numerator = _joint_list(limits.a_max - a_ltt)
-    self._jerk_numerator = _joint_list(limits.j_max
-                                       - np.abs(limits.j_max_ltt))
-    self._jerk_acc = _joint_list(3.0 * a_ltt)
-    self._q_min = _joint_list(limits.q_min)
-    self._q_max = _joint_list(limits.q_max)
-    # Clip bounds of a state's (dq, ddq, dddq) rows (docs/shield_maths.md, 2).
-    self._clip = np.stack([limits.v_max, limits.a_max, limits.j_max])
-    self._clip_low = -self._clip
-    # Every robot point stays within this ball around the base (rotations
-    # keep lengths: sum of the fixed translations up to the link, plus the
-    # capsule's farther end, radius and secure radius).
-    self._base = self.robot.base_pose[:3, 3].copy()
-    lengths = np.cumsum([np.linalg.norm(l.fixed_translation)
-                         for l in robot_description.links])
-    p1, p2, radii = robot_description.capsule_arrays()
-    extents = [lengths[i] + max(np.linalg.norm(p1[i]), np.linalg.norm(p2[i]))
-               + radii[i] for i in range(self.dof)]
-    if tool_capsule is not None:
-      t1, t2, t_radius = tool_capsule
-      extents.append(lengths[-1] + max(np.linalg.norm(t1), np.linalg.norm(t2))
-                     + t_radius)
-    self._workspace_radius = max(extents) + self.robot.secure_radius
-    # Lever arms (m/rad): turning joint i by dq moves no point of a capsule
-    # axis after it (links i.. and the tool) by more than lever_i |dq| (an
-    # arc is longer than its chord; distances are bounded along the chain),
-    # so sum_i lever_i |dq_i| bounds how far a joint error moves the robot
-    # (`tracking_bound`, a per-step prefilter of `tracking_error`).
-    axis_ends = [max(np.linalg.norm(p1[i]), np.linalg.norm(p2[i]))
-                 for i in range(self.dof)]
-    if tool_capsule is not None:
-      axis_ends[-1] = max(axis_ends[-1], np.linalg.norm(t1),
-                          np.linalg.norm(t2))
-    self._levers = np.array([
-        max(lengths[j] - lengths[i] + axis_ends[j]
-            for j in range(i, self.dof)) for i in range(self.dof)])
-    self._levers.flags.writeable = False
-    # Keypoint indices (2, B) of the human bodies' proximal and distal ends.
-    self._body_ends = np.ascontiguousarray([
-        keypoints.index([b.proximal for b in self.human.config.bodies]),
-        keypoints.index([b.distal for b in self.human.config.bodies])],
-                                           dtype=np.int64)
-    config = self.human.config
-    self._half_thickness = np.array([b.thickness / 2 for b in config.bodies])
-    self._human_v_max = np.ascontiguousarray(config.v_max, dtype=float)
-    self._human_delay = float(config.delay)
-    self._human_error_pos = float(config.measurement_error_pos)
+    self.limits = robot_description.limits
+    # The cycle's constants of the robot and human models.
+    self.terms = cycle_terms.cycle_terms(robot_description, self.robot,
+                                         self.human, self.max_s_stop,
+                                         tool_capsule)
+    # The check of a monitored path (broad phases, the mode's verdict).
+    self._path_check = path_check.PathCheck(
+        self.terms, self.robot, self.human, self.cycle_time, self.interval)
+    # How far the robot is from the command (docs/safety.md, Assumptions:
+    # Tracking).
+    self.tracking = tracking_lib.TrackingBounds(self.robot,
+                                                robot_description,
+                                                tool_capsule)
+    # Energy PFL's inputs (docs/shield_maths.md, 9.4), made when a mode
+    # first needs them.
+    self.energy = energy_setup.EnergySetup(
+        robot_description, self.human.config, self.robot.frame_index,
+        self.cycle_time, payload=payload, static_boxes=static_boxes)
     self._kernel_constants = None   # kernel_constants, made when first asked.
     self.reset(robot_description.q_home if q_init is None else q_init)
 
@@ -310,34 +262,10 @@ class Shield:
     """The compiled cycles' constants of this shield
     (`cycle_kernels.Constants`; computed once)."""
     if self._kernel_constants is None:
-      self._kernel_constants = self._make_kernel_constants()
+      self._kernel_constants = cycle_terms.kernel_constants(
+          self.terms, self.limits, self.robot, self.human, self.cycle_time,
+          self.interval)
     return self._kernel_constants
-
-  def _make_kernel_constants(self):
-    config = self.human.config
-    robot, human = self.robot, self.human
-    arrays = lambda *xs: [np.ascontiguousarray(x, dtype=float) for x in xs]
-    return cycle_kernels.Constants(
-        cycle=cycle_kernels.CycleConstants(
-            cycle=self.cycle_time, interval=float(self.interval),
-            workspace=float(self._workspace_radius),
-            error_pos=float(config.measurement_error_pos),
-            error_vel=float(config.measurement_error_vel),
-            delay=float(config.delay),
-            min_period=human_reach_lib._MIN_SAMPLE_PERIOD,
-            same=_SAME_COMMAND, slack=_BROAD_PHASE_SLACK,
-            rest=REST_TOLERANCE),
-        joints=cycle_kernels.JointTerms(*arrays(
-            self._den_offset, self._acc_numerator, self._jerk_numerator,
-            self._jerk_acc, self._q_min, self._q_max,
-            self.limits.a_max_ltt, self._clip)),
-        robot=cycle_kernels.RobotModel(
-            *robot._kernel_model, robot._kernel_frames, robot._kernel_alpha,
-            robot._kernel_static, robot._kernel_levers,
-            robot._kernel_half_lengths, *arrays(self._base)),
-        human=cycle_kernels.HumanModel(
-            human._kernel_v_max, human._kernel_a_max, self._body_ends,
-            human._kernel_ends, *arrays(human._half_thickness)))
 
   def kernel_parameters(self) -> tuple:
     """The mode's parameter group for the compiled cycles
@@ -464,21 +392,20 @@ class Shield:
 
   @property
   def tracking_tolerance(self) -> float:
-    """How far (m) the robot may be from its command: the secure radius,
-    by which every robot reach capsule is enlarged (docs/safety.md,
-    Assumptions: Tracking)."""
-    return self.robot.secure_radius
+    """How far (m) the robot may be from its command
+    (`TrackingBounds.tolerance` of `tracking`)."""
+    return self.tracking.tolerance
 
   @property
   def tracking_levers(self) -> np.ndarray:
-    """Lever arms (dof,) in m/rad, read-only: sum_i lever_i |q_i - p_i|
-    (`tracking_bound`) bounds `tracking_error(q, p)`."""
-    return self._levers
+    """Lever arms (dof,) in m/rad, read-only (`TrackingBounds.levers` of
+    `tracking`)."""
+    return self.tracking.levers
 
   def tracking_bound(self, q: np.ndarray,
                      reference: Optional[np.ndarray] = None) -> float:
-    """A cheap upper bound (m) on `tracking_error(q, reference)`: the joint
-    errors times `tracking_levers`.
+    """A cheap upper bound (m) on `tracking_error(q, reference)`
+    (`TrackingBounds.bound` of `tracking`).
 
     Args:
       q: joint positions (dof,), e.g. the measured ones.
@@ -487,21 +414,14 @@ class Shield:
 
     Returns:
       The bound, m.
-
-    Raises:
-      ValueError: q or reference is not dof joint positions.
     """
-    q, reference = self._joint_pair(q, reference)
-    return float(np.abs(q - reference) @ self._levers)
+    return self.tracking.bound(
+        q, self._state.command[0] if reference is None else reference)
 
   def tracking_error(self, q: np.ndarray,
                      reference: Optional[np.ndarray] = None) -> float:
     """How far (m) the robot's capsules at joint positions q are from where
-    they are at `reference` (None: the command): the largest displacement
-    of a capsule axis end. Capsules move rigidly, so no point of a
-    capsule moves farther than its farther end. (kernels.tracking_error,
-    which tasks/runtime/physics_loop.py calls too; its NumPy reference is in
-    tests/safety/safety_references.py, equal to round-off.)
+    they are at `reference` (`TrackingBounds.error` of `tracking`).
 
     Args:
       q: joint positions (dof,), e.g. the measured ones.
@@ -509,25 +429,10 @@ class Shield:
         command's).
 
     Returns:
-      The largest displacement, m.
-
-    Raises:
-      ValueError: q or reference is not dof joint positions.
+      The largest displacement of a capsule axis end, m.
     """
-    q, reference = self._joint_pair(q, reference)
-    robot = self.robot
-    return float(kernels.tracking_error(q, reference, *robot._kernel_model,
-                                        robot._kernel_frames))
-
-  def _joint_pair(self, q, reference):
-    reference = self._state.command[0] if reference is None else reference
-    q = np.asarray(q, dtype=float)
-    reference = np.asarray(reference, dtype=float)
-    if q.shape != (self.dof,) or reference.shape != (self.dof,):
-      raise ValueError(f'q, reference: expected {self.dof} joint positions '
-                       f'each for {self.description.name}, got shapes '
-                       f'{q.shape} and {reference.shape}')
-    return q, reference
+    return self.tracking.error(
+        q, self._state.command[0] if reference is None else reference)
 
   @property
   def goal(self) -> Optional[np.ndarray]:
@@ -592,9 +497,9 @@ class Shield:
     state = self._state
     pending = state.verification.pending
     if pending is not None:
-      self._state = state.replace(verification=self._verify(
+      self._state = state.replace(verification=self._path_check.verify(
           pending.plan, pending.current, pending.failsafe, state.previous_q,
-          state.time))
+          state.time, self._mode, self, self._lazy))
 
   @property
   def is_safe(self) -> bool:
@@ -682,103 +587,24 @@ class Shield:
   # -------------------------------------------------------------- snapshots
 
   def get_state(self) -> dict[str, Any]:
-    """The shield's state as a flat dict of arrays, strings, numbers and
-    booleans (no callables), for np.savez / JSON (after .tolist()).
-    `set_state` restores it so that continuing gives identical commands.
-
-    Plans are stored by what defines them (`LongTermPlan.get_state`: a
-    Ruckig plan's inputs) and rebuilt; caches (the pending candidate plan,
-    PFL speed tables, lazy read-outs) are recomputed from the same inputs.
-    In mode 'off' the cycle's check runs first (the read-outs are saved).
+    """The shield's state as a flat dict for np.savez / JSON
+    (`state_io.state_dict`); `set_state` restores it so that continuing
+    gives identical commands.
 
     Returns:
       The snapshot: name -> value.
     """
-    self._check_now()
-    reach_distance = float(self.reach_distance)
-    state = self.state
-    plan = state.plan.get_state()
-    human = self.human.get_state()
-    checked = state.verification
-    edges = checked.edges
-    snapshot = {
-        'robot': self.description.name, 'mode': self.mode,
-        'cycle_time': self.cycle_time, 'time': state.time,
-        'command': np.array(state.command), 'previous_q': np.array(
-            state.previous_q),
-        'verified': shield_state.path_array(state.verified),
-        'has_intended': state.intended is not None,
-        'intended': shield_state.path_array(state.intended
-                                            or path_lib.Path()),
-        'has_goal': state.goal is not None,
-        'goal': (np.zeros(self.dof) if state.goal is None
-                 else np.array(state.goal)),
-        'goal_pending': state.goal_pending,
-        'is_safe': bool(checked.is_safe),
-        'intervened': bool(state.intervened),
-        'first_unsafe_interval': int(checked.first_unsafe_interval),
-        'reach_distance': reach_distance,
-        'has_reach': edges is not None,
-        's_edges': np.array([] if edges is None else edges.s_edges),
-        't_edges': np.array([] if edges is None else edges.t_edges),
-        'q_edges': (np.zeros((0, self.dof)) if edges is None
-                    else np.array(edges.q_edges)),
-    }
-    snapshot.update({f'plan_{k}': v for k, v in plan.items()})
-    snapshot.update({f'human_{k}': v for k, v in human.items()})
-    return snapshot
+    return state_io.state_dict(self)
 
   def set_state(self, state: Mapping[str, Any]) -> None:
-    """Restores a `get_state` of a shield of the same robot, mode and cycle.
+    """Restores a `get_state` of a shield of the same robot, mode and cycle
+    (`state_io.restore`).
 
     Args:
       state: a `get_state` (arrays may be lists, as after JSON; 0-d arrays
         as after np.load).
-
-    Raises:
-      ValueError: the state is of another robot, mode or cycle, or its
-        command has the wrong shape.
     """
-    def scalar(name):
-      return np.asarray(state[name]).item()
-    for name, mine in (('robot', self.description.name), ('mode', self.mode),
-                       ('cycle_time', self.cycle_time)):
-      if scalar(name) != mine:
-        raise ValueError(f'shield state {name}: expected {mine!r}, got '
-                         f'{scalar(name)!r}')
-    command = np.array(state['command'], dtype=float)
-    if command.shape != (5, self.dof):
-      raise ValueError(f'shield state command: expected shape (5, '
-                       f'{self.dof}), got {command.shape}')
-    plan = ltp.LongTermPlan.from_state(
-        {k[5:]: v for k, v in state.items() if k.startswith('plan_')},
-        self.limits)
-    self.human.set_state(
-        {k[6:]: v for k, v in state.items() if k.startswith('human_')})
-    edges = None
-    if scalar('has_reach'):
-      edges = shield_state.ReachEdges(
-          plan, np.asarray(state['s_edges'], dtype=float).tolist(),
-          np.asarray(state['t_edges'], dtype=float).tolist(),
-          np.array(state['q_edges'], dtype=float).reshape(-1, self.dof))
-    self._install(shield_state.ShieldState(
-        command=command,
-        previous_q=np.array(state['previous_q'], dtype=float),
-        verified=shield_state.path_from_array(state['verified']),
-        intended=(shield_state.path_from_array(state['intended'])
-                  if scalar('has_intended') else None),
-        plan=plan,
-        goal=(np.array(state['goal'], dtype=float)
-              if scalar('has_goal') else None),
-        goal_pending=bool(scalar('goal_pending')),
-        candidate=None, candidate_key=None,
-        time=float(scalar('time')),
-        intervened=bool(scalar('intervened')),
-        verification=shield_state.Verification(
-            is_safe=bool(scalar('is_safe')),
-            first_unsafe_interval=int(scalar('first_unsafe_interval')),
-            reach_distance=float(scalar('reach_distance')), edges=edges),
-        human=self.human.state))
+    state_io.restore(self, state)
 
   # ------------------------------------------------------------------ step
 
@@ -859,7 +685,8 @@ class Shield:
             np.abs(wanted[0] - command[0]).max() <= _SAME_COMMAND and
             np.abs(wanted[1] - command[1]).max() <= _SAME_COMMAND)
     rates = command[1:4]   # np.clip's max-then-min, without its overhead.
-    np.minimum(np.maximum(rates, self._clip_low, out=rates), self._clip,
+    terms = self.terms
+    np.minimum(np.maximum(rates, terms.clip_low, out=rates), terms.clip,
                out=rates)
     self._install(shield_state.ShieldState(
         command=command, previous_q=previous_q, verified=verified,
@@ -917,15 +744,17 @@ class Shield:
       return shield_state.Verification(
           None, last.first_unsafe_interval, last.reach_distance, None,
           shield_state.PendingCheck(plan, current, failsafe))
-    return self._verify(plan, current, failsafe, previous_q, now)
+    return self._path_check.verify(plan, current, failsafe, previous_q, now,
+                                   self._mode, self, self._lazy)
 
   def _path_limits(self, v_nominal):
     """path.path_limits for this robot with precomputed per-joint terms."""
-    dens = [abs(v) + c for v, c in zip(v_nominal.tolist(), self._den_offset)]
-    acc = min(n / d for n, d in zip(self._acc_numerator, dens))
+    terms = self.terms
+    dens = [abs(v) + c for v, c in zip(v_nominal.tolist(), terms.den_offset)]
+    acc = min(n / d for n, d in zip(terms.acc_numerator, dens))
     acc = acc if acc > 0.0 else 0.0
     jerk = min((n - c * acc) / d for n, c, d in zip(
-        self._jerk_numerator, self._jerk_acc, dens))
+        terms.jerk_numerator, terms.jerk_acc, dens))
     return acc, (jerk if jerk > 0.0 else 0.0)
 
   def candidate(self, state: shield_state.ShieldState
@@ -1007,182 +836,41 @@ class Shield:
 
   @property
   def energy_model(self) -> arm_energy.ArmEnergyModel:
-    """The arm's energy model with its payload
-    (`arm_energy.ArmEnergyModel`; made when first asked)."""
-    if 'model' not in self._energy:
-      payload = self._payload
-      if payload is None:
-        payload = robot_energy.gripper_payload(self.description.name)
-      self._energy['model'] = arm_energy.ArmEnergyModel(self.description,
-                                                        payload)
-      energy_table_kernels.warm_up()   # Its plans' tables.
-    return self._energy['model']
+    """The arm's energy model with its payload (`EnergySetup.model` of
+    `energy`)."""
+    return self.energy.model
 
   def set_payload(self, payload: Optional[robot_energy.Payload]) -> None:
-    """Sets what the last link carries from now on: energy PFL's plan
-    tables follow it.
+    """Sets what the last link carries from now on
+    (`EnergySetup.set_payload` of `energy`).
 
     Args:
       payload: the gripper and an object grasped, or the gripper alone
-        after a release (None: the gripper,
-        robot_energy.gripper_payload).
-
-    Raises:
-      TypeError: payload is neither a robot_energy.Payload nor None.
+        after a release (None: the gripper).
     """
-    if payload is not None and not isinstance(payload, robot_energy.Payload):
-      raise TypeError(f'payload: expected a robot_energy.Payload or None, '
-                      f'got {type(payload).__name__}')
-    self._payload = payload
-    self._energy.pop('model', None)
+    self.energy.set_payload(payload)
 
   @property
   def energy_limits(self) -> energy_verification.EnergyLimits:
     """The allowed energies per body of the human model
-    (`energy_verification.EnergyLimits`)."""
-    if 'limits' not in self._energy:
-      self._energy['limits'] = energy_verification.energy_limits(
-          self.human.config)
-    return self._energy['limits']
+    (`EnergySetup.limits` of `energy`)."""
+    return self.energy.limits
 
   @property
   def clamp_geometry(self) -> clamping.ClampGeometry:
-    """What a body can be clamped against (`clamping.ClampGeometry` of the
-    robot's capsules and the static boxes)."""
-    if 'clamp' not in self._energy:
-      boxes = self._static_boxes
-      if boxes is None:
-        boxes = collision_prevention.workcell_boxes(
-            mount=layout.robot_mount(self.description.name))
-      self._energy['clamp'] = clamping.clamp_geometry(
-          self.description, self.robot.frame_index, boxes)
-    return self._energy['clamp']
+    """What a body can be clamped against (`EnergySetup.clamp_geometry` of
+    `energy`)."""
+    return self.energy.clamp_geometry
 
   def plan_energies(self, plan: ltp.LongTermPlan
                     ) -> Tuple[np.ndarray, np.ndarray]:
-    """Energy PFL tables of a plan (docs/shield_maths.md, 9.4). Kept on the
-    plan for this shield's energy model (a new payload makes new ones), as
-    `plan_speeds`.
+    """Energy PFL tables of a plan (`EnergySetup.plan_energies` of
+    `energy`).
 
     Args:
       plan: a plan of this shield.
 
     Returns:
-      (window (N, dof), suffix (N,)), J: per link the largest contact
-      energy bound at nominal path speed over the next PFL_WINDOW samples,
-      and of any link from each sample to the end.
+      (window (N, dof), suffix (N,)), J.
     """
-    model = self.energy_model
-    return plan.derived('pfl_energy_tables', model,
-                        lambda: energy_table_kernels.plan_energy_tables(
-                            plan.samples(), model.kernel_arrays,
-                            float(self.cycle_time), PFL_WINDOW))
-
-  def _verify(self, plan, current, failsafe, previous_q, now):
-    """Checks the slice current -> intended step, then the failsafe, at
-    cycle time `now` from the command previous_q; returns a
-    `shield_state.Verification`."""
-    dt = self.cycle_time
-    end = failsafe.end_time()
-    count = max(math.ceil(end / self.interval - 1e-9), 1)
-    times = [i * self.interval for i in range(count)] + [end]
-    pieces = failsafe.segments()
-    s = failsafe.sample(times, pieces)[0]
-    s_edges = [current.s] + s
-    t_edges = [0.0] + [x + dt for x in times]
-    q_edges = np.empty((count + 2, self.dof))
-    q_edges[0] = previous_q
-    plan.positions(s, out=q_edges, first=1)
-    edges = shield_state.ReachEdges(plan, s_edges, t_edges, q_edges)
-    result = lambda safe, first, distance: shield_state.Verification(
-        safe, first, distance, edges)
-    end_q = q_edges[-1].tolist()
-    if not all(low <= q <= high for low, q, high in zip(
-        self._q_min, end_q, self._q_max)):
-      return result(False, count, -np.inf)
-    human = self.human
-    if human.positions is None:
-      return result(True, -1, np.inf)
-    # Broad phase 1: the human's horizon balls against the robot's whole
-    # workspace ball (no kinematics needed).
-    age = now - human.last_measurement_time + self._human_delay + t_edges[-1]
-    centre, radius, gap = kernels.horizon_balls(
-        human.positions, human.velocities, self._human_v_max,
-        self._body_ends, self._half_thickness, age, self._human_error_pos,
-        self._base)
-    bound = gap - self._workspace_radius
-    if bound > 0.0:
-      return result(True, -1, bound)
-    # Broad phase 2, bounded from the robot's capsules at q_edges[0] alone
-    # (one forward kinematics instead of one per edge; a lower bound of
-    # the test below, so it settles only cycles that test settles).
-    model = self.robot
-    fixed, points = model._kernel_model
-    bound = kernels.swept_balls_gap(
-        q_edges, np.asarray(s_edges, dtype=float),
-        kernels._frames(q_edges[:1], fixed)[0], points,
-        model._kernel_frames, model._kernel_alpha, model._kernel_static,
-        model._kernel_levers, model._kernel_half_lengths, centre, radius,
-        _BROAD_PHASE_SLACK) - _BROAD_PHASE_SLACK
-    if bound > 0.0:
-      return result(True, -1, bound)
-    robot = self._lazy['robot_reach'] = self.robot.reach_capsules(
-        q_edges, np.array(s_edges))
-    # Broad phase 2: the same balls against every robot reach capsule.
-    bound = kernels.balls_capsules_distance(centre, radius,
-                                            *robot) - _BROAD_PHASE_SLACK
-    if bound > 0.0:
-      return result(True, -1, bound)
-    human = self._lazy['human_reach'] = self.human.reach_capsules(
-        now, np.array(t_edges))
-    # The exact check: the mode's verdict (modes.ShieldMode.verdict).
-    safe, first = self._mode.verdict(self, modes_lib.Slices(
-        plan, current, failsafe, times, s_edges, pieces, robot, human))
-    return result(safe, first, None)
-
-  def _human_horizon_balls(self, now, horizon):
-    """NumPy reference of the first broad phase's balls (the shield runs
-    kernels.horizon_balls): one ball per human body containing its
-    maximal-velocity (VEL) reachable set over the whole horizon (s after
-    the cycle's time `now`):
-    the measured body capsule grown by max(v_max, measured speed) of its
-    faster end times the measurement's age plus horizon and delay, plus the
-    position error. Returns centres (B, 3) and radii (B,)."""
-    human, config = self.human, self.human.config
-    p1, p2, radius = human.body_capsules(human.positions)
-    speeds = np.sqrt(np.einsum('ni,ni->n', human.velocities,
-                               human.velocities))
-    np.maximum(speeds, config.v_max, out=speeds)
-    ends = speeds[self._body_ends]
-    age = now - human.last_measurement_time + config.delay + horizon
-    half = p2 - p1
-    grow = (np.maximum(ends[0], ends[1]) * age + radius
-            + config.measurement_error_pos)
-    grow += 0.5 * np.sqrt(np.einsum('bi,bi->b', half, half))
-    return 0.5 * (p1 + p2), grow
-
-
-def pfl_speed_tables(speeds: np.ndarray, compiled: bool = True
-                     ) -> Tuple[np.ndarray, np.ndarray]:
-  """PFL tables from a plan's capsule surface speeds at nominal path speed
-  (`Shield.plan_speeds` computes them from the plan in one kernel).
-
-  Args:
-    speeds: (N, L) the surface speed of each capsule at each plan sample,
-      m/s.
-    compiled: False runs the NumPy reference.
-
-  Returns:
-    (window, suffix), both (N,): the largest speed over the next
-    PFL_WINDOW samples (the last held past the end), and from each sample
-    to the end.
-  """
-  if compiled:
-    return kernels.speed_tables(np.ascontiguousarray(speeds, dtype=float),
-                                PFL_WINDOW)
-  speeds = speeds.max(axis=1)
-  padded = np.concatenate([speeds, np.full(PFL_WINDOW, speeds[-1])])
-  window = np.lib.stride_tricks.sliding_window_view(
-      padded, PFL_WINDOW + 1).max(axis=1)[:len(speeds)]
-  suffix = np.maximum.accumulate(speeds[::-1])[::-1]
-  return window, suffix
+    return self.energy.plan_energies(plan)

@@ -40,7 +40,7 @@ class ReachEdges(NamedTuple):
 
 class PendingCheck(NamedTuple):
   """Mode 'off': the inputs of a cycle's check, run when a read-out needs
-  it (Shield._verify's)."""
+  it (path_check.PathCheck.verify's)."""
   plan: ltp.LongTermPlan
   current: path_lib.Path
   failsafe: path_lib.Path

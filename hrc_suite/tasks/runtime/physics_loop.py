@@ -9,7 +9,7 @@ the shield's precomputed set-point, the controller's torque
 mj_step1 (dm_control's legacy step; libmujoco's own functions, called
 by name from compiled code), dm_control's warning check, then the task's
 after_substep: the tracking bound (over the tolerance, the exact
-distance, Shield.tracking_error's kernel) and the contacts' classification,
+distance, TrackingBounds.error's kernel) and the contacts' classification,
 robot-human contacts judged by the commanded speed at the contact point
 (mj_jac, as tasks/runtime/contacts.py). The arithmetic is the Python loop's,
 operation for operation, so both give the same states bit for bit
@@ -255,8 +255,8 @@ class ShieldSetpoints(typing.NamedTuple):
 
 
 class TrackingCheck(typing.NamedTuple):
-  """The after-step tracking check (Shield.tracking_bound, then
-  Shield.tracking_error over the tolerance)."""
+  """The after-step tracking check (TrackingBounds.bound, then
+  TrackingBounds.error over the tolerance; safety/shield/tracking.py)."""
   q_measured: np.ndarray   # (dof,) view of the arm's qpos
   levers: np.ndarray       # (dof,) m/rad
   tolerance: float         # m
@@ -434,7 +434,7 @@ def run(k0, k1, mujoco_, person, shield, memory, gains, tracking, layout,
 @_jit
 def tracking_bound(q, expected, levers):
   """sum_j |q_j - expected_j| levers_j in joint order
-  (Shield.tracking_bound's value, summed in a fixed order)."""
+  (TrackingBounds.bound's value, summed in a fixed order)."""
   total = 0.0
   for j in range(q.shape[0]):
     total += abs(q[j] - expected[j]) * levers[j]

@@ -7,7 +7,8 @@ arm with what its last link carries, the gripper and a held object
 `ParallelGripper.is_grasping`, as its own progress logic reads it);
 `CarriesPayload`, a mixin of `base.HrcTask`, turns that decision, the
 task's `_held_bodies()`, into a `robot_energy.Payload` and gives it to
-`Shield.set_payload` (the `pfl_energy` mode's energy model) and to the
+the shield's `energy` (`EnergySetup.set_payload`: the `pfl_energy` mode's
+energy model) and to the
 contact monitor's energy meter (tasks/runtime/contact_energies.py) whenever the
 held objects change: at an episode's start and after every RL step. A
 grasp or release within an RL step takes effect from the next one.
@@ -146,7 +147,7 @@ class CarriesPayload:
   def _tell(self, ids, payload):
     """Gives `payload` to the shield and the contact monitor's meter."""
     self._held_ids, self._held_payload = ids, payload
-    self._shield.set_payload(payload)
+    self._shield.energy.set_payload(payload)
     energies = self._stepper.monitor.energies
     if energies is not None:
       energies.meter.set_payload(

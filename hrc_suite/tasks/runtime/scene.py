@@ -86,7 +86,7 @@ class Scene:
     static = list(self.arena.static_geoms)
     robot_geoms = list(self.robot.link_geoms) + list(self.gripper.geoms)
     shield = self.shield
-    clamp = shield.clamp_geometry
+    clamp = shield.energy.clamp_geometry
     energies = contact_energies.ContactEnergies(
         contact_energy.ContactEnergyMeter(
             self.robot.description,
@@ -207,7 +207,7 @@ def build(defaults, options, motions=None, outside_human_model='refuse'):
       table=defaults.table)
   # The shield's static boxes (energy PFL's clamping) are those collision
   # prevention keeps the robot out of; its payload the gripper's
-  # (Shield.set_payload changes it).
+  # (the shield's `energy.set_payload` changes it).
   shield = shield_lib.Shield(
       description, mode=options.shield,
       cycle_time=options.physics_timestep, base_pose=base_pose,

@@ -32,8 +32,9 @@ hooks the stepper calls, is `stepped_task.SteppedTask`):
 * after_substep (`after_physics_step`): the tracking check, then the
   contact monitor (`contacts`). The measured joints are compared with
   where the shield's command puts them; farther than the shield's tracking
-  tolerance (its secure radius; `Shield.tracking_bound` every step, then
-  `Shield.tracking_error` when the bound exceeds it), the person has
+  tolerance (its secure radius; the shield's `tracking`,
+  tracking.TrackingBounds: its `bound` every step, then its `error` when
+  the bound exceeds the tolerance), the person has
   pushed the robot: robot-human contacts of that physics step are judged
   at the commanded configuration (`human_pushed` or `human_critical`) and
   the shield is re-synchronised to the measured pose (`Shield.resync`;
@@ -101,8 +102,9 @@ class ShieldedStepper:
     # joints after the physics step, and how far the robot may be from it
     # (m; the levers turn joint errors into a cheap upper bound).
     self._expected_q = np.zeros(robot.dof)
-    self._tracking_levers = shield.tracking_levers
-    self._tracking_tolerance = shield.tracking_tolerance
+    self._tracking = shield.tracking
+    self._tracking_levers = shield.tracking.levers
+    self._tracking_tolerance = shield.tracking.tolerance
     self.reset()
 
   def reset(self):
@@ -359,12 +361,11 @@ class ShieldedStepper:
     """After a physics step: the tracking check (a push resynchronises the
     shield), then the contact monitor."""
     self._completed_substeps += 1
-    distance = physics_loop.tracking_bound(   # Shield.tracking_bound
+    distance = physics_loop.tracking_bound(   # TrackingBounds.bound
         self._q_measured, self._expected_q, self._tracking_levers)
     pushed = distance > self._tracking_tolerance
     if pushed:   # Rare: the exact distance (forward kinematics) decides.
-      distance = self._shield.tracking_error(self._q_measured,
-                                             self._expected_q)
+      distance = self._tracking.error(self._q_measured, self._expected_q)
       pushed = distance > self._tracking_tolerance
     self._tally.add_tracking_error(distance)
     self._tally.add_contacts(self._monitor.update(
