@@ -21,7 +21,8 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   length, the evaluation's seconds, and safety: the safety cost per episode
   (runs whose task has one, hrc_suite/tasks/runtime/cost.py), critical human
   contacts per 10^3 RL steps and shield interventions per episode; where
-  runs have a cost, cost.png draws it like the success.
+  runs have a cost, cost.png draws it like the success, with the
+  constrained runs' cost limits dotted.
 
 Normalised return (the paper's): (R - R_min) / (R_expert - R_min), R_min
 the task reward's lowest possible episode return without collision
@@ -317,6 +318,10 @@ def draw(rows: Sequence[Row], grid: grids_lib.Grid, root: str, name: str,
     if reference is not None:
       axis.axhline(reference, color='k', linestyle='--', linewidth=1,
                    label='expert')
+    if name == 'cost':
+      for limit in cost_limits(grid, task):
+        axis.axhline(limit, color='k', linestyle=':', linewidth=1,
+                     label=f'cost limit {limit:g}')
     axis.set_title(task)
     axis.set_xlim(0, grid.steps_of(task))
     axis.set_xlabel('RL steps')
@@ -340,6 +345,22 @@ def _save(figure, path):
     figure.savefig(name, dpi=110)
   plt.close(figure)
   return written
+
+
+def cost_limits(grid: grids_lib.Grid, task: str) -> List[float]:
+  """The per-episode cost limits the grid's constrained runs of a task
+  keep (their `cost_limit` override, docs/safe_rl.md).
+
+  Args:
+    grid: the grid.
+    task: 'domain/task'.
+
+  Returns:
+    The distinct limits, ascending (empty: no run of the task has one).
+  """
+  return sorted({float(run.run_config['overrides']['cost_limit'])
+                 for run in grid.runs() if run.task == task
+                 and 'cost_limit' in (run.run_config.get('overrides') or {})})
 
 
 def _expert_reference(root, task, name):

@@ -195,3 +195,15 @@ def test_safety_columns_and_variant_labels(tmp_path):
   assert '| reach/dense | SAC, shield | 2 | 100 |' in text
   assert '| reach/dense | SAC-Lagrangian, no shield | 2 | 100 |' in text
   assert os.path.getsize(tmp_path / 'out' / 'cost.png') > 0
+
+
+def test_cost_limits_are_those_of_the_constrained_runs():
+  grid = grids.get('safe_rl')
+  assert report.cost_limits(grid, 'reach/dense') == [
+      grids.SAFE_RL_LIMITS['reach/dense']]
+  assert report.cost_limits(grid, 'pick_place/default') == [
+      grids.SAFE_RL_LIMITS['pick_place/default']]
+  # SAC with the shield alone: no limit to draw.
+  assert report.cost_limits(grid.replace(agents=('sac_shield',)),
+                            'reach/dense') == []
+  assert report.cost_limits(grids.get('paper_reduced'), 'reach/dense') == []
