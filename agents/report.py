@@ -12,7 +12,8 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   (docs/reference_benchmark.md, Training and evaluation). A curve runs to
   the last evaluation every seed of its group reached.
 * final.csv and report.md: per task and agent, the final values (at the
-  last evaluation step every seed reached) with their CIs; the runs that
+  last evaluation step every seed reached; with --final_window=k each
+  seed's mean over its last k evaluations) with their CIs; the runs that
   are missing or unfinished; the overfitting comparison where the grid has
   motion splits (seen: the train side the run trained on, unseen: the test
   side), also drawn as overfitting.png.
@@ -241,8 +242,8 @@ def curve(runs: Mapping[Any, Mapping[int, Row]], name: str,
 
 
 def final_values(rows: Sequence[Row], random_state: np.random.RandomState,
-                 resamples: int, motions: Optional[str] = None
-                 ) -> List[Entry]:
+                 resamples: int, motions: Optional[str] = None,
+                 window: int = 1) -> List[Entry]:
   """The final values of each (task, agent).
 
   Args:
@@ -250,16 +251,27 @@ def final_values(rows: Sequence[Row], random_state: np.random.RandomState,
     random_state: the bootstrap's random numbers.
     resamples: bootstrap resamples.
     motions: the rows' motions side (None: runs without splits).
+    window: each seed's value is the mean of its last `window` evaluations
+      that every seed reached (1: the last one alone); a single
+      evaluation of 10 episodes is noisy.
 
   Returns:
     Per (task, agent): the last step every seed reached, the seeds, and
     the Summary of FINAL_KEYS and SAFETY_KEYS there (None where missing).
+
+  Raises:
+    ValueError: window is not a positive integer.
   """
+  if int(window) != window or window < 1:
+    raise ValueError(f'window: expected a positive number of evaluations, '
+                     f'got {window!r}')
   table = []
   for (task, agent), runs in _groups(rows, motions).items():
     entry = {'task': task, 'agent': agent, 'seeds': len(runs)}
     for name in FINAL_KEYS + SAFETY_KEYS:
-      found = curve(runs, name, random_state, resamples)
+      found = (curve(runs, name, random_state, resamples) if window == 1
+               else _window_mean(runs, name, int(window), random_state,
+                                 resamples))
       if found is None:
         entry[name] = None
         continue
@@ -269,6 +281,24 @@ def final_values(rows: Sequence[Row], random_state: np.random.RandomState,
                             float(summary.high[-1]))
     table.append(entry)
   return table
+
+
+def _window_mean(runs, name, window, random_state, resamples):
+  """`curve`'s result at its last step for the mean of each seed's last
+  `window` evaluations every seed reached (the steps: the last one)."""
+  steps = sorted(set.intersection(*(set(r) for r in runs.values())))
+  if not steps:
+    return None
+  values = [[runs[seed][step][name] for step in steps[-window:]]
+            for seed in sorted(runs)]
+  if any(v is None for seed in values for v in seed):
+    return None
+  mean, low, high = statistics.bootstrap_ci(
+      np.mean(np.array(values, dtype=float), axis=1), random_state,
+      num_resamples=resamples)
+  return np.array(steps[-1:]), Summary(np.atleast_1d(mean),
+                                       np.atleast_1d(low),
+                                       np.atleast_1d(high))
 
 
 def draw(rows: Sequence[Row], grid: grids_lib.Grid, root: str, name: str,
@@ -450,8 +480,8 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
              final: Sequence[Entry], missing: Mapping[str, str],
              overfitting: Mapping[str, Sequence[Entry]],
              cost: Mapping[str, Mapping[str, float]],
-             normalisation: Mapping[str, Tuple[float, Optional[float]]]
-             ) -> str:
+             normalisation: Mapping[str, Tuple[float, Optional[float]]],
+             window: int = 1) -> str:
   """report.md's text.
 
   Args:
@@ -463,6 +493,8 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
       splits).
     cost: of `evaluation_cost`.
     normalisation: {task: (R_min, R_expert or None)}.
+    window: the evaluations each seed's final value averages
+      (`final_values`).
 
   Returns:
     The markdown.
@@ -476,8 +508,11 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
            + f'), robot {grid.robot}, SAC preset {grid.config}; commit '
            f'{record.get("commit")}.', '',
            '## Final values', '',
-           'At the last evaluation every seed reached: mean [95 % bootstrap '
-           'CI] over seeds.', '',
+           ('At the last evaluation every seed reached: mean [95 % '
+            'bootstrap CI] over seeds.' if window == 1 else
+            f'Each seed\'s mean over its last {window} evaluations that '
+            'every seed reached (up to the step shown): mean [95 % '
+            'bootstrap CI] over seeds.'), '',
            '| task | agent | seeds | step | success | normalised return | '
            'return |' + ''.join(f' {SAFETY_HEADERS[k]} |' for k in safety),
            '|---|---|---|---|---|---|---|' + '---|' * len(safety)]
@@ -528,7 +563,8 @@ def _jsonable(entry):
 
 def report(root: str, out: Optional[str] = None, seed: int = 0,
            resamples: int = statistics.DEFAULT_RESAMPLES, plots: bool = True,
-           minima: Optional[Mapping[str, float]] = None) -> Dict[str, Any]:
+           minima: Optional[Mapping[str, float]] = None,
+           final_window: int = 1) -> Dict[str, Any]:
   """Writes the report of a sweep.
 
   Args:
@@ -539,6 +575,8 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
     plots: draw the figures.
     minima: {task: R_min} of the normalised return (default: each task's
       `task_minimum`).
+    final_window: the evaluations each seed's final value averages
+      (`final_values`' window).
 
   Returns:
     {'rows', 'final', 'missing', 'overfitting', 'cost', 'normalisation',
@@ -558,11 +596,11 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
   rows, missing = evaluation_rows(root, grid, minima)
   motions = SEEN if grid.splits else None
   final = final_values(rows, np.random.RandomState(seed), resamples,
-                       motions)
+                       motions, final_window)
   overfitting = {}
   if grid.splits:
     overfitting = {side: final_values(rows, np.random.RandomState(seed),
-                                      resamples, side)
+                                      resamples, side, final_window)
                    for side in (SEEN, UNSEEN)}
   cost = evaluation_cost([r for r in rows if r['motions'] == motions])
   paths = []
@@ -604,7 +642,7 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
   finally:
     logger.close()
   text = markdown(grid, record, final, missing, overfitting, cost,
-                  normalisation)
+                  normalisation, final_window)
   with open(os.path.join(out, 'report.md'), 'w') as f:
     f.write(text)
   paths += [evaluations, final_csv, os.path.join(out, 'report.md')]
@@ -630,6 +668,9 @@ def define_flags(flag_values: flags.FlagValues = flags.FLAGS) -> None:
                        'Bootstrap resamples.', flag_values=fv)
   flags.DEFINE_integer('seed', 0, 'Seed of the bootstrap resampling.',
                        flag_values=fv)
+  flags.DEFINE_integer('final_window', 1, 'Final values: each seed\'s mean '
+                       'over its last this many evaluations (1: the last).',
+                       flag_values=fv)
   flags.DEFINE_string('json', None, 'Also write every evaluation row here '
                       '(e.g. docs/results/paper_grid.json).', flag_values=fv)
 
@@ -654,7 +695,8 @@ def main(argv: Sequence[str],
   if f.sweep is None:
     raise app.UsageError('--sweep is required: a sweep directory')
   try:
-    result = report(f.sweep, f.out, f.seed, f.resamples)
+    result = report(f.sweep, f.out, f.seed, f.resamples,
+                    final_window=f.final_window)
   except ValueError as e:
     print(f'agents.report: {e}', file=sys.stderr)
     return 2

@@ -207,3 +207,38 @@ def test_cost_limits_are_those_of_the_constrained_runs():
   assert report.cost_limits(grid.replace(agents=('sac_shield',)),
                             'reach/dense') == []
   assert report.cost_limits(grids.get('paper_reduced'), 'reach/dense') == []
+
+
+def test_final_values_over_a_window_of_evaluations(tmp_path):
+  """--final_window=2: each seed's mean over its last two common
+  evaluations, then the bootstrap over seeds."""
+  grid = grids.get('smoke').replace(name='window', seeds=(0, 1),
+                                    agents=('sac',), steps=100,
+                                    eval_every=50)
+  _sweep(str(tmp_path), grid)
+  for run in grid.runs():
+    # Seed 0: success 0.2 at 50, 0.6 at 100 (mean 0.4); seed 1: 0.4, 1.0
+    # (mean 0.7). Returns -150 then -50 (mean -100) for both.
+    success = [(0.2, 0.6), (0.4, 1.0)][run.seed]
+    _write_run(str(tmp_path), run, {'eval.csv': [
+        (0, 0.0, -200.0), (50, success[0], -150.0),
+        (100, success[1], -50.0)]})
+  result = report.report(str(tmp_path), str(tmp_path / 'out'),
+                         resamples=1000, minima={'reach/dense': _MIN_RETURN},
+                         final_window=2)
+  sac = result['final'][0]
+  assert sac['step'] == 100
+  assert sac['success']['mean'] == pytest.approx(0.55)
+  # Two seeds: resamples of (0.4, 0.4), (0.4, 0.7), (0.7, 0.7).
+  assert sac['success']['low'] == pytest.approx(0.4)
+  assert sac['success']['high'] == pytest.approx(0.7)
+  assert sac['return']['mean'] == pytest.approx(-100.0)
+  text = open(tmp_path / 'out' / 'report.md').read()
+  assert 'mean over its last 2 evaluations' in text
+  # The last evaluation alone, as before: 0.6 and 1.0.
+  last = report.report(str(tmp_path), str(tmp_path / 'out1'),
+                       resamples=1000, minima={'reach/dense': _MIN_RETURN})
+  assert last['final'][0]['success']['mean'] == pytest.approx(0.8)
+  with pytest.raises(ValueError, match='window: expected a positive'):
+    report.report(str(tmp_path), str(tmp_path / 'out0'), resamples=10,
+                  minima={'reach/dense': _MIN_RETURN}, final_window=0)
