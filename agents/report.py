@@ -24,6 +24,8 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   contacts per 10^3 RL steps and shield interventions per episode; where
   runs have a cost, cost.png draws it like the success, with the
   constrained runs' cost limits dotted.
+* training.csv and report.md's "During training": where runs log a cost,
+  what their training episodes cost (`agents.training_safety`).
 
 Normalised return (the paper's): (R - R_min) / (R_expert - R_min), R_min
 the task reward's lowest possible episode return without collision
@@ -47,6 +49,7 @@ import numpy as np
 from agents import grids as grids_lib
 from agents import logging as logging_lib
 from agents import sweep_layout as layout
+from agents import training_safety
 from hrc_suite import statistics
 from hrc_suite import suite
 
@@ -481,7 +484,7 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
              overfitting: Mapping[str, Sequence[Entry]],
              cost: Mapping[str, Mapping[str, float]],
              normalisation: Mapping[str, Tuple[float, Optional[float]]],
-             window: int = 1) -> str:
+             window: int = 1, training: Sequence[str] = ()) -> str:
   """report.md's text.
 
   Args:
@@ -495,6 +498,8 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
     normalisation: {task: (R_min, R_expert or None)}.
     window: the evaluations each seed's final value averages
       (`final_values`).
+    training: the lines of the section on training's safety
+      (`training_safety.markdown`).
 
   Returns:
     The markdown.
@@ -530,6 +535,7 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
   for task, (low, best) in normalisation.items():
     expert = '-' if best is None else f'{best:.2f}'
     lines.append(f'| {task} | {low:.2f} | {expert} |')
+  lines += list(training)
   if overfitting:
     lines += ['', '## Seen against unseen motions', '',
               '| task | agent | motions | runs | step | success | '
@@ -579,7 +585,7 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
       (`final_values`' window).
 
   Returns:
-    {'rows', 'final', 'missing', 'overfitting', 'cost', 'normalisation',
+    {'rows', 'final', 'training', 'missing', 'overfitting', 'cost', 'normalisation',
     'paths'}.
 
   Raises:
@@ -641,12 +647,27 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
       logger.write(flat, entry.get('step', ''))
   finally:
     logger.close()
+  training_rows, left_out = training_safety.training_rows(root, grid)
+  training = training_safety.summary(
+      training_rows, np.random.RandomState(seed), resamples)
+  if training_rows:
+    training_csv = os.path.join(out, 'training.csv')
+    with open(training_csv, 'w') as f:   # One row per run.
+      columns = list(training_rows[0])
+      f.write(','.join(columns) + '\n')
+      for row in training_rows:
+        f.write(','.join('' if row[c] is None else str(row[c])
+                         for c in columns) + '\n')
+    paths.append(training_csv)
   text = markdown(grid, record, final, missing, overfitting, cost,
-                  normalisation, final_window)
+                  normalisation, final_window, training_safety.markdown(
+                      training, {a: grid.label_of(a) for a in grid.agents},
+                      left_out))
   with open(os.path.join(out, 'report.md'), 'w') as f:
     f.write(text)
   paths += [evaluations, final_csv, os.path.join(out, 'report.md')]
   return {'rows': rows, 'final': [_jsonable(e) for e in final],
+          'training': training,
           'missing': missing, 'normalisation': normalisation,
           'overfitting': {k: [_jsonable(e) for e in v]
                           for k, v in overfitting.items()},
