@@ -19,10 +19,9 @@ pointed at the person); Cartesian actions keep the task's hold yaw.
 
 The task's person holds the hammer compliantly and aims at the nail head
 (tasks/runtime/tool_hold.py), so blows land on the nail as impulses and the
-board stays in the 40 N grip (before, a weld to the kinematic hand pressed the
-board with kilonewtons after each blow: after 10-40 blows some boards had
-turned ~45 deg and fell, and clip hammering_07's blows landed 1-3 cm beside
-the nail). Measured results are in docs/tasks.md (hammering).
+board stays in the 40 N grip (a rigid weld to the kinematic hand would press
+the board with kilonewtons after each blow and turn it out of the grip).
+Measured results are in docs/tasks.md (hammering).
 """
 
 from typing import Mapping
