@@ -197,13 +197,14 @@ def outcome_line(robot: str, policy: str,
   critical, outside = _critical_episodes(done)
   parts = [f'{robot} {policy}: success {successes}/{len(results)}']
   if done:
-    parts.append('length ' + f"{np.mean([r['metrics']['steps'] for r in done]):.0f}"
-                 ' steps')
+    length = np.mean([r['metrics']['steps'] for r in done])
+    parts.append(f'length {length:.0f} steps')
     parts.append(f'critical contacts in {critical}')
     if outside:
       parts.append(f'outside the human model in {outside}')
-    parts += [f'{what} ' + f"{np.mean([r['metrics'].get(name) or 0 for r in done]):.0f}"
-              for name, what in EPISODE_COLUMNS]
+    for name, what in EPISODE_COLUMNS:
+      mean = np.mean([r['metrics'].get(name) or 0 for r in done])
+      parts.append(f'{what} {mean:.0f}')
   errors = [r['error'] for r in results if r['error']]
   if errors:
     parts.append(f'{len(errors)} error(s), first: {errors[0]}')
