@@ -22,7 +22,7 @@ import math
 import os
 import pathlib
 import zipfile
-from typing import Any, Callable, Mapping, Optional, Union
+from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
 from dm_control import composer
 from dm_control.composer.observation import observable as observable_lib
@@ -572,10 +572,17 @@ class Episode:
       raise DatasetError(f'{self.path}: snapshot {step}: {e}') from e
 
 
-class _Episodes:
-  """A lazy sequence of Episode objects."""
+class EpisodeSequence:
+  """The episodes of a dataset, each loaded when first read
+  (`Dataset.episodes`): len(), indexing (negative too) and iteration.
 
-  def __init__(self, directory, entries):
+  Args:
+    directory: the dataset folder.
+    entries: dataset.json's episode entries (each with its 'file').
+  """
+
+  def __init__(self, directory: pathlib.Path,
+               entries: Sequence[Mapping[str, Any]]):
     self._directory = directory
     self._entries = entries
     self._cache = {}
@@ -583,7 +590,7 @@ class _Episodes:
   def __len__(self):
     return len(self._entries)
 
-  def __getitem__(self, index):
+  def __getitem__(self, index: int) -> 'Episode':
     if not -len(self) <= index < len(self):
       raise IndexError(f'episode {index} of a dataset with {len(self)}')
     index %= len(self)
@@ -611,7 +618,7 @@ class Dataset:
                metadata: Mapping[str, Any]):
     self.directory = pathlib.Path(directory)
     self.metadata = metadata
-    self.episodes = _Episodes(self.directory, metadata['episodes'])
+    self.episodes = EpisodeSequence(self.directory, metadata['episodes'])
 
   def snapshot(self, episode: int, step: int) -> dict[str, Any]:
     """Nested task state of an episode at a timestep (set_state).
