@@ -29,7 +29,9 @@ dataset is completed. A run's steps may grow between starts (--steps);
 any other change of the grid is refused (a new --out is a new sweep). A
 worker that dies (killed, out of memory) is retried --max_retries times;
 a run that raises is reported (its error.json) and the others go on; the
-command exits with status 1 if any run failed.
+command exits with status 1 if any run failed. Ctrl-C or SIGTERM (a
+scheduler's preemption, `kill`) stops it the same way: runs resume from
+their checkpoints when the command starts again.
 
 Progress is printed every --report_every seconds: runs done, running and
 left, steps, the recent rate and the estimated time to finish.
@@ -38,6 +40,7 @@ left, steps, the recent rate and the estimated time to finish.
 import dataclasses
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -60,6 +63,8 @@ RESUMABLE_CHANGES = ('steps',)
 CONNECT_TIMEOUT_S = 10
 # Exit status after Ctrl-C: 128 + SIGINT, the shells' convention.
 INTERRUPTED_STATUS = 130
+# After SIGTERM: 128 + SIGTERM.
+TERMINATED_STATUS = 143
 
 # Grid fields whose flags take lists, integers, JSON or plain strings.
 _LIST_FIELDS = ('tasks', 'agents')
@@ -617,7 +622,7 @@ def main(argv: Sequence[str],
 
   Returns:
     The exit status: 0, 1 where runs failed, 2 on bad settings,
-    INTERRUPTED_STATUS after Ctrl-C.
+    INTERRUPTED_STATUS after Ctrl-C, TERMINATED_STATUS after SIGTERM.
 
   Raises:
     app.UsageError: arguments, or bad or missing flags.
@@ -634,6 +639,12 @@ def main(argv: Sequence[str],
   if f.dry_run:
     dry_run(f.out, grid)
     return 0
+  terminated = []
+  def stop(signum, frame):   # SIGTERM: stop as Ctrl-C does.
+    del signum, frame
+    terminated.append(True)
+    raise KeyboardInterrupt
+  previous = signal.signal(signal.SIGTERM, stop)
   try:
     failures = run_sweep(f.out, grid, ray_address=f.ray_address,
                          num_cpus=f.num_cpus, cpus_per_run=f.cpus_per_run,
@@ -644,10 +655,12 @@ def main(argv: Sequence[str],
     print(f'agents.sweep: {e}', file=sys.stderr)
     return 2
   except KeyboardInterrupt:
-    print('[sweep] interrupted: finished runs are kept and the others '
-          'resume from their last checkpoint when the same command starts '
-          'again', file=sys.stderr)
-    return INTERRUPTED_STATUS
+    print(f'[sweep] {"terminated" if terminated else "interrupted"}: '
+          'finished runs are kept and the others resume from their last '
+          'checkpoint when the same command starts again', file=sys.stderr)
+    return TERMINATED_STATUS if terminated else INTERRUPTED_STATUS
+  finally:
+    signal.signal(signal.SIGTERM, previous)
   if failures:
     print(f'[sweep] {len(failures)} failed: {", ".join(failures)} (their '
           'error.json); start the command again to retry them',

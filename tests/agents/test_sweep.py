@@ -99,6 +99,23 @@ def test_ctrl_c_says_how_to_resume(tmp_path, monkeypatch, capsys):
   assert 'resume from their last checkpoint when the same command starts '\
       'again' in capsys.readouterr().err
 
+def test_sigterm_stops_the_sweep_as_ctrl_c_does(tmp_path, monkeypatch,
+                                               capsys):
+  """A scheduler's SIGTERM (or `kill`) ends the sweep with 128 + 15 and
+  the way to resume; the process's own SIGTERM handling comes back."""
+  def terminated(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(30)   # The handler interrupts this.
+    raise AssertionError('SIGTERM did not stop the sweep')
+  monkeypatch.setattr(sweep, 'run_sweep', terminated)
+  before = signal.getsignal(signal.SIGTERM)
+  status = sweep.main(['sweep'], _flags('--grid=smoke', f'--out={tmp_path}'))
+  assert status == sweep.TERMINATED_STATUS == 143
+  assert '[sweep] terminated: finished runs are kept' in (
+      capsys.readouterr().err)
+  assert signal.getsignal(signal.SIGTERM) is before
+
+
 def _raises_interrupt_inside_a_call():
   try:
     raise KeyboardInterrupt
