@@ -585,8 +585,8 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
       (`final_values`' window).
 
   Returns:
-    {'rows', 'final', 'training', 'missing', 'overfitting', 'cost', 'normalisation',
-    'paths'}.
+    {'rows', 'final', 'training', 'missing', 'overfitting', 'cost',
+    'normalisation', 'paths'}.
 
   Raises:
     ValueError: a directory that holds no sweep.
