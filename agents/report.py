@@ -35,6 +35,7 @@ grid's task (the sweep's shared/experts/<task>.json).
 """
 
 import collections
+import csv
 import json
 import math
 import os
@@ -652,12 +653,10 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
       training_rows, np.random.RandomState(seed), resamples)
   if training_rows:
     training_csv = os.path.join(out, 'training.csv')
-    with open(training_csv, 'w') as f:   # One row per run.
-      columns = list(training_rows[0])
-      f.write(','.join(columns) + '\n')
-      for row in training_rows:
-        f.write(','.join('' if row[c] is None else str(row[c])
-                         for c in columns) + '\n')
+    with open(training_csv, 'w', newline='') as f:   # One row per run.
+      writer = csv.DictWriter(f, fieldnames=list(training_rows[0]))
+      writer.writeheader()
+      writer.writerows(training_rows)
     paths.append(training_csv)
   text = markdown(grid, record, final, missing, overfitting, cost,
                   normalisation, final_window, training_safety.markdown(
