@@ -64,7 +64,26 @@ def _check_tool_capsule(tool_capsule):
 
 
 class RobotReach:
-  """Capsules of a robot (plus tool), batched FK, reachable capsules."""
+  """Capsules of a robot (plus tool), batched FK, reachable capsules.
+
+  Attributes:
+    kernel_model: (rotations and translations of the fixed transforms, the
+      base pose folded into the first (dof, 3, 4); homogeneous capsule end
+      points (L, 2, 4)), the robot model as the compiled kernels
+      (hrc_suite/safety/kernels.py) take it.
+    kernel_frames: (L,) int64, the joint frame each capsule moves with.
+    kernel_alpha: (L,) float64, alpha_i: the bound on ||d^2p/ds^2|| of
+      each capsule's points (the module docstring).
+    kernel_static: (L,) float64, capsule radius plus the secure radius.
+    kernel_radii: (L,) float64, capsule radii.
+    kernel_levers: (dof, L), joint_levers(): the end points' distances
+      from each joint's axis origin.
+    kernel_half_lengths: (L,) half the capsules' segment lengths.
+
+  The kernel arrays are contiguous, built once, and read-only by
+  convention: the compiled kernels and the shield's cycle constants share
+  them.
+  """
 
   def __init__(self, description, base_pose=None, tool_capsule=None,
                secure_radius=None, alpha=None):
@@ -114,18 +133,18 @@ class RobotReach:
                        f'{self.num_capsules} values, got {alpha.tolist()}')
     self.alpha = alpha
     self._static_radius = self.radii + self.secure_radius   # (L,)
-    # Contiguous float64 / int64 arguments of the compiled kernels.
-    self._kernel_model = (np.ascontiguousarray(fixed[:, :3]),
-                          np.ascontiguousarray(self._points))
-    self._kernel_frames = np.ascontiguousarray(self.frame_index,
-                                               dtype=np.int64)
-    self._kernel_alpha = np.ascontiguousarray(self.alpha, dtype=float)
-    self._kernel_static = np.ascontiguousarray(self._static_radius,
-                                               dtype=float)
-    self._kernel_radii = np.ascontiguousarray(self.radii, dtype=float)
+    # The compiled kernels' arguments (the class docstring).
+    self.kernel_model = (np.ascontiguousarray(fixed[:, :3]),
+                         np.ascontiguousarray(self._points))
+    self.kernel_frames = np.ascontiguousarray(self.frame_index,
+                                              dtype=np.int64)
+    self.kernel_alpha = np.ascontiguousarray(self.alpha, dtype=float)
+    self.kernel_static = np.ascontiguousarray(self._static_radius,
+                                              dtype=float)
+    self.kernel_radii = np.ascontiguousarray(self.radii, dtype=float)
     # The swept broad phase's motion bounds (kernels.swept_balls_gap).
-    self._kernel_levers = np.ascontiguousarray(self.joint_levers())
-    self._kernel_half_lengths = 0.5 * np.linalg.norm(p2 - p1, axis=-1)
+    self.kernel_levers = np.ascontiguousarray(self.joint_levers())
+    self.kernel_half_lengths = 0.5 * np.linalg.norm(p2 - p1, axis=-1)
 
   def joint_levers(self, with_radius=False):
     """(dof, L): lever[k, l] >= the distance of capsule l's end points
@@ -202,9 +221,9 @@ class RobotReach:
                        f'and s_edges (K+1,) with K >= 1, got {q_edges.shape} '
                        f'and {s_edges.shape}')
     if compiled:
-      return kernels.robot_reach(q_edges, s_edges, *self._kernel_model,
-                                 self._kernel_frames, self._kernel_alpha,
-                                 self._kernel_static)
+      return kernels.robot_reach(q_edges, s_edges, *self.kernel_model,
+                                 self.kernel_frames, self.kernel_alpha,
+                                 self.kernel_static)
     ends = self._endpoints(self._chain(q_edges))           # (K+1, L, 2, 3)
     start, end = ends[:-1], ends[1:]
     centres = 0.5 * (start + end)
@@ -233,8 +252,8 @@ class RobotReach:
     if compiled:
       out = kernels.surface_speeds(
           np.ascontiguousarray(q.reshape(-1, self.dof)),
-          np.ascontiguousarray(dq), *self._kernel_model,
-          self._kernel_frames, self._kernel_radii)
+          np.ascontiguousarray(dq), *self.kernel_model,
+          self.kernel_frames, self.kernel_radii)
       return out.reshape(batch + (self.num_capsules,))
     chain = self._chain(q.reshape(-1, self.dof))
     frames = chain[:, :self.dof]

@@ -154,7 +154,7 @@ def test_every_hit_is_left_unproven(name):
   rng = np.random.RandomState(2)
   run = prevention_lib.SWEEP_RUN
   count_l, count_b = prevention.num_capsules, len(prevention.box_names)
-  fixed, points = prevention.reach._kernel_model
+  fixed, points = prevention.reach.kernel_model
   proven = unproven_runs = hits = 0
   for plan in _plans(prevention, rng, 24):
     _, _, q, reach = collision_kernels.sweep_samples(
@@ -170,13 +170,13 @@ def test_every_hit_is_left_unproven(name):
       centre = (first + stop) // 2
       collision_kernels.run_motion(q, reach, first, stop, centre, motion)
       ends = kernels._endpoints(kernels._frames(q[centre:centre + 1], fixed),
-                                points, prevention.reach._kernel_frames)
+                                points, prevention.reach.kernel_frames)
       box_todo = np.empty(count_b * count_l, dtype=np.int64)
       pair_todo = np.empty(len(prevention.pairs), dtype=np.int64)
       boxes, count = bounds.unproven(
           ends[0], prevention_lib._lever_sum(motion, prevention.levers)[0],
           prevention_lib._lever_sum(motion, prevention._pair_levers)[0],
-          prevention._kernel_radii, prevention.box_min, prevention.box_max,
+          prevention.reach.kernel_radii, prevention.box_min, prevention.box_max,
           prevention._box_checked, prevention._box_allowance,
           prevention._kernel_pairs, box_todo, pair_todo)
       box_open = np.zeros(count_b * count_l, dtype=bool)

@@ -192,10 +192,10 @@ def test_swept_balls_gap_bounds_the_reach_capsules_test(name, tool):
                                  base_pose=(0.1, -0.2, 0.7, 0.1, 0.2, 0.3))
   limits = description.limits
   rng = np.random.RandomState(5)
-  fixed, points = robot._kernel_model
-  rest = (points, robot._kernel_frames, robot._kernel_alpha,
-          robot._kernel_static, robot._kernel_levers,
-          robot._kernel_half_lengths)
+  fixed, points = robot.kernel_model
+  rest = (points, robot.kernel_frames, robot.kernel_alpha,
+          robot.kernel_static, robot.kernel_levers,
+          robot.kernel_half_lengths)
 
   def gap(q, s, centre, radius, stop=-np.inf):
     frames = kernels._frames(q[:1], fixed)[0]   # One forward kinematics.
@@ -340,7 +340,7 @@ def test_plan_speed_tables_equal_tables_of_surface_speeds(name, tool):
   robot = robot_reach.RobotReach(description, tool_capsule=tool,
                                  base_pose=(0.1, -0.2, 0.7, 0.1, 0.2, 0.3))
   limits = description.limits
-  rotations = robot._kernel_model[0][:, :, :3]   # Rigid frames (the bound).
+  rotations = robot.kernel_model[0][:, :, :3]   # Rigid frames (the bound).
   np.testing.assert_allclose(rotations @ rotations.transpose(0, 2, 1),
                              np.broadcast_to(np.eye(3), rotations.shape),
                              rtol=0, atol=1e-12)
@@ -353,8 +353,8 @@ def test_plan_speed_tables_equal_tables_of_surface_speeds(name, tool):
     expected = shield_lib.pfl_speed_tables(
         robot.surface_speeds(plan.q, plan.dq))
     got = speed_kernels.plan_speed_tables(
-        plan._all(), *robot._kernel_model, robot._kernel_frames,
-        robot._kernel_radii, shield_lib.PFL_WINDOW)
+        plan._all(), *robot.kernel_model, robot.kernel_frames,
+        robot.kernel_radii, shield_lib.PFL_WINDOW)
     for got_table, expected_table in zip(got, expected):
       np.testing.assert_array_equal(got_table, expected_table)
   # Random states: each capsule is the fastest somewhere (the skipped
@@ -366,8 +366,8 @@ def test_plan_speed_tables_equal_tables_of_surface_speeds(name, tool):
   assert len(set(speeds.argmax(axis=1).tolist())) > 1
   for got_table, expected_table in zip(
       speed_kernels.plan_speed_tables(
-          samples, *robot._kernel_model, robot._kernel_frames,
-          robot._kernel_radii, shield_lib.PFL_WINDOW),
+          samples, *robot.kernel_model, robot.kernel_frames,
+          robot.kernel_radii, shield_lib.PFL_WINDOW),
       shield_lib.pfl_speed_tables(speeds)):
     np.testing.assert_array_equal(got_table, expected_table)
 
@@ -388,8 +388,8 @@ def test_plan_speed_tables_across_block_edges(count):
   expected = shield_lib.pfl_speed_tables(
       robot.surface_speeds(samples[:, 0], samples[:, 1]))
   got = speed_kernels.plan_speed_tables(
-      samples, *robot._kernel_model, robot._kernel_frames,
-      robot._kernel_radii, shield_lib.PFL_WINDOW)
+      samples, *robot.kernel_model, robot.kernel_frames,
+      robot.kernel_radii, shield_lib.PFL_WINDOW)
   for got_table, expected_table in zip(got, expected):
     assert got_table.tobytes() == expected_table.tobytes()
 

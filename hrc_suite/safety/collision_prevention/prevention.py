@@ -240,13 +240,13 @@ class CollisionPrevention:
     self._setup_pairs(int(exclusion_samples), seed)
     # The compiled plan sweep's fixed groups (collision_kernels), as it takes
     # them (kernels.as_fields).
-    fixed, points = self.reach._kernel_model
+    fixed, points = self.reach.kernel_model
     self._sweep_groups = kernels.as_fields((
         collision_kernels.SweepSettings(
             self.levers, self._kernel_pair_levers, self.max_step,
             _REFINE_OFFSETS, REFINE_LEVELS, SWEEP_RUN),
         collision_kernels.RobotCapsules(
-            fixed, points, self.reach._kernel_frames, self._kernel_radii),
+            fixed, points, self.reach.kernel_frames, self.reach.kernel_radii),
         collision_kernels.CollisionTests(
             self.box_min, self.box_max, self._box_checked,
             self._box_allowance, self._kernel_pairs)))
@@ -322,7 +322,6 @@ class CollisionPrevention:
     # Contiguous arguments of the compiled check
     # (`collision_kernels.colliding`).
     self._kernel_pairs = np.ascontiguousarray(self.pairs, dtype=np.int64)
-    self._kernel_radii = np.ascontiguousarray(self.reach.radii, dtype=float)
     self._kernel_pair_levers = np.ascontiguousarray(self._pair_levers)
     self._no_box_mask = np.zeros((0, 0, 0), dtype=bool)
     self._no_pair_mask = np.zeros((0, 0), dtype=bool)
@@ -350,8 +349,8 @@ class CollisionPrevention:
       # An empty mask stands for "none" (the kernel's convention).
       return empty if x is None else np.require(x, bool, ('C', 'W'))
     return collision_kernels.colliding(
-        np.ascontiguousarray(q, dtype=float), *self.reach._kernel_model,
-        self.reach._kernel_frames, self._kernel_radii,
+        np.ascontiguousarray(q, dtype=float), *self.reach.kernel_model,
+        self.reach.kernel_frames, self.reach.kernel_radii,
         margin(capsule_margin, (count, self.num_capsules)),
         margin(pair_margin, pairs), self.box_min, self.box_max,
         self._box_checked, self._box_allowance, self._kernel_pairs,

@@ -158,16 +158,16 @@ def kernel_constants(terms: CycleTerms,
           error_pos=float(config.measurement_error_pos),
           error_vel=float(config.measurement_error_vel),
           delay=float(config.delay),
-          min_period=human_reach_lib._MIN_SAMPLE_PERIOD,
+          min_period=human_reach_lib.MIN_SAMPLE_PERIOD,
           same=SAME_COMMAND, slack=BROAD_PHASE_SLACK, rest=REST_TOLERANCE),
       joints=cycle_kernels.JointTerms(*arrays(
           terms.den_offset, terms.acc_numerator, terms.jerk_numerator,
           terms.jerk_acc, terms.q_min, terms.q_max, limits.a_max_ltt,
           terms.clip)),
       robot=cycle_kernels.RobotModel(
-          *robot._kernel_model, robot._kernel_frames, robot._kernel_alpha,
-          robot._kernel_static, robot._kernel_levers,
-          robot._kernel_half_lengths, *arrays(terms.base)),
+          *robot.kernel_model, robot.kernel_frames, robot.kernel_alpha,
+          robot.kernel_static, robot.kernel_levers,
+          robot.kernel_half_lengths, *arrays(terms.base)),
       human=cycle_kernels.HumanModel(
-          human._kernel_v_max, human._kernel_a_max, terms.body_ends,
-          human._kernel_ends, *arrays(terms.half_thickness)))
+          human.kernel_v_max, human.kernel_a_max, terms.body_ends,
+          human.kernel_ends, *arrays(terms.half_thickness)))

@@ -41,7 +41,7 @@ DEFAULT_MODEL_PATH = (pathlib.Path(__file__).resolve().parents[2] / 'assets' /
 _MIN_SPEED = 1e-12
 # Sample periods below this (s) do not update velocities
 # (docs/shield_maths.md, 8.1).
-_MIN_SAMPLE_PERIOD = 1e-7
+MIN_SAMPLE_PERIOD = 1e-7
 
 POS, VEL, ACCEL = 0, 1, 2
 
@@ -210,7 +210,18 @@ def combined_balls(p, v, v_max, a_max, t):
 
 
 class HumanReach:
-  """Human measurements in, reachable body capsules out."""
+  """Human measurements in, reachable body capsules out.
+
+  Attributes:
+    kernel_ends: (2B,) int64, the keypoint ends of every body, proximal
+      ends then distal ends.
+    kernel_v_max, kernel_a_max: (K,) float64, the keypoints' maximal speeds
+      and accelerations (HumanModelConfig).
+    half_thickness: (B,) half of every body's thickness.
+
+  These arrays are contiguous, built once, and read-only by convention:
+  the compiled kernels and the shield's cycle constants share them.
+  """
 
   def __init__(self, config=None, use_kalman_filter=False,
                use_combined_model=None):
@@ -229,7 +240,7 @@ class HumanReach:
     # Keypoint ends of every body: proximal then distal, (2B,).
     self._ends = np.array([index[b.proximal] for b in config.bodies] +
                           [index[b.distal] for b in config.bodies])
-    self._half_thickness = np.array([b.thickness / 2 for b in config.bodies])
+    self.half_thickness = np.array([b.thickness / 2 for b in config.bodies])
     # Extremities: which bodies each covers, chain keypoints for the length.
     body_index = {b.name: i for i, b in enumerate(config.bodies)}
     self._ext_base = np.array([index[e.base] for e in config.extremities],
@@ -248,9 +259,9 @@ class HumanReach:
                         for e in config.extremities]
     self._ext_chains = [self._chain(e) for e in config.extremities]
     # Contiguous arguments of the compiled velocity-model kernel.
-    self._kernel_ends = np.ascontiguousarray(self._ends, dtype=np.int64)
-    self._kernel_v_max = np.ascontiguousarray(config.v_max, dtype=float)
-    self._kernel_a_max = np.ascontiguousarray(config.a_max, dtype=float)
+    self.kernel_ends = np.ascontiguousarray(self._ends, dtype=np.int64)
+    self.kernel_v_max = np.ascontiguousarray(config.v_max, dtype=float)
+    self.kernel_a_max = np.ascontiguousarray(config.a_max, dtype=float)
     # Caches derived from the record: the extremity lengths of its
     # length positions, the velocity errors of a sample period.
     self._lengths = (None, None)
@@ -391,7 +402,7 @@ class HumanReach:
     if dt < 0:
       raise ValueError(f'measurement time {t} is before the previous one '
                        f'({state.last_measurement_time}); call reset() first')
-    if dt < _MIN_SAMPLE_PERIOD:
+    if dt < MIN_SAMPLE_PERIOD:
       return dataclasses.replace(state, positions=keypoints.copy())
     covariance = state.covariance
     if self.use_kalman_filter:
@@ -449,7 +460,7 @@ class HumanReach:
     keypoints = np.asarray(keypoints, dtype=float)
     ends = keypoints[..., self._ends, :]
     b = self.num_bodies
-    return ends[..., :b, :], ends[..., b:, :], self._half_thickness
+    return ends[..., :b, :], ends[..., b:, :], self.half_thickness
 
   def _velocity_error(self):
     error = self.config.measurement_error_vel
@@ -507,9 +518,9 @@ class HumanReach:
             dtype=float))   # A writeable copy: one kernel signature.
       error_vel = self._error_vel[1]
       c1, c2, r = kernels.human_velocity_capsules(
-          self.positions, self.velocities, self._kernel_v_max,
-          self._kernel_a_max, t, self.config.measurement_error_pos,
-          error_vel, self._kernel_ends, self._half_thickness,
+          self.positions, self.velocities, self.kernel_v_max,
+          self.kernel_a_max, t, self.config.measurement_error_pos,
+          error_vel, self.kernel_ends, self.half_thickness,
           self.use_combined_model)
       if self.use_combined_model:
         return c1[None], c2[None], r[None]
@@ -520,7 +531,7 @@ class HumanReach:
       vel_radius, centre, radius = self.keypoint_balls(t)
     # VEL balls grow about a fixed centre: the t_b ball encloses the t_a one.
     vel_r = vel_radius[1:, ends]                                  # (K, 2B)
-    vel_r = np.maximum(vel_r[:, :b], vel_r[:, b:]) + self._half_thickness
+    vel_r = np.maximum(vel_r[:, :b], vel_r[:, b:]) + self.half_thickness
     vel_ends = np.broadcast_to(self.positions[ends], (k, 2 * b, 3))
     if compiled and self.has_velocity:
       pass   # The velocity model's capsules come from the kernel above.
@@ -531,7 +542,7 @@ class HumanReach:
                                      radius[1:])                  # (K, N)
       kp_centre = c[:, ends]
       r = r[:, ends]
-      kp_r = np.maximum(r[:, :b], r[:, b:]) + self._half_thickness
+      kp_r = np.maximum(r[:, :b], r[:, b:]) + self.half_thickness
     if self.use_combined_model:
       return (kp_centre[None, :, :b], kp_centre[None, :, b:], kp_r[None])
     centres = np.empty((3, k, 2 * b, 3))

@@ -113,12 +113,12 @@ class PathCheck:
     # (one forward kinematics instead of one per edge; a lower bound of
     # the test below, so it settles only cycles that test settles).
     model = self._robot
-    fixed, points = model._kernel_model
+    fixed, points = model.kernel_model
     bound = kernels.swept_balls_gap(
         q_edges, np.asarray(s_edges, dtype=float),
         kernels._frames(q_edges[:1], fixed)[0], points,
-        model._kernel_frames, model._kernel_alpha, model._kernel_static,
-        model._kernel_levers, model._kernel_half_lengths, centre, radius,
+        model.kernel_frames, model.kernel_alpha, model.kernel_static,
+        model.kernel_levers, model.kernel_half_lengths, centre, radius,
         _BROAD_PHASE_SLACK) - _BROAD_PHASE_SLACK
     if bound > 0.0:
       return result(True, -1, bound)

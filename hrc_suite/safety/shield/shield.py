@@ -578,10 +578,10 @@ class Shield:
       else:   # NumPy reference: tests/safety/safety_references.py.
         human = self.human
         self._lazy['distance'] = float(kernels.capsules_min_distance(
-            self._state.command[0], *self.robot._kernel_model,
-            self.robot._kernel_frames, self.robot._kernel_radii,
+            self._state.command[0], *self.robot.kernel_model,
+            self.robot.kernel_frames, self.robot.kernel_radii,
             np.ascontiguousarray(human.positions, dtype=float),
-            human._kernel_ends, human._half_thickness))
+            human.kernel_ends, human.half_thickness))
     return self._lazy['distance']
 
   # -------------------------------------------------------------- snapshots
@@ -828,8 +828,8 @@ class Shield:
     robot = self.robot   # pfl_speed_tables(surface_speeds(q, dq)):
     return plan.derived('pfl_speed_tables', robot,
                         lambda: speed_kernels.plan_speed_tables(
-                            plan.samples(), *robot._kernel_model,
-                            robot._kernel_frames, robot._kernel_radii,
+                            plan.samples(), *robot.kernel_model,
+                            robot.kernel_frames, robot.kernel_radii,
                             PFL_WINDOW))
 
   # ------------------------------------------------------- energy PFL

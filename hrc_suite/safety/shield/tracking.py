@@ -120,8 +120,8 @@ class TrackingBounds:
     """
     q, reference = self._joint_pair(q, reference)
     robot = self._robot
-    return float(kernels.tracking_error(q, reference, *robot._kernel_model,
-                                        robot._kernel_frames))
+    return float(kernels.tracking_error(q, reference, *robot.kernel_model,
+                                        robot.kernel_frames))
 
   def _joint_pair(self, q, reference):
     q = np.asarray(q, dtype=float)

@@ -459,7 +459,7 @@ class CompiledSteps:
     self._mujoco = Mujoco(
         model._address, data._address, physics.data.warning.number,
         np.zeros(physics.data.warning.number.shape, np.int32))
-    fixed, points = robot_reach._kernel_model
+    fixed, points = robot_reach.kernel_model
     self.record = StepRecord(
         command_dq, np.zeros_like(step_flags), step_flags, contact_steps,
         np.zeros(1), np.zeros(1, dtype=bool), np.zeros(1))
@@ -471,7 +471,7 @@ class CompiledSteps:
         TrackingCheck(q_measured,
                       np.ascontiguousarray(tracking_levers, dtype=float),
                       float(tracking_tolerance), fixed, points,
-                      robot_reach._kernel_frames),
+                      robot_reach.kernel_frames),
         memory.layout(), monitor.tables, self.record))
     self._no_writes = kernels.as_fields(StepWrites(
         np.zeros(0), np.zeros(0, dtype=np.int64),

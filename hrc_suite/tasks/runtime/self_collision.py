@@ -35,6 +35,7 @@ class SelfCollision:
     self._no_masks = (np.zeros((0, 0, 0), dtype=bool),
                       np.zeros((0, 0), dtype=bool))
     self._q = np.zeros((1, checker.dof))
+    self._pairs = np.ascontiguousarray(checker.pairs, dtype=np.int64)
 
   def __call__(self, q):
     """True if configuration q (dof,) self-collides."""
@@ -46,9 +47,9 @@ class SelfCollision:
     self._q[0] = q
     reach = checker.reach
     return bool(collision_kernels.colliding(
-        self._q, *reach._kernel_model, reach._kernel_frames,
-        checker._kernel_radii, *self._margins, *self._no_boxes,
-        checker._kernel_pairs, *self._no_masks)[0])
+        self._q, *reach.kernel_model, reach.kernel_frames,
+        reach.kernel_radii, *self._margins, *self._no_boxes,
+        self._pairs, *self._no_masks)[0])
 
   def reference(self, q):
     """The NumPy reference: signed capsule distances of the pairs."""
