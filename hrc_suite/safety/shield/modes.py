@@ -35,7 +35,7 @@ with a check of its own: "A compiled verification"):
 Tasks, rendering, tags and the binaries' flags ask `names()` / `get()`.
 """
 
-from typing import Any, NamedTuple, Optional, Protocol, Tuple, Type, TypeVar
+from typing import NamedTuple, Optional, Protocol, Tuple, Type, TypeVar
 
 import numpy as np
 
@@ -47,6 +47,7 @@ from hrc_suite.safety.shield import energy_check_kernels
 from hrc_suite.safety.shield import energy_setup
 from hrc_suite.safety.shield import energy_verification
 from hrc_suite.safety.shield import mode_kernels
+from hrc_suite.safety.shield import path as path_lib
 
 # PFL: speeds are compared with this fraction of v_safe. Surface speeds are
 # taken at the plan's samples; between samples (2 ms either side) they change
@@ -98,9 +99,9 @@ class Slices(NamedTuple):
   (path_check.PathCheck.verify): K slices (the current step, then the
   failsafe's) and their K + 1 edges; the compiled twin is
   mode_kernels.Slices."""
-  plan: Any          # long_term_plan.LongTermPlan the path is on.
-  current: Any       # path.Path at the cycle's start.
-  failsafe: Any      # path.Path of the failsafe.
+  plan: ltp.LongTermPlan   # The plan the path is on.
+  current: path_lib.Path   # The path at the cycle's start.
+  failsafe: path_lib.Path  # The failsafe's path.
   times: list        # (K) failsafe times of the edges after the first.
   s_edges: list      # (K + 1) plan times of the edges.
   pieces: list       # failsafe.segments().
