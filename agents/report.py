@@ -25,7 +25,8 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   runs have a cost, cost.png draws it like the success, with the
   constrained runs' cost limits dotted.
 * training.csv and report.md's "During training": where runs log a cost,
-  what their training episodes cost (`agents.training_safety`).
+  what their training episodes cost, over the whole run and by quarter of
+  its budget (`agents.training_safety`).
 
 Normalised return (the paper's): (R - R_min) / (R_expert - R_min), R_min
 the task reward's lowest possible episode return without collision
@@ -653,7 +654,8 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
       training_rows, np.random.RandomState(seed), resamples)
   if training_rows:
     training_csv = os.path.join(out, 'training.csv')
-    with open(training_csv, 'w', newline='') as f:   # One row per run.
+    # One row per run and quarter (training_safety.training_rows).
+    with open(training_csv, 'w', newline='') as f:
       writer = csv.DictWriter(f, fieldnames=list(training_rows[0]))
       writer.writeheader()
       writer.writerows(training_rows)

@@ -51,8 +51,8 @@ def test_training_totals_and_rates_equal_a_hand_computation(tmp_path):
                and r['seed'] == 1)
   assert seed1['steps'] == 400 and seed1['episodes'] == 2
   assert seed1['cost'] == 8.0 and seed1['critical_contacts'] == 4.0
-  entries = {e['agent']: e for e in training_safety.summary(
-      rows, np.random.RandomState(0), 1000)}
+  summary = training_safety.summary(rows, np.random.RandomState(0), 1000)
+  entries = {e['agent']: e for e in summary if e['quarter'] == 'all'}
   lag = entries['sac_lag_off']
   # Per 10^3 steps: cost 4/400 -> 10, 8/400 -> 20; critical 3/400 -> 7.5,
   # 4/400 -> 10.
@@ -64,11 +64,23 @@ def test_training_totals_and_rates_equal_a_hand_computation(tmp_path):
   assert entries['sac_shield']['critical_contacts']['mean'] == 0.0
   assert entries['sac_shield']['shield_interventions'][
       'mean'] == pytest.approx(30.0)
-  lines = training_safety.markdown(
-      list(entries.values()), {'sac_lag_off': 'SAC-Lagrangian, no shield'},
-      left_out)
+  lines = '\n'.join(training_safety.markdown(
+      summary, {'sac_lag_off': 'SAC-Lagrangian, no shield'}, left_out))
   assert ('| reach/dense | SAC-Lagrangian, no shield | 2 | 400 | '
-          '15.00 [10.00, 20.00] | 8.75 [7.50, 10.00] |') in '\n'.join(lines)
+          '15.00 [10.00, 20.00] | 8.75 [7.50, 10.00] |') in lines
+  # By quarter of the 400-step budget: the 100-step episode ends in the
+  # first quarter, the 300-step one (steps 101-400) in the last; the
+  # second and third have none. Cost per 10^3 steps: quarter 1 3/100 and
+  # 5/100 -> 30, 50; quarter 4 1/300 and 3/300 -> 3.33, 10.
+  quarters = {e['quarter']: e for e in summary
+              if e['agent'] == 'sac_lag_off'}
+  assert sorted(quarters, key=str) == [1, 4, 'all']
+  assert quarters[1]['steps'] == 100 and quarters[4]['steps'] == 300
+  assert quarters[1]['cost']['mean'] == pytest.approx(40.0)
+  assert quarters[4]['cost']['low'] == pytest.approx(10 / 3)
+  assert quarters[4]['cost']['high'] == pytest.approx(10.0)
+  assert ('| reach/dense | SAC-Lagrangian, no shield | 40.00 [30.00, 50.00] '
+          '| - | - | 6.67 [3.33, 10.00] |') in lines
 
 
 def test_runs_without_a_cost_are_left_out(tmp_path):
