@@ -23,7 +23,8 @@ Reads a sweep directory (`agents.sweep_layout`), finished or still running
   (runs whose task has one, hrc_suite/tasks/runtime/cost.py), critical human
   contacts per 10^3 RL steps and shield interventions per episode; where
   runs have a cost, cost.png draws it like the success, with the
-  constrained runs' cost limits dotted.
+  constrained runs' cost limits dotted; report.md's "Keeping the cost
+  limit" counts the evaluations within them (`agents.limit_keeping`).
 * training.csv and report.md's "During training": where runs log a cost,
   what their training episodes cost, over the whole run and by quarter of
   its budget (`agents.training_safety`).
@@ -49,6 +50,7 @@ from absl import flags
 import numpy as np
 
 from agents import grids as grids_lib
+from agents import limit_keeping
 from agents import logging as logging_lib
 from agents import sweep_layout as layout
 from agents import training_safety
@@ -354,7 +356,7 @@ def draw(rows: Sequence[Row], grid: grids_lib.Grid, root: str, name: str,
       axis.axhline(reference, color='k', linestyle='--', linewidth=1,
                    label='expert')
     if name == 'cost':
-      for limit in cost_limits(grid, task):
+      for limit in limit_keeping.cost_limits(grid, task):
         axis.axhline(limit, color='k', linestyle=':', linewidth=1,
                      label=f'cost limit {limit:g}')
     axis.set_title(task)
@@ -380,22 +382,6 @@ def _save(figure, path):
     figure.savefig(name, dpi=110)
   plt.close(figure)
   return written
-
-
-def cost_limits(grid: grids_lib.Grid, task: str) -> List[float]:
-  """The per-episode cost limits the grid's constrained runs of a task
-  keep (their `cost_limit` override, docs/safe_rl.md).
-
-  Args:
-    grid: the grid.
-    task: 'domain/task'.
-
-  Returns:
-    The distinct limits, ascending (empty: no run of the task has one).
-  """
-  return sorted({float(run.run_config['overrides']['cost_limit'])
-                 for run in grid.runs() if run.task == task
-                 and 'cost_limit' in (run.run_config.get('overrides') or {})})
 
 
 def _expert_reference(root, task, name):
@@ -486,7 +472,7 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
              overfitting: Mapping[str, Sequence[Entry]],
              cost: Mapping[str, Mapping[str, float]],
              normalisation: Mapping[str, Tuple[float, Optional[float]]],
-             window: int = 1, training: Sequence[str] = ()) -> str:
+             window: int = 1, sections: Sequence[str] = ()) -> str:
   """report.md's text.
 
   Args:
@@ -500,8 +486,9 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
     normalisation: {task: (R_min, R_expert or None)}.
     window: the evaluations each seed's final value averages
       (`final_values`).
-    training: the lines of the section on training's safety
-      (`training_safety.markdown`).
+    sections: the lines of the sections after the final values (keeping
+      the cost limit, `limit_keeping.markdown`; training's safety,
+      `training_safety.markdown`).
 
   Returns:
     The markdown.
@@ -537,7 +524,7 @@ def markdown(grid: grids_lib.Grid, record: Mapping[str, Any],
   for task, (low, best) in normalisation.items():
     expert = '-' if best is None else f'{best:.2f}'
     lines.append(f'| {task} | {low:.2f} | {expert} |')
-  lines += list(training)
+  lines += list(sections)
   if overfitting:
     lines += ['', '## Seen against unseen motions', '',
               '| task | agent | motions | runs | step | success | '
@@ -660,15 +647,18 @@ def report(root: str, out: Optional[str] = None, seed: int = 0,
       writer.writeheader()
       writer.writerows(training_rows)
     paths.append(training_csv)
+  labels = {a: grid.label_of(a) for a in grid.agents}
+  limits = limit_keeping.kept_limits(
+      [r for r in rows if r['motions'] == motions], grid)
   text = markdown(grid, record, final, missing, overfitting, cost,
-                  normalisation, final_window, training_safety.markdown(
-                      training, {a: grid.label_of(a) for a in grid.agents},
-                      left_out))
+                  normalisation, final_window,
+                  limit_keeping.markdown(limits, labels)
+                  + training_safety.markdown(training, labels, left_out))
   with open(os.path.join(out, 'report.md'), 'w') as f:
     f.write(text)
   paths += [evaluations, final_csv, os.path.join(out, 'report.md')]
   return {'rows': rows, 'final': [_jsonable(e) for e in final],
-          'training': training,
+          'limits': limits, 'training': training,
           'missing': missing, 'normalisation': normalisation,
           'overfitting': {k: [_jsonable(e) for e in v]
                           for k, v in overfitting.items()},

@@ -195,18 +195,14 @@ def test_safety_columns_and_variant_labels(tmp_path):
   assert '| reach/dense | SAC, shield | 2 | 100 |' in text
   assert '| reach/dense | SAC-Lagrangian, no shield | 2 | 100 |' in text
   assert os.path.getsize(tmp_path / 'out' / 'cost.png') > 0
-
-
-def test_cost_limits_are_those_of_the_constrained_runs():
-  grid = grids.get('safe_rl')
-  assert report.cost_limits(grid, 'reach/dense') == [
-      grids.SAFE_RL_LIMITS['reach/dense']]
-  assert report.cost_limits(grid, 'pick_place/default') == [
-      grids.SAFE_RL_LIMITS['pick_place/default']]
-  # SAC with the shield alone: no limit to draw.
-  assert report.cost_limits(grid.replace(agents=('sac_shield',)),
-                            'reach/dense') == []
-  assert report.cost_limits(grids.get('paper_reduced'), 'reach/dense') == []
+  # Keeping reach's limit of 1 per episode: the step-100 evaluations cost
+  # 2 and 3 (shield) and 6 (no shield, seed 1 with a critical contact).
+  assert ('| reach/dense | SAC, shield | 1 | 2 | 0 of 2 | 0 of 2 | 0 of 2 |'
+          in text)
+  assert ('| reach/dense | SAC-Lagrangian, no shield | 1 | 2 | 0 of 2 | '
+          '0 of 2 | 1 of 2 |') in text
+  assert {e['agent']: e['kept'] for e in result['limits']} == {
+      'sac_shield': 0, 'sac_lag_off': 0}
 
 
 def test_final_values_over_a_window_of_evaluations(tmp_path):
