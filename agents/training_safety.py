@@ -6,7 +6,7 @@ against being kept safe"). The evaluations (`agents.report`) judge the
 policies; this module judges training itself, from each run's train.csv
 (one row per training episode, `agents.train`): the safety cost, critical
 human contacts and shield interventions summed over all the episodes the
-run trained on, per 10^3 RL steps.
+run trained on, and over each quarter of its budget, per 10^3 RL steps.
 
 train.csv is a run's local log (sweeps keep it out of git): runs without
 one, or whose task has no cost, are left out and named.
